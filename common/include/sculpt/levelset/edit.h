@@ -1,0 +1,136 @@
+/// @brief Deformation edits on a Sculpture: press (seed 000 ch. 5), CSG add/subtract, smooth,
+/// inflate/deflate, with volume compensation, local reinitialisation and an islands policy.
+#ifndef SCULPT_LEVELSET_EDIT_H_
+#define SCULPT_LEVELSET_EDIT_H_
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "sculpt/core/status.h"
+#include "sculpt/levelset/dense_field.h"
+#include "sculpt/levelset/kernels.h"
+#include "sculpt/levelset/sculpture.h"
+#include "sculpt/levelset/tool.h"
+
+namespace sculpt::levelset {
+
+enum class EditKind : uint8_t {
+  kPress = 0,     // move the surface inward inside the tool until the tool holds no material
+  kAdd = 1,       // CSG union with the tool
+  kSubtract = 2,  // CSG difference with the tool
+  kSmooth = 3,    // mean-curvature flow inside the tool
+  kInflate = 4,   // normal offset outward inside the tool by `amount`
+  kDeflate = 5,   // normal offset inward inside the tool by `amount`
+};
+const char* EditKindName(EditKind kind);
+
+/// Where lost or added volume is restored (seed 000 ch. 5, Algorithm 2).
+enum class CompensationRegion : uint8_t {
+  kNone = 0,
+  kShell = 1,   // a band around the tool (clay bulging around a finger); cost follows the edit
+  kGlobal = 2,  // the whole interface outside the tool, as the thesis; walks the whole grid
+};
+/// How the compensation step is computed.
+enum class CompensationMethod : uint8_t {
+  kNewton = 0,               // offset d = (c - Vol) / Area, iterated (digest §3.3, §8)
+  kGradientDescentDelta = 1, // phi += dt (Vol - c) delta_eps(phi) chi (seed 000 eq. 5.6, corrected)
+  kGradientDescentGrad = 2,  // phi += dt (Vol - c) |grad phi| chi (seed 000 eq. 5.8, corrected)
+};
+enum class IslandPolicy : uint8_t {
+  kKeep = 0,         // report pieces split off, keep them
+  kRemoveSmall = 1,  // remove pieces below min_island_volume and re-baseline the reference
+};
+
+/// Scene-level choices for edits (the effects the scene calls for).
+struct EditSettings {
+  MotionSettings motion{SpatialScheme::kWeno5, TemporalScheme::kRk2, Boundary::kClamp};
+  /// CFL number for every substep (phi moves at most cfl voxels per substep).
+  double cfl = 0.5;
+  CompensationRegion compensation = CompensationRegion::kShell;
+  CompensationMethod compensation_method = CompensationMethod::kNewton;
+  /// Shell outer distance from the tool surface, in tool radii (at least 3 voxels).
+  double shell_radii = 1.0;
+  /// Stop compensating when |c - Vol| <= tolerance * c.
+  double compensation_tolerance = 2e-6;
+  int max_compensation_iterations = 6;
+  /// Pseudo time step of the gradient-descent forms (in voxels per unit of volume error,
+  /// scaled by 1/Area internally so it is dimensionless; 1 = one Newton step).
+  double gradient_descent_dt = 0.5;
+  /// Reinitialise the edited region when the mean Eikonal error there exceeds this.
+  double reinit_eikonal_threshold = 0.15;
+  /// Also reinitialise every k edits (0 = only by the threshold).
+  int reinit_every_k = 0;
+  int reinit_iterations = 4;
+  IslandPolicy islands = IslandPolicy::kKeep;
+  /// Pieces below this volume (world units^3) are removed under kRemoveSmall.
+  double min_island_volume = 0;
+  /// Accepted tool sizes, in voxels.
+  double min_tool_voxels = 0.5;
+  double max_tool_voxels = 64;
+  /// Largest press speed, in voxels per unit time.
+  double max_speed_voxels = 1e4;
+  /// Largest inflate/deflate amount, in voxels.
+  double max_amount_voxels = 32;
+};
+
+/// Returns InvalidArgument naming the field, the value and the range.
+Status ValidateEditSettings(const EditSettings& settings);
+
+/// One edit request (what a stroke sample asks for).
+struct EditRequest {
+  EditKind kind = EditKind::kPress;
+  ToolShape tool;
+  /// Press: tool speed in world units per unit time (>= 0; 0 moves nothing).
+  double speed = 1.0;
+  /// Press: time per step (the stroke sample interval). The press runs whole steps until the
+  /// tool holds no material.
+  double dt = 1.0;
+  /// Inflate/deflate: offset distance in world units. Smooth: flow time in voxel^2 units.
+  double amount = 1.0;
+};
+
+/// What an edit did.
+struct EditResult {
+  bool changed = false;
+  std::vector<Int3> dirty_leaves;
+  uint64_t changed_voxels = 0;
+  double volume_before = 0;
+  double volume_after = 0;
+  double reference_volume = 0;
+  int steps = 0;
+  int substeps = 0;
+  int compensation_iterations = 0;
+  /// (volume_after - reference) / reference, after compensation.
+  double compensation_residual = 0;
+  bool compensation_failed = false;  // no interface in the compensation region
+  int reinit_passes = 0;
+  double eikonal_error_before_reinit = 0;
+  int islands_found = 0;
+  int islands_removed = 0;
+  double island_volume_removed = 0;
+  bool press_fallback_csg = false;  // the flow stalled (no interface reached) and CSG finished it
+  double elapsed_ms = 0;
+};
+
+/// Applies one edit. Validates the request first (tool fields, speed, dt, amount): on a bad
+/// field returns InvalidArgument naming field, value and range and leaves the sculpture
+/// unchanged. Reads and writes only the leaves of the tool's influence box, the compensation
+/// shell and a stencil halo (except CompensationRegion::kGlobal). Deterministic.
+StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& request,
+                               const EditSettings& settings);
+
+/// Validates a request against settings and the sculpture (tool inside the object's bounds plus
+/// a margin of the tool size, sizes in range) without applying it.
+Status ValidateEditRequest(const Sculpture& sculpture, const EditRequest& request,
+                           const EditSettings& settings);
+
+/// Reinitialises the band inside a world box (seed 000 eq. 4.9 with the subcell fix), `iterations`
+/// pseudo-time steps; keeps the tracked volume exact. InvalidArgument for a non-finite or empty
+/// box or iterations outside [1, 100]. Returns the edit summary (dirty leaves, volumes).
+StatusOr<EditResult> ReinitializeRegion(Sculpture& sculpture, const Aabb& region, int iterations,
+                                        const MotionSettings& motion);
+
+}  // namespace sculpt::levelset
+
+#endif  // SCULPT_LEVELSET_EDIT_H_

@@ -1,0 +1,655 @@
+/// @brief Local deformation edits: copy the influence box (plus compensation shell and stencil
+/// halo) into a DenseField, run the seed 000 operators there, splice the changed voxels back.
+#include "sculpt/levelset/edit.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <sstream>
+
+#include "sculpture_impl.h"
+
+namespace sculpt::levelset {
+namespace {
+
+// WENO5 reads three voxels to each side; the write-back skips this margin, and every mask
+// below stays at least this far from the block border.
+constexpr int kStencilMargin = 3;
+constexpr int kBlockPad = kStencilMargin + 2;
+
+std::string Num(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+
+Status CheckRange(const std::string& field, double v, double lo, double hi) {
+  if (!std::isfinite(v)) return InvalidArgument(field + "=" + Num(v) + " is not finite");
+  if (v < lo || v > hi) {
+    return InvalidArgument(field + "=" + Num(v) + " outside [" + Num(lo) + ", " + Num(hi) + "]");
+  }
+  return Status::Ok();
+}
+
+double ToolScale(const ToolShape& t) {
+  switch (t.kind) {
+    case ToolKind::kSphere:
+    case ToolKind::kCapsule:
+      return t.size.x;
+    default:
+      return std::max({t.size.x, t.size.y, t.size.z});
+  }
+}
+
+// Everything one edit needs about its block.
+struct Block {
+  internal::IndexBox box;
+  DenseField before;
+  DenseField phi;
+  std::vector<float> tool_sdf;  // world units, per voxel
+  double dx = 1;
+  float bg = 1;
+  double eps = 1.5;
+  double inside_sum_before = 0;  // in voxels
+
+  bool Interior(int i, int j, int k) const {
+    const Int3 d = phi.dims();
+    return i >= kStencilMargin && j >= kStencilMargin && k >= kStencilMargin &&
+           i < d.x - kStencilMargin && j < d.y - kStencilMargin && k < d.z - kStencilMargin;
+  }
+  // Linear indices of interior voxels satisfying pred(index, tool_sdf).
+  template <typename Pred>
+  VoxelList Select(Pred pred) const {
+    VoxelList out;
+    const Int3 d = phi.dims();
+    for (int k = kStencilMargin; k < d.z - kStencilMargin; ++k) {
+      for (int j = kStencilMargin; j < d.y - kStencilMargin; ++j) {
+        for (int i = kStencilMargin; i < d.x - kStencilMargin; ++i) {
+          const size_t idx = phi.Index(i, j, k);
+          if (pred(idx, tool_sdf[idx])) out.push_back(static_cast<uint32_t>(idx));
+        }
+      }
+    }
+    return out;
+  }
+  void ClampToBand() {
+    for (float& v : phi.data()) v = std::clamp(v, -bg, bg);
+  }
+  double InsideSum() const { return internal::DenseInsideSum(phi, eps); }
+};
+
+Block MakeBlock(const Sculpture::Impl& impl, const ToolShape& tool, double reach) {
+  Block b;
+  b.dx = impl.dx();
+  b.bg = impl.background();
+  b.eps = 1.5 * b.dx;
+  const Aabb tb = ToolBounds(tool);
+  const Vec3 r{reach, reach, reach};
+  b.box = internal::WorldToIndexBox(tb.min - r, tb.max + r, b.dx, kBlockPad);
+  b.before = internal::ExtractDense(*impl.grid, b.box);
+  b.phi = b.before;
+  b.tool_sdf.resize(b.phi.size());
+  const Int3 o = b.box.min;
+  const Int3 d = b.phi.dims();
+  for (int k = 0; k < d.z; ++k) {
+    for (int j = 0; j < d.y; ++j) {
+      for (int i = 0; i < d.x; ++i) {
+        const Vec3 p{(o.x + i) * b.dx, (o.y + j) * b.dx, (o.z + k) * b.dx};
+        b.tool_sdf[b.phi.Index(i, j, k)] = static_cast<float>(ToolSignedDistance(tool, p));
+      }
+    }
+  }
+  b.inside_sum_before = b.InsideSum();
+  return b;
+}
+
+bool GammaHoldsMaterial(const Block& b, const VoxelList& gamma) {
+  for (uint32_t idx : gamma) {
+    if (b.phi.data()[idx] <= 0.f) return true;
+  }
+  return false;
+}
+
+// Moves the interface by normal speed F = scale * weight for time `time` on `active`, in CFL
+// substeps. Returns the number of substeps.
+int MoveNormal(Block& b, const std::vector<float>& weight, const VoxelList& active, double scale,
+               double time, const EditSettings& s) {
+  if (active.empty() || scale == 0 || time <= 0) return 0;
+  double wmax = 0;
+  for (uint32_t idx : active) wmax = std::max(wmax, static_cast<double>(std::abs(weight[idx])));
+  const double vmax = std::abs(scale) * wmax;
+  if (vmax == 0) return 0;
+  const int n = static_cast<int>(std::ceil(vmax * time / (s.cfl * b.dx) - 1e-9));
+  const int steps = std::max(1, n);
+  std::vector<float> speed(b.phi.size(), 0.f);
+  for (uint32_t idx : active) speed[idx] = static_cast<float>(scale * weight[idx]);
+  const double dt = time / steps;
+  for (int i = 0; i < steps; ++i) NormalMotionStep(b.phi, speed, active, dt, b.dx, s.motion);
+  return steps;
+}
+
+struct IslandReport {
+  int found = 0;
+  int removed = 0;
+  double removed_inside_voxels = 0;
+  bool removed_any = false;
+  VoxelList zone;  // voxels reset by a removal (to be reinitialised)
+};
+
+// Connected pieces of material (6-connectivity) that lie wholly inside the block are split off
+// from anything reaching outside it: any path to the rest of the object would cross the border.
+IslandReport FindIslands(Block& b, const EditSettings& s) {
+  IslandReport rep;
+  const Int3 d = b.phi.dims();
+  const size_t n = b.phi.size();
+  std::vector<int32_t> label(n, -1);
+  struct Piece {
+    double inside = 0;
+    bool touches_border = false;
+    std::vector<uint32_t> voxels;
+  };
+  std::vector<Piece> pieces;
+  std::vector<uint32_t> queue;
+  auto& data = b.phi.data();
+  for (size_t start = 0; start < n; ++start) {
+    if (data[start] >= 0.f || label[start] >= 0) continue;
+    const int id = static_cast<int>(pieces.size());
+    pieces.emplace_back();
+    Piece& p = pieces.back();
+    queue.assign(1, static_cast<uint32_t>(start));
+    label[start] = id;
+    for (size_t q = 0; q < queue.size(); ++q) {
+      const uint32_t idx = queue[q];
+      p.voxels.push_back(idx);
+      p.inside += InsideFraction(data[idx], b.eps);
+      const int i = static_cast<int>(idx % d.x);
+      const int j = static_cast<int>((idx / d.x) % d.y);
+      const int k = static_cast<int>(idx / (static_cast<size_t>(d.x) * d.y));
+      // A piece reaching into the stencil margin is not known to be cut off (and its margin
+      // voxels are not written back), so only pieces wholly inside the interior count.
+      if (!b.Interior(i, j, k)) p.touches_border = true;
+      const int nb[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+      for (const auto& o : nb) {
+        const int ii = i + o[0], jj = j + o[1], kk = k + o[2];
+        if (!b.phi.Contains(ii, jj, kk)) continue;
+        const size_t nidx = b.phi.Index(ii, jj, kk);
+        if (data[nidx] < 0.f && label[nidx] < 0) {
+          label[nidx] = id;
+          queue.push_back(static_cast<uint32_t>(nidx));
+        }
+      }
+    }
+  }
+  if (pieces.empty()) return rep;
+  bool any_border = false;
+  size_t largest = 0;
+  for (size_t i = 0; i < pieces.size(); ++i) {
+    any_border |= pieces[i].touches_border;
+    if (pieces[i].inside > pieces[largest].inside) largest = i;
+  }
+  std::vector<uint8_t> remove(pieces.size(), 0);
+  for (size_t i = 0; i < pieces.size(); ++i) {
+    if (pieces[i].touches_border) continue;
+    if (!any_border && i == largest) continue;  // the whole object is in the block
+    ++rep.found;
+    const double vol = pieces[i].inside * b.dx * b.dx * b.dx;
+    if (std::getenv("SCULPT_DEBUG_ISLANDS")) {
+      std::fprintf(stderr, "island: %zu voxels, inside %.3f voxels\n", pieces[i].voxels.size(),
+                   pieces[i].inside);
+    }
+    if (s.islands == IslandPolicy::kRemoveSmall && vol < s.min_island_volume) {
+      remove[i] = 1;
+      ++rep.removed;
+    }
+  }
+  if (rep.removed == 0) return rep;
+  // Distance (in 6-steps) to the material that stays, so the band of a removed piece is cleared
+  // only where no remaining surface is within the band.
+  const int hw = static_cast<int>(std::ceil(b.bg / b.dx)) + 1;
+  std::vector<int16_t> dist(n, static_cast<int16_t>(hw + 1));
+  queue.clear();
+  for (size_t idx = 0; idx < n; ++idx) {
+    if (data[idx] < 0.f && !remove[label[idx]]) {
+      dist[idx] = 0;
+      queue.push_back(static_cast<uint32_t>(idx));
+    }
+  }
+  for (size_t q = 0; q < queue.size(); ++q) {
+    const uint32_t idx = queue[q];
+    if (dist[idx] >= hw) continue;
+    const int i = static_cast<int>(idx % d.x);
+    const int j = static_cast<int>((idx / d.x) % d.y);
+    const int k = static_cast<int>(idx / (static_cast<size_t>(d.x) * d.y));
+    const int nb[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+    for (const auto& o : nb) {
+      const int ii = i + o[0], jj = j + o[1], kk = k + o[2];
+      if (!b.phi.Contains(ii, jj, kk)) continue;
+      const size_t nidx = b.phi.Index(ii, jj, kk);
+      if (dist[nidx] > dist[idx] + 1) {
+        dist[nidx] = static_cast<int16_t>(dist[idx] + 1);
+        queue.push_back(static_cast<uint32_t>(nidx));
+      }
+    }
+  }
+  const double before = b.InsideSum();
+  for (size_t i = 0; i < pieces.size(); ++i) {
+    if (!remove[i]) continue;
+    for (uint32_t idx : pieces[i].voxels) data[idx] = b.bg;
+  }
+  // Clear the positive side of the removed surfaces, and collect what needs reinitialising.
+  for (size_t idx = 0; idx < n; ++idx) {
+    const int i = static_cast<int>(idx % d.x);
+    const int j = static_cast<int>((idx / d.x) % d.y);
+    const int k = static_cast<int>(idx / (static_cast<size_t>(d.x) * d.y));
+    if (!b.Interior(i, j, k)) continue;
+    if (data[idx] >= 0.f && data[idx] < b.bg) {
+      if (dist[idx] > hw) {
+        data[idx] = b.bg;
+      } else {
+        rep.zone.push_back(static_cast<uint32_t>(idx));
+      }
+    }
+  }
+  rep.removed_inside_voxels = before - b.InsideSum();
+  rep.removed_any = true;
+  return rep;
+}
+
+// Weight of the compensation shell: zero inside the tool and a gap of 1.5 voxels around it (so
+// the restored volume does not grow back into the tool), one across the shell, zero again at its
+// outer edge, with 2-voxel smooth ramps so the bulge has no step.
+float ShellWeight(double s, double gap, double outer, double dx) {
+  auto smooth = [](double t) {
+    t = std::clamp(t, 0.0, 1.0);
+    return t * t * (3 - 2 * t);
+  };
+  if (s <= gap || s >= outer) return 0.f;
+  return static_cast<float>(smooth((s - gap) / (2 * dx)) * smooth((outer - s) / (2 * dx)));
+}
+
+struct CompensationOutcome {
+  int iterations = 0;
+  int substeps = 0;
+  bool failed = false;
+};
+
+// Shell compensation inside the block. `outside_sum` is the inside-voxel count of the grid
+// outside the block, so Vol = (outside_sum + block sum) dx^3 exactly as the tracked volume.
+CompensationOutcome CompensateShell(Block& b, double target, double outside_voxels,
+                                    double shell_outer, const EditSettings& s) {
+  CompensationOutcome out;
+  const double dx3 = b.dx * b.dx * b.dx;
+  std::vector<float> w(b.phi.size(), 0.f);
+  VoxelList shell = b.Select([&](size_t, float t) { return t > 1.5 * b.dx && t < shell_outer; });
+  for (uint32_t idx : shell) w[idx] = ShellWeight(b.tool_sdf[idx], 1.5 * b.dx, shell_outer, b.dx);
+  const double tol = s.compensation_tolerance * std::abs(target);
+  for (int it = 0; it < s.max_compensation_iterations; ++it) {
+    const double vol = (outside_voxels + b.InsideSum()) * dx3;
+    const double err = target - vol;
+    if (std::abs(err) <= tol) break;
+    double area = 0;  // weighted smoothed area, seed 000 eq. 5.7 delta
+    for (uint32_t idx : shell) area += w[idx] * SmoothedDelta(b.phi.data()[idx], b.eps) * dx3;
+    if (area < 1e-9 * b.dx * b.dx) {
+      out.failed = true;
+      break;
+    }
+    const double d = err / area;  // Newton step along the normal, world units (digest §3.3)
+    ++out.iterations;
+    switch (s.compensation_method) {
+      case CompensationMethod::kNewton: {
+        // Never move more than the band can represent in one go; the next iteration continues.
+        const double limit = 0.5 * b.bg;
+        const double step = std::clamp(d, -limit, limit);
+        out.substeps += MoveNormal(b, w, shell, step > 0 ? 1.0 : -1.0, std::abs(step), s);
+        break;
+      }
+      case CompensationMethod::kGradientDescentGrad: {
+        // Eq. 5.8 with the digest's sign: phi += tau (Vol - c) |grad phi| chi; tau scaled so the
+        // step is gradient_descent_dt Newton steps (a proportional controller).
+        const double step = s.gradient_descent_dt * d;
+        std::vector<float> speed(b.phi.size(), 0.f);
+        for (uint32_t idx : shell) speed[idx] = static_cast<float>(step * w[idx]);
+        NormalMotionStep(b.phi, speed, shell, 1.0, b.dx, s.motion);
+        ++out.substeps;
+        break;
+      }
+      case CompensationMethod::kGradientDescentDelta: {
+        // Eq. 5.6 with the digest's sign: phi += tau (Vol - c) delta_eps(phi) chi.
+        const double tau = s.gradient_descent_dt * d * b.eps;
+        for (uint32_t idx : shell) {
+          float& v = b.phi.data()[idx];
+          v = static_cast<float>(v - tau * SmoothedDelta(v, b.eps) * w[idx]);
+        }
+        ++out.substeps;
+        break;
+      }
+    }
+    b.ClampToBand();
+  }
+  return out;
+}
+
+Status ValidateToolFor(const Sculpture& sc, const ToolShape& tool, const EditSettings& s) {
+  const double dx = sc.voxel_size();
+  SCULPT_RETURN_IF_ERROR(
+      levelset::ValidateTool(tool, s.min_tool_voxels * dx, s.max_tool_voxels * dx));
+  if (tool.kind == ToolKind::kCapsule) {
+    SCULPT_RETURN_IF_ERROR(CheckRange("tool.length", (tool.end - tool.center).Length(), 0,
+                                      4 * s.max_tool_voxels * dx));
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+const char* EditKindName(EditKind kind) {
+  switch (kind) {
+    case EditKind::kPress: return "press";
+    case EditKind::kAdd: return "add";
+    case EditKind::kSubtract: return "subtract";
+    case EditKind::kSmooth: return "smooth";
+    case EditKind::kInflate: return "inflate";
+    case EditKind::kDeflate: return "deflate";
+  }
+  return "unknown";
+}
+
+Status ValidateEditSettings(const EditSettings& s) {
+  SCULPT_RETURN_IF_ERROR(CheckRange("cfl", s.cfl, 0.05, 0.9));
+  SCULPT_RETURN_IF_ERROR(CheckRange("shell_radii", s.shell_radii, 0.25, 8));
+  SCULPT_RETURN_IF_ERROR(CheckRange("compensation_tolerance", s.compensation_tolerance, 0, 0.1));
+  SCULPT_RETURN_IF_ERROR(CheckRange("max_compensation_iterations",
+                                    s.max_compensation_iterations, 0, 1000));
+  SCULPT_RETURN_IF_ERROR(CheckRange("gradient_descent_dt", s.gradient_descent_dt, 1e-4, 4));
+  SCULPT_RETURN_IF_ERROR(CheckRange("reinit_eikonal_threshold", s.reinit_eikonal_threshold, 0, 10));
+  SCULPT_RETURN_IF_ERROR(CheckRange("reinit_every_k", s.reinit_every_k, 0, 1e6));
+  SCULPT_RETURN_IF_ERROR(CheckRange("reinit_iterations", s.reinit_iterations, 0, 100));
+  SCULPT_RETURN_IF_ERROR(CheckRange("min_island_volume", s.min_island_volume, 0, 1e30));
+  SCULPT_RETURN_IF_ERROR(CheckRange("min_tool_voxels", s.min_tool_voxels, 0.25, 1e3));
+  SCULPT_RETURN_IF_ERROR(CheckRange("max_tool_voxels", s.max_tool_voxels, s.min_tool_voxels, 1e3));
+  if (s.motion.spatial == SpatialScheme::kCentral) {
+    return InvalidArgument(
+        "motion.spatial=central outside {upwind, weno5}: central differences with explicit time "
+        "steps are unstable for hyperbolic motion (seed 000 §4.3); use them only to reproduce "
+        "the thesis");
+  }
+  return Status::Ok();
+}
+
+Status ValidateEditRequest(const Sculpture& sc, const EditRequest& r, const EditSettings& s) {
+  const int kind = static_cast<int>(r.kind);
+  if (kind < 0 || kind > static_cast<int>(EditKind::kDeflate)) {
+    return InvalidArgument("edit.kind=" + std::to_string(kind) + " outside [0, 5]");
+  }
+  SCULPT_RETURN_IF_ERROR(ValidateToolFor(sc, r.tool, s));
+  const double dx = sc.voxel_size();
+  SCULPT_RETURN_IF_ERROR(CheckRange("edit.speed", r.speed, 0, s.max_speed_voxels * dx));
+  SCULPT_RETURN_IF_ERROR(CheckRange("edit.dt", r.dt, 1e-6, 1e3));
+  if (r.kind == EditKind::kInflate || r.kind == EditKind::kDeflate) {
+    SCULPT_RETURN_IF_ERROR(CheckRange("edit.amount", r.amount, 0, s.max_amount_voxels * dx));
+  }
+  if (r.kind == EditKind::kSmooth) {
+    SCULPT_RETURN_IF_ERROR(CheckRange("edit.amount", r.amount, 0, 100));
+  }
+  // A tool far larger than the whole object is a unit mistake, not an edit.
+  const Aabb ob = sc.WorldBounds();
+  const double extent = std::max({ob.max.x - ob.min.x, ob.max.y - ob.min.y, ob.max.z - ob.min.z,
+                                  8 * dx});
+  const double scale = ToolScale(r.tool);
+  if (scale > 4 * extent) {
+    return InvalidArgument("tool.size=" + Num(scale) + " outside [" + Num(s.min_tool_voxels * dx) +
+                           ", " + Num(4 * extent) + "] (4x the object's extent)");
+  }
+  return Status::Ok();
+}
+
+StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
+                               const EditSettings& s) {
+  SCULPT_RETURN_IF_ERROR(ValidateEditSettings(s));
+  SCULPT_RETURN_IF_ERROR(ValidateEditRequest(sculpture, req, s));
+  const auto t0 = std::chrono::steady_clock::now();
+  Sculpture::Impl& impl = sculpture.impl();
+  EditResult res;
+  res.volume_before = impl.volume;
+  const double dx = impl.dx();
+  const double dx3 = dx * dx * dx;
+  const double scale = ToolScale(req.tool);
+  const bool compensate = (req.kind == EditKind::kPress || req.kind == EditKind::kSmooth) &&
+                          s.compensation != CompensationRegion::kNone;
+  const double shell_outer = std::max(3 * dx, s.shell_radii * scale) + 1.5 * dx;
+  const double reach =
+      (compensate && s.compensation == CompensationRegion::kShell ? shell_outer : 0) + 2 * dx +
+      (req.kind == EditKind::kAdd || req.kind == EditKind::kSubtract ? impl.background() : 0);
+
+  Block b = MakeBlock(impl, req.tool, reach);
+  const double outside_voxels = impl.volume / dx3 - b.inside_sum_before;
+  VoxelList gamma = b.Select([](size_t, float t) { return t < 0.f; });
+  std::vector<float> ones(b.phi.size(), 1.f);
+
+  bool touched = false;
+  switch (req.kind) {
+    case EditKind::kPress: {
+      // Seed 000 eq. 5.1 with the digest's sign: phi_t = v |grad phi| chi_Gamma, i.e. F = -v.
+      // Runs whole steps of the stroke interval, each in CFL substeps, until no voxel of Gamma
+      // holds material (the whole region is checked, not only the tool's boundary samples,
+      // which left islands in the thesis: digest claim 9).
+      if (req.speed <= 0 || !GammaHoldsMaterial(b, gamma)) break;
+      touched = true;
+      std::vector<float> speed(b.phi.size(), 0.f);
+      for (uint32_t idx : gamma) speed[idx] = static_cast<float>(-req.speed);
+      const double step_motion = req.speed * req.dt;
+      const int sub = std::max(1, static_cast<int>(std::ceil(step_motion / (s.cfl * dx) - 1e-9)));
+      const double dt_sub = req.dt / sub;
+      // The front needs at most the tool's diameter plus the band to leave Gamma.
+      const double max_motion = 2 * scale + 2 * b.bg + 2 * dx;
+      const int max_steps = static_cast<int>(std::ceil(max_motion / step_motion)) + 1;
+      bool empty = false;
+      for (int step = 0; step < max_steps && !empty; ++step) {
+        ++res.steps;
+        float max_change = 0;
+        for (int i = 0; i < sub; ++i) {
+          std::vector<float> prev;
+          prev.reserve(gamma.size());
+          for (uint32_t idx : gamma) prev.push_back(b.phi.data()[idx]);
+          NormalMotionStep(b.phi, speed, gamma, dt_sub, dx, s.motion);
+          ++res.substeps;
+          for (size_t g = 0; g < gamma.size(); ++g) {
+            max_change = std::max(max_change, std::abs(b.phi.data()[gamma[g]] - prev[g]));
+          }
+          if (!GammaHoldsMaterial(b, gamma)) {
+            empty = true;
+            break;
+          }
+        }
+        if (!empty && max_change < 1e-6f * static_cast<float>(dx)) break;  // stalled
+      }
+      if (!GammaHoldsMaterial(b, gamma)) break;
+      // No interface reaches the material left in Gamma (a tool wholly inside the band-clamped
+      // interior has zero gradient everywhere): finish with the CSG difference, which is where
+      // the flow would have converged.
+      res.press_fallback_csg = true;
+      for (uint32_t idx : gamma) {
+        b.phi.data()[idx] = std::max(b.phi.data()[idx], std::min(b.bg, -b.tool_sdf[idx]));
+      }
+      break;
+    }
+    case EditKind::kAdd:
+    case EditKind::kSubtract: {
+      const bool add = req.kind == EditKind::kAdd;
+      VoxelList all = b.Select([](size_t, float) { return true; });
+      for (uint32_t idx : all) {
+        const float t = std::clamp(b.tool_sdf[idx], -b.bg, b.bg);
+        float& v = b.phi.data()[idx];
+        v = add ? std::min(v, t) : std::max(v, -t);
+      }
+      touched = true;
+      break;
+    }
+    case EditKind::kSmooth: {
+      std::vector<float> w(b.phi.size(), 0.f);
+      VoxelList region = b.Select([](size_t, float t) { return t < 0.f; });
+      for (uint32_t idx : region) {
+        w[idx] = std::clamp(static_cast<float>(-b.tool_sdf[idx] / (2 * dx)), 0.f, 1.f);
+      }
+      const double dt = 0.9 * dx * dx / 6.0;
+      const int n = std::max(1, static_cast<int>(std::ceil(req.amount * dx * dx / dt - 1e-9)));
+      for (int i = 0; i < n && req.amount > 0; ++i) {
+        CurvatureFlowStep(b.phi, w, region, dt, dx);
+        ++res.substeps;
+      }
+      touched = req.amount > 0;
+      break;
+    }
+    case EditKind::kInflate:
+    case EditKind::kDeflate: {
+      std::vector<float> w(b.phi.size(), 0.f);
+      for (uint32_t idx : gamma) {
+        w[idx] = std::clamp(static_cast<float>(-b.tool_sdf[idx] / (2 * dx)), 0.f, 1.f);
+      }
+      const double sign = req.kind == EditKind::kInflate ? 1.0 : -1.0;
+      res.substeps += MoveNormal(b, w, gamma, sign, req.amount, s);
+      touched = req.amount > 0;
+      break;
+    }
+  }
+  b.ClampToBand();
+
+  double reference = impl.reference_volume;
+  VoxelList reinit_extra;
+  if (touched && (req.kind == EditKind::kPress || req.kind == EditKind::kSubtract)) {
+    IslandReport islands = FindIslands(b, s);
+    res.islands_found = islands.found;
+    res.islands_removed = islands.removed;
+    res.island_volume_removed = islands.removed_inside_voxels * dx3;
+    reference -= res.island_volume_removed;  // re-baseline: that clay is gone on purpose
+    reinit_extra = std::move(islands.zone);
+  }
+
+  // Local reinitialisation (seed 000 §4.4), triggered by the measured Eikonal error of the
+  // edited band (the tool region plus two voxels), or every k edits, never blindly.
+  if (touched) {
+    ++impl.edits_since_reinit;
+    VoxelList region = b.Select([&](size_t idx, float t) {
+      return t < 2 * dx && std::abs(b.phi.data()[idx]) < b.bg;
+    });
+    region.insert(region.end(), reinit_extra.begin(), reinit_extra.end());
+    std::sort(region.begin(), region.end());
+    region.erase(std::unique(region.begin(), region.end()), region.end());
+    const EikonalStats e = MeasureEikonal(b.phi, region, dx, 3 * dx);
+    res.eikonal_error_before_reinit = e.mean_abs_error;
+    const bool due = s.reinit_every_k > 0 &&
+                     impl.edits_since_reinit >= static_cast<uint64_t>(s.reinit_every_k);
+    if (s.reinit_iterations > 0 &&
+        (e.mean_abs_error > s.reinit_eikonal_threshold || due || !reinit_extra.empty())) {
+      MotionSettings m = s.motion;
+      res.reinit_passes = Reinitialize(b.phi, region, s.reinit_iterations, dx, m, 0.5);
+      impl.edits_since_reinit = 0;
+      b.ClampToBand();
+    }
+  }
+
+  // Compensation after reinitialisation, so nothing moves the interface it settled.
+  if (touched && compensate && s.compensation == CompensationRegion::kShell) {
+    CompensationOutcome c = CompensateShell(b, reference, outside_voxels, shell_outer, s);
+    res.compensation_iterations = c.iterations;
+    res.compensation_failed = c.failed;
+    res.substeps += c.substeps;
+  }
+
+  internal::WriteBackResult wb = internal::WriteBack(*impl.grid, b.before, b.phi, kStencilMargin);
+  res.changed = wb.changed_voxels > 0;
+  res.changed_voxels = wb.changed_voxels;
+  res.dirty_leaves = std::move(wb.dirty_leaves);
+  impl.volume = (outside_voxels + b.InsideSum()) * dx3;
+
+  if (touched && compensate && s.compensation == CompensationRegion::kGlobal) {
+    // The thesis's region: every interface voxel outside the tool (chi of Gamma's complement).
+    // This walks the whole grid by design; it exists to reproduce seed 000 §6.3.
+    auto& grid = *impl.grid;
+    const double gap = 1.5 * dx;
+    for (int it = 0; it < s.max_compensation_iterations; ++it) {
+      const double err = reference - impl.volume;
+      if (std::abs(err) <= s.compensation_tolerance * std::abs(reference)) break;
+      double area = 0;
+      for (auto v = grid.tree().cbeginValueOn(); v; ++v) {
+        const openvdb::Vec3d p = grid.indexToWorld(v.getCoord());
+        if (ToolSignedDistance(req.tool, Vec3{p.x(), p.y(), p.z()}) > gap) {
+          area += SmoothedDelta(*v, b.eps) * dx3;
+        }
+      }
+      if (area <= 0) {
+        res.compensation_failed = true;
+        break;
+      }
+      // A uniform normal offset of an SDF is phi - d (|grad phi| = 1); the band is not rebuilt
+      // (a tracker pass would move the interface again), values are kept within +-background.
+      const float d = static_cast<float>(std::clamp(err / area, -0.5 * b.bg, 0.5 * b.bg));
+      for (auto v = grid.tree().beginValueOn(); v; ++v) {
+        const openvdb::Vec3d p = grid.indexToWorld(v.getCoord());
+        if (ToolSignedDistance(req.tool, Vec3{p.x(), p.y(), p.z()}) > gap) {
+          v.setValue(std::clamp(*v - d, -b.bg, b.bg));
+        }
+      }
+      impl.volume = sculpture.ComputeVolume();
+      ++res.compensation_iterations;
+    }
+    res.changed = true;
+  }
+
+  if (req.kind == EditKind::kAdd || req.kind == EditKind::kSubtract ||
+      req.kind == EditKind::kInflate || req.kind == EditKind::kDeflate) {
+    // Material added or removed on purpose (islands included): the new volume is the one to keep.
+    reference = impl.reference_volume + (impl.volume - res.volume_before);
+  }
+  impl.reference_volume = reference;
+  res.reference_volume = reference;
+  res.volume_after = impl.volume;
+  res.compensation_residual = reference != 0 ? (impl.volume - reference) / reference : 0;
+  res.elapsed_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return res;
+}
+
+StatusOr<EditResult> ReinitializeRegion(Sculpture& sculpture, const Aabb& region, int iterations,
+                                        const MotionSettings& motion) {
+  if (!region.min.IsFinite() || !region.max.IsFinite()) {
+    return InvalidArgument("region is not finite");
+  }
+  if (region.max.x < region.min.x || region.max.y < region.min.y || region.max.z < region.min.z) {
+    return InvalidArgument("region is empty (max < min)");
+  }
+  SCULPT_RETURN_IF_ERROR(CheckRange("iterations", iterations, 1, 100));
+  if (motion.spatial == SpatialScheme::kCentral) {
+    return InvalidArgument("motion.spatial=central outside {upwind, weno5}");
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  Sculpture::Impl& impl = sculpture.impl();
+  const double dx = impl.dx();
+  const double dx3 = dx * dx * dx;
+  const Vec3 c = (region.min + region.max) * 0.5;
+  const ToolShape box = ToolShape::Box(c, (region.max - region.min) * 0.5 + Vec3{dx, dx, dx} * 0.5);
+  Block b = MakeBlock(impl, box, 0);
+  const double outside_voxels = impl.volume / dx3 - b.inside_sum_before;
+  VoxelList active = b.Select([&](size_t idx, float t) {
+    return t <= 0.f && std::abs(b.phi.data()[idx]) < b.bg;
+  });
+  EditResult res;
+  res.volume_before = impl.volume;
+  res.eikonal_error_before_reinit = MeasureEikonal(b.phi, active, dx, 3 * dx).mean_abs_error;
+  res.reinit_passes = Reinitialize(b.phi, active, iterations, dx, motion, 0.5);
+  b.ClampToBand();
+  internal::WriteBackResult wb = internal::WriteBack(*impl.grid, b.before, b.phi, kStencilMargin);
+  res.changed = wb.changed_voxels > 0;
+  res.changed_voxels = wb.changed_voxels;
+  res.dirty_leaves = std::move(wb.dirty_leaves);
+  impl.volume = (outside_voxels + b.InsideSum()) * dx3;
+  res.volume_after = impl.volume;
+  res.reference_volume = impl.reference_volume;
+  res.elapsed_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return res;
+}
+
+}  // namespace sculpt::levelset

@@ -1,0 +1,564 @@
+/// @brief Sculpture: primitives, file I/O, volume, state hash and the dense-region helpers.
+#include "sculpt/levelset/sculpture.h"
+
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <openvdb/io/File.h>
+#include <openvdb/tools/Diagnostics.h>
+#include <openvdb/tools/MeshToVolume.h>
+#include <openvdb/tools/Interpolation.h>
+#include <openvdb/tools/Prune.h>
+#include <openvdb/tools/SignedFloodFill.h>
+#include <openvdb/tools/VolumeToMesh.h>
+#include <xxhash.h>
+
+#include <algorithm>
+#include <assimp/Importer.hpp>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <mutex>
+#include <sstream>
+
+#include "sculpt/levelset/kernels.h"
+#include "sculpture_impl.h"
+
+namespace sculpt::levelset {
+namespace {
+
+using openvdb::Coord;
+using openvdb::FloatGrid;
+
+std::string Num(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+
+Status CheckRange(const std::string& field, double v, double lo, double hi) {
+  if (!std::isfinite(v)) return InvalidArgument(field + "=" + Num(v) + " is not finite");
+  if (v < lo || v > hi) {
+    return InvalidArgument(field + "=" + Num(v) + " outside [" + Num(lo) + ", " + Num(hi) + "]");
+  }
+  return Status::Ok();
+}
+
+Status CheckPoint(const std::string& field, const Vec3& p) {
+  if (!p.IsFinite()) {
+    return InvalidArgument(field + "=(" + Num(p.x) + ", " + Num(p.y) + ", " + Num(p.z) +
+                           ") is not finite");
+  }
+  return Status::Ok();
+}
+
+FloatGrid::Ptr NewGrid(const SculptureOptions& o) {
+  internal::EnsureOpenVdbInitialized();
+  const float bg = static_cast<float>(o.half_width * o.voxel_size);
+  FloatGrid::Ptr grid = FloatGrid::create(bg);
+  grid->setTransform(openvdb::math::Transform::createLinearTransform(o.voxel_size));
+  grid->setGridClass(openvdb::GRID_LEVEL_SET);
+  grid->setName(o.name);
+  return grid;
+}
+
+// Fills the narrow band of an exact SDF over a world box, then flood-fills the inside sign.
+// Leaf-sized blocks farther than the band plus their half-diagonal from the surface are skipped
+// (an SDF is 1-Lipschitz), so cost follows the surface area, not the box volume.
+Sculpture::Impl* FillFromSdf(const SculptureOptions& o, Vec3 lo, Vec3 hi,
+                             const std::function<double(const Vec3&)>& sdf) {
+  FloatGrid::Ptr grid = NewGrid(o);
+  const double dx = o.voxel_size;
+  const float bg = grid->background();
+  const internal::IndexBox box = internal::WorldToIndexBox(lo, hi, dx, o.half_width + 2);
+  auto acc = grid->getAccessor();
+  const int kLeaf = 8;
+  const double skip = bg + 0.5 * std::sqrt(3.0) * kLeaf * dx;
+  auto floor8 = [](int v) { return v >= 0 ? (v / 8) * 8 : -(((-v) + 7) / 8) * 8; };
+  for (int bz = floor8(box.min.z); bz <= box.max.z; bz += kLeaf) {
+    for (int by = floor8(box.min.y); by <= box.max.y; by += kLeaf) {
+      for (int bx = floor8(box.min.x); bx <= box.max.x; bx += kLeaf) {
+        const Vec3 c{(bx + 3.5) * dx, (by + 3.5) * dx, (bz + 3.5) * dx};
+        if (std::abs(sdf(c)) > skip) continue;
+        for (int z = bz; z < bz + kLeaf; ++z) {
+          for (int y = by; y < by + kLeaf; ++y) {
+            for (int x = bx; x < bx + kLeaf; ++x) {
+              const double d = sdf(Vec3{x * dx, y * dx, z * dx});
+              if (std::abs(d) < bg) acc.setValueOn(Coord(x, y, z), static_cast<float>(d));
+            }
+          }
+        }
+      }
+    }
+  }
+  openvdb::tools::signedFloodFill(grid->tree());
+  openvdb::tools::pruneLevelSet(grid->tree());
+  auto* impl = new Sculpture::Impl();
+  impl->grid = grid;
+  impl->name = o.name;
+  impl->half_width = o.half_width;
+  return impl;
+}
+
+Status ValidatePrimitiveSize(const SculptureOptions& o, const std::string& field, double v) {
+  return CheckRange(field, v, o.voxel_size, kMaxPrimitiveVoxels * o.voxel_size);
+}
+
+void WriteObj(const std::vector<openvdb::Vec3s>& pts,
+              const std::vector<openvdb::Vec3I>& tris, std::ofstream& out) {
+  out << "# Sculpt mesh export\n";
+  for (const auto& p : pts) out << "v " << p[0] << ' ' << p[1] << ' ' << p[2] << '\n';
+  // OpenVDB's volumeToMesh winds faces clockwise seen from outside; OBJ wants counter-clockwise.
+  for (const auto& t : tris) out << "f " << t[0] + 1 << ' ' << t[2] + 1 << ' ' << t[1] + 1 << '\n';
+}
+
+void WritePly(const std::vector<openvdb::Vec3s>& pts, const std::vector<openvdb::Vec3I>& tris,
+              std::ofstream& out) {
+  out << "ply\nformat binary_little_endian 1.0\ncomment Sculpt mesh export\n";
+  out << "element vertex " << pts.size() << "\nproperty float x\nproperty float y\n"
+      << "property float z\nelement face " << tris.size()
+      << "\nproperty list uchar int vertex_indices\nend_header\n";
+  for (const auto& p : pts) out.write(reinterpret_cast<const char*>(p.asPointer()), 12);
+  for (const auto& t : tris) {
+    const unsigned char n = 3;
+    const int32_t idx[3] = {static_cast<int32_t>(t[0]), static_cast<int32_t>(t[2]),
+                            static_cast<int32_t>(t[1])};
+    out.write(reinterpret_cast<const char*>(&n), 1);
+    out.write(reinterpret_cast<const char*>(idx), 12);
+  }
+}
+
+}  // namespace
+
+namespace internal {
+
+void EnsureOpenVdbInitialized() {
+  static std::once_flag once;
+  std::call_once(once, [] { openvdb::initialize(); });
+}
+
+IndexBox WorldToIndexBox(const Vec3& lo, const Vec3& hi, double dx, int pad) {
+  IndexBox b;
+  b.min = {static_cast<int>(std::floor(lo.x / dx)) - pad, static_cast<int>(std::floor(lo.y / dx)) - pad,
+           static_cast<int>(std::floor(lo.z / dx)) - pad};
+  b.max = {static_cast<int>(std::ceil(hi.x / dx)) + pad, static_cast<int>(std::ceil(hi.y / dx)) + pad,
+           static_cast<int>(std::ceil(hi.z / dx)) + pad};
+  return b;
+}
+
+DenseField ExtractDense(const FloatGrid& grid, const IndexBox& box) {
+  DenseField f(box.min, box.Dims(), grid.background());
+  const auto& tree = grid.tree();
+  openvdb::FloatGrid::ConstAccessor acc = grid.getConstAccessor();
+  const Int3 d = f.dims();
+  // Walk leaf-aligned blocks so each leaf is looked up once, not once per voxel.
+  auto floor8 = [](int v) { return v & ~7; };
+  for (int bz = floor8(box.min.z); bz <= box.max.z; bz += 8) {
+    for (int by = floor8(box.min.y); by <= box.max.y; by += 8) {
+      for (int bx = floor8(box.min.x); bx <= box.max.x; bx += 8) {
+        const Coord origin(bx, by, bz);
+        const auto* leaf = tree.probeConstLeaf(origin);
+        const float tile = leaf ? 0.f : acc.getValue(origin);
+        const int z0 = std::max(bz, box.min.z), z1 = std::min(bz + 7, box.max.z);
+        const int y0 = std::max(by, box.min.y), y1 = std::min(by + 7, box.max.y);
+        const int x0 = std::max(bx, box.min.x), x1 = std::min(bx + 7, box.max.x);
+        for (int z = z0; z <= z1; ++z) {
+          for (int y = y0; y <= y1; ++y) {
+            float* row = &f.data()[f.Index(0, y - box.min.y, z - box.min.z)];
+            for (int x = x0; x <= x1; ++x) {
+              row[x - box.min.x] = leaf ? leaf->getValue(Coord(x, y, z)) : tile;
+            }
+          }
+        }
+      }
+    }
+  }
+  (void)d;
+  return f;
+}
+
+double DenseInsideSum(const DenseField& phi, double eps) {
+  double sum = 0;
+  for (float v : phi.data()) {
+    if (v <= -eps) {
+      sum += 1.0;
+    } else if (v < eps) {
+      sum += InsideFraction(v, eps);
+    }
+  }
+  return sum;
+}
+
+WriteBackResult WriteBack(FloatGrid& grid, const DenseField& before, const DenseField& after,
+                          int margin) {
+  WriteBackResult r;
+  const float bg = grid.background();
+  auto acc = grid.getAccessor();
+  const Int3 o = after.origin();
+  const Int3 d = after.dims();
+  std::vector<Int3> leaves;
+  for (int k = margin; k < d.z - margin; ++k) {
+    for (int j = margin; j < d.y - margin; ++j) {
+      for (int i = margin; i < d.x - margin; ++i) {
+        const size_t idx = after.Index(i, j, k);
+        float v = after.data()[idx];
+        if (v == before.data()[idx]) continue;
+        const Coord c(o.x + i, o.y + j, o.z + k);
+        if (v >= bg) {
+          acc.setValueOff(c, bg);
+        } else if (v <= -bg) {
+          acc.setValueOff(c, -bg);
+        } else {
+          acc.setValueOn(c, v);
+        }
+        ++r.changed_voxels;
+        leaves.push_back({c.x() & ~7, c.y() & ~7, c.z() & ~7});
+      }
+    }
+  }
+  auto less = [](const Int3& a, const Int3& b) {
+    return std::tie(a.z, a.y, a.x) < std::tie(b.z, b.y, b.x);
+  };
+  std::sort(leaves.begin(), leaves.end(), less);
+  leaves.erase(std::unique(leaves.begin(), leaves.end()), leaves.end());
+  // Collapse leaves that became uniform and inactive, so the tree is canonical.
+  for (const Int3& l : leaves) {
+    const Coord origin(l.x, l.y, l.z);
+    auto* leaf = grid.tree().probeLeaf(origin);
+    if (!leaf || !leaf->isEmpty()) continue;
+    const float first = leaf->getFirstValue();
+    bool uniform = true;
+    for (auto it = leaf->cbeginValueAll(); it; ++it) {
+      if (*it != first) { uniform = false; break; }
+    }
+    if (uniform) grid.tree().addTile(1, origin, first, false);
+  }
+  r.dirty_leaves = std::move(leaves);
+  return r;
+}
+
+}  // namespace internal
+
+Status ValidateSculptureOptions(const SculptureOptions& o) {
+  SCULPT_RETURN_IF_ERROR(CheckRange("voxel_size", o.voxel_size, kMinVoxelSize, kMaxVoxelSize));
+  if (o.half_width < kMinHalfWidth || o.half_width > kMaxHalfWidth) {
+    return InvalidArgument("half_width=" + std::to_string(o.half_width) + " outside [" +
+                           std::to_string(kMinHalfWidth) + ", " + std::to_string(kMaxHalfWidth) +
+                           "] voxels");
+  }
+  return Status::Ok();
+}
+
+Sculpture::Sculpture(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Sculpture::Sculpture(Sculpture&&) noexcept = default;
+Sculpture& Sculpture::operator=(Sculpture&&) noexcept = default;
+Sculpture::~Sculpture() = default;
+
+class SculptureAccess {
+ public:
+  static Sculpture Make(std::unique_ptr<Sculpture::Impl> impl) {
+    Sculpture s(std::move(impl));
+    s.impl_->volume = s.ComputeVolume();
+    s.impl_->reference_volume = s.impl_->volume;
+    return s;
+  }
+};
+
+StatusOr<Sculpture> Sculpture::MakeSphere(const SculptureOptions& o, Vec3 c, double r) {
+  SCULPT_RETURN_IF_ERROR(ValidateSculptureOptions(o));
+  SCULPT_RETURN_IF_ERROR(CheckPoint("sphere.center", c));
+  SCULPT_RETURN_IF_ERROR(ValidatePrimitiveSize(o, "sphere.radius", r));
+  auto* impl = FillFromSdf(o, c - Vec3{r, r, r}, c + Vec3{r, r, r},
+                           [c, r](const Vec3& p) { return (p - c).Length() - r; });
+  return SculptureAccess::Make(std::unique_ptr<Impl>(impl));
+}
+
+StatusOr<Sculpture> Sculpture::MakeBox(const SculptureOptions& o, Vec3 lo, Vec3 hi) {
+  SCULPT_RETURN_IF_ERROR(ValidateSculptureOptions(o));
+  SCULPT_RETURN_IF_ERROR(CheckPoint("box.min", lo));
+  SCULPT_RETURN_IF_ERROR(CheckPoint("box.max", hi));
+  SCULPT_RETURN_IF_ERROR(ValidatePrimitiveSize(o, "box.size.x", hi.x - lo.x));
+  SCULPT_RETURN_IF_ERROR(ValidatePrimitiveSize(o, "box.size.y", hi.y - lo.y));
+  SCULPT_RETURN_IF_ERROR(ValidatePrimitiveSize(o, "box.size.z", hi.z - lo.z));
+  const ToolShape box = ToolShape::Box((lo + hi) * 0.5, (hi - lo) * 0.5);
+  auto* impl = FillFromSdf(o, lo, hi, [box](const Vec3& p) { return ToolSignedDistance(box, p); });
+  return SculptureAccess::Make(std::unique_ptr<Impl>(impl));
+}
+
+StatusOr<Sculpture> Sculpture::MakeCapsule(const SculptureOptions& o, Vec3 a, Vec3 b, double r) {
+  SCULPT_RETURN_IF_ERROR(ValidateSculptureOptions(o));
+  SCULPT_RETURN_IF_ERROR(CheckPoint("capsule.a", a));
+  SCULPT_RETURN_IF_ERROR(CheckPoint("capsule.b", b));
+  SCULPT_RETURN_IF_ERROR(ValidatePrimitiveSize(o, "capsule.radius", r));
+  SCULPT_RETURN_IF_ERROR(CheckRange("capsule.length", (b - a).Length(), 0,
+                                    kMaxPrimitiveVoxels * o.voxel_size));
+  const ToolShape cap = ToolShape::Capsule(a, b, r);
+  const Aabb bb = ToolBounds(cap);
+  auto* impl = FillFromSdf(o, bb.min, bb.max,
+                           [cap](const Vec3& p) { return ToolSignedDistance(cap, p); });
+  return SculptureAccess::Make(std::unique_ptr<Impl>(impl));
+}
+
+StatusOr<Sculpture> Sculpture::MakeTorus(const SculptureOptions& o, Vec3 c, double major,
+                                         double minor) {
+  SCULPT_RETURN_IF_ERROR(ValidateSculptureOptions(o));
+  SCULPT_RETURN_IF_ERROR(CheckPoint("torus.center", c));
+  SCULPT_RETURN_IF_ERROR(ValidatePrimitiveSize(o, "torus.minor_radius", minor));
+  SCULPT_RETURN_IF_ERROR(ValidatePrimitiveSize(o, "torus.major_radius", major));
+  if (minor >= major) {
+    return InvalidArgument("torus.minor_radius=" + Num(minor) + " outside (0, major_radius=" +
+                           Num(major) + ")");
+  }
+  const double R = major + minor;
+  auto* impl = FillFromSdf(o, c - Vec3{R, R, minor}, c + Vec3{R, R, minor},
+                           [c, major, minor](const Vec3& p) {
+                             const Vec3 q = p - c;
+                             const double ring = std::sqrt(q.x * q.x + q.y * q.y) - major;
+                             return std::sqrt(ring * ring + q.z * q.z) - minor;
+                           });
+  return SculptureAccess::Make(std::unique_ptr<Impl>(impl));
+}
+
+StatusOr<Sculpture> Sculpture::FromMeshFile(const SculptureOptions& o, const std::string& path) {
+  SCULPT_RETURN_IF_ERROR(ValidateSculptureOptions(o));
+  if (!std::filesystem::exists(path)) return NotFound("mesh file " + path + " does not exist");
+  Assimp::Importer importer;
+  const aiScene* scene = importer.ReadFile(
+      path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_PreTransformVertices);
+  if (!scene || !scene->mRootNode) {
+    return InvalidArgument("mesh file " + path + ": " + importer.GetErrorString());
+  }
+  std::vector<openvdb::Vec3s> points;
+  std::vector<openvdb::Vec3I> tris;
+  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+    const aiMesh* mesh = scene->mMeshes[m];
+    const auto base = static_cast<unsigned>(points.size());
+    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+      const aiVector3D& p = mesh->mVertices[v];
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+        return InvalidArgument("mesh file " + path + ": vertex " + std::to_string(v) +
+                               " is not finite");
+      }
+      points.emplace_back(p.x, p.y, p.z);
+    }
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      if (face.mNumIndices != 3) continue;
+      tris.emplace_back(base + face.mIndices[0], base + face.mIndices[1], base + face.mIndices[2]);
+    }
+  }
+  if (tris.empty()) return InvalidArgument("mesh file " + path + " has no triangles");
+  FloatGrid::Ptr shape = NewGrid(o);
+  const std::vector<openvdb::Vec4I> quads;
+  internal::EnsureOpenVdbInitialized();
+  FloatGrid::Ptr grid = openvdb::tools::meshToLevelSet<FloatGrid>(
+      shape->transform(), points, tris, quads, static_cast<float>(o.half_width));
+  grid->setName(o.name);
+  grid->setGridClass(openvdb::GRID_LEVEL_SET);
+  auto* impl = new Impl();
+  impl->grid = grid;
+  impl->name = o.name;
+  impl->half_width = o.half_width;
+  return SculptureAccess::Make(std::unique_ptr<Impl>(impl));
+}
+
+StatusOr<Sculpture> Sculpture::LoadVdb(const std::string& path) {
+  internal::EnsureOpenVdbInitialized();
+  if (!std::filesystem::exists(path)) return NotFound(".vdb file " + path + " does not exist");
+  try {
+    openvdb::io::File file(path);
+    file.open();
+    openvdb::GridPtrVecPtr grids = file.getGrids();
+    file.close();
+    for (auto& base : *grids) {
+      auto grid = openvdb::gridPtrCast<FloatGrid>(base);
+      if (!grid || grid->getGridClass() != openvdb::GRID_LEVEL_SET) continue;
+      const double dx = grid->voxelSize()[0];
+      auto impl = std::make_unique<Impl>();
+      impl->grid = grid;
+      impl->name = grid->getName();
+      impl->half_width = static_cast<int>(std::lround(grid->background() / dx));
+      if (auto m = grid->getMetadata<openvdb::StringMetadata>("scene_name")) impl->name = m->value();
+      Sculpture s = SculptureAccess::Make(std::move(impl));
+      if (auto m = grid->getMetadata<openvdb::DoubleMetadata>("reference_volume")) {
+        s.set_reference_volume(m->value());
+      }
+      SCULPT_RETURN_IF_ERROR(ValidateSculptureOptions(
+          SculptureOptions{dx, s.half_width(), s.name()}));
+      return s;
+    }
+    return InvalidArgument(".vdb file " + path + " holds no float level-set grid");
+  } catch (const std::exception& e) {
+    return DataLoss(".vdb file " + path + ": " + e.what());
+  }
+}
+
+Status Sculpture::SaveVdb(const std::string& path) const {
+  try {
+    FloatGrid::Ptr grid = impl_->grid;
+    grid->setName(impl_->name);
+    grid->setGridClass(openvdb::GRID_LEVEL_SET);
+    grid->insertMeta("voxel_size", openvdb::DoubleMetadata(voxel_size()));
+    grid->insertMeta("half_width", openvdb::Int32Metadata(half_width()));
+    grid->insertMeta("scene_name", openvdb::StringMetadata(impl_->name));
+    grid->insertMeta("reference_volume", openvdb::DoubleMetadata(impl_->reference_volume));
+    const std::string tmp = path + ".tmp";
+    openvdb::io::File file(tmp);
+    file.write({grid});
+    file.close();
+    std::filesystem::rename(tmp, path);
+  } catch (const std::exception& e) {
+    return Internal("writing " + path + ": " + e.what());
+  }
+  return Status::Ok();
+}
+
+StatusOr<MeshStats> Sculpture::ExportMesh(const std::string& path, double adaptivity) const {
+  const std::string ext = std::filesystem::path(path).extension().string();
+  if (ext != ".obj" && ext != ".ply") {
+    return InvalidArgument("mesh path extension=" + ext + " outside {.obj, .ply}");
+  }
+  std::vector<openvdb::Vec3s> points;
+  std::vector<openvdb::Vec3I> tris;
+  std::vector<openvdb::Vec4I> quads;
+  openvdb::tools::volumeToMesh(*impl_->grid, points, tris, quads, 0.0, adaptivity);
+  tris.reserve(tris.size() + 2 * quads.size());
+  for (const auto& q : quads) {
+    tris.emplace_back(q[0], q[1], q[2]);
+    tris.emplace_back(q[0], q[2], q[3]);
+  }
+  std::ofstream out(path, std::ios::binary);
+  if (!out) return Internal("cannot open " + path + " for writing");
+  if (ext == ".obj") {
+    WriteObj(points, tris, out);
+  } else {
+    WritePly(points, tris, out);
+  }
+  if (!out) return Internal("write to " + path + " failed");
+  return MeshStats{points.size(), tris.size()};
+}
+
+Sculpture Sculpture::Clone() const {
+  auto impl = std::make_unique<Impl>(*impl_);
+  impl->grid = impl_->grid->deepCopy();
+  return Sculpture(std::move(impl));
+}
+
+double Sculpture::voxel_size() const { return impl_->dx(); }
+int Sculpture::half_width() const { return impl_->half_width; }
+const std::string& Sculpture::name() const { return impl_->name; }
+double Sculpture::volume() const { return impl_->volume; }
+double Sculpture::reference_volume() const { return impl_->reference_volume; }
+void Sculpture::set_reference_volume(double v) { impl_->reference_volume = v; }
+
+double Sculpture::ComputeVolume() const {
+  const double dx = impl_->dx();
+  const double eps = 1.5 * dx;
+  double sum = 0;
+  for (auto it = impl_->grid->tree().cbeginValueAll(); it; ++it) {
+    const float v = *it;
+    if (v <= -eps) {
+      sum += static_cast<double>(it.getVoxelCount());
+    } else if (v < eps) {
+      sum += InsideFraction(v, eps) * static_cast<double>(it.getVoxelCount());
+    }
+  }
+  return sum * dx * dx * dx;
+}
+
+uint64_t Sculpture::StateHash() const {
+  XXH3_state_t* st = XXH3_createState();
+  XXH3_64bits_reset(st);
+  const FloatGrid& g = *impl_->grid;
+  const openvdb::Mat4d m = g.transform().baseMap()->getAffineMap()->getMat4();
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) {
+      const double v = m(r, c);
+      XXH3_64bits_update(st, &v, sizeof v);
+    }
+  }
+  const float bg = g.background();
+  XXH3_64bits_update(st, &bg, sizeof bg);
+  // Leaves in tree order (the root table is sorted by coordinate, children by offset), so the
+  // order is canonical; then the tiles.
+  for (auto leaf = g.tree().cbeginLeaf(); leaf; ++leaf) {
+    const Coord o = leaf->origin();
+    const int32_t oc[3] = {o.x(), o.y(), o.z()};
+    XXH3_64bits_update(st, oc, sizeof oc);
+    const auto& mask = leaf->getValueMask();
+    for (openvdb::Index32 w = 0; w < mask.WORD_COUNT; ++w) {
+      const openvdb::Index64 word = mask.template getWord<openvdb::Index64>(w);
+      XXH3_64bits_update(st, &word, sizeof word);
+    }
+    XXH3_64bits_update(st, leaf->buffer().data(), leaf->SIZE * sizeof(float));
+  }
+  for (auto it = g.tree().cbeginValueAll(); it; ++it) {
+    if (it.isVoxelValue()) continue;
+    const Coord o = it.getCoord();
+    const int32_t rec[5] = {o.x(), o.y(), o.z(), static_cast<int32_t>(it.getLevel()),
+                            it.isValueOn() ? 1 : 0};
+    XXH3_64bits_update(st, rec, sizeof rec);
+    const float v = *it;
+    XXH3_64bits_update(st, &v, sizeof v);
+  }
+  const uint64_t h = XXH3_64bits_digest(st);
+  XXH3_freeState(st);
+  return h;
+}
+
+uint64_t Sculpture::ActiveVoxelCount() const { return impl_->grid->activeVoxelCount(); }
+uint64_t Sculpture::LeafCount() const { return impl_->grid->tree().leafCount(); }
+uint64_t Sculpture::MemoryBytes() const { return impl_->grid->memUsage(); }
+
+Aabb Sculpture::WorldBounds() const {
+  const openvdb::CoordBBox bb = impl_->grid->evalActiveVoxelBoundingBox();
+  const double dx = impl_->dx();
+  if (bb.empty()) return Aabb{{1, 1, 1}, {0, 0, 0}};
+  return Aabb{{bb.min().x() * dx, bb.min().y() * dx, bb.min().z() * dx},
+              {bb.max().x() * dx, bb.max().y() * dx, bb.max().z() * dx}};
+}
+
+Sculpture::EikonalReport Sculpture::MeasureEikonal() const {
+  EikonalReport r;
+  const double dx = impl_->dx();
+  auto acc = impl_->grid->getConstAccessor();
+  double sum = 0;
+  uint64_t outside = 0;
+  for (auto it = impl_->grid->tree().cbeginValueOn(); it; ++it) {
+    if (std::abs(*it) >= 2 * dx) continue;
+    const Coord c = it.getCoord();
+    double g2 = 0;
+    for (int a = 0; a < 3; ++a) {
+      Coord p = c, m = c;
+      p[a] += 1;
+      m[a] -= 1;
+      const double d = (acc.getValue(p) - acc.getValue(m)) / (2 * dx);
+      g2 += d * d;
+    }
+    const double g = std::sqrt(g2);
+    sum += std::abs(g - 1);
+    if (g < 0.5 || g > 1.5) ++outside;
+    ++r.samples;
+  }
+  if (r.samples > 0) {
+    r.mean_abs_error = sum / r.samples;
+    r.fraction_outside_half = static_cast<double>(outside) / r.samples;
+  }
+  return r;
+}
+
+Status Sculpture::CheckLevelSet(int checks) const {
+  const std::string problem =
+      openvdb::tools::checkLevelSet(*impl_->grid, static_cast<size_t>(std::clamp(checks, 1, 9)));
+  if (!problem.empty()) return Internal("checkLevelSet: " + problem);
+  return Status::Ok();
+}
+
+double Sculpture::SampleWorld(const Vec3& p) const {
+  openvdb::tools::GridSampler<FloatGrid::ConstAccessor, openvdb::tools::BoxSampler> sampler(
+      impl_->grid->getConstAccessor(), impl_->grid->transform());
+  return sampler.wsSample(openvdb::Vec3d(p.x, p.y, p.z));
+}
+
+}  // namespace sculpt::levelset

@@ -1,0 +1,66 @@
+/// @brief Sculpture::Impl and the dense-region helpers shared by the sculpture and its edits.
+/// Internal: includes OpenVDB, so only .cc files of sculpt::levelset (and tests) include it.
+#ifndef SCULPT_LEVELSET_SCULPTURE_IMPL_H_
+#define SCULPT_LEVELSET_SCULPTURE_IMPL_H_
+
+#include <openvdb/openvdb.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "sculpt/levelset/dense_field.h"
+#include "sculpt/levelset/sculpture.h"
+
+namespace sculpt::levelset {
+
+struct Sculpture::Impl {
+  openvdb::FloatGrid::Ptr grid;
+  std::string name;
+  int half_width = 6;
+  double volume = 0;
+  double reference_volume = 0;
+  uint64_t edits_since_reinit = 0;
+
+  double dx() const { return grid->voxelSize()[0]; }
+  float background() const { return grid->background(); }
+};
+
+namespace internal {
+
+/// Calls openvdb::initialize() once per process.
+void EnsureOpenVdbInitialized();
+
+/// An inclusive index-space box.
+struct IndexBox {
+  Int3 min, max;
+  Int3 Dims() const { return {max.x - min.x + 1, max.y - min.y + 1, max.z - min.z + 1}; }
+  bool Empty() const { return max.x < min.x || max.y < min.y || max.z < min.z; }
+};
+
+/// Index box covering the world box [lo, hi], dilated by `pad` voxels.
+IndexBox WorldToIndexBox(const Vec3& lo, const Vec3& hi, double dx, int pad);
+
+/// Copies phi over `box` out of the grid (tile and background values included).
+DenseField ExtractDense(const openvdb::FloatGrid& grid, const IndexBox& box);
+
+/// Voxel-volume-weighted inside fraction summed over a dense field (seed 000 eq. 5.7, eps in
+/// world units); the summation order is fixed, so the result is deterministic.
+double DenseInsideSum(const DenseField& phi, double eps);
+
+struct WriteBackResult {
+  std::vector<Int3> dirty_leaves;  // sorted origins of leaves that changed
+  uint64_t changed_voxels = 0;
+};
+
+/// Writes the voxels of `after` that differ from `before`, skipping a margin of `margin` voxels
+/// at the box border (the stencil halo, which the edit only read). Values are clamped to the
+/// band: |phi| < background stays active, the rest becomes an inactive +-background. Leaves left
+/// uniform and inactive collapse into tiles, so equal states have equal trees.
+WriteBackResult WriteBack(openvdb::FloatGrid& grid, const DenseField& before,
+                          const DenseField& after, int margin);
+
+}  // namespace internal
+}  // namespace sculpt::levelset
+
+#endif  // SCULPT_LEVELSET_SCULPTURE_IMPL_H_
