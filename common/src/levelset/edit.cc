@@ -5,8 +5,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <sstream>
 
 #include "sculpture_impl.h"
@@ -138,112 +136,188 @@ struct IslandReport {
   VoxelList zone;  // voxels reset by a removal (to be reinitialised)
 };
 
-// Connected pieces of material (6-connectivity) that lie wholly inside the block are split off
-// from anything reaching outside it: any path to the rest of the object would cross the border.
+// Connected pieces of material (26-connectivity) that lie wholly inside the block's interior
+// are split off from anything reaching outside it: any path to the rest of the object would
+// cross the border. A ridge thinner than a voxel is still one piece of clay when its samples
+// touch only diagonally, hence 26 and not 6 neighbours.
 IslandReport FindIslands(Block& b, const EditSettings& s) {
   IslandReport rep;
   const Int3 d = b.phi.dims();
   const size_t n = b.phi.size();
-  std::vector<int32_t> label(n, -1);
+  auto& data = b.phi.data();
+  const int64_t sx = 1, sy = d.x, sz = static_cast<int64_t>(d.x) * d.y;
+  int64_t offsets[26];
+  int no = 0;
+  for (int dk = -1; dk <= 1; ++dk)
+    for (int dj = -1; dj <= 1; ++dj)
+      for (int di = -1; di <= 1; ++di)
+        if (di || dj || dk) offsets[no++] = di * sx + dj * sy + dk * sz;
+  auto coords = [&](size_t idx, int& i, int& j, int& k) {
+    i = static_cast<int>(idx % d.x);
+    j = static_cast<int>((idx / d.x) % d.y);
+    k = static_cast<int>(idx / (static_cast<size_t>(d.x) * d.y));
+  };
+  // A piece can only have been cut off by this edit if it touches a voxel the edit emptied, so
+  // the search starts from the material next to those voxels, and each search walks best-first
+  // towards the nearest border: on the main body it reaches the stencil margin in a few dozen
+  // steps, and only a piece that is really cut off is explored whole. A piece reaching the
+  // margin is not known to be cut off (and its margin voxels are not written back).
+  enum : uint8_t { kUnknown = 0, kConnected = 1, kQueued = 2, kIsland = 3 };
+  std::vector<uint8_t> state(n, kUnknown);
+  bool any_border = false;
+  std::vector<uint32_t> seeds;
+  for (size_t idx = 0; idx < n; ++idx) {
+    int i, j, k;
+    coords(idx, i, j, k);
+    const bool interior = b.Interior(i, j, k);
+    if (!interior && data[idx] < 0.f) any_border = true;
+    if (!interior || !(b.before.data()[idx] < 0.f) || data[idx] < 0.f) continue;
+    // This voxel was emptied: its material neighbours are seeds.
+    for (int o = 0; o < 26; ++o) {
+      const size_t nidx = static_cast<size_t>(static_cast<int64_t>(idx) + offsets[o]);
+      if (data[nidx] < 0.f) seeds.push_back(static_cast<uint32_t>(nidx));
+    }
+  }
+  auto border_distance = [&](size_t idx) {
+    int i, j, k;
+    coords(idx, i, j, k);
+    return std::min({i, j, k, d.x - 1 - i, d.y - 1 - j, d.z - 1 - k});
+  };
   struct Piece {
     double inside = 0;
-    bool touches_border = false;
     std::vector<uint32_t> voxels;
   };
   std::vector<Piece> pieces;
-  std::vector<uint32_t> queue;
-  auto& data = b.phi.data();
-  for (size_t start = 0; start < n; ++start) {
-    if (data[start] >= 0.f || label[start] >= 0) continue;
-    const int id = static_cast<int>(pieces.size());
-    pieces.emplace_back();
-    Piece& p = pieces.back();
-    queue.assign(1, static_cast<uint32_t>(start));
-    label[start] = id;
-    for (size_t q = 0; q < queue.size(); ++q) {
-      const uint32_t idx = queue[q];
-      p.voxels.push_back(idx);
-      p.inside += InsideFraction(data[idx], b.eps);
-      const int i = static_cast<int>(idx % d.x);
-      const int j = static_cast<int>((idx / d.x) % d.y);
-      const int k = static_cast<int>(idx / (static_cast<size_t>(d.x) * d.y));
-      // A piece reaching into the stencil margin is not known to be cut off (and its margin
-      // voxels are not written back), so only pieces wholly inside the interior count.
-      if (!b.Interior(i, j, k)) p.touches_border = true;
-      const int nb[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
-      for (const auto& o : nb) {
-        const int ii = i + o[0], jj = j + o[1], kk = k + o[2];
-        if (!b.phi.Contains(ii, jj, kk)) continue;
-        const size_t nidx = b.phi.Index(ii, jj, kk);
-        if (data[nidx] < 0.f && label[nidx] < 0) {
-          label[nidx] = id;
-          queue.push_back(static_cast<uint32_t>(nidx));
+  std::vector<uint32_t> visited;
+  using Entry = std::pair<int, uint32_t>;  // (border distance, index), smallest first
+  std::vector<Entry> heap;
+  auto cmp = [](const Entry& a, const Entry& c) { return a > c; };
+  for (uint32_t seed : seeds) {
+    if (state[seed] != kUnknown) continue;
+    visited.clear();
+    heap.clear();
+    state[seed] = kQueued;
+    visited.push_back(seed);
+    heap.push_back({border_distance(seed), seed});
+    bool connected = false;
+    while (!heap.empty()) {
+      std::pop_heap(heap.begin(), heap.end(), cmp);
+      const uint32_t idx = heap.back().second;
+      heap.pop_back();
+      int i, j, k;
+      coords(idx, i, j, k);
+      if (!b.Interior(i, j, k)) {
+        connected = true;
+        break;
+      }
+      for (int o = 0; o < 26; ++o) {
+        const size_t nidx = static_cast<size_t>(static_cast<int64_t>(idx) + offsets[o]);
+        if (data[nidx] >= 0.f) continue;
+        if (state[nidx] == kConnected) {
+          connected = true;
+          break;
+        }
+        if (state[nidx] == kUnknown) {
+          state[nidx] = kQueued;
+          visited.push_back(static_cast<uint32_t>(nidx));
+          heap.push_back({border_distance(nidx), static_cast<uint32_t>(nidx)});
+          std::push_heap(heap.begin(), heap.end(), cmp);
         }
       }
+      if (connected) break;
     }
+    if (connected) {
+      for (uint32_t v : visited) state[v] = kConnected;
+      continue;
+    }
+    Piece p;
+    for (uint32_t v : visited) {
+      state[v] = kIsland;
+      p.inside += InsideFraction(data[v], b.eps);
+    }
+    p.voxels = visited;
+    pieces.push_back(std::move(p));
+  }
+  std::vector<int32_t> label(n, -1);
+  for (size_t i = 0; i < pieces.size(); ++i) {
+    for (uint32_t v : pieces[i].voxels) label[v] = static_cast<int32_t>(i);
   }
   if (pieces.empty()) return rep;
-  bool any_border = false;
   size_t largest = 0;
   for (size_t i = 0; i < pieces.size(); ++i) {
-    any_border |= pieces[i].touches_border;
     if (pieces[i].inside > pieces[largest].inside) largest = i;
   }
   std::vector<uint8_t> remove(pieces.size(), 0);
   for (size_t i = 0; i < pieces.size(); ++i) {
-    if (pieces[i].touches_border) continue;
     if (!any_border && i == largest) continue;  // the whole object is in the block
-    ++rep.found;
+    // Specks below one voxel of material are below the grid's resolution (sub-voxel debris a
+    // press leaves on a ridge): removed under kRemoveSmall like any small piece, not reported.
+    if (pieces[i].inside >= 1.0) ++rep.found;
     const double vol = pieces[i].inside * b.dx * b.dx * b.dx;
-    if (std::getenv("SCULPT_DEBUG_ISLANDS")) {
-      std::fprintf(stderr, "island: %zu voxels, inside %.3f voxels\n", pieces[i].voxels.size(),
-                   pieces[i].inside);
-    }
     if (s.islands == IslandPolicy::kRemoveSmall && vol < s.min_island_volume) {
       remove[i] = 1;
       ++rep.removed;
     }
   }
   if (rep.removed == 0) return rep;
-  // Distance (in 6-steps) to the material that stays, so the band of a removed piece is cleared
-  // only where no remaining surface is within the band.
+  // Distances (in 6-steps, capped) to the material that stays and to the removed pieces: the
+  // band of a removed piece is cleared only where it is nearer to it than to what stays.
   const int hw = static_cast<int>(std::ceil(b.bg / b.dx)) + 1;
-  std::vector<int16_t> dist(n, static_cast<int16_t>(hw + 1));
-  queue.clear();
-  for (size_t idx = 0; idx < n; ++idx) {
-    if (data[idx] < 0.f && !remove[label[idx]]) {
-      dist[idx] = 0;
-      queue.push_back(static_cast<uint32_t>(idx));
-    }
-  }
-  for (size_t q = 0; q < queue.size(); ++q) {
-    const uint32_t idx = queue[q];
-    if (dist[idx] >= hw) continue;
-    const int i = static_cast<int>(idx % d.x);
-    const int j = static_cast<int>((idx / d.x) % d.y);
-    const int k = static_cast<int>(idx / (static_cast<size_t>(d.x) * d.y));
-    const int nb[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
-    for (const auto& o : nb) {
-      const int ii = i + o[0], jj = j + o[1], kk = k + o[2];
-      if (!b.phi.Contains(ii, jj, kk)) continue;
-      const size_t nidx = b.phi.Index(ii, jj, kk);
-      if (dist[nidx] > dist[idx] + 1) {
-        dist[nidx] = static_cast<int16_t>(dist[idx] + 1);
-        queue.push_back(static_cast<uint32_t>(nidx));
+  auto distance_from = [&](auto is_source) {
+    std::vector<int16_t> dist(n, static_cast<int16_t>(hw + 1));
+    std::vector<uint32_t> queue;
+    for (size_t idx = 0; idx < n; ++idx) {
+      if (is_source(idx)) {
+        dist[idx] = 0;
+        queue.push_back(static_cast<uint32_t>(idx));
       }
     }
-  }
+    for (size_t q = 0; q < queue.size(); ++q) {
+      const uint32_t idx = queue[q];
+      if (dist[idx] >= hw) continue;
+      int i, j, k;
+      coords(idx, i, j, k);
+      const int nb[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+      for (const auto& o : nb) {
+        const int ii = i + o[0], jj = j + o[1], kk = k + o[2];
+        if (!b.phi.Contains(ii, jj, kk)) continue;
+        const size_t nidx = b.phi.Index(ii, jj, kk);
+        if (dist[nidx] > dist[idx] + 1) {
+          dist[nidx] = static_cast<int16_t>(dist[idx] + 1);
+          queue.push_back(static_cast<uint32_t>(nidx));
+        }
+      }
+    }
+    return dist;
+  };
+  const std::vector<int16_t> dist = distance_from([&](size_t idx) {
+    return data[idx] < 0.f && (label[idx] < 0 || !remove[label[idx]]);
+  });
+  const std::vector<int16_t> dist_removed = distance_from([&](size_t idx) {
+    return data[idx] < 0.f && label[idx] >= 0 && remove[label[idx]];
+  });
   const double before = b.InsideSum();
   for (size_t i = 0; i < pieces.size(); ++i) {
     if (!remove[i]) continue;
-    for (uint32_t idx : pieces[i].voxels) data[idx] = b.bg;
+    for (uint32_t idx : pieces[i].voxels) {
+      // Near what stays, start from the (over-estimated) step distance and let the
+      // reinitialisation below settle it.
+      if (dist[idx] <= hw) {
+        data[idx] = std::min(b.bg, static_cast<float>(dist[idx] * b.dx));
+        int i, j, k;
+        coords(idx, i, j, k);
+        if (b.Interior(i, j, k)) rep.zone.push_back(idx);
+      } else {
+        data[idx] = b.bg;
+      }
+    }
   }
   // Clear the positive side of the removed surfaces, and collect what needs reinitialising.
   for (size_t idx = 0; idx < n; ++idx) {
     const int i = static_cast<int>(idx % d.x);
     const int j = static_cast<int>((idx / d.x) % d.y);
     const int k = static_cast<int>(idx / (static_cast<size_t>(d.x) * d.y));
-    if (!b.Interior(i, j, k)) continue;
+    if (!b.Interior(i, j, k) || dist_removed[idx] > hw) continue;
     if (data[idx] >= 0.f && data[idx] < b.bg) {
       if (dist[idx] > hw) {
         data[idx] = b.bg;
@@ -285,8 +359,16 @@ CompensationOutcome CompensateShell(Block& b, double target, double outside_voxe
   VoxelList shell = b.Select([&](size_t, float t) { return t > 1.5 * b.dx && t < shell_outer; });
   for (uint32_t idx : shell) w[idx] = ShellWeight(b.tool_sdf[idx], 1.5 * b.dx, shell_outer, b.dx);
   const double tol = s.compensation_tolerance * std::abs(target);
+  // Only shell voxels change here, so the block's inside sum moves by their change alone.
+  auto shell_sum = [&] {
+    double sum = 0;
+    for (uint32_t idx : shell) sum += InsideFraction(b.phi.data()[idx], b.eps);
+    return sum;
+  };
+  const double block_sum0 = b.InsideSum();
+  const double shell_sum0 = shell_sum();
   for (int it = 0; it < s.max_compensation_iterations; ++it) {
-    const double vol = (outside_voxels + b.InsideSum()) * dx3;
+    const double vol = (outside_voxels + block_sum0 - shell_sum0 + shell_sum()) * dx3;
     const double err = target - vol;
     if (std::abs(err) <= tol) break;
     double area = 0;  // weighted smoothed area, seed 000 eq. 5.7 delta
@@ -299,10 +381,16 @@ CompensationOutcome CompensateShell(Block& b, double target, double outside_voxe
     ++out.iterations;
     switch (s.compensation_method) {
       case CompensationMethod::kNewton: {
-        // Never move more than the band can represent in one go; the next iteration continues.
+        // A normal offset of a signed distance field is phi - d (|grad phi| = 1), weighted by
+        // the shell; no stencil, so an iteration costs one pass over the shell. Never move more
+        // than the band can represent in one go; the next iteration continues.
         const double limit = 0.5 * b.bg;
-        const double step = std::clamp(d, -limit, limit);
-        out.substeps += MoveNormal(b, w, shell, step > 0 ? 1.0 : -1.0, std::abs(step), s);
+        const float step = static_cast<float>(std::clamp(d, -limit, limit));
+        for (uint32_t idx : shell) {
+          float& v = b.phi.data()[idx];
+          v = std::clamp(v - step * w[idx], -b.bg, b.bg);
+        }
+        ++out.substeps;
         break;
       }
       case CompensationMethod::kGradientDescentGrad: {
@@ -369,6 +457,9 @@ Status ValidateEditSettings(const EditSettings& s) {
   SCULPT_RETURN_IF_ERROR(CheckRange("min_island_volume", s.min_island_volume, 0, 1e30));
   SCULPT_RETURN_IF_ERROR(CheckRange("min_tool_voxels", s.min_tool_voxels, 0.25, 1e3));
   SCULPT_RETURN_IF_ERROR(CheckRange("max_tool_voxels", s.max_tool_voxels, s.min_tool_voxels, 1e3));
+  if (s.reinit_spatial == SpatialScheme::kCentral) {
+    return InvalidArgument("reinit_spatial=central outside {upwind, weno5}");
+  }
   if (s.motion.spatial == SpatialScheme::kCentral) {
     return InvalidArgument(
         "motion.spatial=central outside {upwind, weno5}: central differences with explicit time "
@@ -465,12 +556,23 @@ StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
         }
         if (!empty && max_change < 1e-6f * static_cast<float>(dx)) break;  // stalled
       }
-      if (!GammaHoldsMaterial(b, gamma)) break;
+      if (!GammaHoldsMaterial(b, gamma)) {
+        // The flow stops at the border of Gamma and leaves the level sets piled up against it
+        // (seed 000 §5 item 8): voxels just outside still hold their distance to the old
+        // surface. Give them their distance to the new one, the tool's imprint (the thesis's
+        // own CSG remedy, §6.2), so the dent sits where the tool was.
+        VoxelList rim = b.Select([&](size_t, float t) { return t >= 0.f && t <= 2 * dx; });
+        for (uint32_t idx : rim) {
+          b.phi.data()[idx] = std::max(b.phi.data()[idx], -b.tool_sdf[idx]);
+        }
+        break;
+      }
       // No interface reaches the material left in Gamma (a tool wholly inside the band-clamped
       // interior has zero gradient everywhere): finish with the CSG difference, which is where
       // the flow would have converged.
       res.press_fallback_csg = true;
-      for (uint32_t idx : gamma) {
+      VoxelList all = b.Select([](size_t, float) { return true; });
+      for (uint32_t idx : all) {
         b.phi.data()[idx] = std::max(b.phi.data()[idx], std::min(b.bg, -b.tool_sdf[idx]));
       }
       break;
@@ -527,12 +629,25 @@ StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
     reinit_extra = std::move(islands.zone);
   }
 
+  // Shell compensation first: its weighted offset bends |grad phi| in the shell, which the
+  // reinitialisation below then straightens.
+  if (touched && compensate && s.compensation == CompensationRegion::kShell) {
+    CompensationOutcome c = CompensateShell(b, reference, outside_voxels, shell_outer, s);
+    res.compensation_iterations = c.iterations;
+    res.compensation_failed = c.failed;
+    res.substeps += c.substeps;
+  }
+
   // Local reinitialisation (seed 000 §4.4), triggered by the measured Eikonal error of the
   // edited band (the tool region plus two voxels), or every k edits, never blindly.
   if (touched) {
     ++impl.edits_since_reinit;
+    // The tool region plus two voxels, and the compensation shell, whose variable-speed offset
+    // bends |grad phi| away from one.
+    const double extent =
+        compensate && s.compensation == CompensationRegion::kShell ? shell_outer : 2 * dx;
     VoxelList region = b.Select([&](size_t idx, float t) {
-      return t < 2 * dx && std::abs(b.phi.data()[idx]) < b.bg;
+      return t < extent && std::abs(b.phi.data()[idx]) < b.bg;
     });
     region.insert(region.end(), reinit_extra.begin(), reinit_extra.end());
     std::sort(region.begin(), region.end());
@@ -544,21 +659,27 @@ StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
     if (s.reinit_iterations > 0 &&
         (e.mean_abs_error > s.reinit_eikonal_threshold || due || !reinit_extra.empty())) {
       MotionSettings m = s.motion;
+      m.spatial = s.reinit_spatial;
       res.reinit_passes = Reinitialize(b.phi, region, s.reinit_iterations, dx, m, 0.5);
       impl.edits_since_reinit = 0;
       b.ClampToBand();
     }
   }
 
-  // Compensation after reinitialisation, so nothing moves the interface it settled.
+  // Compensation once more: the reinitialisation moved the interface slightly (by far less
+  // than a voxel), so this pass is a small correction whose offset barely bends the field.
   if (touched && compensate && s.compensation == CompensationRegion::kShell) {
     CompensationOutcome c = CompensateShell(b, reference, outside_voxels, shell_outer, s);
-    res.compensation_iterations = c.iterations;
-    res.compensation_failed = c.failed;
+    res.compensation_iterations += c.iterations;
+    res.compensation_failed = res.compensation_failed || c.failed;
     res.substeps += c.substeps;
   }
 
   internal::WriteBackResult wb = internal::WriteBack(*impl.grid, b.before, b.phi, kStencilMargin);
+  if (wb.changed_voxels > 0) {
+    impl.bounds.expand(openvdb::CoordBBox(openvdb::Coord(b.box.min.x, b.box.min.y, b.box.min.z),
+                                          openvdb::Coord(b.box.max.x, b.box.max.y, b.box.max.z)));
+  }
   res.changed = wb.changed_voxels > 0;
   res.changed_voxels = wb.changed_voxels;
   res.dirty_leaves = std::move(wb.dirty_leaves);
@@ -641,6 +762,10 @@ StatusOr<EditResult> ReinitializeRegion(Sculpture& sculpture, const Aabb& region
   res.reinit_passes = Reinitialize(b.phi, active, iterations, dx, motion, 0.5);
   b.ClampToBand();
   internal::WriteBackResult wb = internal::WriteBack(*impl.grid, b.before, b.phi, kStencilMargin);
+  if (wb.changed_voxels > 0) {
+    impl.bounds.expand(openvdb::CoordBBox(openvdb::Coord(b.box.min.x, b.box.min.y, b.box.min.z),
+                                          openvdb::Coord(b.box.max.x, b.box.max.y, b.box.max.z)));
+  }
   res.changed = wb.changed_voxels > 0;
   res.changed_voxels = wb.changed_voxels;
   res.dirty_leaves = std::move(wb.dirty_leaves);

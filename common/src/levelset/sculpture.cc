@@ -259,6 +259,7 @@ class SculptureAccess {
  public:
   static Sculpture Make(std::unique_ptr<Sculpture::Impl> impl) {
     Sculpture s(std::move(impl));
+    s.impl_->bounds = s.impl_->grid->evalActiveVoxelBoundingBox();
     s.impl_->volume = s.ComputeVolume();
     s.impl_->reference_volume = s.impl_->volume;
     return s;
@@ -512,7 +513,7 @@ uint64_t Sculpture::LeafCount() const { return impl_->grid->tree().leafCount(); 
 uint64_t Sculpture::MemoryBytes() const { return impl_->grid->memUsage(); }
 
 Aabb Sculpture::WorldBounds() const {
-  const openvdb::CoordBBox bb = impl_->grid->evalActiveVoxelBoundingBox();
+  const openvdb::CoordBBox& bb = impl_->bounds;
   const double dx = impl_->dx();
   if (bb.empty()) return Aabb{{1, 1, 1}, {0, 0, 0}};
   return Aabb{{bb.min().x() * dx, bb.min().y() * dx, bb.min().z() * dx},

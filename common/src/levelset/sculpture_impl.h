@@ -21,6 +21,9 @@ struct Sculpture::Impl {
   double volume = 0;
   double reference_volume = 0;
   uint64_t edits_since_reinit = 0;
+  /// Conservative index bounds of the active voxels: exact at creation and load, grown by each
+  /// edit's block, so reading it never walks the tree.
+  openvdb::CoordBBox bounds;
 
   double dx() const { return grid->voxelSize()[0]; }
   float background() const { return grid->background(); }

@@ -97,7 +97,8 @@ class Sculpture {
   uint64_t ActiveVoxelCount() const;
   uint64_t LeafCount() const;
   uint64_t MemoryBytes() const;
-  /// World bounds of the active voxels (empty object: min > max).
+  /// World bounds of the active voxels (empty object: min > max). Conservative after edits
+  /// (edits only grow it) so that it costs nothing on the edit path.
   Aabb WorldBounds() const;
   /// openvdb::tools::checkLevelSet with its first `checks` tests (8: class, scale, background,
   /// no active tiles, finite values, active values within +-background, inactive values at
