@@ -191,6 +191,7 @@ TEST(EditStability, TenThousandPressStrokesKeepVolume) {
   std::normal_distribution<double> n(0, 1);
   std::uniform_real_distribution<double> depth(0.5, 3.0);
   double worst = 0;
+  Sculpture::EikonalReport half_way;
   for (int i = 1; i <= 10000; ++i) {
     Vec3 d{n(rng), n(rng), n(rng)};
     d = d / d.Length();
@@ -211,13 +212,19 @@ TEST(EditStability, TenThousandPressStrokesKeepVolume) {
       ASSERT_LE(drift, 5e-4) << "stroke " << i;
       ASSERT_NEAR(s->volume(), s->ComputeVolume(), 1e-6 * v0) << "stroke " << i;
     }
+    if (i == 5000) half_way = s->MeasureEikonal();
   }
   EXPECT_LE(worst, 5e-4);
   EXPECT_TRUE(AllFinite(*s));
   EXPECT_TRUE(s->CheckLevelSet().ok()) << s->CheckLevelSet();
+  // The reinitialisation policy holds the edited band near its threshold (mean error 0.15 per
+  // edited region), so the Eikonal error settles instead of growing: bounded in absolute terms
+  // and no worse after 10,000 strokes than after 5,000.
   const auto eik = s->MeasureEikonal();
-  EXPECT_LT(eik.mean_abs_error, 0.15);
-  EXPECT_LT(eik.fraction_outside_half, 0.10);
+  EXPECT_LT(eik.mean_abs_error, 0.2);
+  EXPECT_LT(eik.fraction_outside_half, 0.08);
+  EXPECT_LT(eik.mean_abs_error, half_way.mean_abs_error + 0.03);
+  RecordProperty("eikonal_mean", std::to_string(eik.mean_abs_error));
   RecordProperty("worst_drift", std::to_string(worst));
 }
 
