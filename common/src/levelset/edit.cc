@@ -50,7 +50,6 @@ struct Block {
   double dx = 1;
   float bg = 1;
   double eps = 1.5;
-  double inside_sum_before = 0;  // in voxels
 
   bool Interior(int i, int j, int k) const {
     const Int3 d = phi.dims();
@@ -75,7 +74,17 @@ struct Block {
   void ClampToBand() {
     for (float& v : phi.data()) v = std::clamp(v, -bg, bg);
   }
-  double InsideSum() const { return internal::DenseInsideSum(phi, eps); }
+  // Change of the inside-voxel count since extraction: only voxels that changed contribute, so
+  // the tracked volume stays exact without summing the block.
+  double InsideChange() const {
+    double sum = 0;
+    const auto& now = phi.data();
+    const auto& was = before.data();
+    for (size_t i = 0; i < now.size(); ++i) {
+      if (now[i] != was[i]) sum += InsideFraction(now[i], eps) - InsideFraction(was[i], eps);
+    }
+    return sum;
+  }
 };
 
 Block MakeBlock(const Sculpture::Impl& impl, const ToolShape& tool, double reach) {
@@ -99,7 +108,6 @@ Block MakeBlock(const Sculpture::Impl& impl, const ToolShape& tool, double reach
       }
     }
   }
-  b.inside_sum_before = b.InsideSum();
   return b;
 }
 
@@ -296,7 +304,7 @@ IslandReport FindIslands(Block& b, const EditSettings& s) {
   const std::vector<int16_t> dist_removed = distance_from([&](size_t idx) {
     return data[idx] < 0.f && label[idx] >= 0 && remove[label[idx]];
   });
-  const double before = b.InsideSum();
+  const double before = b.InsideChange();
   for (size_t i = 0; i < pieces.size(); ++i) {
     if (!remove[i]) continue;
     for (uint32_t idx : pieces[i].voxels) {
@@ -326,7 +334,7 @@ IslandReport FindIslands(Block& b, const EditSettings& s) {
       }
     }
   }
-  rep.removed_inside_voxels = before - b.InsideSum();
+  rep.removed_inside_voxels = before - b.InsideChange();
   rep.removed_any = true;
   return rep;
 }
@@ -349,9 +357,9 @@ struct CompensationOutcome {
   bool failed = false;
 };
 
-// Shell compensation inside the block. `outside_sum` is the inside-voxel count of the grid
-// outside the block, so Vol = (outside_sum + block sum) dx^3 exactly as the tracked volume.
-CompensationOutcome CompensateShell(Block& b, double target, double outside_voxels,
+// Shell compensation inside the block. `base_volume` is the tracked volume before the edit, so
+// Vol = base_volume + (change of the block's inside count) dx^3, exactly as the tracked volume.
+CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
                                     double shell_outer, const EditSettings& s) {
   CompensationOutcome out;
   const double dx3 = b.dx * b.dx * b.dx;
@@ -365,10 +373,10 @@ CompensationOutcome CompensateShell(Block& b, double target, double outside_voxe
     for (uint32_t idx : shell) sum += InsideFraction(b.phi.data()[idx], b.eps);
     return sum;
   };
-  const double block_sum0 = b.InsideSum();
+  const double change0 = b.InsideChange();
   const double shell_sum0 = shell_sum();
   for (int it = 0; it < s.max_compensation_iterations; ++it) {
-    const double vol = (outside_voxels + block_sum0 - shell_sum0 + shell_sum()) * dx3;
+    const double vol = base_volume + (change0 - shell_sum0 + shell_sum()) * dx3;
     const double err = target - vol;
     if (std::abs(err) <= tol) break;
     double area = 0;  // weighted smoothed area, seed 000 eq. 5.7 delta
@@ -515,7 +523,7 @@ StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
       (req.kind == EditKind::kAdd || req.kind == EditKind::kSubtract ? impl.background() : 0);
 
   Block b = MakeBlock(impl, req.tool, reach);
-  const double outside_voxels = impl.volume / dx3 - b.inside_sum_before;
+  const double base_volume = impl.volume;
   VoxelList gamma = b.Select([](size_t, float t) { return t < 0.f; });
   std::vector<float> ones(b.phi.size(), 1.f);
 
@@ -632,7 +640,7 @@ StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
   // Shell compensation first: its weighted offset bends |grad phi| in the shell, which the
   // reinitialisation below then straightens.
   if (touched && compensate && s.compensation == CompensationRegion::kShell) {
-    CompensationOutcome c = CompensateShell(b, reference, outside_voxels, shell_outer, s);
+    CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s);
     res.compensation_iterations = c.iterations;
     res.compensation_failed = c.failed;
     res.substeps += c.substeps;
@@ -660,6 +668,7 @@ StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
         (e.mean_abs_error > s.reinit_eikonal_threshold || due || !reinit_extra.empty())) {
       MotionSettings m = s.motion;
       m.spatial = s.reinit_spatial;
+      m.temporal = TemporalScheme::kRk1;  // pseudo-time: only the steady state matters
       res.reinit_passes = Reinitialize(b.phi, region, s.reinit_iterations, dx, m, 0.5);
       impl.edits_since_reinit = 0;
       b.ClampToBand();
@@ -669,7 +678,7 @@ StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
   // Compensation once more: the reinitialisation moved the interface slightly (by far less
   // than a voxel), so this pass is a small correction whose offset barely bends the field.
   if (touched && compensate && s.compensation == CompensationRegion::kShell) {
-    CompensationOutcome c = CompensateShell(b, reference, outside_voxels, shell_outer, s);
+    CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s);
     res.compensation_iterations += c.iterations;
     res.compensation_failed = res.compensation_failed || c.failed;
     res.substeps += c.substeps;
@@ -683,7 +692,7 @@ StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
   res.changed = wb.changed_voxels > 0;
   res.changed_voxels = wb.changed_voxels;
   res.dirty_leaves = std::move(wb.dirty_leaves);
-  impl.volume = (outside_voxels + b.InsideSum()) * dx3;
+  impl.volume = base_volume + b.InsideChange() * dx3;
 
   if (touched && compensate && s.compensation == CompensationRegion::kGlobal) {
     // The thesis's region: every interface voxel outside the tool (chi of Gamma's complement).
@@ -752,7 +761,7 @@ StatusOr<EditResult> ReinitializeRegion(Sculpture& sculpture, const Aabb& region
   const Vec3 c = (region.min + region.max) * 0.5;
   const ToolShape box = ToolShape::Box(c, (region.max - region.min) * 0.5 + Vec3{dx, dx, dx} * 0.5);
   Block b = MakeBlock(impl, box, 0);
-  const double outside_voxels = impl.volume / dx3 - b.inside_sum_before;
+  const double base_volume = impl.volume;
   VoxelList active = b.Select([&](size_t idx, float t) {
     return t <= 0.f && std::abs(b.phi.data()[idx]) < b.bg;
   });
@@ -769,7 +778,7 @@ StatusOr<EditResult> ReinitializeRegion(Sculpture& sculpture, const Aabb& region
   res.changed = wb.changed_voxels > 0;
   res.changed_voxels = wb.changed_voxels;
   res.dirty_leaves = std::move(wb.dirty_leaves);
-  impl.volume = (outside_voxels + b.InsideSum()) * dx3;
+  impl.volume = base_volume + b.InsideChange() * dx3;
   res.volume_after = impl.volume;
   res.reference_volume = impl.reference_volume;
   res.elapsed_ms =

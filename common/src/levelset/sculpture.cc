@@ -213,7 +213,8 @@ WriteBackResult WriteBack(FloatGrid& grid, const DenseField& before, const Dense
           acc.setValueOn(c, v);
         }
         ++r.changed_voxels;
-        leaves.push_back({c.x() & ~7, c.y() & ~7, c.z() & ~7});
+        const Int3 leaf{c.x() & ~7, c.y() & ~7, c.z() & ~7};
+        if (leaves.empty() || !(leaves.back() == leaf)) leaves.push_back(leaf);
       }
     }
   }
