@@ -140,6 +140,27 @@ TEST(EditStability, ZeroSpeedPressChangesNothing) {
   EXPECT_EQ(s->StateHash(), h);
 }
 
+// A crawling tool (1e-9 units per second) still presses through in bounded work: the press runs
+// until the tool is empty, so a floor on the motion per step changes nothing but the cost.
+TEST(EditStability, CrawlingToolFinishesInBoundedSteps) {
+  auto s = Sculpture::MakeSphere(Opts(0.5), {0, 0, 0}, 10.0);
+  ASSERT_TRUE(s.ok());
+  Sculpture fast = s->Clone();
+  EditRequest e;
+  e.kind = EditKind::kPress;
+  e.tool = ToolShape::Sphere({11, 0, 0}, 3.0);
+  e.dt = 0.01;
+  e.speed = 1e-9;
+  auto slow = ApplyEdit(*s, e, EditSettings{});
+  ASSERT_TRUE(slow.ok()) << slow.status();
+  EXPECT_LE(slow->steps, 200);
+  EXPECT_FALSE(slow->press_fallback_csg);
+  EXPECT_GT(s->SampleWorld({9.5, 0, 0}), 0.0);
+  e.speed = 100;
+  ASSERT_TRUE(ApplyEdit(fast, e, EditSettings{}).ok());
+  EXPECT_LT(MaxSurfaceDifferenceVoxels(*s, fast), 1.0);
+}
+
 // A 2-voxel sheet cut through by a wall-shaped tool: the piece cut off is found, removed under
 // kRemoveSmall with the reference re-baselined, and kept (but reported) under kKeep.
 TEST(EditStability, ThinSheetPressedThroughSplitsAndAppliesIslandsPolicy) {

@@ -525,7 +525,6 @@ StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
   Block b = MakeBlock(impl, req.tool, reach);
   const double base_volume = impl.volume;
   VoxelList gamma = b.Select([](size_t, float t) { return t < 0.f; });
-  std::vector<float> ones(b.phi.size(), 1.f);
 
   bool touched = false;
   switch (req.kind) {
@@ -538,12 +537,17 @@ StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
       touched = true;
       std::vector<float> speed(b.phi.size(), 0.f);
       for (uint32_t idx : gamma) speed[idx] = static_cast<float>(-req.speed);
-      const double step_motion = req.speed * req.dt;
+      // The press runs until Gamma is empty, so its result does not depend on the speed; a
+      // stroke slower than a quarter of a CFL substep per interval is run at that floor, which
+      // bounds the work of any request.
+      const double step_motion = std::max(req.speed * req.dt, 0.25 * s.cfl * dx);
       const int sub = std::max(1, static_cast<int>(std::ceil(step_motion / (s.cfl * dx) - 1e-9)));
-      const double dt_sub = req.dt / sub;
+      const double dt_sub = step_motion / (sub * req.speed);
       // The front needs at most the tool's diameter plus the band to leave Gamma.
       const double max_motion = 2 * scale + 2 * b.bg + 2 * dx;
-      const int max_steps = static_cast<int>(std::ceil(max_motion / step_motion)) + 1;
+      // (A very slow tool stalls by the test below long before this cap.)
+      const int max_steps =
+          static_cast<int>(std::min(1e6, std::ceil(max_motion / step_motion))) + 1;
       bool empty = false;
       for (int step = 0; step < max_steps && !empty; ++step) {
         ++res.steps;
