@@ -1,10 +1,11 @@
-/// @brief `sculpt`: the command-line client. Subcommands: demo, info, export.
+/// @brief `sculpt`: the command-line client. Subcommands: demo, info, export, thesis.
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
 
 #include "demo.h"
+#include "thesis_cmd.h"
 #include "sculpt/levelset/sculpture.h"
 
 int main(int argc, char** argv) {
@@ -39,7 +40,15 @@ int main(int argc, char** argv) {
   export_cmd->add_option("--adaptivity", adaptivity, "volumeToMesh adaptivity")
       ->check(CLI::Range(0.0, 1.0));
 
+  CLI::App* thesis_cmd = app.add_subcommand(
+      "thesis", "Rerun the thesis's 2D carve and compensation experiments; print JSON");
+
   CLI11_PARSE(app, argc, argv);
+
+  if (*thesis_cmd) {
+    std::printf("%s\n", sculpt::client::RunThesisReproduction().c_str());
+    return 0;
+  }
 
   if (*demo_cmd) {
     const sculpt::Status s = sculpt::client::RunDemo(demo);
