@@ -19,6 +19,7 @@ set grid
 set key top right
 set format y "10^{%L}"
 set xlabel "mean wall time per edit (ms)"
+even(i) = int(i) % 2 == 0
 grp(g) = strcol(3) eq g ? $10 : 1/0
 grpv(g) = strcol(3) eq g ? $8 : 1/0
 
@@ -31,7 +32,8 @@ plot dat using 5:(grp("default")) with points pt 7 ps 2.0 lc rgb "#000000" title
      dat using 5:(grp("voxel_size")) with points pt 9 ps 1.6 lc rgb "#d62728" title "voxel size", \
      dat using 5:(grp("reinit")) with points pt 11 ps 1.6 lc rgb "#2ca02c" title "reinit policy", \
      dat using 5:(grp("compensation")) with points pt 13 ps 1.6 lc rgb "#9467bd" title "compensation", \
-     dat using 5:10:2 with labels offset char 0.8,0.6 left font ",8" notitle
+     dat using 5:(even($1) ? $10 : 1/0):2 with labels offset char 0.8,0.5 left font ",8" notitle, \
+     dat using 5:(even($1) ? 1/0 : $10):2 with labels offset char -0.8,-0.5 right font ",8" notitle
 
 # (b) zoom: the configurations at the base voxel size with compensation on, linear axes
 unset logscale
@@ -46,8 +48,10 @@ plot dat using 5:(zoom("default")) with points pt 7 ps 2.0 lc rgb "#000000" titl
      dat using 5:(zoom("scheme")) with points pt 5 ps 1.3 lc rgb "#1f77b4" title "spatial x temporal", \
      dat using 5:(zoom("reinit")) with points pt 11 ps 1.6 lc rgb "#2ca02c" title "reinit policy", \
      dat using 5:(zoom("compensation")) with points pt 13 ps 1.6 lc rgb "#9467bd" title "compensation", \
-     dat using 5:((strcol(2) ne "no-comp" && strcol(2) ne "reinit-never" && $4 == base_voxel) ? $10 : 1/0):2 \
-         with labels offset char 0.8,0.6 left font ",8" notitle
+     dat using 5:((strcol(2) ne "no-comp" && strcol(2) ne "reinit-never" && $4 == base_voxel && even($1)) ? $10 : 1/0):2 \
+         with labels offset char 0.8,0.5 left font ",8" notitle, \
+     dat using 5:((strcol(2) ne "no-comp" && strcol(2) ne "reinit-never" && $4 == base_voxel && !even($1)) ? $10 : 1/0):2 \
+         with labels offset char -0.8,-0.5 right font ",8" notitle
 
 # (c) volume error, log-log
 set logscale xy
@@ -59,6 +63,7 @@ plot dat using 5:(grpv("default")) with points pt 7 ps 2.0 lc rgb "#000000" titl
      dat using 5:(grpv("voxel_size")) with points pt 9 ps 1.6 lc rgb "#d62728" title "voxel size", \
      dat using 5:(grpv("reinit")) with points pt 11 ps 1.6 lc rgb "#2ca02c" title "reinit policy", \
      dat using 5:(grpv("compensation")) with points pt 13 ps 1.6 lc rgb "#9467bd" title "compensation", \
-     dat using 5:8:2 with labels offset char 0.8,0.6 left font ",8" notitle
+     dat using 5:(even($1) ? $8 : 1/0):2 with labels offset char 0.8,0.5 left font ",8" notitle, \
+     dat using 5:(even($1) ? 1/0 : $8):2 with labels offset char -0.8,-0.5 right font ",8" notitle
 
 unset multiplot

@@ -90,10 +90,10 @@ inline std::string StatusText(const Status& s) { return s.ok() ? "ok" : s.ToStri
 struct EditBenchOptions {
   bool quick = false;
   std::vector<double> radii{64, 128, 256, 512};
-  int edits = 200;  // timed edits per kind per radius
+  int edits = 1000;  // timed edits per kind per radius
   int warmup = 5;   // untimed edits per kind per radius
   std::vector<double> naive_radii{64, 128};
-  int naive_edits = 3;
+  int naive_edits = 5;
   int strokes = 10000;
   double stroke_radius = 64;
   int checkpoint_every = 500;
@@ -110,6 +110,7 @@ struct AccuracyBenchOptions {
   double tool_radius = 3;     // world units
   double penetration = 1.0;   // world units
   int strokes = 20;
+  int repeats = 3;  // scenario runs per configuration; the time is the median of their means
   double base_voxel = 0.5;
   std::vector<double> voxel_sizes{1.0, 0.5, 0.25};
   double reference_voxel = 0.125;

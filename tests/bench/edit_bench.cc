@@ -205,14 +205,14 @@ Json RunRadius(double R, const EditBenchOptions& o, Json* naive_out) {
     EditSettings settings;
   };
   EditSettings equal_work = settings;
-  equal_work.compensation_tolerance = kVoxel * kVoxel * kVoxel / s.reference_volume();
+  equal_work.compensation_tolerance_voxels = 1.0;
   const Run runs[] = {{"press", EditKind::kPress, settings},
                       {"add", EditKind::kAdd, settings},
                       {"subtract", EditKind::kSubtract, settings},
                       {"press_equal_work", EditKind::kPress, equal_work}};
-  out["press_equal_work_compensation_tolerance"] = equal_work.compensation_tolerance;
+  out["press_equal_work_compensation_tolerance_voxels3"] = equal_work.compensation_tolerance_voxels;
   out["default_compensation_tolerance_voxels3"] =
-      settings.compensation_tolerance * s.reference_volume() / (kVoxel * kVoxel * kVoxel);
+      settings.compensation_tolerance_voxels;
   Json after = Json::object();
   for (const Run& run : runs) {
     Progress("edit: r=%g: %d warm-up + %d timed %s edits (on a fresh copy)", R, o.warmup, o.edits,

@@ -98,6 +98,7 @@ int main(int argc, char** argv) {
   acc->add_flag("--quick", ao.quick, "seconds-long smoke configuration");
   acc->add_option("--out-dat", ao.out_dat, "also write the table as gnuplot data");
   acc->add_option("--strokes", ao.strokes, "press samples in the scenario")->check(CLI::Range(1, 100000));
+  acc->add_option("--repeats", ao.repeats, "runs of the scenario per configuration (timing median)")->check(CLI::Range(1, 100));
   acc->add_option("--base-voxel", ao.base_voxel, "voxel size of the scheme/policy sweeps");
   acc->add_option("--voxel-sizes", ao.voxel_sizes, "voxel sizes of the voxel-size sweep")->delimiter(',');
   acc->add_option("--reference-voxel", ao.reference_voxel, "voxel size of the reference run");
@@ -127,6 +128,7 @@ int main(int argc, char** argv) {
     ao.scheme_grid = !one_factor;
     if (ao.quick) {
       if (acc->count("--strokes") == 0) ao.strokes = 6;
+      if (acc->count("--repeats") == 0) ao.repeats = 1;
       if (acc->count("--base-voxel") == 0) ao.base_voxel = 1.0;
       if (acc->count("--voxel-sizes") == 0) ao.voxel_sizes = {1.0, 0.5};
       if (acc->count("--reference-voxel") == 0) ao.reference_voxel = 0.25;

@@ -366,7 +366,7 @@ CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
   std::vector<float> w(b.phi.size(), 0.f);
   VoxelList shell = b.Select([&](size_t, float t) { return t > 1.5 * b.dx && t < shell_outer; });
   for (uint32_t idx : shell) w[idx] = ShellWeight(b.tool_sdf[idx], 1.5 * b.dx, shell_outer, b.dx);
-  const double tol = s.compensation_tolerance * std::abs(target);
+  const double tol = s.compensation_tolerance_voxels * b.dx * b.dx * b.dx;
   // Only shell voxels change here, so the block's inside sum moves by their change alone.
   auto shell_sum = [&] {
     double sum = 0;
@@ -455,7 +455,8 @@ const char* EditKindName(EditKind kind) {
 Status ValidateEditSettings(const EditSettings& s) {
   SCULPT_RETURN_IF_ERROR(CheckRange("cfl", s.cfl, 0.05, 0.9));
   SCULPT_RETURN_IF_ERROR(CheckRange("shell_radii", s.shell_radii, 0.25, 8));
-  SCULPT_RETURN_IF_ERROR(CheckRange("compensation_tolerance", s.compensation_tolerance, 0, 0.1));
+  SCULPT_RETURN_IF_ERROR(
+      CheckRange("compensation_tolerance_voxels", s.compensation_tolerance_voxels, 1e-6, 1e6));
   SCULPT_RETURN_IF_ERROR(CheckRange("max_compensation_iterations",
                                     s.max_compensation_iterations, 0, 1000));
   SCULPT_RETURN_IF_ERROR(CheckRange("gradient_descent_dt", s.gradient_descent_dt, 1e-4, 4));
@@ -705,7 +706,7 @@ StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
     const double gap = 1.5 * dx;
     for (int it = 0; it < s.max_compensation_iterations; ++it) {
       const double err = reference - impl.volume;
-      if (std::abs(err) <= s.compensation_tolerance * std::abs(reference)) break;
+      if (std::abs(err) <= s.compensation_tolerance_voxels * dx3) break;
       double area = 0;
       for (auto v = grid.tree().cbeginValueOn(); v; ++v) {
         const openvdb::Vec3d p = grid.indexToWorld(v.getCoord());

@@ -21,6 +21,7 @@
 #include <functional>
 #include <mutex>
 #include <sstream>
+#include <unistd.h>
 
 #include "sculpt/levelset/kernels.h"
 #include "sculpture_impl.h"
@@ -414,6 +415,84 @@ Status Sculpture::SaveVdb(const std::string& path) const {
     return Internal("writing " + path + ": " + e.what());
   }
   return Status::Ok();
+}
+
+namespace {
+void StampMetadata(openvdb::FloatGrid& grid, const Sculpture::Impl& impl) {
+  grid.setName(impl.name);
+  grid.setGridClass(openvdb::GRID_LEVEL_SET);
+  grid.insertMeta("voxel_size", openvdb::DoubleMetadata(impl.dx()));
+  grid.insertMeta("half_width", openvdb::Int32Metadata(impl.half_width));
+  grid.insertMeta("scene_name", openvdb::StringMetadata(impl.name));
+  grid.insertMeta("reference_volume", openvdb::DoubleMetadata(impl.reference_volume));
+}
+}  // namespace
+
+StatusOr<std::string> Sculpture::SerializeVdb() const {
+  try {
+    StampMetadata(*impl_->grid, *impl_);
+    // Written as a .vdb file image, which DeserializeVdb reads back through io::File.
+    const std::filesystem::path tmp =
+        std::filesystem::temp_directory_path() /
+        ("sculpt-" + std::to_string(::getpid()) + "-" +
+         std::to_string(reinterpret_cast<uintptr_t>(this)) + "-out.vdb");
+    {
+      openvdb::io::File file(tmp.string());
+      file.write({impl_->grid});
+      file.close();
+    }
+    std::ifstream in(tmp, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    return bytes;
+  } catch (const std::exception& e) {
+    return Internal(std::string("serializing the sculpture: ") + e.what());
+  }
+}
+
+StatusOr<Sculpture> Sculpture::DeserializeVdb(const std::string& bytes) {
+  internal::EnsureOpenVdbInitialized();
+  // OpenVDB 10's io::Stream crashes in its destructor after it threw on a malformed stream, so
+  // the bytes go through a private temporary file and io::File, which fails cleanly.
+  const std::filesystem::path tmp =
+      std::filesystem::temp_directory_path() /
+      ("sculpt-" + std::to_string(::getpid()) + "-" +
+       std::to_string(reinterpret_cast<uintptr_t>(&bytes)) + ".vdb");
+  {
+    std::ofstream out(tmp, std::ios::binary);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    if (!out) return Internal("cannot write temporary file " + tmp.string());
+  }
+  struct Remove {
+    std::filesystem::path p;
+    ~Remove() {
+      std::error_code ec;
+      std::filesystem::remove(p, ec);
+    }
+  } remove_tmp{tmp};
+  try {
+    openvdb::io::File file(tmp.string());
+    file.open();
+    openvdb::GridPtrVecPtr grids = file.getGrids();
+    file.close();
+    for (auto& base : *grids) {
+      auto grid = openvdb::gridPtrCast<FloatGrid>(base);
+      if (!grid || grid->getGridClass() != openvdb::GRID_LEVEL_SET) continue;
+      auto impl = std::make_unique<Impl>();
+      impl->grid = grid;
+      impl->name = grid->getName();
+      impl->half_width = static_cast<int>(std::lround(grid->background() / grid->voxelSize()[0]));
+      Sculpture s = SculptureAccess::Make(std::move(impl));
+      if (auto m = grid->getMetadata<openvdb::DoubleMetadata>("reference_volume")) {
+        s.set_reference_volume(m->value());
+      }
+      return s;
+    }
+    return InvalidArgument("vdb stream holds no float level-set grid");
+  } catch (const std::exception& e) {
+    return DataLoss(std::string("vdb stream: ") + e.what());
+  }
 }
 
 StatusOr<MeshStats> Sculpture::ExportMesh(const std::string& path, double adaptivity) const {

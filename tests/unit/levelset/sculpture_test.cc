@@ -91,6 +91,20 @@ TEST(SculptureTest, VdbRoundTripKeepsHashAndMetadata) {
   std::filesystem::remove(path);
 }
 
+TEST(SculptureTest, SerializeRoundTripKeepsHash) {
+  auto s = Sculpture::MakeSphere(Opts(0.5), {0, 0, 0}, 6.0);
+  ASSERT_TRUE(s.ok());
+  s->set_reference_volume(99.25);
+  auto bytes = s->SerializeVdb();
+  ASSERT_TRUE(bytes.ok()) << bytes.status();
+  auto back = Sculpture::DeserializeVdb(*bytes);
+  ASSERT_TRUE(back.ok()) << back.status();
+  EXPECT_EQ(back->StateHash(), s->StateHash());
+  EXPECT_DOUBLE_EQ(back->reference_volume(), 99.25);
+  EXPECT_FALSE(Sculpture::DeserializeVdb(bytes->substr(0, bytes->size() / 2)).ok());
+  EXPECT_FALSE(Sculpture::DeserializeVdb("garbage").ok());
+}
+
 TEST(SculptureTest, LoadRejectsMissingAndCorruptFiles) {
   EXPECT_EQ(Sculpture::LoadVdb(TempPath("missing.vdb")).status().code(), Status::Code::kNotFound);
   const std::string path = TempPath("corrupt.vdb");

@@ -72,6 +72,11 @@ class Sculpture {
   /// Writes a `.vdb` with grid class level set and metadata: voxel size, half-width, scene name,
   /// reference volume.
   Status SaveVdb(const std::string& path) const;
+  /// The same content as SaveVdb, in memory (OpenVDB's stream format, Blosc-compressed), for
+  /// sending the state to a late joiner. DeserializeVdb reads only what a trusted server sent;
+  /// the server never parses one from a client.
+  StatusOr<std::string> SerializeVdb() const;
+  static StatusOr<Sculpture> DeserializeVdb(const std::string& bytes);
   /// Meshes the zero level set with openvdb::tools::volumeToMesh and writes OBJ or PLY (by
   /// extension). InvalidArgument for another extension.
   StatusOr<MeshStats> ExportMesh(const std::string& path, double adaptivity = 0.0) const;

@@ -1,0 +1,236 @@
+/// @brief Reading and checking sculptd's TOML configuration.
+#include "config/server_config.h"
+
+#include <cmath>
+#include <filesystem>
+#include <sstream>
+#include <toml++/toml.h>
+
+namespace sculpt::server {
+namespace {
+
+std::string Num(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+
+Status Range(const std::string& key, double v, double lo, double hi) {
+  if (!std::isfinite(v)) return InvalidArgument(key + "=" + Num(v) + " is not finite");
+  if (v < lo || v > hi) {
+    return InvalidArgument(key + "=" + Num(v) + " outside [" + Num(lo) + ", " + Num(hi) + "]");
+  }
+  return Status::Ok();
+}
+
+Status OneOf(const std::string& key, const std::string& v, std::initializer_list<const char*> ok) {
+  std::string list;
+  for (const char* o : ok) {
+    if (v == o) return Status::Ok();
+    list += (list.empty() ? "" : ", ") + std::string(o);
+  }
+  return InvalidArgument(key + "=" + v + " outside {" + list + "}");
+}
+
+template <typename T>
+void Get(const toml::table& t, const char* key, T* out) {
+  if (auto v = t[key].value<T>()) *out = *v;
+}
+
+void GetVec(const toml::table& t, const char* key, Vec3* out) {
+  if (const toml::array* a = t[key].as_array(); a && a->size() == 3) {
+    double c[3];
+    for (size_t i = 0; i < 3; ++i) c[i] = (*a)[i].value<double>().value_or(NAN);
+    *out = {c[0], c[1], c[2]};
+  }
+}
+
+}  // namespace
+
+Status LoadConfigFile(const std::string& path, ServerConfig* c) {
+  if (!std::filesystem::exists(path)) return NotFound("config file " + path + " does not exist");
+  toml::table root;
+  try {
+    root = toml::parse_file(path);
+  } catch (const toml::parse_error& e) {
+    std::ostringstream os;
+    os << "config file " << path << ":" << e.source().begin.line << ":"
+       << e.source().begin.column << ": " << e.description();
+    return InvalidArgument(os.str());
+  }
+  if (const toml::table* s = root["server"].as_table()) {
+    Get(*s, "listen", &c->listen);
+    Get(*s, "data_dir", &c->data_dir);
+    Get(*s, "io_threads", &c->io_threads);
+    Get(*s, "fsync", &c->fsync);
+    Get(*s, "group_commit_ms", &c->group_commit_ms);
+    int64_t every = static_cast<int64_t>(c->snapshot_every_edits);
+    Get(*s, "snapshot_every_edits", &every);
+    c->snapshot_every_edits = static_cast<uint64_t>(std::max<int64_t>(0, every));
+    Get(*s, "snapshot_every_seconds", &c->snapshot_every_seconds);
+    Get(*s, "sculptor_token", &c->sculptor_token);
+    Get(*s, "viewer_token", &c->viewer_token);
+    Get(*s, "presence_hz", &c->presence_hz);
+  }
+  if (const toml::table* l = root["limits"].as_table()) {
+    int64_t v = c->limits.max_frame_bytes;
+    Get(*l, "max_frame_bytes", &v);
+    c->limits.max_frame_bytes = static_cast<uint32_t>(std::clamp<int64_t>(v, 0, 1ll << 31));
+    v = c->limits.max_poses_per_stroke;
+    Get(*l, "max_poses_per_stroke", &v);
+    c->limits.max_poses_per_stroke = static_cast<uint32_t>(std::clamp<int64_t>(v, 0, 1 << 20));
+    Get(*l, "strokes_per_second", &c->limits.strokes_per_second);
+    Get(*l, "stroke_burst", &c->limits.stroke_burst);
+    Get(*l, "violations_before_disconnect", &c->limits.violations_before_disconnect);
+    v = c->limits.max_clients_per_scene;
+    Get(*l, "max_clients_per_scene", &v);
+    c->limits.max_clients_per_scene = static_cast<uint32_t>(std::clamp<int64_t>(v, 0, 1 << 20));
+    Get(*l, "auth_timeout_ms", &c->limits.auth_timeout_ms);
+    v = static_cast<int64_t>(c->limits.send_queue_bytes);
+    Get(*l, "send_queue_bytes", &v);
+    c->limits.send_queue_bytes = static_cast<size_t>(std::max<int64_t>(0, v));
+  }
+  if (const toml::table* s = root["scene"].as_table()) {
+    SceneConfig& sc = c->scene;
+    Get(*s, "name", &sc.name);
+    Get(*s, "voxel_size", &sc.voxel_size);
+    Get(*s, "half_width", &sc.half_width);
+    Get(*s, "min_tool_size", &sc.min_tool_size);
+    Get(*s, "max_tool_size", &sc.max_tool_size);
+    Get(*s, "max_speed", &sc.max_speed);
+    Get(*s, "max_amount", &sc.max_amount);
+    Get(*s, "bounds_margin", &sc.bounds_margin);
+    if (const toml::table* e = (*s)["effects"].as_table()) {
+      Get(*e, "volume_preservation", &sc.effects.volume_preservation);
+      Get(*e, "smoothing", &sc.effects.smoothing);
+      Get(*e, "islands", &sc.effects.islands);
+      Get(*e, "min_island_volume", &sc.effects.min_island_volume);
+      Get(*e, "contours", &sc.effects.contours);
+      if (const toml::array* m = (*e)["materials"].as_array()) {
+        sc.effects.materials.clear();
+        for (const auto& x : *m) sc.effects.materials.push_back(x.value_or(std::string()));
+      }
+    }
+    if (const toml::array* objects = (*s)["objects"].as_array()) {
+      sc.objects.clear();
+      for (const auto& node : *objects) {
+        const toml::table* o = node.as_table();
+        if (!o) return InvalidArgument("scene.objects entries must be tables");
+        ObjectConfig oc;
+        Get(*o, "name", &oc.name);
+        Get(*o, "primitive", &oc.primitive);
+        GetVec(*o, "center", &oc.center);
+        Get(*o, "radius", &oc.radius);
+        Get(*o, "minor_radius", &oc.minor_radius);
+        GetVec(*o, "size", &oc.size);
+        GetVec(*o, "end", &oc.end);
+        sc.objects.push_back(oc);
+      }
+    }
+  }
+  return Status::Ok();
+}
+
+Status ParseHostPort(const std::string& text, std::string* host, uint16_t* port) {
+  const size_t colon = text.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == text.size()) {
+    return InvalidArgument("listen=" + text + " is not HOST:PORT");
+  }
+  std::string h = text.substr(0, colon);
+  if (h.size() > 2 && h.front() == '[' && h.back() == ']') h = h.substr(1, h.size() - 2);
+  int p = 0;
+  for (size_t i = colon + 1; i < text.size(); ++i) {
+    if (text[i] < '0' || text[i] > '9' || p > 65535) {
+      return InvalidArgument("listen port=" + text.substr(colon + 1) + " outside [0, 65535]");
+    }
+    p = p * 10 + (text[i] - '0');
+  }
+  if (p > 65535) return InvalidArgument("listen port=" + std::to_string(p) + " outside [0, 65535]");
+  *host = h;
+  *port = static_cast<uint16_t>(p);
+  return Status::Ok();
+}
+
+Status ValidateConfig(const ServerConfig& c) {
+  std::string host;
+  uint16_t port = 0;
+  SCULPT_RETURN_IF_ERROR(ParseHostPort(c.listen, &host, &port));
+  if (c.data_dir.empty()) return InvalidArgument("data_dir is empty");
+  SCULPT_RETURN_IF_ERROR(Range("io_threads", c.io_threads, 1, 64));
+  SCULPT_RETURN_IF_ERROR(OneOf("fsync", c.fsync, {"always", "group"}));
+  SCULPT_RETURN_IF_ERROR(Range("group_commit_ms", c.group_commit_ms, 1, 1000));
+  SCULPT_RETURN_IF_ERROR(Range("snapshot_every_seconds", c.snapshot_every_seconds, 0, 86400));
+  if (c.sculptor_token.size() < 8) return InvalidArgument("sculptor_token shorter than 8 bytes");
+  if (c.viewer_token.size() < 8) return InvalidArgument("viewer_token shorter than 8 bytes");
+  if (c.sculptor_token == c.viewer_token) {
+    return InvalidArgument("sculptor_token equals viewer_token: roles would be indistinguishable");
+  }
+  SCULPT_RETURN_IF_ERROR(Range("presence_hz", c.presence_hz, 0.1, 120));
+  const LimitsConfig& l = c.limits;
+  SCULPT_RETURN_IF_ERROR(Range("limits.max_frame_bytes", l.max_frame_bytes, 1024, 64 << 20));
+  SCULPT_RETURN_IF_ERROR(Range("limits.max_poses_per_stroke", l.max_poses_per_stroke, 1, 1024));
+  SCULPT_RETURN_IF_ERROR(Range("limits.strokes_per_second", l.strokes_per_second, 1, 1e5));
+  SCULPT_RETURN_IF_ERROR(Range("limits.stroke_burst", l.stroke_burst, 1, 1e6));
+  SCULPT_RETURN_IF_ERROR(
+      Range("limits.violations_before_disconnect", l.violations_before_disconnect, 1, 1e6));
+  SCULPT_RETURN_IF_ERROR(Range("limits.max_clients_per_scene", l.max_clients_per_scene, 1, 1e5));
+  SCULPT_RETURN_IF_ERROR(Range("limits.auth_timeout_ms", l.auth_timeout_ms, 10, 600000));
+  SCULPT_RETURN_IF_ERROR(
+      Range("limits.send_queue_bytes", static_cast<double>(l.send_queue_bytes), 64 << 10, 1e10));
+  const SceneConfig& s = c.scene;
+  if (s.name.empty() || s.name.size() > 64) return InvalidArgument("scene.name must be 1..64 bytes");
+  SCULPT_RETURN_IF_ERROR(Range("scene.voxel_size", s.voxel_size, levelset::kMinVoxelSize,
+                               levelset::kMaxVoxelSize));
+  SCULPT_RETURN_IF_ERROR(
+      Range("scene.half_width", s.half_width, levelset::kMinHalfWidth, levelset::kMaxHalfWidth));
+  SCULPT_RETURN_IF_ERROR(Range("scene.min_tool_size", s.min_tool_size, 0.25 * s.voxel_size,
+                               64 * s.voxel_size));
+  SCULPT_RETURN_IF_ERROR(Range("scene.max_tool_size", s.max_tool_size, s.min_tool_size,
+                               64 * s.voxel_size));
+  SCULPT_RETURN_IF_ERROR(Range("scene.max_speed", s.max_speed, 0, 1e4 * s.voxel_size));
+  SCULPT_RETURN_IF_ERROR(Range("scene.max_amount", s.max_amount, 0, 32 * s.voxel_size));
+  SCULPT_RETURN_IF_ERROR(Range("scene.bounds_margin", s.bounds_margin, 0, 1e6));
+  SCULPT_RETURN_IF_ERROR(OneOf("scene.effects.volume_preservation", s.effects.volume_preservation,
+                               {"none", "shell", "global"}));
+  SCULPT_RETURN_IF_ERROR(OneOf("scene.effects.islands", s.effects.islands, {"keep", "remove_small"}));
+  SCULPT_RETURN_IF_ERROR(
+      Range("scene.effects.min_island_volume", s.effects.min_island_volume, 0, 1e30));
+  if (!s.effects.materials.empty()) {
+    return InvalidArgument(
+        "scene.effects.materials is not supported yet (heterogeneous materials are a later "
+        "issue); remove it");
+  }
+  if (s.effects.contours) {
+    return InvalidArgument("scene.effects.contours=true is not supported yet; set it to false");
+  }
+  if (s.objects.empty()) return InvalidArgument("scene.objects is empty");
+  for (size_t i = 0; i < s.objects.size(); ++i) {
+    const ObjectConfig& o = s.objects[i];
+    const std::string k = "scene.objects[" + std::to_string(i) + "]";
+    if (o.name.empty() || o.name.size() > 64) return InvalidArgument(k + ".name must be 1..64 bytes");
+    for (size_t j = 0; j < i; ++j) {
+      if (s.objects[j].name == o.name) return InvalidArgument(k + ".name=" + o.name + " repeats");
+    }
+    SCULPT_RETURN_IF_ERROR(OneOf(k + ".primitive", o.primitive, {"sphere", "box", "capsule", "torus"}));
+    if (!o.center.IsFinite()) return InvalidArgument(k + ".center is not finite");
+  }
+  return Status::Ok();
+}
+
+levelset::EditSettings EditSettingsFor(const SceneConfig& s) {
+  levelset::EditSettings e;
+  const std::string& vp = s.effects.volume_preservation;
+  e.compensation = vp == "none"     ? levelset::CompensationRegion::kNone
+                   : vp == "global" ? levelset::CompensationRegion::kGlobal
+                                    : levelset::CompensationRegion::kShell;
+  e.islands = s.effects.islands == "keep" ? levelset::IslandPolicy::kKeep
+                                          : levelset::IslandPolicy::kRemoveSmall;
+  e.min_island_volume = s.effects.min_island_volume;
+  e.min_tool_voxels = s.min_tool_size / s.voxel_size;
+  e.max_tool_voxels = s.max_tool_size / s.voxel_size;
+  e.max_speed_voxels = std::max(1.0, s.max_speed / s.voxel_size);
+  e.max_amount_voxels = std::max(1.0, s.max_amount / s.voxel_size);
+  return e;
+}
+
+}  // namespace sculpt::server

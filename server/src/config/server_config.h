@@ -1,0 +1,91 @@
+/// @brief sculptd's configuration: the scene (objects, voxel size, effects) and the server
+/// (listen address, data directory, tokens, limits), read from TOML and overridden by flags.
+#ifndef SCULPT_SERVER_CONFIG_SERVER_CONFIG_H_
+#define SCULPT_SERVER_CONFIG_SERVER_CONFIG_H_
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "sculpt/core/status.h"
+#include "sculpt/core/vec3.h"
+#include "sculpt/levelset/edit.h"
+
+namespace sculpt::server {
+
+/// One object of the scene, built from a primitive at first start.
+struct ObjectConfig {
+  std::string name = "clay";
+  std::string primitive = "sphere";  // sphere | box | capsule | torus
+  Vec3 center{0, 0, 0};
+  double radius = 24.0;               // sphere, capsule; torus major radius
+  double minor_radius = 6.0;          // torus
+  Vec3 size{32, 32, 32};              // box edge lengths
+  Vec3 end{0, 0, 16};                 // capsule second end (center is the first)
+};
+
+/// The effects the scene calls for; nothing else is computed (ARCHITECTURE principle 2).
+struct EffectsConfig {
+  std::string volume_preservation = "shell";  // none | shell | global
+  bool smoothing = true;                      // smooth strokes allowed
+  std::string islands = "remove_small";       // keep | remove_small
+  double min_island_volume = 8.0;             // world units^3
+  std::vector<std::string> materials;         // not built yet: must be empty
+  bool contours = false;                      // not built yet: must be false
+};
+
+struct SceneConfig {
+  std::string name = "default";
+  double voxel_size = 0.5;
+  int half_width = 6;
+  std::vector<ObjectConfig> objects{ObjectConfig{}};
+  EffectsConfig effects;
+  double min_tool_size = 0.5;   // world units
+  double max_tool_size = 16.0;
+  double max_speed = 2000.0;    // world units per second
+  double max_amount = 8.0;
+  double bounds_margin = 16.0;  // poses must lie within the object bounds grown by this
+};
+
+struct LimitsConfig {
+  uint32_t max_frame_bytes = 1u << 20;
+  uint32_t max_poses_per_stroke = 32;
+  double strokes_per_second = 240;  // token bucket rate per client
+  double stroke_burst = 60;         // bucket size
+  int violations_before_disconnect = 20;
+  uint32_t max_clients_per_scene = 64;
+  int auth_timeout_ms = 5000;
+  size_t send_queue_bytes = 8u << 20;  // per session; then coalesce, then disconnect
+};
+
+struct ServerConfig {
+  std::string listen = "127.0.0.1:7420";
+  std::string data_dir = "./sculpt-data";
+  int io_threads = 2;
+  std::string fsync = "group";  // always | group
+  int group_commit_ms = 5;
+  uint64_t snapshot_every_edits = 5000;
+  double snapshot_every_seconds = 60;
+  std::string sculptor_token = "sculpt-dev-sculptor";
+  std::string viewer_token = "sculpt-dev-viewer";
+  double presence_hz = 10;
+  LimitsConfig limits;
+  SceneConfig scene;
+};
+
+/// Reads a TOML file into `config` (keys not present keep their values). InvalidArgument naming
+/// the key, value and allowed range for a bad value; NotFound for a missing file.
+Status LoadConfigFile(const std::string& path, ServerConfig* config);
+
+/// Checks every value (ranges, enums, unsupported effects). InvalidArgument naming the key.
+Status ValidateConfig(const ServerConfig& config);
+
+/// The kernel settings the scene's effects call for.
+levelset::EditSettings EditSettingsFor(const SceneConfig& scene);
+
+/// Splits "HOST:PORT". InvalidArgument for a malformed address.
+Status ParseHostPort(const std::string& text, std::string* host, uint16_t* port);
+
+}  // namespace sculpt::server
+
+#endif  // SCULPT_SERVER_CONFIG_SERVER_CONFIG_H_
