@@ -1,6 +1,7 @@
 /// @brief Reading and checking sculptd's TOML configuration.
 #include "config/server_config.h"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <sstream>

@@ -1,0 +1,100 @@
+/// @brief sculptd: the authoritative Sculpt server. `sculptd serve [--config scene.toml] ...`.
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <thread>
+#include <vector>
+
+#include "config/server_config.h"
+#include "net/server.h"
+#include "scene/scene.h"
+
+int main(int argc, char** argv) {
+  using sculpt::server::ServerConfig;
+  CLI::App app{"sculptd: the authoritative Sculpt server"};
+  app.require_subcommand(1);
+  CLI::App* serve = app.add_subcommand("serve", "Serve one scene (defaults need no file)");
+
+  std::string config_path;
+  std::string listen, data_dir, fsync, sculptor_token, viewer_token;
+  int io_threads = 0, group_ms = 0;
+  int64_t snapshot_every = -1;
+  std::string port_file;
+  serve->add_option("--config", config_path, "TOML scene/server file (see deploy/scene.toml)")
+      ->check(CLI::ExistingFile);
+  serve->add_option("--listen", listen, "HOST:PORT to listen on (default 127.0.0.1:7420; port 0 "
+                                        "picks a free one)");
+  serve->add_option("--data", data_dir, "Data directory: edit log and snapshots "
+                                        "(default ./sculpt-data)");
+  serve->add_option("--fsync", fsync, "Edit log durability: always | group (default group)")
+      ->check(CLI::IsMember({"always", "group"}));
+  serve->add_option("--group-commit-ms", group_ms, "Group commit window (default 5 ms)")
+      ->check(CLI::Range(1, 1000));
+  serve->add_option("--io-threads", io_threads, "Network threads (default 2)")
+      ->check(CLI::Range(1, 64));
+  serve->add_option("--snapshot-every", snapshot_every, "Snapshot every N edits (default 5000)")
+      ->check(CLI::Range(int64_t{0}, int64_t{1} << 40));
+  serve->add_option("--sculptor-token", sculptor_token, "Secret a sculptor presents");
+  serve->add_option("--viewer-token", viewer_token, "Secret a viewer presents");
+  serve->add_option("--port-file", port_file, "Write the bound port to this file once listening");
+
+  CLI11_PARSE(app, argc, argv);
+
+  ServerConfig config;
+  if (!config_path.empty()) {
+    const sculpt::Status s = sculpt::server::LoadConfigFile(config_path, &config);
+    if (!s.ok()) {
+      spdlog::error("{}", s.ToString());
+      return 2;
+    }
+  }
+  if (!listen.empty()) config.listen = listen;
+  if (!data_dir.empty()) config.data_dir = data_dir;
+  if (!fsync.empty()) config.fsync = fsync;
+  if (group_ms > 0) config.group_commit_ms = group_ms;
+  if (io_threads > 0) config.io_threads = io_threads;
+  if (snapshot_every >= 0) config.snapshot_every_edits = static_cast<uint64_t>(snapshot_every);
+  if (!sculptor_token.empty()) config.sculptor_token = sculptor_token;
+  if (!viewer_token.empty()) config.viewer_token = viewer_token;
+  if (const sculpt::Status s = sculpt::server::ValidateConfig(config); !s.ok()) {
+    spdlog::error("configuration: {}", s.ToString());
+    return 2;
+  }
+
+  auto scene = sculpt::server::Scene::Open(config);
+  if (!scene.ok()) {
+    spdlog::error("cannot open the scene in {}: {}", config.data_dir, scene.status().ToString());
+    return 1;
+  }
+  spdlog::info("scene '{}': {}", config.scene.name, (*scene)->recovery_summary());
+
+  sculpt::server::asio::io_context io;
+  sculpt::server::Server server(io, config, **scene);
+  auto port = server.Start();
+  if (!port.ok()) {
+    spdlog::error("{}", port.status().ToString());
+    return 1;
+  }
+  spdlog::info("listening on {} (port {}), data {}, fsync {}", config.listen, *port,
+               config.data_dir, config.fsync);
+  if (!port_file.empty()) {
+    if (FILE* f = std::fopen(port_file.c_str(), "w")) {
+      std::fprintf(f, "%u\n", *port);
+      std::fclose(f);
+    }
+  }
+  sculpt::server::asio::signal_set signals(io, SIGINT, SIGTERM);
+  signals.async_wait([&](const boost::system::error_code&, int sig) {
+    spdlog::info("signal {}: shutting down", sig);
+    server.Stop();
+    (*scene)->Flush();
+    io.stop();
+  });
+  std::vector<std::thread> threads;
+  for (int i = 1; i < config.io_threads; ++i) threads.emplace_back([&io] { io.run(); });
+  io.run();
+  for (auto& t : threads) t.join();
+  spdlog::info("stopped at seq {}", (*scene)->global_seq());
+  return 0;
+}

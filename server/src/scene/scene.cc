@@ -1,0 +1,404 @@
+/// @brief The scene actor: global order, durable log, compute thread, acks once durable.
+#include "scene/scene.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <filesystem>
+#include <future>
+
+#include "store/edit_log.h"
+#include "store/recovery.h"
+#include "store/snapshot_store.h"
+
+namespace sculpt::server {
+namespace {
+
+double NowSeconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+StatusOr<levelset::Sculpture> MakeObject(const SceneConfig& scene, const ObjectConfig& o) {
+  levelset::SculptureOptions opts;
+  opts.voxel_size = scene.voxel_size;
+  opts.half_width = scene.half_width;
+  opts.name = o.name;
+  if (o.primitive == "sphere") return levelset::Sculpture::MakeSphere(opts, o.center, o.radius);
+  if (o.primitive == "box") {
+    return levelset::Sculpture::MakeBox(opts, o.center - o.size * 0.5, o.center + o.size * 0.5);
+  }
+  if (o.primitive == "capsule") {
+    return levelset::Sculpture::MakeCapsule(opts, o.center, o.end, o.radius);
+  }
+  if (o.primitive == "torus") {
+    return levelset::Sculpture::MakeTorus(opts, o.center, o.radius, o.minor_radius);
+  }
+  return InvalidArgument("scene.objects.primitive=" + o.primitive +
+                         " outside {sphere, box, capsule, torus}");
+}
+
+v1::Vec3f ToProto(const Vec3& v) {
+  v1::Vec3f out;
+  out.set_x(static_cast<float>(v.x));
+  out.set_y(static_cast<float>(v.y));
+  out.set_z(static_cast<float>(v.z));
+  return out;
+}
+
+v1::EditKind KindToProto(levelset::EditKind k) {
+  switch (k) {
+    case levelset::EditKind::kPress: return v1::EDIT_KIND_PRESS;
+    case levelset::EditKind::kAdd: return v1::EDIT_KIND_ADD;
+    case levelset::EditKind::kSubtract: return v1::EDIT_KIND_SUBTRACT;
+    case levelset::EditKind::kSmooth: return v1::EDIT_KIND_SMOOTH;
+    case levelset::EditKind::kInflate: return v1::EDIT_KIND_INFLATE;
+    case levelset::EditKind::kDeflate: return v1::EDIT_KIND_DEFLATE;
+  }
+  return v1::EDIT_KIND_UNSPECIFIED;
+}
+
+v1::ToolKind ToolToProto(levelset::ToolKind k) {
+  switch (k) {
+    case levelset::ToolKind::kSphere: return v1::TOOL_KIND_SPHERE;
+    case levelset::ToolKind::kEllipsoid: return v1::TOOL_KIND_ELLIPSOID;
+    case levelset::ToolKind::kBox: return v1::TOOL_KIND_BOX;
+    case levelset::ToolKind::kCapsule: return v1::TOOL_KIND_CAPSULE;
+  }
+  return v1::TOOL_KIND_UNSPECIFIED;
+}
+
+// The record of one pose. Live application goes through EditFromRecord(record) too, so the
+// server applies exactly the (float-rounded) edit that recovery and replicas replay.
+v1::EditRecord MakeRecord(uint64_t seq, uint64_t client_id, uint64_t client_seq, uint32_t pose,
+                          const std::string& object, const levelset::EditRequest& e) {
+  v1::EditRecord r;
+  r.set_global_seq(seq);
+  r.set_client_id(client_id);
+  r.set_client_seq(client_seq);
+  r.set_pose_index(pose);
+  r.set_object(object);
+  r.set_kind(KindToProto(e.kind));
+  r.set_tool(ToolToProto(e.tool.kind));
+  *r.mutable_tool_size() = ToProto(e.tool.size);
+  if (e.tool.kind == levelset::ToolKind::kCapsule) {
+    *r.mutable_previous() = ToProto(e.tool.center);
+    *r.mutable_position() = ToProto(e.tool.end);
+  } else {
+    *r.mutable_position() = ToProto(e.tool.center);
+  }
+  r.set_speed(static_cast<float>(e.speed));
+  r.set_dt(static_cast<float>(e.dt));
+  r.set_amount(static_cast<float>(e.amount));
+  return r;
+}
+
+}  // namespace
+
+Scene::Scene(const ServerConfig& config) : config_(config) {
+  settings_ = EditSettingsFor(config.scene);
+}
+
+StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
+  SCULPT_RETURN_IF_ERROR(ValidateConfig(config));
+  std::unique_ptr<Scene> scene(new Scene(config));
+  SCULPT_RETURN_IF_ERROR(levelset::ValidateEditSettings(scene->settings_));
+
+  store::RecoveryOptions ro;
+  for (const ObjectConfig& o : config.scene.objects) ro.objects.push_back(o.name);
+  ro.log.fsync.mode = config.fsync == "always" ? store::FsyncPolicy::Mode::kAlways
+                                               : store::FsyncPolicy::Mode::kGroup;
+  ro.log.fsync.group_ms = config.group_commit_ms;
+  const SceneConfig& sc = config.scene;
+  auto make_initial = [&sc](const std::string& name) -> StatusOr<levelset::Sculpture> {
+    for (const ObjectConfig& o : sc.objects) {
+      if (o.name == name) return MakeObject(sc, o);
+    }
+    return NotFound("object " + name);
+  };
+  auto route = [](const store::LogRecord& rec) -> StatusOr<std::string> {
+    v1::EditRecord r;
+    if (!r.ParseFromString(rec.payload)) {
+      return DataLoss("edit log record " + std::to_string(rec.seq) + " does not parse");
+    }
+    return r.object();
+  };
+  const levelset::EditSettings settings = scene->settings_;
+  auto apply = [&settings](levelset::Sculpture& s, const store::LogRecord& rec) -> Status {
+    v1::EditRecord r;
+    if (!r.ParseFromString(rec.payload)) {
+      return DataLoss("edit log record " + std::to_string(rec.seq) + " does not parse");
+    }
+    // An edit the live server refused after logging it is refused identically here.
+    (void)levelset::ApplyEdit(s, codec::EditFromRecord(r), settings);
+    return Status::Ok();
+  };
+  const double t0 = NowSeconds();
+  SCULPT_ASSIGN_OR_RETURN(store::RecoveredScene rec,
+                          store::Recover(config.data_dir, ro, make_initial, route, apply));
+  scene->sculptures_ = std::move(rec.sculptures);
+  scene->log_ = std::move(rec.log);
+  scene->snapshots_ = std::move(rec.snapshots);
+  scene->next_seq_ = rec.last_seq + 1;
+  scene->applied_seq_ = rec.last_seq;
+  // Resends after a restart are recognised by the newest client sequence of each client.
+  Status s = scene->log_->ForEachFrom(0, [&](const store::LogRecord& lr) {
+    v1::EditRecord r;
+    if (r.ParseFromString(lr.payload)) {
+      uint64_t& last = scene->last_client_seq_[r.client_id()];
+      last = std::max(last, r.client_seq());
+    }
+    return Status::Ok();
+  });
+  SCULPT_RETURN_IF_ERROR(s);
+  scene->recovery_summary_ =
+      "recovered " + std::to_string(scene->sculptures_.size()) + " object(s) at seq " +
+      std::to_string(rec.last_seq) + " (" + std::to_string(rec.report.replayed_records) +
+      " records replayed" +
+      (rec.report.dropped_tail_bytes
+           ? ", dropped a torn tail of " + std::to_string(rec.report.dropped_tail_bytes) + " bytes"
+           : std::string()) +
+      ") in " + std::to_string(NowSeconds() - t0) + " s";
+  scene->last_snapshot_time_ = NowSeconds();
+  {
+    std::lock_guard<std::mutex> lock(scene->info_mu_);
+    scene->RefreshInfoLocked();
+  }
+  Scene* raw = scene.get();
+  scene->log_->OnDurable([raw](uint64_t d) { raw->ReleaseDurable(d); });
+  scene->thread_ = std::thread([raw] { raw->Run(); });
+  return scene;
+}
+
+Scene::~Scene() {
+  {
+    std::lock_guard<std::mutex> lock(jobs_mu_);
+    stop_ = true;
+  }
+  jobs_cv_.notify_all();
+  if (thread_.joinable()) thread_.join();
+  if (log_) {
+    (void)log_->Sync();
+    log_->OnDurable(nullptr);
+  }
+  if (snapshots_) (void)snapshots_->WaitIdle();
+}
+
+void Scene::Post(std::function<void()> job) {
+  {
+    std::lock_guard<std::mutex> lock(jobs_mu_);
+    jobs_.push_back(std::move(job));
+  }
+  jobs_cv_.notify_one();
+}
+
+void Scene::Run() {
+  for (;;) {
+    std::function<void()> job;
+    {
+      std::unique_lock<std::mutex> lock(jobs_mu_);
+      jobs_cv_.wait(lock, [this] { return stop_ || !jobs_.empty(); });
+      if (jobs_.empty()) return;  // stop_ and drained
+      job = std::move(jobs_.front());
+      jobs_.pop_front();
+    }
+    job();
+  }
+}
+
+void Scene::Submit(uint64_t client_id, codec::DecodedStroke stroke, StrokeDone done) {
+  auto shared = std::make_shared<codec::DecodedStroke>(std::move(stroke));
+  auto cb = std::make_shared<StrokeDone>(std::move(done));
+  Post([this, client_id, shared, cb] { ApplyStroke(client_id, *shared, *cb); });
+}
+
+void Scene::ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, StrokeDone& done) {
+  StrokeOutcome out;
+  out.client_seq = stroke.client_seq;
+  auto it = sculptures_.find(stroke.object);
+  if (it == sculptures_.end()) {
+    out.status = NotFound("Stroke.object=" + stroke.object + " outside the scene's objects");
+    done(out);
+    return;
+  }
+  levelset::Sculpture& sculpture = it->second;
+  uint64_t& last = last_client_seq_[client_id];
+  if (stroke.client_seq <= last) {
+    // Already applied: acknowledge once everything logged so far is durable, never re-apply.
+    out.duplicate = true;
+    std::lock_guard<std::mutex> lock(pending_mu_);
+    pending_.push_back({next_seq_ - 1, out, std::move(done)});
+  } else {
+    // Build every pose's record first and check it against the object as it is, so a stroke
+    // is refused whole, before anything reaches the log.
+    std::vector<v1::EditRecord> records;
+    records.reserve(stroke.edits.size());
+    for (size_t i = 0; i < stroke.edits.size(); ++i) {
+      records.push_back(MakeRecord(0, client_id, stroke.client_seq, static_cast<uint32_t>(i),
+                                   stroke.object, stroke.edits[i]));
+      const Status v = levelset::ValidateEditRequest(
+          sculpture, codec::EditFromRecord(records.back()), settings_);
+      if (!v.ok()) {
+        out.status = v;
+        done(out);
+        return;
+      }
+    }
+    out.global_seq_first = next_seq_;
+    std::string payload;
+    for (v1::EditRecord& r : records) {
+      const uint64_t seq = next_seq_++;
+      r.set_global_seq(seq);
+      payload.clear();
+      r.SerializeToString(&payload);
+      const Status a = log_->Append(seq, payload);
+      if (!a.ok()) {
+        // The log is poisoned (I/O error): nothing more can be acknowledged honestly.
+        spdlog::critical("edit log append failed at seq {}: {}", seq, a.ToString());
+        out.status = a;
+        done(out);
+        return;
+      }
+      auto res = levelset::ApplyEdit(sculpture, codec::EditFromRecord(r), settings_);
+      if (res.ok()) out.last = std::move(res).value();
+      ++out.edits;
+      applied_seq_ = seq;
+      ++edits_since_snapshot_;
+    }
+    last = stroke.client_seq;
+    {
+      std::lock_guard<std::mutex> lock(info_mu_);
+      auto& b = bounds_[stroke.object];
+      const levelset::Aabb nb = sculpture.WorldBounds();
+      b = nb;
+      RefreshInfoLocked();
+    }
+    std::lock_guard<std::mutex> lock(pending_mu_);
+    pending_.push_back({next_seq_ - 1, out, std::move(done)});
+  }
+  ReleaseDurable(log_->durable_seq());
+  MaybeSnapshot();
+}
+
+void Scene::ReleaseDurable(uint64_t durable_seq) {
+  std::vector<Pending> ready;
+  {
+    std::lock_guard<std::mutex> lock(pending_mu_);
+    while (!pending_.empty() && pending_.front().seq <= durable_seq) {
+      ready.push_back(std::move(pending_.front()));
+      pending_.pop_front();
+    }
+  }
+  for (Pending& p : ready) p.done(p.outcome);
+}
+
+void Scene::MaybeSnapshot() {
+  const bool by_count = config_.snapshot_every_edits > 0 &&
+                        edits_since_snapshot_ >= config_.snapshot_every_edits;
+  const bool by_time = config_.snapshot_every_seconds > 0 && edits_since_snapshot_ > 0 &&
+                       NowSeconds() - last_snapshot_time_ >= config_.snapshot_every_seconds;
+  if (!by_count && !by_time) return;
+  const uint64_t seq = next_seq_ - 1;
+  for (auto& [name, sculpture] : sculptures_) {
+    // The clone is the only work on the compute thread; the write happens in the background.
+    snapshots_->WriteAsync(seq, name, sculpture.Clone(), [seq, name](Status s) {
+      if (!s.ok()) spdlog::warn("snapshot of {} at seq {} failed: {}", name, seq, s.ToString());
+    });
+  }
+  log_->Roll();
+  edits_since_snapshot_ = 0;
+  last_snapshot_time_ = NowSeconds();
+}
+
+void Scene::RefreshInfoLocked() {
+  info_.Clear();
+  info_.set_scene(config_.scene.name);
+  info_.set_global_seq(applied_seq_.load());
+  info_.set_min_tool_size(static_cast<float>(config_.scene.min_tool_size));
+  info_.set_max_tool_size(static_cast<float>(config_.scene.max_tool_size));
+  info_.set_max_speed(static_cast<float>(config_.scene.max_speed));
+  v1::Effects* e = info_.mutable_effects();
+  e->set_volume_preservation(config_.scene.effects.volume_preservation);
+  e->set_smoothing(config_.scene.effects.smoothing);
+  e->set_islands(config_.scene.effects.islands);
+  e->set_min_island_volume(config_.scene.effects.min_island_volume);
+  e->set_contours(false);
+  for (auto& [name, s] : sculptures_) {
+    v1::ObjectInfo* o = info_.add_objects();
+    o->set_name(name);
+    o->set_voxel_size(s.voxel_size());
+    o->set_half_width(static_cast<uint32_t>(s.half_width()));
+    auto b = bounds_.find(name);
+    const levelset::Aabb ab = b != bounds_.end() ? b->second : s.WorldBounds();
+    if (b == bounds_.end()) bounds_[name] = ab;
+    *o->mutable_bounds_min() = ToProto(ab.min);
+    *o->mutable_bounds_max() = ToProto(ab.max);
+    o->set_volume(s.volume());
+    o->set_reference_volume(s.reference_volume());
+  }
+}
+
+v1::SceneInfo Scene::Info() const {
+  std::lock_guard<std::mutex> lock(info_mu_);
+  return info_;
+}
+
+StatusOr<codec::StrokeLimits> Scene::LimitsFor(const std::string& object) const {
+  std::lock_guard<std::mutex> lock(info_mu_);
+  auto b = bounds_.find(object);
+  if (b == bounds_.end()) {
+    return NotFound("Stroke.object=" + object + " outside the scene's objects");
+  }
+  codec::StrokeLimits l;
+  l.voxel_size = config_.scene.voxel_size;
+  l.max_poses = config_.limits.max_poses_per_stroke;
+  l.min_tool_size = config_.scene.min_tool_size;
+  l.max_tool_size = config_.scene.max_tool_size;
+  l.max_speed = config_.scene.max_speed;
+  l.max_amount = config_.scene.max_amount;
+  l.bounds = b->second;
+  l.bounds_margin = config_.scene.bounds_margin;
+  return l;
+}
+
+void Scene::RequestJoinState(std::function<void(StatusOr<JoinState>)> done) {
+  auto cb = std::make_shared<std::function<void(StatusOr<JoinState>)>>(std::move(done));
+  Post([this, cb] {
+    JoinState js;
+    {
+      std::lock_guard<std::mutex> lock(info_mu_);
+      js.info = info_;
+    }
+    for (auto& [name, s] : sculptures_) {
+      auto bytes = s.SerializeVdb();
+      if (!bytes.ok()) {
+        (*cb)(bytes.status());
+        return;
+      }
+      js.objects.emplace_back(name, std::move(bytes).value());
+      js.info.mutable_objects(static_cast<int>(js.objects.size() - 1))
+          ->set_state_hash(s.StateHash());
+    }
+    (*cb)(std::move(js));
+  });
+}
+
+void Scene::Flush() {
+  std::promise<void> applied;
+  Post([&applied] { applied.set_value(); });
+  applied.get_future().wait();
+  (void)log_->Sync();
+  ReleaseDurable(log_->durable_seq());
+  if (snapshots_) (void)snapshots_->WaitIdle();
+}
+
+uint64_t Scene::StateHash(const std::string& object) {
+  std::promise<uint64_t> p;
+  Post([&] {
+    auto it = sculptures_.find(object);
+    p.set_value(it == sculptures_.end() ? 0 : it->second.StateHash());
+  });
+  return p.get_future().get();
+}
+
+}  // namespace sculpt::server

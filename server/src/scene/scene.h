@@ -1,0 +1,125 @@
+/// @brief Scene: the actor that owns a scene's sculptures, orders edits by a global sequence,
+/// logs them durably, applies them on its compute thread and acknowledges them once durable.
+#ifndef SCULPT_SERVER_SCENE_SCENE_H_
+#define SCULPT_SERVER_SCENE_SCENE_H_
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "config/server_config.h"
+#include "sculpt/codec/stroke.h"
+#include "sculpt/core/status.h"
+#include "sculpt/levelset/edit.h"
+#include "sculpt/levelset/sculpture.h"
+#include "sculpt/v1/sculpt.pb.h"
+
+namespace sculpt::server {
+
+namespace store {
+class EditLog;
+class SnapshotStore;
+}  // namespace store
+
+/// What became of one stroke.
+struct StrokeOutcome {
+  Status status;  // not ok: the stroke was refused before anything was logged
+  uint64_t client_seq = 0;
+  uint64_t global_seq_first = 0;
+  uint32_t edits = 0;
+  bool duplicate = false;
+  levelset::EditResult last;  // result of the stroke's last pose
+};
+
+/// The current state for a late joiner.
+struct JoinState {
+  v1::SceneInfo info;
+  std::vector<std::pair<std::string, std::string>> objects;  // name, .vdb bytes
+};
+
+/// The scene actor. Edits are applied in global-sequence order on one compute thread (one
+/// writer per object); readers get copies. Thread safety: every public method may be called
+/// from any thread; callbacks run on the compute thread or the edit log's sync thread and must
+/// only post work elsewhere.
+class Scene {
+ public:
+  using StrokeDone = std::function<void(const StrokeOutcome&)>;
+
+  /// Recovers the scene from config.data_dir (newest snapshots plus the log tail), or builds it
+  /// from the configured primitives. DataLoss for a corrupt log, with the reason.
+  static StatusOr<std::unique_ptr<Scene>> Open(const ServerConfig& config);
+  ~Scene();
+
+  /// Queues a validated stroke. The edits are logged, applied, and `done` is called once they
+  /// are durable (per the fsync policy). A resend of an already applied (client_id, client_seq)
+  /// is not applied again: `done` gets duplicate = true.
+  void Submit(uint64_t client_id, codec::DecodedStroke stroke, StrokeDone done);
+
+  /// Runs between two edits on the compute thread: scene info and each object's .vdb bytes.
+  void RequestJoinState(std::function<void(StatusOr<JoinState>)> done);
+
+  /// Limits a stroke on `object` is decoded against; NotFound for an unknown object.
+  StatusOr<codec::StrokeLimits> LimitsFor(const std::string& object) const;
+  /// Scene info as of the last applied edit.
+  v1::SceneInfo Info() const;
+  const std::string& name() const { return config_.scene.name; }
+  uint64_t global_seq() const { return applied_seq_.load(); }
+
+  /// Waits until every queued stroke is applied and durable (tests, shutdown).
+  void Flush();
+  /// State hash of one object, taken on the compute thread (0 for an unknown object).
+  uint64_t StateHash(const std::string& object);
+  /// What recovery found at start-up.
+  const std::string& recovery_summary() const { return recovery_summary_; }
+
+ private:
+  explicit Scene(const ServerConfig& config);
+  void Run();
+  void Post(std::function<void()> job);
+  void ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, StrokeDone& done);
+  void MaybeSnapshot();
+  void ReleaseDurable(uint64_t durable_seq);
+  void RefreshInfoLocked();
+
+  ServerConfig config_;
+  levelset::EditSettings settings_;
+  std::map<std::string, levelset::Sculpture> sculptures_;  // compute thread only
+  std::unique_ptr<store::EditLog> log_;
+  std::unique_ptr<store::SnapshotStore> snapshots_;
+  std::map<uint64_t, uint64_t> last_client_seq_;  // compute thread only
+  uint64_t next_seq_ = 1;                          // compute thread only
+  uint64_t edits_since_snapshot_ = 0;
+  double last_snapshot_time_ = 0;
+  std::atomic<uint64_t> applied_seq_{0};
+  std::string recovery_summary_;
+
+  mutable std::mutex info_mu_;
+  v1::SceneInfo info_;
+  std::map<std::string, levelset::Aabb> bounds_;
+
+  std::mutex pending_mu_;
+  struct Pending {
+    uint64_t seq;
+    StrokeOutcome outcome;
+    StrokeDone done;
+  };
+  std::deque<Pending> pending_;
+
+  std::mutex jobs_mu_;
+  std::condition_variable jobs_cv_;
+  std::deque<std::function<void()>> jobs_;
+  bool stop_ = false;
+  std::thread thread_;
+};
+
+}  // namespace sculpt::server
+
+#endif  // SCULPT_SERVER_SCENE_SCENE_H_

@@ -1,0 +1,702 @@
+/// @brief EditLog: segment files, record framing with CRC32C, group commit and start-up scan.
+#include "store/edit_log.h"
+
+#include <fcntl.h>
+#include <spdlog/spdlog.h>
+#include <sys/stat.h>
+#include <sys/uio.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <boost/crc.hpp>
+#include <cerrno>
+#include <chrono>
+#include <cinttypes>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <utility>
+
+namespace sculpt::server::store {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr char kMagic[8] = {'S', 'C', 'L', 'P', 'T', 'L', 'O', 'G'};
+constexpr uint32_t kFormatVersion = 1;
+constexpr uint64_t kMinSegmentBytes = kSegmentHeaderBytes + kRecordHeaderBytes;
+
+// CRC-32C (Castagnoli): better burst-error detection than the zlib CRC-32 for the same cost.
+using Crc32c = boost::crc_optimal<32, 0x1EDC6F41, 0xFFFFFFFF, 0xFFFFFFFF, true, true>;
+
+void PutU32(uint8_t* p, uint32_t v) {
+  for (int i = 0; i < 4; ++i) p[i] = static_cast<uint8_t>(v >> (8 * i));
+}
+void PutU64(uint8_t* p, uint64_t v) {
+  for (int i = 0; i < 8; ++i) p[i] = static_cast<uint8_t>(v >> (8 * i));
+}
+uint32_t GetU32(const uint8_t* p) {
+  uint32_t v = 0;
+  for (int i = 0; i < 4; ++i) v |= static_cast<uint32_t>(p[i]) << (8 * i);
+  return v;
+}
+uint64_t GetU64(const uint8_t* p) {
+  uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v |= static_cast<uint64_t>(p[i]) << (8 * i);
+  return v;
+}
+
+uint32_t RecordCrc(const uint8_t* seq_le, const void* payload, size_t size) {
+  Crc32c crc;
+  crc.process_bytes(seq_le, 8);
+  crc.process_bytes(payload, size);
+  return crc.checksum();
+}
+
+uint32_t HeaderCrc(const uint8_t* header) {
+  Crc32c crc;
+  crc.process_bytes(header, kSegmentHeaderBytes - 4);
+  return crc.checksum();
+}
+
+std::string SegmentFileName(uint64_t first_seq) {
+  char name[64];
+  std::snprintf(name, sizeof(name), "log-%020" PRIu64 ".sclog", first_seq);
+  return name;
+}
+
+// "log-" + 20 digits + ".sclog"; anything else in the directory (a segment an operator renamed
+// to move it away, editor backups) is not part of the log.
+bool ParseSegmentFileName(const std::string& name, uint64_t* first_seq) {
+  constexpr size_t kDigits = 20;
+  if (name.size() != 4 + kDigits + 6 || name.compare(0, 4, "log-") != 0 ||
+      name.compare(4 + kDigits, 6, ".sclog") != 0) {
+    return false;
+  }
+  uint64_t v = 0;
+  for (size_t i = 4; i < 4 + kDigits; ++i) {
+    if (name[i] < '0' || name[i] > '9') return false;
+    const uint64_t digit = static_cast<uint64_t>(name[i] - '0');
+    if (v > (UINT64_MAX - digit) / 10) return false;
+    v = v * 10 + digit;
+  }
+  *first_seq = v;
+  return true;
+}
+
+Status Errno(const std::string& what, const std::string& path) {
+  return Internal("edit log: " + what + " " + path + ": " + std::strerror(errno));
+}
+
+std::string CorruptMessage(const std::string& path, uint64_t offset, const std::string& where,
+                           const std::string& reason) {
+  return "edit log " + path + " corrupt at offset " + std::to_string(offset) + " (" + where +
+         "): " + reason +
+         "; refusing to start — move the file away to start from the last snapshot (and any "
+         "later segments: the log must stay contiguous)";
+}
+
+Status WriteFully(int fd, iovec* iov, int count, const std::string& path) {
+  while (count > 0) {
+    const ssize_t n = ::writev(fd, iov, count);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      return Errno("writing", path);
+    }
+    size_t left = static_cast<size_t>(n);
+    while (count > 0 && left >= iov->iov_len) {
+      left -= iov->iov_len;
+      ++iov;
+      --count;
+    }
+    if (count > 0) {
+      iov->iov_base = static_cast<uint8_t*>(iov->iov_base) + left;
+      iov->iov_len -= left;
+    }
+  }
+  return Status::Ok();
+}
+
+Status ReadWholeFile(const std::string& path, uint64_t limit, std::string* out) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return Errno("opening", path);
+  struct stat st;
+  if (::fstat(fd, &st) != 0) {
+    Status s = Errno("stat of", path);
+    ::close(fd);
+    return s;
+  }
+  const uint64_t size = std::min<uint64_t>(static_cast<uint64_t>(st.st_size), limit);
+  out->resize(size);
+  uint64_t done = 0;
+  while (done < size) {
+    const ssize_t n = ::pread(fd, out->data() + done, size - done, static_cast<off_t>(done));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      Status s =
+          n < 0 ? Errno("reading", path) : Internal("edit log: " + path + " shrank while read");
+      ::close(fd);
+      return s;
+    }
+    done += static_cast<uint64_t>(n);
+  }
+  ::close(fd);
+  return Status::Ok();
+}
+
+// A new or deleted directory entry is only durable once the directory itself is synced; a
+// record fdatasync'ed into a file whose name is lost would be lost with it.
+Status FsyncDir(const std::string& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return Errno("opening directory", dir);
+  const int rc = ::fsync(fd);
+  Status s = rc == 0 ? Status::Ok() : Errno("fsync of directory", dir);
+  ::close(fd);
+  return s;
+}
+
+bool AllZero(const std::string& buf, uint64_t from) {
+  return std::all_of(buf.begin() + static_cast<std::ptrdiff_t>(from), buf.end(),
+                     [](char c) { return c == 0; });
+}
+
+}  // namespace
+
+StatusOr<FsyncPolicy::Mode> ParseFsyncMode(std::string_view text) {
+  if (text == "always") return FsyncPolicy::Mode::kAlways;
+  if (text == "group") return FsyncPolicy::Mode::kGroup;
+  return InvalidArgument("fsync policy=\"" + std::string(text) + "\" outside {always, group}");
+}
+
+Status ValidateFsyncPolicy(const FsyncPolicy& policy) {
+  if (policy.mode != FsyncPolicy::Mode::kAlways && policy.mode != FsyncPolicy::Mode::kGroup) {
+    return InvalidArgument("FsyncPolicy.mode=" + std::to_string(static_cast<int>(policy.mode)) +
+                           " outside {kAlways, kGroup}");
+  }
+  if (policy.group_ms < kMinGroupMs || policy.group_ms > kMaxGroupMs) {
+    return InvalidArgument("FsyncPolicy.group_ms=" + std::to_string(policy.group_ms) +
+                           " outside [" + std::to_string(kMinGroupMs) + ", " +
+                           std::to_string(kMaxGroupMs) + "]");
+  }
+  return Status::Ok();
+}
+
+EditLog::EditLog(std::string dir, const EditLogOptions& options)
+    : dir_(std::move(dir)), options_(options) {}
+
+StatusOr<std::unique_ptr<EditLog>> EditLog::Open(const std::string& dir, FsyncPolicy policy,
+                                                 RecoveryReport* report) {
+  EditLogOptions options;
+  options.fsync = policy;
+  return Open(dir, options, report);
+}
+
+StatusOr<std::unique_ptr<EditLog>> EditLog::Open(const std::string& dir,
+                                                 const EditLogOptions& options,
+                                                 RecoveryReport* report) {
+  SCULPT_RETURN_IF_ERROR(ValidateFsyncPolicy(options.fsync));
+  if (options.segment_bytes < kMinSegmentBytes) {
+    return InvalidArgument("EditLogOptions.segment_bytes=" + std::to_string(options.segment_bytes) +
+                           " outside [" + std::to_string(kMinSegmentBytes) + ", 2^64)");
+  }
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) return Internal("edit log: creating directory " + dir + ": " + ec.message());
+  RecoveryReport local;
+  if (report == nullptr) report = &local;
+  std::unique_ptr<EditLog> log(new EditLog(dir, options));
+  SCULPT_RETURN_IF_ERROR(log->Scan(report));
+  if (options.fsync.mode == FsyncPolicy::Mode::kGroup) {
+    log->sync_thread_ = std::thread([raw = log.get()] { raw->SyncLoop(); });
+  }
+  return log;
+}
+
+Status EditLog::Scan(RecoveryReport* report) {
+  std::vector<std::pair<uint64_t, std::string>> files;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(dir_, ec)) {
+    uint64_t first = 0;
+    if (entry.is_regular_file() && ParseSegmentFileName(entry.path().filename().string(), &first)) {
+      files.emplace_back(first, entry.path().string());
+    }
+  }
+  if (ec) return Internal("edit log: listing " + dir_ + ": " + ec.message());
+  std::sort(files.begin(), files.end());
+
+  uint64_t prev = 0;  // last seq seen; the first segment's base before any record
+  std::string buf;
+  for (size_t i = 0; i < files.size(); ++i) {
+    const bool last = i + 1 == files.size();
+    const std::string& path = files[i].second;
+    SCULPT_RETURN_IF_ERROR(ReadWholeFile(path, UINT64_MAX, &buf));
+    const auto* data = reinterpret_cast<const uint8_t*>(buf.data());
+    const uint64_t size = buf.size();
+
+    if (size < kSegmentHeaderBytes) {
+      if (!last) {
+        return DataLoss(CorruptMessage(path, 0, "segment header",
+                                       "header truncated to " + std::to_string(size) + " of " +
+                                           std::to_string(kSegmentHeaderBytes) + " bytes"));
+      }
+      // A segment's header is written and synced before its first record, so a short header is
+      // a crash while the segment was being created: nothing in it was ever acknowledged.
+      spdlog::warn("edit log {}: header truncated to {} bytes by a crash; removing the file", path,
+                   size);
+      report->dropped_tail_bytes += size;
+      report->dropped_tail_file = path;
+      report->dropped_tail_reason = "segment header truncated";
+      if (::unlink(path.c_str()) != 0) return Errno("removing", path);
+      SCULPT_RETURN_IF_ERROR(FsyncDir(dir_));
+      continue;
+    }
+    if (std::memcmp(data, kMagic, sizeof(kMagic)) != 0) {
+      return DataLoss(
+          CorruptMessage(path, 0, "segment header", "bad magic (not a Sculpt edit log segment)"));
+    }
+    const uint32_t version = GetU32(data + 8);
+    if (version != kFormatVersion) {
+      return FailedPrecondition("edit log " + path + " has format version " +
+                                std::to_string(version) + "; this build reads version " +
+                                std::to_string(kFormatVersion));
+    }
+    if (GetU32(data + 12) != kSegmentHeaderBytes || GetU32(data + 28) != HeaderCrc(data)) {
+      return DataLoss(CorruptMessage(path, 0, "segment header", "header checksum mismatch"));
+    }
+    Segment seg;
+    seg.path = path;
+    seg.base_seq = GetU64(data + 16);
+    seg.first_seq = files[i].first;
+    if (i == 0) {
+      prev = seg.base_seq;
+      report->log_base_seq = seg.base_seq;
+    } else if (seg.base_seq != prev) {
+      return DataLoss(CorruptMessage(path, 0, "segment header",
+                                     "segment begins after seq " + std::to_string(seg.base_seq) +
+                                         " but the segments before it end at seq " +
+                                         std::to_string(prev) + " (a segment is missing)"));
+    }
+
+    uint64_t offset = kSegmentHeaderBytes;
+    while (offset < size) {
+      const uint64_t remaining = size - offset;
+      std::string torn;  // the record runs past the end of the file
+      std::string bad;   // the record is complete but wrong
+      bool crc_mismatch = false;
+      uint64_t seq = 0;
+      uint32_t len = 0;
+      if (remaining < kRecordHeaderBytes) {
+        torn = "truncated record header (" + std::to_string(remaining) + " of " +
+               std::to_string(kRecordHeaderBytes) + " bytes)";
+      } else {
+        len = GetU32(data + offset);
+        seq = GetU64(data + offset + 8);
+        if (len > kMaxRecordPayload) {
+          bad = "bad length " + std::to_string(len) + " (max " + std::to_string(kMaxRecordPayload) +
+                ")";
+        } else if (remaining - kRecordHeaderBytes < len) {
+          torn = "truncated record (" + std::to_string(remaining) + " of " +
+                 std::to_string(kRecordHeaderBytes + len) + " bytes)";
+        } else if (GetU32(data + offset + 4) !=
+                   RecordCrc(data + offset + 8, data + offset + kRecordHeaderBytes, len)) {
+          crc_mismatch = true;
+          bad = "checksum mismatch";
+        }
+      }
+      const std::string where = remaining >= kRecordHeaderBytes
+                                    ? "record seq " + std::to_string(seq)
+                                    : "record seq unknown";
+      if (!torn.empty() || !bad.empty()) {
+        // Only the end of the last segment can be torn: a crash mid-write (or a power loss
+        // before the group fdatasync) leaves a short record, a record whose blocks never
+        // reached the disk (checksum mismatch with nothing after it), or zero-filled blocks.
+        // None of them was acknowledged. Anything else is damage to acknowledged edits.
+        const bool ends_file =
+            !torn.empty() || (crc_mismatch && offset + kRecordHeaderBytes + len == size);
+        if (!last || !(ends_file || AllZero(buf, offset))) {
+          return DataLoss(CorruptMessage(path, offset, where, torn.empty() ? bad : torn));
+        }
+        const std::string reason = !torn.empty() ? torn
+                                   : ends_file   ? bad + " in the final record"
+                                                 : "zero-filled tail (blocks never written)";
+        spdlog::warn(
+            "edit log {}: dropping {} bytes at offset {} after seq {}: {} (a write cut "
+            "short by a crash; it was never acknowledged)",
+            path, remaining, offset, prev, reason);
+        report->dropped_tail_bytes += remaining;
+        report->dropped_tail_file = path;
+        report->dropped_tail_reason = reason;
+        // Cut the torn bytes off before anything is appended: new records written after them
+        // would turn a harmless torn tail into corruption in the middle of the log.
+        const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
+        if (fd < 0) return Errno("opening", path);
+        const bool ok = ::ftruncate(fd, static_cast<off_t>(offset)) == 0 && ::fsync(fd) == 0;
+        Status s = ok ? Status::Ok() : Errno("truncating", path);
+        ::close(fd);
+        SCULPT_RETURN_IF_ERROR(s);
+        break;
+      }
+      if (seq <= prev) {
+        return DataLoss(CorruptMessage(path, offset, where,
+                                       "sequence " + std::to_string(seq) +
+                                           " does not increase (previous " + std::to_string(prev) +
+                                           ")"));
+      }
+      if (seg.last_seq == 0 && seq != seg.first_seq) {
+        return DataLoss(CorruptMessage(path, offset, where,
+                                       "first record is seq " + std::to_string(seq) +
+                                           " but the file name says " +
+                                           std::to_string(seg.first_seq)));
+      }
+      prev = seq;
+      seg.last_seq = seq;
+      if (report->first_seq == 0) report->first_seq = seq;
+      ++report->records;
+      offset += kRecordHeaderBytes + len;
+    }
+    seg.bytes = offset;
+
+    if (seg.last_seq == 0) {
+      // A segment without records: the first Append after it was cut off. Remove it so the
+      // next Append creates its segment under its own seq; keep its base in `prev`.
+      if (last) {
+        if (::unlink(path.c_str()) != 0) return Errno("removing", path);
+        SCULPT_RETURN_IF_ERROR(FsyncDir(dir_));
+        continue;
+      }
+      seg.last_seq = seg.base_seq;
+    }
+    segments_.push_back(std::move(seg));
+  }
+
+  if (segments_.empty()) report->log_base_seq = prev;
+  report->segments = segments_.size();
+  report->last_seq = report->records > 0 ? prev : 0;
+  written_seq_.store(prev);
+  durable_seq_.store(prev);
+  notified_seq_ = prev;
+
+  if (!segments_.empty()) {
+    Segment& active = segments_.back();
+    fd_ = ::open(active.path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
+    if (fd_ < 0) return Errno("opening", active.path);
+    // Under kGroup a process crash leaves written records in the page cache only; sync them
+    // now, since durable_seq() starts at the last record read.
+    if (::fdatasync(fd_) != 0) return Errno("fdatasync of", active.path);
+    active_path_ = active.path;
+    active_bytes_ = active.bytes;
+    active_last_seq_ = active.last_seq;
+  }
+  if (report->dropped_tail_bytes > 0) {
+    report->warnings.push_back(
+        "edit log: dropped a torn tail of " + std::to_string(report->dropped_tail_bytes) +
+        " bytes from " + report->dropped_tail_file + " (" + report->dropped_tail_reason + ")");
+  }
+  spdlog::info("edit log {}: {} segments, {} records, seq {}..{} (complete after seq {})", dir_,
+               report->segments, report->records, report->first_seq, report->last_seq,
+               report->log_base_seq);
+  return Status::Ok();
+}
+
+EditLog::~EditLog() {
+  {
+    std::lock_guard<std::mutex> lock(callback_mu_);
+    callback_ = nullptr;  // the owner may be half torn down; nobody is acknowledged any more
+  }
+  if (sync_thread_.joinable()) {
+    {
+      std::lock_guard<std::mutex> lock(wake_mu_);
+      stop_ = true;
+    }
+    wake_cv_.notify_all();
+    sync_thread_.join();
+  }
+  Status s = Sync();
+  if (!s.ok()) spdlog::error("edit log {}: final sync failed: {}", dir_, s.ToString());
+  std::lock_guard<std::mutex> lock(file_mu_);
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = -1;
+}
+
+Status EditLog::Poison(Status status) {
+  // Caller holds file_mu_.
+  if (poisoned_.ok()) {
+    poisoned_ = Internal(status.message() +
+                         "; the edit log is unusable until restart (unsynced pages may be gone)");
+    is_poisoned_.store(true);
+    spdlog::error("edit log {}: {}", dir_, poisoned_.message());
+  }
+  return poisoned_;
+}
+
+StatusOr<uint64_t> EditLog::SyncLocked() {
+  if (is_poisoned_.load()) return poisoned_;
+  // Read before the sync: every write() that finished before this load is covered by it.
+  const uint64_t target = written_seq_.load();
+  if (target <= durable_seq_.load() || fd_ < 0) return durable_seq_.load();
+  // fdatasync, not fsync: it flushes the data and the file size (all a reader needs) but not
+  // the timestamps, which saves a journal commit on most appends. A failure cannot be retried:
+  // Linux may mark the lost pages clean, so a second fdatasync would falsely succeed.
+  if (::fdatasync(fd_) != 0) return Poison(Errno("fdatasync of", segments_.back().path));
+  durable_seq_.store(target);
+  return target;
+}
+
+Status EditLog::Sync() {
+  StatusOr<uint64_t> durable = [&] {
+    std::lock_guard<std::mutex> lock(file_mu_);
+    return SyncLocked();
+  }();
+  if (!durable.ok()) return durable.status();
+  NotifyDurable(*durable);
+  return Status::Ok();
+}
+
+void EditLog::NotifyDurable(uint64_t seq) {
+  std::lock_guard<std::mutex> lock(callback_mu_);
+  // Two syncing threads may finish out of order; report only progress.
+  if (seq <= notified_seq_) return;
+  notified_seq_ = seq;
+  if (callback_) callback_(seq);
+}
+
+void EditLog::OnDurable(DurableCallback callback) {
+  std::lock_guard<std::mutex> lock(callback_mu_);
+  callback_ = std::move(callback);
+}
+
+Status EditLog::StartSegment(uint64_t first_seq) {
+  StatusOr<uint64_t> durable = durable_seq_.load();
+  {
+    std::lock_guard<std::mutex> lock(file_mu_);
+    if (fd_ >= 0) {
+      // The old segment reaches the disk before the new one gets a record: otherwise a power
+      // loss could keep a later segment while an earlier one loses its tail, a hole in the log.
+      durable = SyncLocked();
+      if (!durable.ok()) return durable.status();
+      ::close(fd_);
+      fd_ = -1;
+      segments_.back().bytes = active_bytes_;
+      segments_.back().last_seq = active_last_seq_;
+    }
+    const std::string path = (fs::path(dir_) / SegmentFileName(first_seq)).string();
+    const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_APPEND | O_CLOEXEC, 0644);
+    if (fd < 0) return Errno("creating", path);
+    std::array<uint8_t, kSegmentHeaderBytes> header{};
+    std::memcpy(header.data(), kMagic, sizeof(kMagic));
+    PutU32(header.data() + 8, kFormatVersion);
+    PutU32(header.data() + 12, static_cast<uint32_t>(kSegmentHeaderBytes));
+    const uint64_t base = written_seq_.load();
+    PutU64(header.data() + 16, base);
+    PutU32(header.data() + 24, 0);
+    PutU32(header.data() + 28, HeaderCrc(header.data()));
+    iovec iov{header.data(), header.size()};
+    Status s = WriteFully(fd, &iov, 1, path);
+    // The header and the directory entry are synced once here, so a record's own fdatasync
+    // is enough to make it reachable after a power loss.
+    if (s.ok() && ::fdatasync(fd) != 0) s = Errno("fdatasync of", path);
+    if (s.ok()) s = FsyncDir(dir_);
+    if (!s.ok()) {
+      ::close(fd);
+      ::unlink(path.c_str());
+      return s;
+    }
+    fd_ = fd;
+    active_path_ = path;
+    Segment seg;
+    seg.path = path;
+    seg.base_seq = base;
+    seg.first_seq = first_seq;
+    seg.bytes = kSegmentHeaderBytes;
+    segments_.push_back(std::move(seg));
+    active_bytes_ = kSegmentHeaderBytes;
+    active_last_seq_ = 0;
+    roll_requested_ = false;
+  }
+  NotifyDurable(*durable);
+  return Status::Ok();
+}
+
+Status EditLog::Append(uint64_t seq, std::string_view payload) {
+  if (is_poisoned_.load()) {
+    std::lock_guard<std::mutex> lock(file_mu_);
+    return poisoned_;
+  }
+  const uint64_t last = written_seq_.load();
+  if (seq <= last) {
+    return FailedPrecondition("edit log append seq=" + std::to_string(seq) +
+                              " must exceed the last seq " + std::to_string(last));
+  }
+  if (payload.size() > kMaxRecordPayload) {
+    return InvalidArgument("edit log payload size=" + std::to_string(payload.size()) +
+                           " outside [0, " + std::to_string(kMaxRecordPayload) + "] bytes");
+  }
+  const uint64_t record_bytes = kRecordHeaderBytes + payload.size();
+  if (fd_ < 0 || (active_last_seq_ != 0 &&
+                  (roll_requested_ || active_bytes_ + record_bytes > options_.segment_bytes))) {
+    SCULPT_RETURN_IF_ERROR(StartSegment(seq));
+  }
+
+  std::array<uint8_t, kRecordHeaderBytes> header;
+  PutU32(header.data(), static_cast<uint32_t>(payload.size()));
+  PutU64(header.data() + 8, seq);
+  PutU32(header.data() + 4, RecordCrc(header.data() + 8, payload.data(), payload.size()));
+  // Header and payload leave in one writev: no copy of the payload, and a crash tears at most
+  // this one record, which the scan at Open recognises as a torn tail.
+  iovec iov[2] = {{header.data(), header.size()},
+                  {const_cast<char*>(payload.data()), payload.size()}};
+  Status s = WriteFully(fd_, iov, 2, active_path_);
+  if (!s.ok()) {
+    // Remove a partial record (e.g. ENOSPC mid-write) so the next record does not follow
+    // garbage; if even that fails the file can no longer be trusted.
+    if (::ftruncate(fd_, static_cast<off_t>(active_bytes_)) != 0) {
+      std::lock_guard<std::mutex> lock(file_mu_);
+      return Poison(s);
+    }
+    return s;
+  }
+  active_bytes_ += record_bytes;
+  active_last_seq_ = seq;
+  written_seq_.store(seq);
+
+  if (options_.fsync.mode == FsyncPolicy::Mode::kAlways) return Sync();
+  if (!wake_pending_.exchange(true)) {
+    std::lock_guard<std::mutex> lock(wake_mu_);
+    wake_cv_.notify_one();
+  }
+  return Status::Ok();
+}
+
+void EditLog::SyncLoop() {
+  using Clock = std::chrono::steady_clock;
+  const auto period = std::chrono::milliseconds(options_.fsync.group_ms);
+  Clock::time_point next_allowed = Clock::now();
+  std::unique_lock<std::mutex> lock(wake_mu_);
+  while (true) {
+    wake_cv_.wait(lock, [&] { return stop_ || wake_pending_.load(); });
+    if (stop_) return;
+    // Group commit: at most one fdatasync per period, shared by every record written until it
+    // starts. After a quiet period the first record is synced at once (low latency when idle).
+    wake_cv_.wait_until(lock, next_allowed, [&] { return stop_; });
+    if (stop_) return;
+    // Cleared before Sync reads written_seq_: a record written after that read sets it again.
+    wake_pending_.store(false);
+    lock.unlock();
+    next_allowed = Clock::now() + period;
+    Status s = Sync();
+    lock.lock();
+    if (!s.ok()) return;  // poisoned; Append and Sync report it from now on
+  }
+}
+
+void EditLog::Roll() {
+  if (active_last_seq_ != 0) roll_requested_ = true;
+}
+
+Status EditLog::StartAfter(uint64_t seq) {
+  std::lock_guard<std::mutex> lock(file_mu_);
+  if (!segments_.empty()) {
+    return FailedPrecondition("EditLog::StartAfter(" + std::to_string(seq) +
+                              ") on a log that holds records (last seq " +
+                              std::to_string(written_seq_.load()) + ")");
+  }
+  if (seq < written_seq_.load()) {
+    return FailedPrecondition("EditLog::StartAfter(" + std::to_string(seq) +
+                              ") below the log's base seq " + std::to_string(written_seq_.load()));
+  }
+  written_seq_.store(seq);
+  durable_seq_.store(seq);
+  return Status::Ok();
+}
+
+Status EditLog::DropSegmentsBefore(uint64_t seq) {
+  std::lock_guard<std::mutex> lock(file_mu_);
+  // Closed segments have an exact last_seq; the last segment is never dropped (it may be the
+  // one being appended to, and its base keeps the chain's start).
+  size_t n = 0;
+  while (n + 1 < segments_.size() && segments_[n].last_seq <= seq) ++n;
+  size_t removed = 0;
+  Status status;
+  for (; removed < n; ++removed) {
+    if (::unlink(segments_[removed].path.c_str()) != 0 && errno != ENOENT) {
+      status = Errno("removing", segments_[removed].path);
+      break;
+    }
+  }
+  // No directory fsync: a removal undone by a power loss brings back a segment that the chain
+  // still accepts and a later drop removes again.
+  segments_.erase(segments_.begin(), segments_.begin() + static_cast<std::ptrdiff_t>(removed));
+  if (removed > 0) {
+    spdlog::info("edit log {}: dropped {} segments covered by the snapshot at seq {}", dir_,
+                 removed, seq);
+  }
+  return status;
+}
+
+uint64_t EditLog::base_seq() const {
+  std::lock_guard<std::mutex> lock(file_mu_);
+  return segments_.empty() ? written_seq_.load() : segments_.front().base_seq;
+}
+
+size_t EditLog::segment_count() const {
+  std::lock_guard<std::mutex> lock(file_mu_);
+  return segments_.size();
+}
+
+Status EditLog::ForEachFrom(uint64_t after_seq,
+                            const std::function<Status(const LogRecord& record)>& visit) const {
+  std::vector<Segment> segments;
+  {
+    std::lock_guard<std::mutex> lock(file_mu_);
+    segments = segments_;
+  }
+  if (!segments.empty() && fd_ >= 0) {
+    segments.back().bytes = active_bytes_;
+    segments.back().last_seq = active_last_seq_;
+  }
+  std::string buf;
+  LogRecord record;
+  for (const Segment& seg : segments) {
+    if (seg.last_seq <= after_seq || seg.last_seq == seg.base_seq) continue;
+    SCULPT_RETURN_IF_ERROR(ReadWholeFile(seg.path, seg.bytes, &buf));
+    if (buf.size() < seg.bytes) {
+      return DataLoss(CorruptMessage(
+          seg.path, buf.size(), "replay",
+          "file is shorter than the " + std::to_string(seg.bytes) + " bytes verified at start-up"));
+    }
+    const auto* data = reinterpret_cast<const uint8_t*>(buf.data());
+    uint64_t offset = kSegmentHeaderBytes;
+    while (offset < seg.bytes) {
+      // Verified at Open; checked again because the file is read again.
+      const uint64_t remaining = seg.bytes - offset;
+      const uint32_t len = remaining >= kRecordHeaderBytes ? GetU32(data + offset) : 0;
+      const uint64_t seq = remaining >= kRecordHeaderBytes ? GetU64(data + offset + 8) : 0;
+      if (remaining < kRecordHeaderBytes || len > remaining - kRecordHeaderBytes ||
+          GetU32(data + offset + 4) !=
+              RecordCrc(data + offset + 8, data + offset + kRecordHeaderBytes, len)) {
+        return DataLoss(CorruptMessage(seg.path, offset, "record seq " + std::to_string(seq),
+                                       "changed on disk after start-up"));
+      }
+      if (seq > after_seq) {
+        record.seq = seq;
+        record.payload.assign(buf, offset + kRecordHeaderBytes, len);
+        SCULPT_RETURN_IF_ERROR(visit(record));
+      }
+      offset += kRecordHeaderBytes + len;
+    }
+  }
+  return Status::Ok();
+}
+
+StatusOr<std::vector<LogRecord>> EditLog::ReadFrom(uint64_t after_seq) const {
+  std::vector<LogRecord> records;
+  Status s = ForEachFrom(after_seq, [&](const LogRecord& r) {
+    records.push_back(r);
+    return Status::Ok();
+  });
+  if (!s.ok()) return s;
+  return records;
+}
+
+}  // namespace sculpt::server::store

@@ -1,0 +1,578 @@
+/// @brief Tests of EditLog: round trips, torn tails, corruption, sequences, group commit, segments.
+#include "store/edit_log.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <boost/crc.hpp>
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace sculpt::server::store {
+namespace {
+
+namespace fs = std::filesystem;
+using Crc32c = boost::crc_optimal<32, 0x1EDC6F41, 0xFFFFFFFF, 0xFFFFFFFF, true, true>;
+
+class EditLogTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = (fs::temp_directory_path() /
+            ("sculpt_edit_log_" + std::string(info->name()) + "_" + std::to_string(::getpid())))
+               .string();
+    fs::remove_all(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  static FsyncPolicy Always() { return {FsyncPolicy::Mode::kAlways, 5}; }
+  static FsyncPolicy Group(int ms = 5) { return {FsyncPolicy::Mode::kGroup, ms}; }
+
+  std::unique_ptr<EditLog> OpenOrDie(EditLogOptions options, RecoveryReport* report = nullptr) {
+    auto log = EditLog::Open(dir_, options, report);
+    EXPECT_TRUE(log.ok()) << log.status();
+    return log.ok() ? std::move(log).value() : nullptr;
+  }
+  std::unique_ptr<EditLog> OpenOrDie(FsyncPolicy policy, RecoveryReport* report = nullptr) {
+    EditLogOptions options;
+    options.fsync = policy;
+    return OpenOrDie(options, report);
+  }
+
+  // Deterministic payload of varying size (0..299 bytes) with every byte value.
+  static std::string Payload(uint64_t seq) {
+    std::string p(seq * 37 % 300, '\0');
+    for (size_t i = 0; i < p.size(); ++i) p[i] = static_cast<char>((seq * 131 + i * 7) & 0xff);
+    return p;
+  }
+
+  // Writes records 1..n (payload Payload(seq)) and closes the log.
+  void WriteRecords(uint64_t n, FsyncPolicy policy = {FsyncPolicy::Mode::kGroup, 5}) {
+    auto log = OpenOrDie(policy);
+    ASSERT_NE(log, nullptr);
+    for (uint64_t seq = 1; seq <= n; ++seq) ASSERT_TRUE(log->Append(seq, Payload(seq)).ok());
+  }
+
+  std::vector<std::string> SegmentFiles() const {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(dir_)) names.push_back(e.path().filename());
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+  std::string OnlySegment() const {
+    auto names = SegmentFiles();
+    EXPECT_EQ(names.size(), 1u);
+    return names.empty() ? std::string() : (fs::path(dir_) / names[0]).string();
+  }
+
+  // Byte offset of record `seq` in a single segment written by WriteRecords.
+  static uint64_t OffsetOf(uint64_t seq) {
+    uint64_t offset = kSegmentHeaderBytes;
+    for (uint64_t s = 1; s < seq; ++s) offset += kRecordHeaderBytes + Payload(s).size();
+    return offset;
+  }
+
+  static std::string ReadFile(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }
+  static void WriteFile(const std::string& path, const std::string& bytes) {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  }
+
+  // A record framed independently of the implementation, from the documented format.
+  static std::string EncodeRecord(uint64_t seq, const std::string& payload) {
+    std::string out(kRecordHeaderBytes, '\0');
+    auto put = [&](size_t at, uint64_t v, int bytes) {
+      for (int i = 0; i < bytes; ++i) out[at + i] = static_cast<char>((v >> (8 * i)) & 0xff);
+    };
+    put(0, payload.size(), 4);
+    put(8, seq, 8);
+    Crc32c crc;
+    crc.process_bytes(out.data() + 8, 8);
+    crc.process_bytes(payload.data(), payload.size());
+    put(4, crc.checksum(), 4);
+    return out + payload;
+  }
+
+  std::string dir_;
+};
+
+uint32_t LoadU32(const std::string& s, size_t at) {
+  uint32_t v = 0;
+  for (int i = 0; i < 4; ++i) {
+    v |= static_cast<uint32_t>(static_cast<uint8_t>(s[at + i])) << (8 * i);
+  }
+  return v;
+}
+uint64_t LoadU64(const std::string& s, size_t at) {
+  uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) {
+    v |= static_cast<uint64_t>(static_cast<uint8_t>(s[at + i])) << (8 * i);
+  }
+  return v;
+}
+
+TEST_F(EditLogTest, RoundTripsThousandRecordsUnderAlwaysPolicy) {
+  WriteRecords(1000, Always());
+  RecoveryReport report;
+  auto log = OpenOrDie(Always(), &report);
+  ASSERT_NE(log, nullptr);
+  EXPECT_EQ(report.records, 1000u);
+  EXPECT_EQ(report.first_seq, 1u);
+  EXPECT_EQ(report.last_seq, 1000u);
+  EXPECT_EQ(report.dropped_tail_bytes, 0u);
+  EXPECT_EQ(log->last_seq(), 1000u);
+  EXPECT_EQ(log->durable_seq(), 1000u);
+  auto records = log->ReadFrom(0);
+  ASSERT_TRUE(records.ok()) << records.status();
+  ASSERT_EQ(records->size(), 1000u);
+  for (uint64_t i = 0; i < 1000; ++i) {
+    EXPECT_EQ((*records)[i].seq, i + 1);
+    EXPECT_EQ((*records)[i].payload, Payload(i + 1)) << "seq " << i + 1;
+  }
+}
+
+TEST_F(EditLogTest, RoundTripsThousandRecordsUnderGroupPolicy) {
+  WriteRecords(1000, Group());
+  RecoveryReport report;
+  auto log = OpenOrDie(Group(), &report);
+  ASSERT_NE(log, nullptr);
+  EXPECT_EQ(report.records, 1000u);
+  EXPECT_EQ(report.last_seq, 1000u);
+  auto records = log->ReadFrom(0);
+  ASSERT_TRUE(records.ok()) << records.status();
+  ASSERT_EQ(records->size(), 1000u);
+  for (uint64_t i = 0; i < 1000; ++i) {
+    EXPECT_EQ((*records)[i].seq, i + 1);
+    EXPECT_EQ((*records)[i].payload, Payload(i + 1)) << "seq " << i + 1;
+  }
+  auto tail = log->ReadFrom(990);
+  ASSERT_TRUE(tail.ok());
+  ASSERT_EQ(tail->size(), 10u);
+  EXPECT_EQ(tail->front().seq, 991u);
+}
+
+TEST_F(EditLogTest, OnDiskFormatMatchesTheDocumentation) {
+  {
+    auto log = OpenOrDie(Always());
+    ASSERT_TRUE(log->Append(7, "hello").ok());
+  }
+  const std::vector<std::string> names = SegmentFiles();
+  ASSERT_EQ(names.size(), 1u);
+  EXPECT_EQ(names[0], "log-00000000000000000007.sclog");
+  const std::string bytes = ReadFile(OnlySegment());
+  ASSERT_EQ(bytes.size(), kSegmentHeaderBytes + kRecordHeaderBytes + 5);
+  EXPECT_EQ(bytes.substr(0, 8), "SCLPTLOG");
+  EXPECT_EQ(LoadU32(bytes, 8), 1u);    // version
+  EXPECT_EQ(LoadU32(bytes, 12), 32u);  // header size
+  EXPECT_EQ(LoadU64(bytes, 16), 0u);   // base seq
+  Crc32c header_crc;
+  header_crc.process_bytes(bytes.data(), 28);
+  EXPECT_EQ(LoadU32(bytes, 28), header_crc.checksum());
+  EXPECT_EQ(bytes.substr(kSegmentHeaderBytes), EncodeRecord(7, "hello"));
+  // CRC-32C check value of the standard test vector, so the polynomial is the documented one.
+  Crc32c check;
+  check.process_bytes("123456789", 9);
+  EXPECT_EQ(check.checksum(), 0xE3069283u);
+}
+
+TEST_F(EditLogTest, DropsTruncatedTailRecord) {
+  WriteRecords(20);
+  const std::string path = OnlySegment();
+  const uint64_t full = fs::file_size(path);
+  fs::resize_file(path, full - 3);
+
+  RecoveryReport report;
+  {
+    auto log = OpenOrDie(Group(), &report);
+    ASSERT_NE(log, nullptr);
+    EXPECT_EQ(report.records, 19u);
+    EXPECT_EQ(report.last_seq, 19u);
+    EXPECT_EQ(report.dropped_tail_bytes, kRecordHeaderBytes + Payload(20).size() - 3);
+    EXPECT_EQ(report.dropped_tail_file, path);
+    EXPECT_NE(report.dropped_tail_reason.find("truncated record"), std::string::npos)
+        << report.dropped_tail_reason;
+    ASSERT_EQ(report.warnings.size(), 1u);
+    EXPECT_EQ(fs::file_size(path), OffsetOf(20)) << "the torn bytes are cut off the file";
+    EXPECT_EQ(log->last_seq(), 19u);
+    ASSERT_TRUE(log->Append(20, "after the tear").ok());
+  }
+  RecoveryReport again;
+  auto log = OpenOrDie(Group(), &again);
+  ASSERT_NE(log, nullptr);
+  EXPECT_EQ(again.dropped_tail_bytes, 0u);
+  EXPECT_EQ(again.records, 20u);
+  auto records = log->ReadFrom(18);
+  ASSERT_TRUE(records.ok()) << records.status();
+  ASSERT_EQ(records->size(), 2u);
+  EXPECT_EQ((*records)[0].payload, Payload(19));
+  EXPECT_EQ((*records)[1].seq, 20u);
+  EXPECT_EQ((*records)[1].payload, "after the tear");
+}
+
+TEST_F(EditLogTest, DropsTruncatedTailRecordHeader) {
+  WriteRecords(5);
+  const std::string path = OnlySegment();
+  fs::resize_file(path, OffsetOf(5) + 7);
+  RecoveryReport report;
+  auto log = OpenOrDie(Group(), &report);
+  ASSERT_NE(log, nullptr);
+  EXPECT_EQ(report.last_seq, 4u);
+  EXPECT_EQ(report.dropped_tail_bytes, 7u);
+  EXPECT_NE(report.dropped_tail_reason.find("truncated record header"), std::string::npos);
+}
+
+TEST_F(EditLogTest, DropsFinalRecordWithChecksumMismatch) {
+  WriteRecords(20);
+  const std::string path = OnlySegment();
+  std::string bytes = ReadFile(path);
+  bytes[bytes.size() - 1] ^= 0x40;  // a final record whose last block never reached the disk
+  WriteFile(path, bytes);
+  RecoveryReport report;
+  auto log = OpenOrDie(Group(), &report);
+  ASSERT_NE(log, nullptr);
+  EXPECT_EQ(report.last_seq, 19u);
+  EXPECT_EQ(report.dropped_tail_bytes, kRecordHeaderBytes + Payload(20).size());
+  EXPECT_NE(report.dropped_tail_reason.find("checksum mismatch"), std::string::npos);
+}
+
+TEST_F(EditLogTest, DropsZeroFilledTail) {
+  WriteRecords(10);
+  const std::string path = OnlySegment();
+  WriteFile(path, ReadFile(path) + std::string(4096, '\0'));  // size grew, blocks never written
+  RecoveryReport report;
+  auto log = OpenOrDie(Group(), &report);
+  ASSERT_NE(log, nullptr);
+  EXPECT_EQ(report.last_seq, 10u);
+  EXPECT_EQ(report.dropped_tail_bytes, 4096u);
+  EXPECT_NE(report.dropped_tail_reason.find("zero-filled"), std::string::npos);
+}
+
+TEST_F(EditLogTest, RefusesCorruptRecordInTheMiddle) {
+  WriteRecords(20);
+  const std::string path = OnlySegment();
+  std::string bytes = ReadFile(path);
+  const uint64_t offset = OffsetOf(10);
+  ASSERT_GT(Payload(10).size(), 0u);
+  bytes[offset + kRecordHeaderBytes + 1] ^= 0x01;
+  WriteFile(path, bytes);
+
+  auto log = EditLog::Open(dir_, Group(), nullptr);
+  ASSERT_FALSE(log.ok());
+  EXPECT_EQ(log.status().code(), Status::Code::kDataLoss);
+  const std::string& m = log.status().message();
+  EXPECT_NE(m.find(path), std::string::npos) << m;
+  EXPECT_NE(m.find("offset " + std::to_string(offset) + " "), std::string::npos) << m;
+  EXPECT_NE(m.find("record seq 10"), std::string::npos) << m;
+  EXPECT_NE(m.find("checksum mismatch"), std::string::npos) << m;
+  EXPECT_NE(m.find("refusing to start"), std::string::npos) << m;
+  EXPECT_EQ(ReadFile(path), bytes) << "a refused log is left untouched for the operator";
+}
+
+TEST_F(EditLogTest, RefusesBadLengthInTheMiddle) {
+  WriteRecords(20);
+  const std::string path = OnlySegment();
+  std::string bytes = ReadFile(path);
+  const uint64_t offset = OffsetOf(10);
+  bytes[offset + 3] = static_cast<char>(0x7f);  // length ~2 GiB
+  WriteFile(path, bytes);
+  auto log = EditLog::Open(dir_, Group(), nullptr);
+  ASSERT_FALSE(log.ok());
+  EXPECT_EQ(log.status().code(), Status::Code::kDataLoss);
+  EXPECT_NE(log.status().message().find("bad length"), std::string::npos) << log.status();
+  EXPECT_NE(log.status().message().find("offset " + std::to_string(offset)), std::string::npos);
+}
+
+TEST_F(EditLogTest, RefusesNonIncreasingSequence) {
+  auto log = OpenOrDie(Always());
+  ASSERT_TRUE(log->Append(5, "a").ok());
+  Status same = log->Append(5, "b");
+  EXPECT_EQ(same.code(), Status::Code::kFailedPrecondition) << same;
+  EXPECT_NE(same.message().find("seq=5"), std::string::npos) << same;
+  EXPECT_EQ(log->Append(4, "c").code(), Status::Code::kFailedPrecondition);
+  EXPECT_TRUE(log->Append(6, "d").ok());
+  auto records = log->ReadFrom(0);
+  ASSERT_TRUE(records.ok());
+  ASSERT_EQ(records->size(), 2u);
+  EXPECT_EQ((*records)[1].seq, 6u);
+}
+
+TEST_F(EditLogTest, RefusesNonIncreasingSequenceOnDisk) {
+  WriteRecords(3);
+  const std::string path = OnlySegment();
+  const uint64_t offset = fs::file_size(path);
+  WriteFile(path, ReadFile(path) + EncodeRecord(2, "replayed twice") + EncodeRecord(4, "x"));
+  auto log = EditLog::Open(dir_, Group(), nullptr);
+  ASSERT_FALSE(log.ok());
+  EXPECT_EQ(log.status().code(), Status::Code::kDataLoss);
+  EXPECT_NE(log.status().message().find("offset " + std::to_string(offset)), std::string::npos);
+  EXPECT_NE(log.status().message().find("does not increase"), std::string::npos) << log.status();
+}
+
+TEST_F(EditLogTest, RefusesBadMagic) {
+  WriteRecords(3);
+  const std::string path = OnlySegment();
+  std::string bytes = ReadFile(path);
+  bytes[0] = 'X';
+  WriteFile(path, bytes);
+  auto log = EditLog::Open(dir_, Group(), nullptr);
+  ASSERT_FALSE(log.ok());
+  EXPECT_EQ(log.status().code(), Status::Code::kDataLoss);
+  EXPECT_NE(log.status().message().find("bad magic"), std::string::npos) << log.status();
+}
+
+TEST_F(EditLogTest, RefusesSegmentOfAnotherFormatVersion) {
+  WriteRecords(3);
+  const std::string path = OnlySegment();
+  std::string bytes = ReadFile(path);
+  bytes[8] = 2;
+  WriteFile(path, bytes);
+  auto log = EditLog::Open(dir_, Group(), nullptr);
+  ASSERT_FALSE(log.ok());
+  EXPECT_EQ(log.status().code(), Status::Code::kFailedPrecondition);
+  EXPECT_NE(log.status().message().find("format version 2"), std::string::npos) << log.status();
+}
+
+TEST_F(EditLogTest, RejectsOversizedPayload) {
+  auto log = OpenOrDie(Group());
+  Status s = log->Append(1, std::string(kMaxRecordPayload + 1, 'x'));
+  EXPECT_EQ(s.code(), Status::Code::kInvalidArgument) << s;
+  EXPECT_TRUE(log->Append(1, "fits").ok()) << "a rejected append does not consume the seq";
+}
+
+TEST_F(EditLogTest, RejectsBadFsyncPolicy) {
+  auto log = EditLog::Open(dir_, FsyncPolicy{FsyncPolicy::Mode::kGroup, 0}, nullptr);
+  ASSERT_FALSE(log.ok());
+  EXPECT_EQ(log.status().code(), Status::Code::kInvalidArgument);
+  EXPECT_NE(log.status().message().find("group_ms=0"), std::string::npos) << log.status();
+  EXPECT_EQ(ParseFsyncMode("always").value(), FsyncPolicy::Mode::kAlways);
+  EXPECT_EQ(ParseFsyncMode("group").value(), FsyncPolicy::Mode::kGroup);
+  EXPECT_EQ(ParseFsyncMode("sometimes").status().code(), Status::Code::kInvalidArgument);
+}
+
+TEST_F(EditLogTest, AlwaysPolicyIsDurableWhenAppendReturns) {
+  auto log = OpenOrDie(Always());
+  std::vector<uint64_t> seen;
+  log->OnDurable([&](uint64_t seq) { seen.push_back(seq); });
+  for (uint64_t seq = 1; seq <= 20; ++seq) {
+    ASSERT_TRUE(log->Append(seq * 2, "x").ok());
+    EXPECT_EQ(log->durable_seq(), seq * 2);
+  }
+  ASSERT_EQ(seen.size(), 20u);
+  EXPECT_EQ(seen.back(), 40u);
+}
+
+TEST_F(EditLogTest, GroupPolicyCatchesUpWithinAFewPeriods) {
+  constexpr int kGroupMs = 5;
+  auto log = OpenOrDie(Group(kGroupMs));
+  std::mutex mu;
+  std::vector<uint64_t> seen;
+  log->OnDurable([&](uint64_t seq) {
+    std::lock_guard<std::mutex> lock(mu);
+    seen.push_back(seq);
+  });
+  for (uint64_t seq = 1; seq <= 300; ++seq) {
+    ASSERT_TRUE(log->Append(seq, Payload(seq)).ok());
+    EXPECT_LE(log->durable_seq(), seq);
+    if (seq % 50 == 0) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  const auto start = std::chrono::steady_clock::now();
+  while (log->durable_seq() < 300 &&
+         std::chrono::steady_clock::now() - start < std::chrono::seconds(2)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  const auto waited = std::chrono::duration_cast<std::chrono::milliseconds>(
+      std::chrono::steady_clock::now() - start);
+  EXPECT_EQ(log->durable_seq(), 300u);
+  // A few periods plus the fdatasync itself; generous for a shared 2-core machine.
+  EXPECT_LE(waited.count(), 20 * kGroupMs) << "durable_seq lagged " << waited.count() << " ms";
+  std::lock_guard<std::mutex> lock(mu);
+  ASSERT_FALSE(seen.empty());
+  EXPECT_EQ(seen.back(), 300u);
+  for (size_t i = 1; i < seen.size(); ++i) EXPECT_LT(seen[i - 1], seen[i]);
+  EXPECT_LT(seen.size(), 300u) << "group commit should share fdatasyncs between records";
+}
+
+TEST_F(EditLogTest, SyncAdvancesDurableSeqAtOnce) {
+  auto log = OpenOrDie(Group(1000));
+  std::atomic<uint64_t> last_seen{0};
+  log->OnDurable([&](uint64_t seq) { last_seen = seq; });
+  for (uint64_t seq = 1; seq <= 10; ++seq) ASSERT_TRUE(log->Append(seq, "x").ok());
+  ASSERT_TRUE(log->Sync().ok());
+  EXPECT_EQ(log->durable_seq(), 10u);
+  EXPECT_EQ(last_seen.load(), 10u);
+}
+
+TEST_F(EditLogTest, RollsSegmentsAtTheSizeLimit) {
+  EditLogOptions options;
+  options.fsync = Always();
+  // Header 32 + two records of 16 + 50 bytes = 164; a third would pass 200.
+  options.segment_bytes = 200;
+  {
+    auto log = OpenOrDie(options);
+    for (uint64_t seq = 1; seq <= 10; ++seq) {
+      ASSERT_TRUE(log->Append(seq, std::string(50, 'a' + seq % 26)).ok());
+    }
+    EXPECT_EQ(log->segment_count(), 5u);
+  }
+  const std::vector<std::string> names = SegmentFiles();
+  ASSERT_EQ(names.size(), 5u);
+  EXPECT_EQ(names[0], "log-00000000000000000001.sclog");
+  EXPECT_EQ(names[1], "log-00000000000000000003.sclog");
+  EXPECT_EQ(names[4], "log-00000000000000000009.sclog");
+  for (const auto& n : names) EXPECT_LE(fs::file_size(fs::path(dir_) / n), 200u) << n;
+
+  RecoveryReport report;
+  auto log = OpenOrDie(options, &report);
+  EXPECT_EQ(report.segments, 5u);
+  EXPECT_EQ(report.records, 10u);
+  auto records = log->ReadFrom(4);
+  ASSERT_TRUE(records.ok()) << records.status();
+  ASSERT_EQ(records->size(), 6u);
+  EXPECT_EQ(records->front().seq, 5u);
+  EXPECT_EQ(records->back().payload, std::string(50, 'a' + 10 % 26));
+}
+
+TEST_F(EditLogTest, RollStartsANewSegmentAtTheNextAppend) {
+  auto log = OpenOrDie(Always());
+  for (uint64_t seq = 1; seq <= 3; ++seq) ASSERT_TRUE(log->Append(seq, "x").ok());
+  log->Roll();
+  EXPECT_EQ(log->segment_count(), 1u);
+  ASSERT_TRUE(log->Append(4, "y").ok());
+  EXPECT_EQ(log->segment_count(), 2u);
+  log->Roll();
+  log->Roll();
+  ASSERT_TRUE(log->Append(5, "z").ok());
+  EXPECT_EQ(log->segment_count(), 3u);
+  EXPECT_EQ(SegmentFiles().back(), "log-00000000000000000005.sclog");
+}
+
+TEST_F(EditLogTest, DropSegmentsBeforeRemovesOnlyFullyCoveredSegments) {
+  EditLogOptions options;
+  options.fsync = Always();
+  options.segment_bytes = 200;  // two 50-byte records per segment: [1,2] [3,4] [5,6] [7,8] [9,10]
+  {
+    auto log = OpenOrDie(options);
+    for (uint64_t seq = 1; seq <= 10; ++seq) {
+      ASSERT_TRUE(log->Append(seq, std::string(50, 'p')).ok());
+    }
+    ASSERT_TRUE(log->DropSegmentsBefore(5).ok());  // [5,6] still holds seq 6
+    EXPECT_EQ(log->segment_count(), 3u);
+    EXPECT_EQ(log->base_seq(), 4u);
+    ASSERT_TRUE(log->DropSegmentsBefore(100).ok());  // never the active segment
+    EXPECT_EQ(log->segment_count(), 1u);
+    EXPECT_EQ(log->base_seq(), 8u);
+    ASSERT_TRUE(log->Append(11, "more").ok());
+  }
+  const std::vector<std::string> names = SegmentFiles();
+  ASSERT_EQ(names.size(), 1u);
+  EXPECT_EQ(names[0], "log-00000000000000000009.sclog");
+  RecoveryReport report;
+  auto log = OpenOrDie(options, &report);
+  EXPECT_EQ(report.log_base_seq, 8u);
+  EXPECT_EQ(report.first_seq, 9u);
+  EXPECT_EQ(report.last_seq, 11u);
+}
+
+TEST_F(EditLogTest, RefusesMissingSegment) {
+  EditLogOptions options;
+  options.fsync = Always();
+  options.segment_bytes = 200;
+  {
+    auto log = OpenOrDie(options);
+    for (uint64_t seq = 1; seq <= 10; ++seq) {
+      ASSERT_TRUE(log->Append(seq, std::string(50, 'p')).ok());
+    }
+  }
+  fs::remove(fs::path(dir_) / "log-00000000000000000005.sclog");
+  auto log = EditLog::Open(dir_, options, nullptr);
+  ASSERT_FALSE(log.ok());
+  EXPECT_EQ(log.status().code(), Status::Code::kDataLoss);
+  EXPECT_NE(log.status().message().find("log-00000000000000000007.sclog"), std::string::npos);
+  EXPECT_NE(log.status().message().find("segment is missing"), std::string::npos) << log.status();
+}
+
+TEST_F(EditLogTest, RefusesTruncatedRecordInAnEarlierSegment) {
+  EditLogOptions options;
+  options.fsync = Always();
+  options.segment_bytes = 200;
+  {
+    auto log = OpenOrDie(options);
+    for (uint64_t seq = 1; seq <= 6; ++seq) {
+      ASSERT_TRUE(log->Append(seq, std::string(50, 'p')).ok());
+    }
+  }
+  const fs::path first = fs::path(dir_) / "log-00000000000000000001.sclog";
+  fs::resize_file(first, fs::file_size(first) - 10);
+  auto log = EditLog::Open(dir_, options, nullptr);
+  ASSERT_FALSE(log.ok());
+  EXPECT_EQ(log.status().code(), Status::Code::kDataLoss);
+  EXPECT_NE(log.status().message().find(first.string()), std::string::npos) << log.status();
+}
+
+TEST_F(EditLogTest, DropsLastSegmentWithTruncatedHeader) {
+  WriteRecords(3);
+  // A crash while the next segment was being created.
+  WriteFile((fs::path(dir_) / "log-00000000000000000004.sclog").string(), "SCLPTLOG\x01");
+  RecoveryReport report;
+  {
+    auto log = OpenOrDie(Group(), &report);
+    ASSERT_NE(log, nullptr);
+    EXPECT_EQ(report.last_seq, 3u);
+    EXPECT_EQ(report.dropped_tail_bytes, 9u);
+    ASSERT_TRUE(log->Append(4, "again").ok());
+  }
+  auto log = OpenOrDie(Group());
+  auto records = log->ReadFrom(3);
+  ASSERT_TRUE(records.ok()) << records.status();
+  ASSERT_EQ(records->size(), 1u);
+  EXPECT_EQ(records->front().payload, "again");
+}
+
+TEST_F(EditLogTest, StartAfterSetsTheBaseOfAnEmptyLog) {
+  {
+    auto log = OpenOrDie(Always());
+    ASSERT_TRUE(log->StartAfter(50).ok());
+    EXPECT_EQ(log->Append(50, "x").code(), Status::Code::kFailedPrecondition);
+    ASSERT_TRUE(log->Append(51, "x").ok());
+    EXPECT_EQ(log->StartAfter(60).code(), Status::Code::kFailedPrecondition);
+  }
+  RecoveryReport report;
+  auto log = OpenOrDie(Always(), &report);
+  EXPECT_EQ(report.log_base_seq, 50u);
+  EXPECT_EQ(log->base_seq(), 50u);
+}
+
+TEST_F(EditLogTest, ForEachFromStopsAtTheVisitorsError) {
+  WriteRecords(10);
+  auto log = OpenOrDie(Group());
+  std::vector<uint64_t> seen;
+  Status s = log->ForEachFrom(3, [&](const LogRecord& r) {
+    seen.push_back(r.seq);
+    return r.seq == 6 ? InvalidArgument("stop here") : Status::Ok();
+  });
+  EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);
+  EXPECT_EQ(seen, (std::vector<uint64_t>{4, 5, 6}));
+}
+
+TEST_F(EditLogTest, IgnoresFilesThatAreNotSegments) {
+  WriteRecords(3);
+  WriteFile((fs::path(dir_) / "log-00000000000000000001.sclog.moved-away").string(), "junk");
+  WriteFile((fs::path(dir_) / "README").string(), "junk");
+  RecoveryReport report;
+  auto log = OpenOrDie(Group(), &report);
+  EXPECT_EQ(report.records, 3u);
+}
+
+}  // namespace
+}  // namespace sculpt::server::store

@@ -1,0 +1,334 @@
+/// @brief Tests of Recover: snapshot plus log tail, per-object skipping, gaps, real edits.
+#include "store/recovery.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "sculpt/levelset/edit.h"
+
+namespace sculpt::server::store {
+namespace {
+
+namespace fs = std::filesystem;
+using levelset::Sculpture;
+
+Sculpture SmallSphere() {
+  levelset::SculptureOptions o;
+  o.voxel_size = 1;
+  auto s = Sculpture::MakeSphere(o, {0, 0, 0}, 6);
+  EXPECT_TRUE(s.ok()) << s.status();
+  return std::move(s).value();
+}
+
+// Test payloads: "<object> <free text>".
+std::string Payload(const std::string& object, uint64_t seq) {
+  return object + " edit " + std::to_string(seq);
+}
+
+StatusOr<std::string> RouteByFirstWord(const LogRecord& record) {
+  const size_t space = record.payload.find(' ');
+  if (space == std::string::npos || space == 0) {
+    return DataLoss("payload of seq " + std::to_string(record.seq) + " names no object");
+  }
+  return record.payload.substr(0, space);
+}
+
+class RecoveryTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = (fs::temp_directory_path() /
+            ("sculpt_recovery_" + std::string(info->name()) + "_" + std::to_string(::getpid())))
+               .string();
+    fs::remove_all(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string LogDir() const { return (fs::path(dir_) / kLogSubdir).string(); }
+  std::string SnapDir() const { return (fs::path(dir_) / kSnapshotSubdir).string(); }
+
+  // Appends records first..last; record seq goes to objects[seq % objects.size()].
+  void WriteLog(uint64_t first, uint64_t last, const std::vector<std::string>& objects,
+                uint64_t segment_bytes = kDefaultSegmentBytes) {
+    EditLogOptions options;
+    options.fsync.mode = FsyncPolicy::Mode::kGroup;
+    options.segment_bytes = segment_bytes;
+    auto log = EditLog::Open(LogDir(), options, nullptr);
+    ASSERT_TRUE(log.ok()) << log.status();
+    for (uint64_t seq = first; seq <= last; ++seq) {
+      ASSERT_TRUE((*log)->Append(seq, Payload(objects[seq % objects.size()], seq)).ok());
+    }
+  }
+
+  void WriteSnapshot(uint64_t seq, const std::string& object, const Sculpture& s) {
+    auto store = SnapshotStore::Open(SnapDir());
+    ASSERT_TRUE(store.ok()) << store.status();
+    ASSERT_TRUE((*store)->Write(seq, object, s).ok());
+  }
+
+  // Recover with a fake apply that records (object, seq) and leaves the sculpture alone.
+  StatusOr<RecoveredScene> RecoverRecording(const std::vector<std::string>& objects) {
+    RecoveryOptions options;
+    options.objects = objects;
+    return Recover(
+        dir_, options,
+        [&](const std::string& object) -> StatusOr<Sculpture> {
+          initial_.push_back(object);
+          return SmallSphere();
+        },
+        RouteByFirstWord,
+        [&](Sculpture&, const LogRecord& record) {
+          applied_.emplace_back(RouteByFirstWord(record).value(), record.seq);
+          return Status::Ok();
+        });
+  }
+
+  std::string dir_;
+  std::vector<std::string> initial_;
+  std::vector<std::pair<std::string, uint64_t>> applied_;
+};
+
+TEST_F(RecoveryTest, ReplaysExactlyTheRecordsAfterTheSnapshot) {
+  WriteSnapshot(50, "ball", SmallSphere());
+  WriteLog(1, 80, {"ball"});
+  auto scene = RecoverRecording({"ball"});
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_TRUE(initial_.empty());
+  ASSERT_EQ(applied_.size(), 30u);
+  for (size_t i = 0; i < applied_.size(); ++i) EXPECT_EQ(applied_[i].second, 51 + i);
+  EXPECT_EQ(scene->last_seq, 80u);
+  EXPECT_EQ(scene->snapshot_seq.at("ball"), 50u);
+  EXPECT_EQ(scene->report.replayed_records, 30u);
+  EXPECT_EQ(scene->report.records, 80u);
+  ASSERT_NE(scene->log, nullptr);
+  EXPECT_TRUE(scene->log->Append(81, Payload("ball", 81)).ok()) << "the log continues";
+}
+
+TEST_F(RecoveryTest, BuildsInitialObjectsWithoutSnapshots) {
+  WriteLog(1, 10, {"ball"});
+  auto scene = RecoverRecording({"ball"});
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(initial_, (std::vector<std::string>{"ball"}));
+  EXPECT_EQ(applied_.size(), 10u);
+  EXPECT_EQ(scene->snapshot_seq.at("ball"), 0u);
+  EXPECT_EQ(scene->last_seq, 10u);
+}
+
+TEST_F(RecoveryTest, NewDataDirectoryGivesTheInitialScene) {
+  auto scene = RecoverRecording({"a", "b"});
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(initial_, (std::vector<std::string>{"a", "b"}));
+  EXPECT_TRUE(applied_.empty());
+  EXPECT_EQ(scene->last_seq, 0u);
+  EXPECT_EQ(scene->sculptures.size(), 2u);
+  EXPECT_TRUE(fs::is_directory(LogDir()));
+  EXPECT_TRUE(fs::is_directory(SnapDir()));
+}
+
+TEST_F(RecoveryTest, SkipsRecordsEachObjectsSnapshotHolds) {
+  WriteSnapshot(50, "a", SmallSphere());
+  WriteSnapshot(30, "b", SmallSphere());
+  WriteLog(1, 80, {"a", "b"});  // even seqs edit a, odd seqs edit b
+  auto scene = RecoverRecording({"a", "b"});
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  size_t a = 0, b = 0;
+  for (const auto& [object, seq] : applied_) {
+    if (object == "a") {
+      EXPECT_GT(seq, 50u);
+      ++a;
+    } else {
+      EXPECT_GT(seq, 30u);
+      ++b;
+    }
+  }
+  EXPECT_EQ(a, 15u);  // 52, 54, ..., 80
+  EXPECT_EQ(b, 25u);  // 31, 33, ..., 79
+  for (size_t i = 1; i < applied_.size(); ++i) {
+    EXPECT_LT(applied_[i - 1].second, applied_[i].second);
+  }
+}
+
+TEST_F(RecoveryTest, FallsBackToAnOlderSnapshotWhenTheNewestDoesNotLoad) {
+  WriteSnapshot(50, "ball", SmallSphere());
+  WriteLog(1, 80, {"ball"});
+  {
+    std::ofstream out(fs::path(SnapDir()) / "snap-00000000000000000070-ball.vdb", std::ios::binary);
+    out << "cut short by a power loss";
+  }
+  auto scene = RecoverRecording({"ball"});
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(scene->snapshot_seq.at("ball"), 50u);
+  EXPECT_EQ(applied_.size(), 30u);
+  EXPECT_EQ(scene->report.skipped_snapshots.size(), 1u);
+}
+
+TEST_F(RecoveryTest, RefusesASnapshotOlderThanTheStartOfTheLog) {
+  WriteSnapshot(30, "ball", SmallSphere());
+  // Two records per segment; segments up to seq 40 were dropped after a (now lost) snapshot.
+  WriteLog(1, 80, {"ball"}, kSegmentHeaderBytes + 2 * (kRecordHeaderBytes + 13));
+  {
+    auto log = EditLog::Open(LogDir(), FsyncPolicy{}, nullptr);
+    ASSERT_TRUE(log.ok());
+    ASSERT_TRUE((*log)->DropSegmentsBefore(40).ok());
+    ASSERT_EQ((*log)->base_seq(), 40u);
+  }
+  auto scene = RecoverRecording({"ball"});
+  ASSERT_FALSE(scene.ok());
+  EXPECT_EQ(scene.status().code(), Status::Code::kDataLoss);
+  EXPECT_NE(scene.status().message().find("seq 30"), std::string::npos) << scene.status();
+  EXPECT_NE(scene.status().message().find("after seq 40"), std::string::npos) << scene.status();
+}
+
+TEST_F(RecoveryTest, RefusesATrimmedLogWithoutSnapshots) {
+  WriteLog(1, 80, {"ball"}, kSegmentHeaderBytes + 2 * (kRecordHeaderBytes + 13));
+  {
+    auto log = EditLog::Open(LogDir(), FsyncPolicy{}, nullptr);
+    ASSERT_TRUE(log.ok());
+    ASSERT_TRUE((*log)->DropSegmentsBefore(40).ok());
+  }
+  auto scene = RecoverRecording({"ball"});
+  ASSERT_FALSE(scene.ok());
+  EXPECT_EQ(scene.status().code(), Status::Code::kDataLoss);
+  EXPECT_NE(scene.status().message().find("no usable snapshot"), std::string::npos)
+      << scene.status();
+}
+
+TEST_F(RecoveryTest, RefusesARecordForAnObjectTheSceneLacks) {
+  WriteLog(1, 10, {"ball", "gone"});
+  auto scene = RecoverRecording({"ball"});
+  ASSERT_FALSE(scene.ok());
+  EXPECT_EQ(scene.status().code(), Status::Code::kFailedPrecondition);
+  EXPECT_NE(scene.status().message().find("\"gone\""), std::string::npos) << scene.status();
+}
+
+TEST_F(RecoveryTest, ApplyErrorStopsRecoveryNamingTheRecord) {
+  WriteLog(1, 10, {"ball"});
+  RecoveryOptions options;
+  options.objects = {"ball"};
+  auto scene = Recover(
+      dir_, options, [](const std::string&) -> StatusOr<Sculpture> { return SmallSphere(); },
+      RouteByFirstWord,
+      [](Sculpture&, const LogRecord& record) {
+        return record.seq == 7 ? DataLoss("payload does not parse") : Status::Ok();
+      });
+  ASSERT_FALSE(scene.ok());
+  EXPECT_EQ(scene.status().code(), Status::Code::kDataLoss);
+  EXPECT_NE(scene.status().message().find("seq 7 on object ball"), std::string::npos)
+      << scene.status();
+}
+
+TEST_F(RecoveryTest, RejectsOptionsWithoutObjects) {
+  auto scene = RecoverRecording({});
+  EXPECT_EQ(scene.status().code(), Status::Code::kInvalidArgument);
+  auto twice = RecoverRecording({"a", "a"});
+  EXPECT_EQ(twice.status().code(), Status::Code::kInvalidArgument);
+}
+
+TEST_F(RecoveryTest, EmptyLogContinuesAfterTheSnapshots) {
+  WriteSnapshot(50, "a", SmallSphere());
+  WriteSnapshot(40, "b", SmallSphere());
+  {
+    auto scene = RecoverRecording({"a", "b"});
+    ASSERT_TRUE(scene.ok()) << scene.status();
+    EXPECT_EQ(scene->last_seq, 50u);
+    EXPECT_EQ(scene->log->base_seq(), 40u);
+    ASSERT_TRUE(scene->log->Append(51, Payload("b", 51)).ok());
+  }
+  applied_.clear();
+  auto again = RecoverRecording({"a", "b"});
+  ASSERT_TRUE(again.ok()) << again.status();
+  ASSERT_EQ(applied_.size(), 1u);
+  EXPECT_EQ(applied_[0], (std::pair<std::string, uint64_t>{"b", 51}));
+  EXPECT_EQ(again->last_seq, 51u);
+}
+
+// A press encoded in the payload: "ball x y z r".
+levelset::EditRequest PressAt(double x, double y, double z, double r) {
+  levelset::EditRequest e;
+  e.kind = levelset::EditKind::kPress;
+  e.tool = levelset::ToolShape::Sphere({x, y, z}, r);
+  e.speed = 10;
+  e.dt = 0.05;
+  return e;
+}
+
+std::string EncodePress(const levelset::EditRequest& e) {
+  std::ostringstream os;
+  os.precision(17);
+  os << "ball " << e.tool.center.x << ' ' << e.tool.center.y << ' ' << e.tool.center.z << ' '
+     << e.tool.size.x;
+  return os.str();
+}
+
+StatusOr<levelset::EditRequest> DecodePress(const std::string& payload) {
+  std::istringstream is(payload);
+  std::string object;
+  double x, y, z, r;
+  if (!(is >> object >> x >> y >> z >> r)) return DataLoss("bad press payload: " + payload);
+  return PressAt(x, y, z, r);
+}
+
+TEST_F(RecoveryTest, RecoveredStateMatchesApplyingTheSameEditsInMemory) {
+  const levelset::EditSettings settings;
+  std::vector<levelset::EditRequest> edits;
+  for (int i = 0; i < 8; ++i) {
+    const double angle = 0.7 * i;
+    edits.push_back(
+        PressAt(7.0 * std::cos(angle), 7.0 * std::sin(angle), 0.5 * (i % 3) - 0.5, 2.0));
+  }
+
+  Sculpture reference = SmallSphere();
+  const uint64_t initial_hash = reference.StateHash();
+  for (const auto& e : edits) ASSERT_TRUE(levelset::ApplyEdit(reference, e, settings).ok());
+  ASSERT_NE(reference.StateHash(), initial_hash);
+
+  // The live server: log each edit, apply it, snapshot after seq 4, keep going to seq 8.
+  uint64_t snapshot_hash = 0;
+  {
+    auto log = EditLog::Open(LogDir(), FsyncPolicy{FsyncPolicy::Mode::kAlways, 5}, nullptr);
+    ASSERT_TRUE(log.ok()) << log.status();
+    auto store = SnapshotStore::Open(SnapDir());
+    ASSERT_TRUE(store.ok()) << store.status();
+    Sculpture live = SmallSphere();
+    for (uint64_t seq = 1; seq <= edits.size(); ++seq) {
+      ASSERT_TRUE((*log)->Append(seq, EncodePress(edits[seq - 1])).ok());
+      ASSERT_TRUE(levelset::ApplyEdit(live, edits[seq - 1], settings).ok());
+      if (seq == 4) {
+        snapshot_hash = live.StateHash();
+        (*store)->WriteAsync(seq, "ball", live.Clone(), nullptr);
+        (*log)->Roll();
+      }
+    }
+    ASSERT_TRUE((*store)->WaitIdle().ok());
+    ASSERT_EQ(live.StateHash(), reference.StateHash());
+  }
+
+  RecoveryOptions options;
+  options.objects = {"ball"};
+  auto scene = Recover(
+      dir_, options, [](const std::string&) -> StatusOr<Sculpture> { return SmallSphere(); },
+      RouteByFirstWord,
+      [&](Sculpture& sculpture, const LogRecord& record) -> Status {
+        SCULPT_ASSIGN_OR_RETURN(levelset::EditRequest e, DecodePress(record.payload));
+        auto result = levelset::ApplyEdit(sculpture, e, settings);
+        return result.ok() ? Status::Ok() : result.status();
+      });
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(scene->snapshot_seq.at("ball"), 4u);
+  EXPECT_EQ(scene->report.replayed_records, 4u);
+  EXPECT_EQ(scene->last_seq, 8u);
+  const Sculpture& recovered = scene->sculptures.at("ball");
+  EXPECT_NE(recovered.StateHash(), snapshot_hash);
+  EXPECT_EQ(recovered.StateHash(), reference.StateHash());
+  EXPECT_NEAR(recovered.volume(), reference.volume(), 1e-9 * reference.volume());
+}
+
+}  // namespace
+}  // namespace sculpt::server::store
