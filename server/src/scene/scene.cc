@@ -299,10 +299,18 @@ void Scene::MaybeSnapshot() {
                        NowSeconds() - last_snapshot_time_ >= config_.snapshot_every_seconds;
   if (!by_count && !by_time) return;
   const uint64_t seq = next_seq_ - 1;
+  // A snapshot must never hold an edit the log could still lose (group commit): sync first.
+  if (const Status s = log_->Sync(); !s.ok()) {
+    spdlog::error("edit log sync before snapshot failed: {}", s.ToString());
+    return;
+  }
   for (auto& [name, sculpture] : sculptures_) {
     // The clone is the only work on the compute thread; the write happens in the background.
     snapshots_->WriteAsync(seq, name, sculpture.Clone(), [seq, name](Status s) {
-      if (!s.ok()) spdlog::warn("snapshot of {} at seq {} failed: {}", name, seq, s.ToString());
+      // kUnavailable: superseded by a newer snapshot before it was written, which is fine.
+      if (!s.ok() && s.code() != Status::Code::kUnavailable) {
+        spdlog::warn("snapshot of {} at seq {} failed: {}", name, seq, s.ToString());
+      }
     });
   }
   log_->Roll();

@@ -16,6 +16,14 @@
 
 namespace sculpt::server::store {
 
+// How sculptd is meant to drive the store (the compute thread owns the log and the objects):
+//   start-up:  Recover() -> sculptures, last_seq, the open log and snapshot store.
+//   each edit: log->Append(seq, payload), apply, fan out; acknowledge from log->OnDurable.
+//   snapshot:  log->Sync() (so the snapshot holds only durable edits), then per object
+//              snapshots->WriteAsync(seq, name, sculpture.Clone(), done), then log->Roll();
+//              when every object's snapshot at or after some seq S reported Ok in `done`,
+//              log->DropSegmentsBefore(S) (S = the smallest such seq over the objects).
+
 /// The parts of a data directory.
 inline constexpr char kLogSubdir[] = "log";
 inline constexpr char kSnapshotSubdir[] = "snapshots";
