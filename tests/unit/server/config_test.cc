@@ -1,0 +1,92 @@
+#include "config/server_config.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+namespace sculpt::server {
+namespace {
+
+std::string Write(const std::string& name, const std::string& text) {
+  const auto p = std::filesystem::temp_directory_path() / ("sculpt_cfg_" + name + ".toml");
+  std::ofstream(p) << text;
+  return p.string();
+}
+
+TEST(ConfigTest, DefaultsAreValid) {
+  ServerConfig c;
+  EXPECT_TRUE(ValidateConfig(c).ok()) << ValidateConfig(c);
+}
+
+TEST(ConfigTest, SampleFileLoads) {
+  ServerConfig c;
+  const Status s = LoadConfigFile(std::string(SCULPT_SOURCE_DIR) + "/deploy/scene.toml", &c);
+  ASSERT_TRUE(s.ok()) << s;
+  EXPECT_TRUE(ValidateConfig(c).ok()) << ValidateConfig(c);
+  EXPECT_EQ(c.scene.objects.size(), 1u);
+  EXPECT_EQ(c.scene.objects[0].name, "clay");
+  EXPECT_EQ(c.sculptor_token, "change-me-sculptor");
+}
+
+TEST(ConfigTest, RejectsBadFsync) {
+  ServerConfig c;
+  ASSERT_TRUE(LoadConfigFile(Write("fsync", "[server]\nfsync = \"sometimes\"\n"), &c).ok());
+  const Status s = ValidateConfig(c);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("fsync=sometimes outside {always, group}"), std::string::npos) << s;
+}
+
+TEST(ConfigTest, RejectsNegativeVoxelSize) {
+  ServerConfig c;
+  ASSERT_TRUE(LoadConfigFile(Write("voxel", "[scene]\nvoxel_size = -1.0\n"), &c).ok());
+  const Status s = ValidateConfig(c);
+  EXPECT_NE(s.message().find("scene.voxel_size=-1 outside"), std::string::npos) << s;
+}
+
+TEST(ConfigTest, RejectsEqualTokens) {
+  ServerConfig c;
+  c.viewer_token = c.sculptor_token;
+  EXPECT_FALSE(ValidateConfig(c).ok());
+}
+
+TEST(ConfigTest, RejectsUnsupportedEffects) {
+  ServerConfig c;
+  c.scene.effects.materials = {"steel"};
+  EXPECT_NE(ValidateConfig(c).message().find("materials"), std::string::npos);
+  c.scene.effects.materials.clear();
+  c.scene.effects.contours = true;
+  EXPECT_NE(ValidateConfig(c).message().find("contours"), std::string::npos);
+}
+
+TEST(ConfigTest, ReportsTomlSyntaxErrorsWithLine) {
+  ServerConfig c;
+  const Status s = LoadConfigFile(Write("syntax", "[server]\nlisten = \n"), &c);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find(":2:"), std::string::npos) << s;
+}
+
+TEST(ConfigTest, ParsesHostPort) {
+  std::string h;
+  uint16_t p = 0;
+  EXPECT_TRUE(ParseHostPort("127.0.0.1:7420", &h, &p).ok());
+  EXPECT_EQ(h, "127.0.0.1");
+  EXPECT_EQ(p, 7420);
+  EXPECT_TRUE(ParseHostPort("[::1]:0", &h, &p).ok());
+  EXPECT_EQ(h, "::1");
+  EXPECT_FALSE(ParseHostPort("nohost", &h, &p).ok());
+  EXPECT_FALSE(ParseHostPort("h:99999", &h, &p).ok());
+  EXPECT_FALSE(ParseHostPort("h:12a", &h, &p).ok());
+}
+
+TEST(ConfigTest, EffectsSelectKernelSettings) {
+  SceneConfig s;
+  s.effects.volume_preservation = "none";
+  s.effects.islands = "keep";
+  const auto e = EditSettingsFor(s);
+  EXPECT_EQ(e.compensation, levelset::CompensationRegion::kNone);
+  EXPECT_EQ(e.islands, levelset::IslandPolicy::kKeep);
+}
+
+}  // namespace
+}  // namespace sculpt::server
