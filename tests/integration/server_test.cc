@@ -8,6 +8,8 @@
 #include <random>
 #include <thread>
 
+#include <tbb/global_control.h>
+
 #include "integration/raw_client.h"
 #include "net/server.h"
 #include "scene/scene.h"
@@ -354,6 +356,28 @@ TEST_F(ServerTest, ConcurrentSculptorsMatchTheLogReplay) {
   auto replay = Scene::Open(config_);
   ASSERT_TRUE(replay.ok()) << replay.status();
   EXPECT_EQ((*replay)->StateHash("clay"), live);
+}
+
+TEST_F(ServerTest, ReplayGivesTheSameHashOnOneAndTwoThreads) {
+  config_.snapshot_every_edits = 0;
+  config_.snapshot_every_seconds = 0;
+  Start();
+  {
+    auto c = Sculptor(9);
+    for (int i = 1; i <= 30; ++i) {
+      const double a = 0.1 * i;
+      c->Send(RawClient::PressStroke(i, {13.2 * std::cos(a), 0, 13.2 * std::sin(a)}));
+      ASSERT_TRUE(c->ReadUntil(v1::ServerMessage::kAck));
+    }
+  }
+  const uint64_t live = scene_->StateHash("clay");
+  Stop();
+  for (int threads : {1, 2}) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    auto replay = Scene::Open(config_);
+    ASSERT_TRUE(replay.ok()) << replay.status();
+    EXPECT_EQ((*replay)->StateHash("clay"), live) << threads << " thread(s)";
+  }
 }
 
 TEST_F(ServerTest, ResendAfterReconnectIsNotAppliedTwice) {
