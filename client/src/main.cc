@@ -1,12 +1,149 @@
-/// @brief `sculpt`: the command-line client. Subcommands: demo, info, export, thesis.
+/// @brief `sculpt`: the command-line client. Subcommands: demo, info, export, play, thesis.
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cctype>
 #include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <optional>
 
 #include "demo.h"
-#include "thesis_cmd.h"
+#include "play_cmd.h"
+#include "sculpt/client/client.h"
 #include "sculpt/levelset/sculpture.h"
+#include "thesis_cmd.h"
+
+namespace {
+
+using nlohmann::json;
+
+json Vec3Json(const sculpt::v1::Vec3f& v) { return json::array({v.x(), v.y(), v.z()}); }
+
+std::string Hex(uint64_t v) {
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(v));
+  return hex;
+}
+
+/// `sculpt info --server`: the scene as a viewer sees it on joining, as JSON.
+int RemoteInfo(const std::string& server, const std::string& token, const std::string& scene) {
+  auto joined = sculpt::client::FetchScene(server, token, sculpt::v1::ROLE_VIEWER, scene);
+  if (!joined.ok()) {
+    spdlog::error("{}: {}", server, joined.status().ToString());
+    return 1;
+  }
+  const sculpt::v1::SceneInfo& info = joined->info;
+  json objects = json::array();
+  for (const sculpt::v1::ObjectInfo& o : info.objects()) {
+    auto state = joined->state.find(o.name());
+    objects.push_back({{"name", o.name()},
+                       {"voxel_size", o.voxel_size()},
+                       {"half_width", o.half_width()},
+                       {"bounds_min", Vec3Json(o.bounds_min())},
+                       {"bounds_max", Vec3Json(o.bounds_max())},
+                       {"volume", o.volume()},
+                       {"reference_volume", o.reference_volume()},
+                       {"state_hash", Hex(o.state_hash())},
+                       {"state_bytes", state == joined->state.end() ? 0 : state->second.size()}});
+  }
+  const sculpt::v1::Effects& e = info.effects();
+  const json out = {{"server", server},
+                    {"scene", info.scene()},
+                    {"global_seq", info.global_seq()},
+                    {"min_tool_size", info.min_tool_size()},
+                    {"max_tool_size", info.max_tool_size()},
+                    {"max_speed", info.max_speed()},
+                    {"effects",
+                     {{"volume_preservation", e.volume_preservation()},
+                      {"smoothing", e.smoothing()},
+                      {"islands", e.islands()},
+                      {"min_island_volume", e.min_island_volume()}}},
+                    {"objects", objects}};
+  std::printf("%s\n", out.dump(2).c_str());
+  return 0;
+}
+
+struct ExportArgs {
+  std::string in, out, format, server, token = "sculpt-dev-viewer", object, scene;
+  double adaptivity = 0.0;
+};
+
+/// `sculpt export`: a .vdb file or a server's current state, written as .vdb, .obj or .ply.
+int Export(const ExportArgs& a) {
+  if (a.in.empty() == a.server.empty()) {
+    spdlog::error("export: give either a .vdb file or --server HOST:PORT (not both)");
+    return 2;
+  }
+  std::string ext = std::filesystem::path(a.out).extension().string();
+  if (!ext.empty()) ext.erase(0, 1);
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const std::string format = a.format.empty() ? ext : a.format;
+  if (format != "vdb" && format != "obj" && format != "ply") {
+    spdlog::error(
+        "export: format={} outside {{vdb, obj, ply}} (from --format or the --out "
+        "extension)",
+        format.empty() ? "(none)" : format);
+    return 2;
+  }
+  std::string out = a.out;
+  if (ext.empty()) {
+    out += "." + format;
+  } else if (ext != format) {
+    spdlog::error("export: --format {} but --out {} ends in .{}", format, a.out, ext);
+    return 2;
+  }
+
+  std::optional<sculpt::levelset::Sculpture> sculpture;
+  if (!a.in.empty()) {
+    auto s = sculpt::levelset::Sculpture::LoadVdb(a.in);
+    if (!s.ok()) {
+      spdlog::error("{}", s.status().ToString());
+      return 1;
+    }
+    sculpture.emplace(std::move(s).value());
+  } else {
+    auto joined = sculpt::client::FetchScene(a.server, a.token, sculpt::v1::ROLE_VIEWER, a.scene);
+    if (!joined.ok()) {
+      spdlog::error("{}: {}", a.server, joined.status().ToString());
+      return 1;
+    }
+    std::string name = a.object;
+    if (name.empty() && joined->info.objects_size() > 0) name = joined->info.objects(0).name();
+    auto state = joined->state.find(name);
+    if (state == joined->state.end()) {
+      spdlog::error("export: --object={} outside the scene's objects", name);
+      return 2;
+    }
+    auto s = sculpt::levelset::Sculpture::DeserializeVdb(state->second);
+    if (!s.ok()) {
+      spdlog::error("{}", s.status().ToString());
+      return 1;
+    }
+    spdlog::info("{}: object {} at global seq {} ({} bytes, state hash {})", a.server, name,
+                 joined->info.global_seq(), state->second.size(), Hex(s->StateHash()));
+    sculpture.emplace(std::move(s).value());
+  }
+  if (format == "vdb") {
+    if (const sculpt::Status s = sculpture->SaveVdb(out); !s.ok()) {
+      spdlog::error("{}", s.ToString());
+      return 1;
+    }
+    spdlog::info("wrote {}: {} active voxels", out, sculpture->ActiveVoxelCount());
+    return 0;
+  }
+  auto m = sculpture->ExportMesh(out, a.adaptivity);
+  if (!m.ok()) {
+    spdlog::error("{}", m.status().ToString());
+    return 1;
+  }
+  spdlog::info("wrote {}: {} vertices, {} triangles", out, m->vertices, m->triangles);
+  return 0;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"sculpt: the Sculpt command-line client"};
@@ -28,17 +165,46 @@ int main(int argc, char** argv) {
   demo_cmd->add_option("--seed", demo.seed, "Random seed for the stroke jitter")
       ->capture_default_str();
 
-  std::string vdb_path;
-  CLI::App* info_cmd = app.add_subcommand("info", "Print a .vdb sculpture's statistics");
-  info_cmd->add_option("file", vdb_path, ".vdb file")->required()->check(CLI::ExistingFile);
+  std::string vdb_path, info_server, info_token = "sculpt-dev-viewer", info_scene;
+  CLI::App* info_cmd = app.add_subcommand(
+      "info", "Print a .vdb sculpture's statistics, or a running server's scene (--server)");
+  info_cmd->add_option("file", vdb_path, ".vdb file")->check(CLI::ExistingFile);
+  info_cmd->add_option("--server", info_server, "sculptd address HOST:PORT (joins as a viewer)");
+  info_cmd->add_option("--token", info_token, "Viewer secret")->capture_default_str();
+  info_cmd->add_option("--scene", info_scene, "Scene (default: the server's)");
 
-  std::string export_in, export_out;
-  double adaptivity = 0.0;
-  CLI::App* export_cmd = app.add_subcommand("export", "Mesh a .vdb sculpture to OBJ or PLY");
-  export_cmd->add_option("file", export_in, ".vdb file")->required()->check(CLI::ExistingFile);
-  export_cmd->add_option("--out", export_out, "Output mesh (.obj or .ply)")->required();
-  export_cmd->add_option("--adaptivity", adaptivity, "volumeToMesh adaptivity")
+  ExportArgs ex;
+  CLI::App* export_cmd = app.add_subcommand(
+      "export", "Write a .vdb sculpture, or a running server's current state, as VDB, OBJ or PLY");
+  export_cmd->add_option("file", ex.in, ".vdb file (or --server)")->check(CLI::ExistingFile);
+  export_cmd->add_option("--out", ex.out, "Output file (.vdb, .obj or .ply)")->required();
+  export_cmd->add_option("--format", ex.format, "vdb | obj | ply (default: the --out extension)")
+      ->check(CLI::IsMember({"vdb", "obj", "ply"}));
+  export_cmd->add_option("--adaptivity", ex.adaptivity, "volumeToMesh adaptivity")
       ->check(CLI::Range(0.0, 1.0));
+  export_cmd->add_option("--server", ex.server,
+                         "Fetch the current state from sculptd at HOST:PORT as a viewer");
+  export_cmd->add_option("--token", ex.token, "Viewer secret")->capture_default_str();
+  export_cmd->add_option("--object", ex.object, "Object to export (default: the scene's first)");
+  export_cmd->add_option("--scene", ex.scene, "Scene (default: the server's)");
+
+  sculpt::client::PlayOptions play;
+  CLI::App* play_cmd = app.add_subcommand(
+      "play", "Send a stroke script to a running sculptd as a sculptor; print a JSON summary");
+  play_cmd->footer(sculpt::client::kPlayScriptHelp);
+  play_cmd->add_option("--server", play.server, "sculptd address HOST:PORT")->required();
+  play_cmd->add_option("--script", play.script, "Stroke script (JSON; format below)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  play_cmd->add_option("--token", play.token, "Sculptor secret")->capture_default_str();
+  play_cmd->add_option("--name", play.name, "Name shown to others")->capture_default_str();
+  play_cmd->add_option("--scene", play.scene, "Scene (default: the script's, else the server's)");
+  play_cmd->add_option("--timeout", play.timeout_s, "Seconds to wait for the last acks")
+      ->check(CLI::Range(0.1, 3600.0))
+      ->capture_default_str();
+  play_cmd->add_option("--speedup", play.speedup, "Play the script this many times faster")
+      ->check(CLI::Range(0.001, 1e6))
+      ->capture_default_str();
 
   CLI::App* thesis_cmd = app.add_subcommand(
       "thesis", "Rerun the thesis's 2D carve and compensation experiments; print JSON");
@@ -58,7 +224,13 @@ int main(int argc, char** argv) {
     }
     return 0;
   }
+  if (*play_cmd) return sculpt::client::RunPlay(play);
   if (*info_cmd) {
+    if (vdb_path.empty() == info_server.empty()) {
+      spdlog::error("info: give either a .vdb file or --server HOST:PORT (not both)");
+      return 2;
+    }
+    if (!info_server.empty()) return RemoteInfo(info_server, info_token, info_scene);
     auto s = sculpt::levelset::Sculpture::LoadVdb(vdb_path);
     if (!s.ok()) {
       spdlog::error("{}", s.status().ToString());
@@ -68,23 +240,10 @@ int main(int argc, char** argv) {
         "{\"name\": \"%s\", \"voxel_size\": %g, \"half_width\": %d, \"active_voxels\": %llu, "
         "\"volume\": %.6f, \"reference_volume\": %.6f, \"state_hash\": \"%016llx\"}\n",
         s->name().c_str(), s->voxel_size(), s->half_width(),
-        static_cast<unsigned long long>(s->ActiveVoxelCount()), s->volume(),
-        s->reference_volume(), static_cast<unsigned long long>(s->StateHash()));
+        static_cast<unsigned long long>(s->ActiveVoxelCount()), s->volume(), s->reference_volume(),
+        static_cast<unsigned long long>(s->StateHash()));
     return 0;
   }
-  if (*export_cmd) {
-    auto s = sculpt::levelset::Sculpture::LoadVdb(export_in);
-    if (!s.ok()) {
-      spdlog::error("{}", s.status().ToString());
-      return 1;
-    }
-    auto m = s->ExportMesh(export_out, adaptivity);
-    if (!m.ok()) {
-      spdlog::error("{}", m.status().ToString());
-      return 1;
-    }
-    spdlog::info("wrote {}: {} vertices, {} triangles", export_out, m->vertices, m->triangles);
-    return 0;
-  }
+  if (*export_cmd) return Export(ex);
   return 0;
 }

@@ -1,0 +1,878 @@
+/// @brief Client: the connection state machine, batched writes, the pending-stroke table that
+/// makes resends safe, and event delivery.
+#include "sculpt/client/client.h"
+
+#include <algorithm>
+#include <array>
+#include <charconv>
+#include <condition_variable>
+#include <deque>
+#include <future>
+#include <mutex>
+#include <random>
+#include <thread>
+
+#include "lib/net.h"
+#include "sculpt/codec/frame.h"
+
+namespace sculpt::client {
+
+using Clock = std::chrono::steady_clock;
+
+struct IoThread::Impl {
+  asio::io_context io;
+  asio::executor_work_guard<asio::io_context::executor_type> work{io.get_executor()};
+  std::thread thread;
+};
+
+IoThread::IoThread() : impl_(std::make_unique<Impl>()) {
+  Impl* impl = impl_.get();
+  impl_->thread = std::thread([impl] { impl->io.run(); });
+}
+
+IoThread::~IoThread() {
+  impl_->work.reset();
+  // Clients close their sockets before letting go of the thread; whatever is still queued (a
+  // handler of a client being torn down) is destroyed with the io_context.
+  impl_->io.stop();
+  if (impl_->thread.joinable()) impl_->thread.join();
+}
+
+namespace {
+
+/// One TCP connection. The socket, `reader`, `buf` and `writing` are touched only on the I/O
+/// thread; the rest is guarded by Client::Impl::mu.
+struct Conn {
+  Conn(asio::io_context& io, uint32_t max_frame_bytes) : socket(io), reader(max_frame_bytes) {}
+
+  tcp::socket socket;
+  codec::FrameReader reader;
+  std::array<char, 64 * 1024> buf{};
+  std::string writing;
+
+  std::string out;                 // frames waiting for the next write
+  std::vector<uint64_t> out_seqs;  // strokes among them (their send time is the write's)
+  bool writing_active = false;
+  bool write_posted = false;
+  bool shutdown_after_write = false;
+  bool shut_down = false;
+  bool closed = false;
+};
+
+std::string Ms(std::chrono::milliseconds ms) { return std::to_string(ms.count()) + " ms"; }
+
+}  // namespace
+
+struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
+  enum class Phase {
+    kIdle,
+    kConnected,
+    kAwaitWelcome,
+    kAuthed,
+    kAwaitJoin,
+    kJoinComplete,  // every chunk arrived; Join() resends before strokes flow
+    kJoined,
+    kClosing,
+    kDisconnected,
+  };
+
+  struct Pending {
+    std::string frame;
+    Clock::time_point sent_at;
+    bool written = false;
+  };
+
+  Impl(asio::io_context& io_context, ClientOptions opts)
+      : io(io_context), options(std::move(opts)) {}
+
+  // --- I/O thread ------------------------------------------------------------------------
+
+  void StartRead(const std::shared_ptr<Conn>& c) {
+    auto self = shared_from_this();
+    c->socket.async_read_some(
+        asio::buffer(c->buf), [self, c](boost::system::error_code ec, size_t n) {
+          if (ec) {
+            self->Lost(c, ec == asio::error::eof ? "server closed the connection"
+                                                 : "read: " + ec.message());
+            return;
+          }
+          c->reader.Feed(c->buf.data(), n);
+          // Parsed outside the lock: a state chunk is 256 KiB, and SendStroke waits on mu.
+          std::vector<v1::ServerMessage> messages;
+          std::string failure;
+          for (;;) {
+            auto next = c->reader.Next();
+            if (!next.ok()) {
+              failure = "server frame: " + next.status().message();
+              break;
+            }
+            if (!next->has_value()) break;
+            messages.emplace_back();
+            if (!messages.back().ParseFromString(**next)) {
+              messages.pop_back();
+              failure = "a server frame does not parse as sculpt.v1.ServerMessage";
+              break;
+            }
+          }
+          {
+            std::lock_guard<std::mutex> lock(self->mu);
+            self->stats.bytes_received += n;
+            if (c == self->conn && !c->closed) {
+              for (v1::ServerMessage& m : messages) self->OnMessageLocked(m);
+            }
+          }
+          if (!failure.empty()) {
+            self->Lost(c, failure);
+            return;
+          }
+          self->StartRead(c);
+        });
+  }
+
+  void OnMessageLocked(v1::ServerMessage& m) {
+    switch (m.body_case()) {
+      case v1::ServerMessage::kWelcome:
+        if (phase == Phase::kAwaitWelcome) {
+          welcome = m.welcome();
+          phase = Phase::kAuthed;
+          cv.notify_all();
+        }
+        return;
+      case v1::ServerMessage::kSceneInfo:
+        if (phase == Phase::kAwaitJoin) {
+          join = JoinedScene{};
+          join.info = m.scene_info();
+          next_chunk.clear();
+          objects_complete = 0;
+          for (const v1::ObjectInfo& o : join.info.objects()) next_chunk[o.name()] = 0;
+          if (join.info.objects_size() == 0) CompleteJoinLocked();
+        }
+        return;
+      case v1::ServerMessage::kStateChunk:
+        return OnChunkLocked(*m.mutable_state_chunk());
+      case v1::ServerMessage::kAck:
+        return OnAckLocked(m.ack());
+      case v1::ServerMessage::kPresence: {
+        ++stats.presence;
+        Event e;
+        e.type = Event::Type::kPresence;
+        e.presence = std::move(*m.mutable_presence());
+        return EmitLocked(std::move(e));
+      }
+      case v1::ServerMessage::kError:
+        return OnErrorLocked(m.error());
+      case v1::ServerMessage::kBye: {
+        Event e;
+        e.type = Event::Type::kBye;
+        e.reason = m.bye().reason();
+        return EmitLocked(std::move(e));
+      }
+      case v1::ServerMessage::BODY_NOT_SET:
+        return;
+    }
+  }
+
+  void OnChunkLocked(v1::StateChunk& chunk) {
+    stats.state_bytes_received += chunk.data().size();
+    if (phase != Phase::kAwaitJoin) return;
+    auto it = next_chunk.find(chunk.object());
+    // The server is trusted for content, but a chunk that does not continue its object's
+    // sequence would assemble into garbage: fail the join rather than deserialize that.
+    if (it == next_chunk.end()) {
+      join_failure = DataLoss("StateChunk.object=" + chunk.object() + " outside SceneInfo");
+    } else if (chunk.index() != it->second || chunk.count() == 0 ||
+               chunk.index() >= chunk.count()) {
+      join_failure =
+          DataLoss("StateChunk.index=" + std::to_string(chunk.index()) + " outside [" +
+                   std::to_string(it->second) + ", " + std::to_string(it->second) + "] of count " +
+                   std::to_string(chunk.count()) + " for " + chunk.object());
+    } else if (chunk.global_seq() != join.info.global_seq()) {
+      join_failure = DataLoss("StateChunk.global_seq=" + std::to_string(chunk.global_seq()) +
+                              " outside [" + std::to_string(join.info.global_seq()) + ", " +
+                              std::to_string(join.info.global_seq()) + "] (SceneInfo)");
+    }
+    if (join_failure) {
+      cv.notify_all();
+      return;
+    }
+    join.state[chunk.object()].append(chunk.data());
+    ++it->second;
+    if (it->second == chunk.count() && ++objects_complete == next_chunk.size()) {
+      CompleteJoinLocked();
+    }
+  }
+
+  void CompleteJoinLocked() {
+    phase = Phase::kJoinComplete;
+    cv.notify_all();
+  }
+
+  void OnAckLocked(const v1::Ack& a) {
+    Event e;
+    e.type = Event::Type::kAck;
+    e.ack = a;
+    auto it = pending.find(a.client_seq());
+    if (it == pending.end()) {
+      // Settled already: the ack of a stroke resent just before its first ack arrived.
+      ++stats.stray_acks;
+    } else {
+      e.latency_ms =
+          std::chrono::duration<double, std::milli>(Clock::now() - it->second.sent_at).count();
+      pending.erase(it);
+      ++stats.acks;
+      if (a.duplicate()) {
+        ++stats.duplicate_acks;
+      } else {
+        if (a.global_seq_first() <= last_fresh_global_seq) ++stats.acks_out_of_order;
+        last_fresh_global_seq = a.global_seq_first();
+        stats.poses_acked += a.edits();
+        if (a.edits() > 0) {
+          stats.last_global_seq =
+              std::max(stats.last_global_seq, a.global_seq_first() + a.edits() - 1);
+        }
+      }
+      if (pending.empty()) cv.notify_all();
+    }
+    EmitLocked(std::move(e));
+  }
+
+  void OnErrorLocked(const v1::Error& error) {
+    ++stats.errors;
+    Event e;
+    e.type = Event::Type::kError;
+    e.error = error;
+    auto it = error.client_seq() != 0 ? pending.find(error.client_seq()) : pending.end();
+    if (it != pending.end()) {
+      // Refused strokes are not retried with the same client_seq: once a later stroke of this
+      // client is applied, the server would take the old number for a duplicate.
+      e.refused = true;
+      e.latency_ms =
+          std::chrono::duration<double, std::milli>(Clock::now() - it->second.sent_at).count();
+      pending.erase(it);
+      ++stats.refused;
+      cv.notify_all();
+    } else if (phase == Phase::kAwaitWelcome || phase == Phase::kAwaitJoin) {
+      handshake_error = error;
+      cv.notify_all();
+    }
+    EmitLocked(std::move(e));
+  }
+
+  /// The connection ended (read or write failure, EOF, a bad frame). Idempotent.
+  void Lost(const std::shared_ptr<Conn>& c, const std::string& reason) {
+    std::lock_guard<std::mutex> lock(mu);
+    if (c->closed) return;
+    CloseConnLocked(c, reason);
+  }
+
+  /// Marks `c` closed and closes its socket on the I/O thread.
+  void CloseConnLocked(const std::shared_ptr<Conn>& c, const std::string& reason) {
+    if (c->closed) return;
+    c->closed = true;
+    asio::post(io, [c] {
+      boost::system::error_code ignored;
+      c->socket.close(ignored);
+    });
+    if (c == conn) {
+      phase = Phase::kDisconnected;
+      disconnect_reason = reason;
+      Event e;
+      e.type = Event::Type::kDisconnected;
+      e.reason = reason;
+      EmitLocked(std::move(e));
+    }
+    cv.notify_all();
+  }
+
+  void DoWrite(const std::shared_ptr<Conn>& c) {
+    std::unique_lock<std::mutex> lock(mu);
+    c->write_posted = false;
+    if (c->closed || c->writing_active) return;
+    if (c->out.empty()) {
+      if (c->shutdown_after_write && !c->shut_down) {
+        // Half-close: the server reads every frame before the end of stream, and keeps
+        // answering until it sees it; the read loop closes the socket at EOF.
+        c->shut_down = true;
+        boost::system::error_code ignored;
+        c->socket.shutdown(tcp::socket::shutdown_send, ignored);
+      }
+      return;
+    }
+    c->writing.swap(c->out);
+    c->out.clear();
+    const auto now = Clock::now();
+    for (uint64_t seq : c->out_seqs) {
+      auto it = pending.find(seq);
+      if (it != pending.end()) it->second.sent_at = now;
+    }
+    c->out_seqs.clear();
+    c->writing_active = true;
+    lock.unlock();
+    auto self = shared_from_this();
+    asio::async_write(c->socket, asio::buffer(c->writing),
+                      [self, c](boost::system::error_code ec, size_t n) {
+                        c->writing.clear();
+                        {
+                          std::lock_guard<std::mutex> lock(self->mu);
+                          c->writing_active = false;
+                          self->stats.bytes_sent += n;
+                        }
+                        if (ec) {
+                          self->Lost(c, "write: " + ec.message());
+                          return;
+                        }
+                        self->DoWrite(c);
+                      });
+  }
+
+  void FlushEvents() {
+    std::vector<Event> batch;
+    {
+      std::lock_guard<std::mutex> lock(mu);
+      batch.swap(outbox);
+      flush_posted = false;
+      ++delivering;
+    }
+    {
+      std::lock_guard<std::mutex> handler_lock(handler_mu);
+      if (handler) {
+        for (const Event& e : batch) handler(e);
+        batch.clear();
+      }
+    }
+    std::lock_guard<std::mutex> lock(mu);
+    for (Event& e : batch) {
+      if (events.size() >= options.max_queued_events) {
+        events.pop_front();
+        ++stats.events_dropped;
+      }
+      events.push_back(std::move(e));
+    }
+    --delivering;
+    cv.notify_all();
+  }
+
+  /// No event is waiting for or in delivery (WaitAllAcked promises the acks were delivered).
+  bool DeliveredLocked() const { return outbox.empty() && delivering == 0; }
+
+  // --- Any thread, with mu held -----------------------------------------------------------
+
+  /// Events are delivered on the I/O thread, in order, outside mu (a handler may call back).
+  void EmitLocked(Event e) {
+    outbox.push_back(std::move(e));
+    if (!flush_posted) {
+      flush_posted = true;
+      auto self = shared_from_this();
+      asio::post(io, [self] { self->FlushEvents(); });
+    }
+  }
+
+  void KickLocked(const std::shared_ptr<Conn>& c) {
+    if (c->writing_active || c->write_posted) return;
+    c->write_posted = true;
+    auto self = shared_from_this();
+    asio::post(io, [self, c] { self->DoWrite(c); });
+  }
+
+  void QueueLocked(const std::string& frame, uint64_t seq) {
+    if (!conn || conn->closed) return;
+    conn->out += frame;
+    if (seq != 0) conn->out_seqs.push_back(seq);
+    KickLocked(conn);
+  }
+
+  template <typename Message>
+  static std::string Frame(const Message& m) {
+    std::string frame;
+    codec::AppendMessage(m, &frame);
+    return frame;
+  }
+
+  /// Flushes, half-closes and waits for the server's end of stream (bounded), then closes.
+  Status EndConnection(std::unique_lock<std::mutex>& lock, const std::string& reason,
+                       bool say_bye) {
+    std::shared_ptr<Conn> c = conn;
+    if (!c || c->closed) return Status::Ok();
+    if (say_bye && phase != Phase::kConnected) {
+      v1::ClientMessage m;
+      m.mutable_bye()->set_reason(reason);
+      QueueLocked(Frame(m), 0);
+    }
+    phase = Phase::kClosing;
+    c->shutdown_after_write = true;
+    KickLocked(c);
+    const auto limit =
+        std::min<std::chrono::milliseconds>(options.timeout, std::chrono::seconds(2));
+    if (!cv.wait_for(lock, limit, [&] { return c->closed; })) {
+      CloseConnLocked(c, reason + " (the server did not close within " + Ms(limit) + ")");
+      return Status::Ok();
+    }
+    return Status::Ok();
+  }
+
+  asio::io_context& io;
+  const ClientOptions options;
+
+  mutable std::mutex mu;
+  std::condition_variable cv;
+  Phase phase = Phase::kIdle;
+  std::shared_ptr<Conn> conn;
+  std::string disconnect_reason;
+
+  std::string host;
+  uint16_t port = 0;
+  std::string token;
+  v1::Role role = v1::ROLE_UNSPECIFIED;
+  std::string name;
+  uint64_t client_id = 0;
+  std::string scene;
+  bool joined_once = false;
+
+  v1::Welcome welcome;
+  std::optional<v1::Error> handshake_error;
+  JoinedScene join;
+  std::map<std::string, uint32_t> next_chunk;
+  size_t objects_complete = 0;
+  std::optional<Status> join_failure;
+  v1::SceneInfo scene_info;
+
+  uint64_t next_seq = 1;
+  std::map<uint64_t, Pending> pending;
+  uint64_t last_fresh_global_seq = 0;
+
+  std::vector<Event> outbox;
+  bool flush_posted = false;
+  int delivering = 0;
+  std::deque<Event> events;
+  ClientStats stats;
+
+  std::mutex handler_mu;  // taken before mu, never after
+  EventHandler handler;
+};
+
+Client::Client(ClientOptions options) {
+  io_ = options.io ? options.io : std::make_shared<IoThread>();
+  options.io = nullptr;  // the Impl must not keep its own thread alive (see ~IoThread)
+  impl_ = std::make_shared<Impl>(io_->impl().io, std::move(options));
+}
+
+Client::~Client() {
+  SetEventHandler(nullptr);
+  (void)Close("client destroyed");
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  if (impl_->conn) impl_->CloseConnLocked(impl_->conn, "client destroyed");
+}
+
+Status Client::Connect(const std::string& host, uint16_t port) {
+  {
+    std::lock_guard<std::mutex> lock(impl_->mu);
+    if (impl_->conn) impl_->CloseConnLocked(impl_->conn, "reconnecting");
+  }
+  auto c = std::make_shared<Conn>(impl_->io, impl_->options.max_frame_bytes);
+  auto resolver = std::make_shared<tcp::resolver>(impl_->io);
+  auto done = std::make_shared<std::promise<boost::system::error_code>>();
+  auto result = done->get_future();
+  asio::post(impl_->io, [c, resolver, done, host, port] {
+    resolver->async_resolve(
+        host, std::to_string(port),
+        [c, resolver, done](boost::system::error_code ec, tcp::resolver::results_type results) {
+          if (ec) {
+            done->set_value(ec);
+            return;
+          }
+          asio::async_connect(c->socket, results,
+                              [c, done](boost::system::error_code ec, const tcp::endpoint&) {
+                                if (!ec) {
+                                  boost::system::error_code ignored;
+                                  c->socket.set_option(tcp::no_delay(true), ignored);
+                                }
+                                done->set_value(ec);
+                              });
+        });
+  });
+  const std::string where = host + ":" + std::to_string(port);
+  if (result.wait_for(impl_->options.timeout) != std::future_status::ready) {
+    asio::post(impl_->io, [c, resolver] {
+      resolver->cancel();
+      boost::system::error_code ignored;
+      c->socket.close(ignored);
+    });
+    return Status(Status::Code::kUnavailable,
+                  "connect to " + where + ": no answer within " + Ms(impl_->options.timeout));
+  }
+  if (const boost::system::error_code ec = result.get()) {
+    return Status(Status::Code::kUnavailable, "connect to " + where + ": " + ec.message());
+  }
+  {
+    std::lock_guard<std::mutex> lock(impl_->mu);
+    impl_->conn = c;
+    impl_->phase = Impl::Phase::kConnected;
+    impl_->host = host;
+    impl_->port = port;
+  }
+  auto impl = impl_;
+  asio::post(impl_->io, [impl, c] { impl->StartRead(c); });
+  return Status::Ok();
+}
+
+StatusOr<v1::Welcome> Client::Hello(const std::string& token, v1::Role role,
+                                    const std::string& name, uint64_t client_id) {
+  Impl& d = *impl_;
+  std::unique_lock<std::mutex> lock(d.mu);
+  if (!d.conn || d.conn->closed || d.phase != Impl::Phase::kConnected) {
+    return FailedPrecondition("Hello needs a new connection: call Connect first");
+  }
+  if (client_id == 0) client_id = d.client_id != 0 ? d.client_id : NewClientId();
+  d.token = token;
+  d.role = role;
+  d.name = name;
+  d.client_id = client_id;
+  d.handshake_error.reset();
+  v1::ClientMessage m;
+  v1::Hello* h = m.mutable_hello();
+  h->set_protocol_version(1);
+  h->set_token(token);
+  h->set_role(role);
+  h->set_client_name(name);
+  h->set_client_id(client_id);
+  d.phase = Impl::Phase::kAwaitWelcome;
+  d.QueueLocked(Impl::Frame(m), 0);
+  const bool settled = d.cv.wait_for(lock, d.options.timeout, [&] {
+    return d.phase != Impl::Phase::kAwaitWelcome || d.handshake_error.has_value();
+  });
+  if (d.handshake_error) return ErrorToStatus(*d.handshake_error);
+  if (!settled) {
+    return Status(Status::Code::kUnavailable, "no Welcome within " + Ms(d.options.timeout));
+  }
+  if (d.phase != Impl::Phase::kAuthed) {
+    return Status(Status::Code::kUnavailable,
+                  "connection lost before Welcome: " + d.disconnect_reason);
+  }
+  return d.welcome;
+}
+
+StatusOr<JoinedScene> Client::Join(const std::string& scene) {
+  Impl& d = *impl_;
+  std::unique_lock<std::mutex> lock(d.mu);
+  if (d.phase == Impl::Phase::kJoined) {
+    return FailedPrecondition(
+        "already joined on this connection (the server ignores a second "
+        "JoinScene)");
+  }
+  if (d.phase != Impl::Phase::kAuthed) {
+    return FailedPrecondition("Join needs an authenticated connection: call Hello first");
+  }
+  d.handshake_error.reset();
+  d.join_failure.reset();
+  d.join = JoinedScene{};
+  v1::ClientMessage m;
+  m.mutable_join()->set_scene(scene);
+  d.phase = Impl::Phase::kAwaitJoin;
+  d.QueueLocked(Impl::Frame(m), 0);
+  const bool settled = d.cv.wait_for(lock, d.options.timeout, [&] {
+    return d.phase != Impl::Phase::kAwaitJoin || d.handshake_error || d.join_failure;
+  });
+  if (d.handshake_error) {
+    if (d.phase == Impl::Phase::kAwaitJoin) d.phase = Impl::Phase::kAuthed;
+    return ErrorToStatus(*d.handshake_error);
+  }
+  if (d.join_failure) {
+    d.CloseConnLocked(d.conn, d.join_failure->message());
+    return *d.join_failure;
+  }
+  if (!settled) {
+    return Status(Status::Code::kUnavailable,
+                  "no complete scene state within " + Ms(d.options.timeout));
+  }
+  if (d.phase != Impl::Phase::kJoinComplete) {
+    return Status(Status::Code::kUnavailable,
+                  "connection lost while joining: " + d.disconnect_reason);
+  }
+  d.scene = scene;
+  d.joined_once = true;
+  d.scene_info = d.join.info;
+  // Resends go out before the phase lets new strokes onto the wire, so every stroke reaches
+  // the server in client_seq order (see the class comment).
+  for (auto& [seq, p] : d.pending) {
+    if (p.written) ++d.stats.strokes_resent;
+    p.written = true;
+    d.QueueLocked(p.frame, seq);
+  }
+  d.phase = Impl::Phase::kJoined;
+  return std::move(d.join);
+}
+
+Status Client::Reconnect() {
+  std::string host, token, name, scene;
+  uint16_t port = 0;
+  v1::Role role = v1::ROLE_UNSPECIFIED;
+  uint64_t id = 0;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mu);
+    if (!impl_->joined_once) return FailedPrecondition("Reconnect needs a completed Join first");
+    host = impl_->host;
+    port = impl_->port;
+    token = impl_->token;
+    role = impl_->role;
+    name = impl_->name;
+    id = impl_->client_id;
+    scene = impl_->scene;
+    ++impl_->stats.reconnects;
+  }
+  SCULPT_RETURN_IF_ERROR(Connect(host, port));
+  auto welcome = Hello(token, role, name, id);
+  if (!welcome.ok()) return welcome.status();
+  auto joined = Join(scene);
+  if (!joined.ok()) return joined.status();
+  return Status::Ok();
+}
+
+StatusOr<uint64_t> Client::SendStroke(const StrokeRequest& stroke) {
+  double voxel_size = 0;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mu);
+    if (!impl_->joined_once) {
+      return FailedPrecondition("SendStroke needs a joined scene (the voxel size packs poses)");
+    }
+    for (const v1::ObjectInfo& o : impl_->scene_info.objects()) {
+      if (o.name() == stroke.object) voxel_size = o.voxel_size();
+    }
+  }
+  if (voxel_size <= 0) {
+    return NotFound("Stroke.object=" + stroke.object + " outside the scene's objects");
+  }
+  if (stroke.poses.empty()) return InvalidArgument("Stroke.pose_count=0 outside [1, max]");
+  Vec3 lo = stroke.poses.front().position, hi = lo;
+  for (const codec::Pose& p : stroke.poses) {
+    lo = {std::min(lo.x, p.position.x), std::min(lo.y, p.position.y), std::min(lo.z, p.position.z)};
+    hi = {std::max(hi.x, p.position.x), std::max(hi.y, p.position.y), std::max(hi.z, p.position.z)};
+  }
+  const Vec3 origin = (lo + hi) * 0.5;
+  SCULPT_ASSIGN_OR_RETURN(std::string packed, codec::PackPoses(stroke.poses, origin, voxel_size));
+  v1::Stroke s;
+  s.set_object(stroke.object);
+  s.set_kind(stroke.kind);
+  s.set_tool(stroke.tool);
+  s.mutable_tool_size()->set_x(static_cast<float>(stroke.tool_size.x));
+  s.mutable_tool_size()->set_y(static_cast<float>(stroke.tool_size.y));
+  s.mutable_tool_size()->set_z(static_cast<float>(stroke.tool_size.z));
+  s.set_speed(static_cast<float>(stroke.speed));
+  s.set_amount(static_cast<float>(stroke.amount));
+  s.mutable_origin()->set_x(static_cast<float>(origin.x));
+  s.mutable_origin()->set_y(static_cast<float>(origin.y));
+  s.mutable_origin()->set_z(static_cast<float>(origin.z));
+  s.set_t0_ms(stroke.t0_ms);
+  s.set_pose_count(static_cast<uint32_t>(stroke.poses.size()));
+  s.set_poses(std::move(packed));
+  return SendStrokeMessage(std::move(s));
+}
+
+StatusOr<uint64_t> Client::SendStrokeMessage(v1::Stroke stroke) {
+  Impl& d = *impl_;
+  std::lock_guard<std::mutex> lock(d.mu);
+  if (!d.joined_once) return FailedPrecondition("SendStroke needs a joined scene");
+  if (d.pending.size() >= d.options.max_unacked) {
+    return ResourceExhausted("un-acked strokes=" + std::to_string(d.pending.size()) +
+                             " outside [0, " + std::to_string(d.options.max_unacked) + ")");
+  }
+  const uint64_t seq = d.next_seq++;
+  stroke.set_client_seq(seq);
+  v1::ClientMessage m;
+  *m.mutable_stroke() = std::move(stroke);
+  Impl::Pending& p = d.pending[seq];
+  p.frame = Impl::Frame(m);
+  p.sent_at = Clock::now();
+  ++d.stats.strokes_sent;
+  if (d.phase == Impl::Phase::kJoined) {
+    p.written = true;
+    d.QueueLocked(p.frame, seq);
+  }
+  return seq;
+}
+
+Status Client::SendHover(const Vec3& position, double radius) {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  if (impl_->phase != Impl::Phase::kJoined) return FailedPrecondition("Hover needs a joined scene");
+  v1::ClientMessage m;
+  v1::Hover* h = m.mutable_hover();
+  h->mutable_position()->set_x(static_cast<float>(position.x));
+  h->mutable_position()->set_y(static_cast<float>(position.y));
+  h->mutable_position()->set_z(static_cast<float>(position.z));
+  h->set_radius(static_cast<float>(radius));
+  impl_->QueueLocked(Impl::Frame(m), 0);
+  return Status::Ok();
+}
+
+bool Client::WaitAllAcked(std::chrono::milliseconds timeout) {
+  std::unique_lock<std::mutex> lock(impl_->mu);
+  impl_->cv.wait_for(lock, timeout, [&] {
+    return (impl_->pending.empty() || impl_->phase == Impl::Phase::kDisconnected) &&
+           impl_->DeliveredLocked();
+  });
+  return impl_->pending.empty() && impl_->DeliveredLocked();
+}
+
+std::optional<Event> Client::NextEvent(std::chrono::milliseconds timeout) {
+  std::unique_lock<std::mutex> lock(impl_->mu);
+  if (!impl_->cv.wait_for(lock, timeout, [&] { return !impl_->events.empty(); })) {
+    return std::nullopt;
+  }
+  Event e = std::move(impl_->events.front());
+  impl_->events.pop_front();
+  return e;
+}
+
+std::vector<Event> Client::DrainEvents() {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  std::vector<Event> out(std::make_move_iterator(impl_->events.begin()),
+                         std::make_move_iterator(impl_->events.end()));
+  impl_->events.clear();
+  return out;
+}
+
+void Client::SetEventHandler(EventHandler handler) {
+  std::lock_guard<std::mutex> lock(impl_->handler_mu);
+  impl_->handler = std::move(handler);
+}
+
+Status Client::Close(const std::string& reason) {
+  std::unique_lock<std::mutex> lock(impl_->mu);
+  return impl_->EndConnection(lock, reason, /*say_bye=*/true);
+}
+
+void Client::DropConnection() {
+  std::unique_lock<std::mutex> lock(impl_->mu);
+  (void)impl_->EndConnection(lock, "connection dropped by the client", /*say_bye=*/false);
+}
+
+bool Client::joined() const {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  return impl_->phase == Impl::Phase::kJoined;
+}
+
+bool Client::connected() const {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  return impl_->conn && !impl_->conn->closed;
+}
+
+size_t Client::unacked() const {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  return impl_->pending.size();
+}
+
+std::vector<uint64_t> Client::UnackedSeqs() const {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  std::vector<uint64_t> out;
+  out.reserve(impl_->pending.size());
+  for (const auto& [seq, p] : impl_->pending) out.push_back(seq);
+  return out;
+}
+
+uint64_t Client::client_id() const {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  return impl_->client_id;
+}
+
+v1::Welcome Client::welcome() const {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  return impl_->welcome;
+}
+
+v1::SceneInfo Client::scene_info() const {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  return impl_->scene_info;
+}
+
+ClientStats Client::stats() const {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  return impl_->stats;
+}
+
+std::string ErrorCodeName(v1::ErrorCode code) {
+  std::string name = v1::ErrorCode_Name(code);
+  constexpr std::string_view kPrefix = "ERROR_CODE_";
+  if (name.rfind(kPrefix, 0) == 0) name.erase(0, kPrefix.size());
+  // A code newer than this client (enums only grow within version 1): its number.
+  return name.empty() ? std::to_string(static_cast<int>(code)) : name;
+}
+
+Status ErrorToStatus(const v1::Error& error) {
+  Status::Code code = Status::Code::kInternal;
+  switch (error.code()) {
+    case v1::ERROR_CODE_INVALID_ARGUMENT:
+    case v1::ERROR_CODE_MALFORMED:
+      code = Status::Code::kInvalidArgument;
+      break;
+    case v1::ERROR_CODE_NOT_FOUND:
+      code = Status::Code::kNotFound;
+      break;
+    case v1::ERROR_CODE_RESOURCE_EXHAUSTED:
+      code = Status::Code::kResourceExhausted;
+      break;
+    case v1::ERROR_CODE_UNAUTHENTICATED:
+    case v1::ERROR_CODE_PERMISSION_DENIED:
+    case v1::ERROR_CODE_FAILED_PRECONDITION:
+    case v1::ERROR_CODE_VERSION_MISMATCH:
+      code = Status::Code::kFailedPrecondition;
+      break;
+    default:
+      code = Status::Code::kInternal;
+      break;
+  }
+  std::string text = "ERROR_CODE_" + ErrorCodeName(error.code());
+  if (!error.field().empty()) {
+    text += " " + error.field() + "=" + error.value();
+    if (!error.allowed_range().empty()) text += " outside " + error.allowed_range();
+  }
+  if (!error.message().empty()) text += ": " + error.message();
+  return Status(code, text);
+}
+
+uint64_t NewClientId() {
+  std::random_device rd;
+  const uint64_t id = (uint64_t{rd()} << 32) ^ rd();
+  // The top bit is the server's space for clients that send no id; never 0.
+  const uint64_t masked = id & ~(uint64_t{1} << 63);
+  return masked != 0 ? masked : 1;
+}
+
+Status ParseServerAddress(const std::string& text, std::string* host, uint16_t* port) {
+  const auto bad = [&text] {
+    return InvalidArgument("--server=" + text + " outside HOST:PORT (port 1..65535)");
+  };
+  const size_t colon = text.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == text.size()) return bad();
+  std::string h = text.substr(0, colon);
+  if (h.front() == '[') {
+    if (h.size() < 3 || h.back() != ']') return bad();
+    h = h.substr(1, h.size() - 2);
+  }
+  unsigned value = 0;
+  const char* first = text.data() + colon + 1;
+  const char* last = text.data() + text.size();
+  const auto r = std::from_chars(first, last, value);
+  if (r.ec != std::errc() || r.ptr != last || value == 0 || value > 65535) return bad();
+  *host = h;
+  *port = static_cast<uint16_t>(value);
+  return Status::Ok();
+}
+
+StatusOr<JoinedScene> FetchScene(const std::string& address, const std::string& token,
+                                 v1::Role role, const std::string& scene,
+                                 std::chrono::milliseconds timeout) {
+  std::string host;
+  uint16_t port = 0;
+  SCULPT_RETURN_IF_ERROR(ParseServerAddress(address, &host, &port));
+  ClientOptions options;
+  options.timeout = timeout;
+  Client client(options);
+  SCULPT_RETURN_IF_ERROR(client.Connect(host, port));
+  auto welcome = client.Hello(token, role, "sculpt-cli", 0);
+  if (!welcome.ok()) return welcome.status();
+  auto joined = client.Join(scene);
+  if (!joined.ok()) return joined.status();
+  (void)client.Close("fetched the scene");
+  return joined;
+}
+
+}  // namespace sculpt::client

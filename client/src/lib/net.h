@@ -1,0 +1,14 @@
+/// @brief The one place the client library includes Boost.Asio (Boost 1.74 with g++ 12 needs
+/// <utility> before <boost/asio.hpp>).
+#ifndef SCULPT_CLIENT_LIB_NET_H_
+#define SCULPT_CLIENT_LIB_NET_H_
+
+#include <boost/asio.hpp>
+#include <utility>
+
+namespace sculpt::client {
+namespace asio = boost::asio;
+using tcp = boost::asio::ip::tcp;
+}  // namespace sculpt::client
+
+#endif  // SCULPT_CLIENT_LIB_NET_H_

@@ -1,0 +1,374 @@
+/// @brief LoadRun: connects the simulated clients, paces the sculptors' strokes from one driver
+/// thread, collects acks on the clients' I/O threads and builds the report.
+#include "loadgen/load_run.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "loadgen/surface_walk.h"
+#include "sculpt/client/client.h"
+
+namespace sculpt::client {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using json = nlohmann::ordered_json;
+
+double Seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+
+double Round3(double v) { return std::round(v * 1000.0) / 1000.0; }
+
+/// Nearest-rank percentile of sorted values (0 for none).
+double Percentile(const std::vector<double>& sorted, double q) {
+  if (sorted.empty()) return 0;
+  const size_t rank = static_cast<size_t>(std::ceil(q * static_cast<double>(sorted.size())));
+  return sorted[std::clamp<size_t>(rank, 1, sorted.size()) - 1];
+}
+
+json LatencyJson(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return {{"p50_ms", Round3(Percentile(v, 0.50))},
+          {"p99_ms", Round3(Percentile(v, 0.99))},
+          {"max_ms", Round3(v.empty() ? 0.0 : v.back())}};
+}
+
+/// SplitMix64: decorrelates the per-sculptor seeds derived from one --seed.
+uint64_t Mix(uint64_t x) {
+  x += 0x9e3779b97f4a7c15ull;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+
+/// What a client's handler saw; written on its I/O thread, read after the run.
+struct Observed {
+  std::mutex mu;
+  std::vector<double> latencies_ms;
+  std::vector<double> edit_ms;  // Ack.summary.elapsed_ms: the server's time for the last pose
+  std::map<std::string, uint64_t> errors_by_code;
+  std::vector<std::string> first_errors;  // a few messages, for the report
+  std::vector<std::string> disconnects;
+  uint64_t presence = 0;
+};
+
+struct SimClient {
+  std::string name;
+  bool sculptor = false;
+  std::unique_ptr<Client> client;
+  std::unique_ptr<SurfaceWalk> walk;
+  std::shared_ptr<Observed> seen = std::make_shared<Observed>();
+  ClientStats at_start;  // counters when the sending phase began
+  Clock::time_point next_send;
+  uint64_t send_failures = 0;
+  uint64_t reconnect_failures = 0;
+};
+
+Client::EventHandler MakeHandler(std::shared_ptr<Observed> seen) {
+  return [seen](const Event& e) {
+    std::lock_guard<std::mutex> lock(seen->mu);
+    switch (e.type) {
+      case Event::Type::kAck:
+        // Duplicates answer a resend; their latency measures the reconnect, not the server.
+        if (!e.ack.duplicate()) {
+          seen->latencies_ms.push_back(e.latency_ms);
+          seen->edit_ms.push_back(e.ack.summary().elapsed_ms());
+        }
+        break;
+      case Event::Type::kError:
+        ++seen->errors_by_code[ErrorCodeName(e.error.code())];
+        if (seen->first_errors.size() < 5) {
+          seen->first_errors.push_back(ErrorToStatus(e.error).message());
+        }
+        break;
+      case Event::Type::kPresence:
+        ++seen->presence;
+        break;
+      case Event::Type::kBye:
+      case Event::Type::kDisconnected:
+        if (seen->disconnects.size() < 5) seen->disconnects.push_back(e.reason);
+        break;
+    }
+  };
+}
+
+Status CheckOptions(const LoadOptions& o) {
+  const auto bad = [](const std::string& field, double v, const std::string& range) {
+    return InvalidArgument("--" + field + "=" + std::to_string(v) + " outside " + range);
+  };
+  if (o.sculptors < 0 || o.sculptors > 4096) return bad("sculptors", o.sculptors, "[0, 4096]");
+  if (o.viewers < 0 || o.viewers > 4096) return bad("viewers", o.viewers, "[0, 4096]");
+  if (o.sculptors + o.viewers == 0)
+    return InvalidArgument("--sculptors + --viewers=0 outside [1, 8192]");
+  if (!(o.rate_hz > 0 && o.rate_hz <= 10000)) return bad("rate", o.rate_hz, "(0, 10000]");
+  if (!(o.seconds > 0 && o.seconds <= 86400)) return bad("seconds", o.seconds, "(0, 86400]");
+  if (o.poses_per_stroke < 1 || o.poses_per_stroke > 1024) {
+    return bad("poses-per-stroke", o.poses_per_stroke, "[1, 1024]");
+  }
+  if (!(o.depth >= 0 && o.depth < 64)) return bad("depth", o.depth, "[0, 64)");
+  if (o.io_threads < 1 || o.io_threads > 64) return bad("io-threads", o.io_threads, "[1, 64]");
+  // A stroke spans (K - 1) / rate seconds; its t_ms offsets are 16-bit milliseconds.
+  if ((o.poses_per_stroke - 1) * 1000.0 / o.rate_hz > 65535) {
+    return InvalidArgument("--poses-per-stroke / --rate: a stroke spans more than 65.535 s");
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
+  SCULPT_RETURN_IF_ERROR(CheckOptions(o));
+  std::string host;
+  uint16_t port = 0;
+  SCULPT_RETURN_IF_ERROR(ParseServerAddress(o.server, &host, &port));
+
+  std::vector<std::shared_ptr<IoThread>> io;
+  for (int i = 0; i < o.io_threads; ++i) io.push_back(std::make_shared<IoThread>());
+
+  std::vector<SimClient> clients(static_cast<size_t>(o.sculptors + o.viewers));
+  v1::SceneInfo info;
+  uint64_t state_bytes_at_join = 0;
+  const auto t_setup = Clock::now();
+  for (size_t i = 0; i < clients.size(); ++i) {
+    SimClient& c = clients[i];
+    c.sculptor = i < static_cast<size_t>(o.sculptors);
+    const size_t index = c.sculptor ? i : i - static_cast<size_t>(o.sculptors);
+    c.name = (c.sculptor ? "sculptor-" : "viewer-") + std::to_string(index);
+    ClientOptions co;
+    co.io = io[i % io.size()];
+    c.client = std::make_unique<Client>(co);
+    c.client->SetEventHandler(MakeHandler(c.seen));
+    SCULPT_RETURN_IF_ERROR(c.client->Connect(host, port));
+    // Fresh ids every run: the server remembers the highest client_seq per id across restarts,
+    // so an id derived from --seed would make a second run's strokes look like resends.
+    auto welcome = c.client->Hello(c.sculptor ? o.sculptor_token : o.viewer_token,
+                                   c.sculptor ? v1::ROLE_SCULPTOR : v1::ROLE_VIEWER,
+                                   "loadgen-" + c.name, NewClientId());
+    if (!welcome.ok()) {
+      return Status(welcome.status().code(), c.name + ": " + welcome.status().message());
+    }
+    auto joined = c.client->Join(o.scene);
+    if (!joined.ok()) {
+      return Status(joined.status().code(), c.name + ": " + joined.status().message());
+    }
+    if (i == 0) info = joined->info;
+    for (const auto& [name, bytes] : joined->state) state_bytes_at_join += bytes.size();
+  }
+  const double setup_s = Seconds(Clock::now() - t_setup);
+
+  // The walk follows the object's surface as SceneInfo bounds it: the bounds hold the centres
+  // of the active voxels, which reach up to half_width voxels outside the surface, so the
+  // outermost centre lies about (half_width - 1) voxels out (26.5 for the default sphere of
+  // radius 24, voxel 0.5, half-width 6).
+  const v1::ObjectInfo* object = nullptr;
+  for (const v1::ObjectInfo& obj : info.objects()) {
+    if (o.object.empty() ? object == nullptr : obj.name() == o.object) object = &obj;
+  }
+  if (o.sculptors > 0 && object == nullptr) {
+    return NotFound("--object=" + o.object + " outside the scene's objects");
+  }
+  Vec3 center, extent;
+  double radius = 0;
+  if (object != nullptr) {
+    const Vec3 lo{object->bounds_min().x(), object->bounds_min().y(), object->bounds_min().z()};
+    const Vec3 hi{object->bounds_max().x(), object->bounds_max().y(), object->bounds_max().z()};
+    center = (lo + hi) * 0.5;
+    extent = (hi - lo) * 0.5;
+    const double band = (static_cast<double>(object->half_width()) - 1.0) * object->voxel_size();
+    radius = std::min({extent.x, extent.y, extent.z}) - band;
+    if (!(radius > o.depth + o.tool_radius)) {
+      return FailedPrecondition("object " + object->name() + ": surface radius " +
+                                std::to_string(radius) + " from its bounds is too small to walk");
+    }
+  }
+
+  const double stroke_period = o.poses_per_stroke / o.rate_hz;
+  const double pose_dt = 1.0 / o.rate_hz;
+  const auto t_start = Clock::now();
+  for (size_t i = 0; i < clients.size(); ++i) {
+    SimClient& c = clients[i];
+    c.at_start = c.client->stats();
+    if (!c.sculptor) continue;
+    c.walk = std::make_unique<SurfaceWalk>(Mix(o.seed * 0x100000001b3ull + i), center, radius,
+                                           o.depth, o.walk_speed);
+    // Staggered so the sculptors' strokes do not all leave in the same instant.
+    c.next_send =
+        t_start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(
+                      stroke_period * static_cast<double>(i) / std::max(1, o.sculptors)));
+  }
+
+  // The driver: one thread paces every sculptor; a stroke carries the poses sampled since the
+  // previous one, timestamped at the sampling rate.
+  const auto t_stop = t_start + std::chrono::duration_cast<Clock::duration>(
+                                    std::chrono::duration<double>(o.seconds));
+  for (;;) {
+    SimClient* due = nullptr;
+    for (SimClient& c : clients) {
+      if (c.sculptor && c.next_send < t_stop && (!due || c.next_send < due->next_send)) due = &c;
+    }
+    if (due == nullptr) break;
+    std::this_thread::sleep_until(due->next_send);
+    if (!due->client->connected()) {
+      // The server dropped it: reconnect (resending what is un-acked), at most once a period.
+      if (!due->client->Reconnect().ok()) ++due->reconnect_failures;
+    }
+    StrokeRequest s;
+    s.object = object->name();
+    s.kind = v1::EDIT_KIND_PRESS;
+    s.tool = v1::TOOL_KIND_SPHERE;
+    s.tool_size = {o.tool_radius, 0, 0};
+    s.speed = o.press_speed;
+    s.t0_ms = static_cast<uint64_t>(Seconds(Clock::now() - t_start) * 1000.0);
+    for (int k = 0; k < o.poses_per_stroke; ++k) {
+      codec::Pose p;
+      p.position = due->walk->Next(pose_dt);
+      p.t_ms = static_cast<uint32_t>(std::lround(k * pose_dt * 1000.0));
+      s.poses.push_back(p);
+    }
+    if (!due->client->SendStroke(s).ok()) ++due->send_failures;
+    due->next_send +=
+        std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(stroke_period));
+  }
+  const auto t_sent = Clock::now();
+
+  const auto drain_deadline = t_sent + std::chrono::duration_cast<Clock::duration>(
+                                           std::chrono::duration<double>(o.drain_seconds));
+  for (SimClient& c : clients) {
+    if (!c.sculptor) continue;
+    const auto left = std::max(Clock::duration::zero(), drain_deadline - Clock::now());
+    c.client->WaitAllAcked(std::chrono::duration_cast<std::chrono::milliseconds>(left));
+  }
+  const auto t_end = Clock::now();
+  const double duration_s = Seconds(t_end - t_start);
+
+  json per_client = json::array();
+  std::vector<double> all_latencies, all_edit_ms;
+  std::map<std::string, uint64_t> errors_by_code;
+  uint64_t sent = 0, acked = 0, refused = 0, unacked = 0, errors = 0, duplicates = 0,
+           poses_acked = 0, final_seq = 0, viewer_bytes = 0, viewer_bytes_window = 0, presence = 0,
+           reconnects = 0;
+  uint64_t up[2] = {0, 0}, down[2] = {0, 0};  // [viewer, sculptor], within the window
+  bool in_order = true;
+  for (SimClient& c : clients) {
+    const ClientStats st = c.client->stats();
+    const uint64_t pending = c.client->unacked();
+    std::lock_guard<std::mutex> lock(c.seen->mu);
+    const uint64_t bytes_up = st.bytes_sent - c.at_start.bytes_sent;
+    const uint64_t bytes_down = st.bytes_received - c.at_start.bytes_received;
+    up[c.sculptor] += bytes_up;
+    down[c.sculptor] += bytes_down;
+    sent += st.strokes_sent;
+    acked += st.acks;
+    refused += st.refused;
+    unacked += pending;
+    errors += st.errors;
+    duplicates += st.duplicate_acks;
+    poses_acked += st.poses_acked;
+    presence += st.presence;
+    reconnects += st.reconnects;
+    final_seq = std::max(final_seq, st.last_global_seq);
+    in_order = in_order && st.acks_out_of_order == 0;
+    if (!c.sculptor) {
+      viewer_bytes += st.bytes_received;
+      viewer_bytes_window += bytes_down;
+    }
+    for (const auto& [code, n] : c.seen->errors_by_code) errors_by_code[code] += n;
+    all_latencies.insert(all_latencies.end(), c.seen->latencies_ms.begin(),
+                         c.seen->latencies_ms.end());
+    all_edit_ms.insert(all_edit_ms.end(), c.seen->edit_ms.begin(), c.seen->edit_ms.end());
+    json entry = {{"name", c.name},
+                  {"role", c.sculptor ? "sculptor" : "viewer"},
+                  {"client_id", c.client->client_id()},
+                  {"bytes_up", bytes_up},
+                  {"bytes_down", bytes_down},
+                  {"bytes_down_total", st.bytes_received},
+                  {"server_errors", st.errors},
+                  {"presence_updates", st.presence},
+                  {"connected_at_end", c.client->connected()}};
+    if (c.sculptor) {
+      entry["strokes_sent"] = st.strokes_sent;
+      entry["strokes_acked"] = st.acks;
+      entry["strokes_refused"] = st.refused;
+      entry["strokes_unacked"] = pending;
+      entry["duplicate_acks"] = st.duplicate_acks;
+      entry["acks_in_order"] = st.acks_out_of_order == 0;
+      entry["last_global_seq"] = st.last_global_seq;
+      entry["stroke_ack"] = LatencyJson(c.seen->latencies_ms);
+      entry["send_failures"] = c.send_failures;
+      entry["reconnects"] = st.reconnects;
+      entry["reconnect_failures"] = c.reconnect_failures;
+    }
+    if (!c.seen->first_errors.empty()) entry["first_errors"] = c.seen->first_errors;
+    if (!c.seen->disconnects.empty()) entry["disconnects"] = c.seen->disconnects;
+    per_client.push_back(std::move(entry));
+  }
+  std::sort(all_latencies.begin(), all_latencies.end());
+  std::sort(all_edit_ms.begin(), all_edit_ms.end());
+
+  const double n_clients = static_cast<double>(clients.size());
+  const auto per_s = [duration_s](double bytes, double n) {
+    return n > 0 && duration_s > 0 ? Round3(bytes / n / duration_s) : 0.0;
+  };
+  json report = {
+      {"strokes_sent", sent},
+      {"strokes_acked", acked},
+      {"strokes_refused", refused},
+      {"strokes_unacked", unacked},
+      {"acks_in_order", in_order},
+      {"stroke_ack_p50_ms", Round3(Percentile(all_latencies, 0.50))},
+      {"stroke_ack_p99_ms", Round3(Percentile(all_latencies, 0.99))},
+      {"stroke_ack_max_ms", Round3(all_latencies.empty() ? 0.0 : all_latencies.back())},
+      {"server_errors", errors},
+      {"server_errors_by_code", errors_by_code},
+      {"bytes_up_per_client_per_s", per_s(static_cast<double>(up[0] + up[1]), n_clients)},
+      {"bytes_down_per_client_per_s", per_s(static_cast<double>(down[0] + down[1]), n_clients)},
+      {"sculptor_bytes_up_per_s", per_s(static_cast<double>(up[1]), o.sculptors)},
+      {"sculptor_bytes_down_per_s", per_s(static_cast<double>(down[1]), o.sculptors)},
+      {"viewer_bytes_down_per_s", per_s(static_cast<double>(down[0]), o.viewers)},
+      {"viewers_received_bytes", viewer_bytes},
+      {"viewers_received_bytes_in_window", viewer_bytes_window},
+      {"state_bytes_at_join", state_bytes_at_join},
+      {"duration_s", Round3(duration_s)},
+      {"send_s", Round3(Seconds(t_sent - t_start))},
+      {"drain_s", Round3(Seconds(t_end - t_sent))},
+      {"setup_s", Round3(setup_s)},
+      {"duplicate_acks", duplicates},
+      {"poses_acked", poses_acked},
+      {"edits_acked_per_s", per_s(static_cast<double>(poses_acked), 1)},
+      {"offered_edits_per_s", Round3(o.sculptors * o.rate_hz)},
+      {"server_edit_ms_p50", Round3(Percentile(all_edit_ms, 0.50))},
+      {"server_edit_ms_p99", Round3(Percentile(all_edit_ms, 0.99))},
+      {"final_global_seq", final_seq},
+      {"presence_updates", presence},
+      {"reconnects", reconnects},
+      {"config",
+       {{"server", o.server},
+        {"scene", info.scene()},
+        {"object", object ? object->name() : ""},
+        {"sculptors", o.sculptors},
+        {"viewers", o.viewers},
+        {"rate_hz", o.rate_hz},
+        {"poses_per_stroke", o.poses_per_stroke},
+        {"strokes_per_second_per_sculptor", Round3(o.rate_hz / o.poses_per_stroke)},
+        {"seconds", o.seconds},
+        {"seed", o.seed},
+        {"tool_radius", o.tool_radius},
+        {"press_speed", o.press_speed},
+        {"walk_speed", o.walk_speed},
+        {"depth", o.depth},
+        {"surface_radius", Round3(radius)}}},
+      {"clients", per_client},
+  };
+
+  for (SimClient& c : clients) (void)c.client->Close("load run finished");
+  return report;
+}
+
+}  // namespace sculpt::client

@@ -1,0 +1,40 @@
+/// @brief LoadRun: N simulated sculptors and M viewers against one sculptd, and the JSON report of
+/// what they saw (strokes, acks, latency stroke->ack, errors, bytes per client per second).
+#ifndef SCULPT_CLIENT_LOADGEN_LOAD_RUN_H_
+#define SCULPT_CLIENT_LOADGEN_LOAD_RUN_H_
+
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "sculpt/core/status.h"
+
+namespace sculpt::client {
+
+struct LoadOptions {
+  std::string server;  // HOST:PORT
+  int sculptors = 4;
+  int viewers = 0;
+  double rate_hz = 120;      // pose samples per second per sculptor
+  double seconds = 10;       // sending phase
+  int poses_per_stroke = 4;  // a sculptor sends rate_hz / poses_per_stroke strokes per second
+  uint64_t seed = 1;         // trajectories only; client ids are always fresh
+  std::string sculptor_token = "sculpt-dev-sculptor";
+  std::string viewer_token = "sculpt-dev-viewer";
+  std::string scene;          // empty: the server's default
+  std::string object;         // empty: the scene's first object
+  double tool_radius = 2.5;   // sphere tool, world units
+  double press_speed = 60;    // Stroke.speed, world units per second
+  double walk_speed = 60;     // tool motion over the surface, world units per second
+  double depth = 1.0;         // poses this far inside the surface, world units
+  double drain_seconds = 60;  // wait for the last acks after the sending phase
+  int io_threads = 2;
+};
+
+/// Connects every client, runs the sending phase, waits for the acks and returns the report.
+/// InvalidArgument for bad options; the connection's error when a client cannot join.
+StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& options);
+
+}  // namespace sculpt::client
+
+#endif  // SCULPT_CLIENT_LOADGEN_LOAD_RUN_H_
