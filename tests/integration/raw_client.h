@@ -6,7 +6,9 @@
 #include <utility>
 
 #include <boost/asio.hpp>
+#include <atomic>
 #include <chrono>
+#include <unistd.h>
 #include <optional>
 #include <string>
 #include <sys/socket.h>
@@ -81,8 +83,11 @@ class RawClient {
     return closed_;
   }
 
-  bool Hello(const std::string& token, v1::Role role, uint64_t client_id = 0,
+  static constexpr uint64_t kAutoId = ~uint64_t{0};
+  bool Hello(const std::string& token, v1::Role role, uint64_t client_id = kAutoId,
              uint32_t version = 1) {
+    static std::atomic<uint64_t> next{1};
+    if (client_id == kAutoId) client_id = (static_cast<uint64_t>(::getpid()) << 20) + next++;
     v1::ClientMessage m;
     auto* h = m.mutable_hello();
     h->set_protocol_version(version);
@@ -98,7 +103,7 @@ class RawClient {
     return Send(m);
   }
   /// Hello + Welcome + Join + SceneInfo + all state chunks.
-  bool Enter(const std::string& token, v1::Role role, uint64_t client_id = 0) {
+  bool Enter(const std::string& token, v1::Role role, uint64_t client_id = kAutoId) {
     if (!Hello(token, role, client_id)) return false;
     if (!ReadUntil(v1::ServerMessage::kWelcome)) return false;
     if (!Join()) return false;

@@ -71,7 +71,7 @@ class ServerTest : public ::testing::Test {
     fs::remove_all(dir_);
   }
   // A sculptor that is in the scene.
-  std::unique_ptr<RawClient> Sculptor(uint64_t client_id = 0) {
+  std::unique_ptr<RawClient> Sculptor(uint64_t client_id = RawClient::kAutoId) {
     auto c = std::make_unique<RawClient>(port_);
     EXPECT_TRUE(c->Enter(kSculptor, v1::ROLE_SCULPTOR, client_id));
     return c;
@@ -135,13 +135,50 @@ TEST_F(ServerTest, RejectsViewerTokenForSculptorRole) {
 TEST_F(ServerTest, RejectsOldProtocolVersion) {
   Start();
   RawClient c(port_);
-  c.Hello(kSculptor, v1::ROLE_SCULPTOR, 0, /*version=*/0);
+  c.Hello(kSculptor, v1::ROLE_SCULPTOR, RawClient::kAutoId, /*version=*/0);
   const v1::Error e = ExpectError(c);
   EXPECT_EQ(e.code(), v1::ERROR_CODE_VERSION_MISMATCH);
   EXPECT_EQ(e.field(), "Hello.protocol_version");
   EXPECT_EQ(e.value(), "0");
   auto bye = c.ReadUntil(v1::ServerMessage::kBye);
   EXPECT_TRUE(bye);
+}
+
+TEST_F(ServerTest, RejectsZeroClientId) {
+  Start();
+  RawClient c(port_);
+  c.Hello(kSculptor, v1::ROLE_SCULPTOR, 0);
+  const v1::Error e = ExpectError(c);
+  EXPECT_EQ(e.code(), v1::ERROR_CODE_INVALID_ARGUMENT);
+  EXPECT_EQ(e.field(), "Hello.client_id");
+  EXPECT_TRUE(c.WaitClosed());
+}
+
+TEST_F(ServerTest, AnswersASecondJoin) {
+  Start();
+  auto c = Sculptor();
+  c->Join();
+  const v1::Error e = ExpectError(*c);
+  EXPECT_EQ(e.code(), v1::ERROR_CODE_FAILED_PRECONDITION);
+  EXPECT_EQ(e.field(), "JoinScene");
+}
+
+TEST_F(ServerTest, LimitsPosesPerSecond) {
+  config_.limits.poses_per_second = 40;
+  config_.limits.pose_burst = 40;
+  Start();
+  auto c = Sculptor();
+  for (int i = 1; i <= 12; ++i) c->Send(RawClient::PressStroke(i, {0, 0, 13.3}, 4));
+  int acks = 0, limited = 0;
+  for (int n = 0; n < 12; ++n) {
+    auto m = c->Read();
+    if (!m) break;
+    if (m->has_ack()) ++acks;
+    if (m->has_error() && m->error().field() == "poses_per_second") ++limited;
+    if (!m->has_ack() && !m->has_error()) --n;
+  }
+  EXPECT_EQ(acks, 10);  // 40 poses of burst = 10 strokes of 4
+  EXPECT_EQ(limited, 2);
 }
 
 TEST_F(ServerTest, ClosesUnauthenticatedConnectionAfterTimeout) {

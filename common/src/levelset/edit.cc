@@ -3,6 +3,7 @@
 #include "sculpt/levelset/edit.h"
 
 #include <algorithm>
+#include <limits>
 #include <chrono>
 #include <cmath>
 #include <sstream>
@@ -87,28 +88,57 @@ struct Block {
   }
 };
 
-Block MakeBlock(const Sculpture::Impl& impl, const ToolShape& tool, double reach) {
-  Block b;
-  b.dx = impl.dx();
-  b.bg = impl.background();
-  b.eps = 1.5 * b.dx;
-  const Aabb tb = ToolBounds(tool);
-  const Vec3 r{reach, reach, reach};
-  b.box = internal::WorldToIndexBox(tb.min - r, tb.max + r, b.dx, kBlockPad);
-  b.before = internal::ExtractDense(*impl.grid, b.box);
-  b.phi = b.before;
-  b.tool_sdf.resize(b.phi.size());
+// The tool's signed distance at every voxel of the block (world units).
+std::vector<float> ToolField(const Block& b, const ToolShape& tool) {
+  std::vector<float> f(b.phi.size());
   const Int3 o = b.box.min;
   const Int3 d = b.phi.dims();
   for (int k = 0; k < d.z; ++k) {
     for (int j = 0; j < d.y; ++j) {
       for (int i = 0; i < d.x; ++i) {
         const Vec3 p{(o.x + i) * b.dx, (o.y + j) * b.dx, (o.z + k) * b.dx};
-        b.tool_sdf[b.phi.Index(i, j, k)] = static_cast<float>(ToolSignedDistance(tool, p));
+        f[b.phi.Index(i, j, k)] = static_cast<float>(ToolSignedDistance(tool, p));
       }
     }
   }
+  return f;
+}
+
+// One block around every tool of a batch; tool_sdf is the union of the tools (their minimum).
+Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& reqs,
+                double reach) {
+  Block b;
+  b.dx = impl.dx();
+  b.bg = impl.background();
+  b.eps = 1.5 * b.dx;
+  Aabb tb = ToolBounds(reqs.front().tool);
+  for (const EditRequest& r : reqs) {
+    const Aabb a = ToolBounds(r.tool);
+    tb.min = {std::min(tb.min.x, a.min.x), std::min(tb.min.y, a.min.y),
+              std::min(tb.min.z, a.min.z)};
+    tb.max = {std::max(tb.max.x, a.max.x), std::max(tb.max.y, a.max.y),
+              std::max(tb.max.z, a.max.z)};
+  }
+  const Vec3 r{reach, reach, reach};
+  b.box = internal::WorldToIndexBox(tb.min - r, tb.max + r, b.dx, kBlockPad);
+  b.before = internal::ExtractDense(*impl.grid, b.box);
+  b.phi = b.before;
+  if (reqs.size() == 1) {
+    b.tool_sdf = ToolField(b, reqs.front().tool);
+  } else {
+    b.tool_sdf.assign(b.phi.size(), std::numeric_limits<float>::max());
+    for (const EditRequest& q : reqs) {
+      const std::vector<float> f = ToolField(b, q.tool);
+      for (size_t i = 0; i < f.size(); ++i) b.tool_sdf[i] = std::min(b.tool_sdf[i], f[i]);
+    }
+  }
   return b;
+}
+
+double UnionDistance(const std::vector<EditRequest>& reqs, const Vec3& p) {
+  double d = std::numeric_limits<double>::max();
+  for (const EditRequest& r : reqs) d = std::min(d, ToolSignedDistance(r.tool, p));
+  return d;
 }
 
 bool GammaHoldsMaterial(const Block& b, const VoxelList& gamma) {
@@ -507,27 +537,51 @@ Status ValidateEditRequest(const Sculpture& sc, const EditRequest& r, const Edit
 
 StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
                                const EditSettings& s) {
+  return ApplyEdits(sculpture, std::vector<EditRequest>{req}, s);
+}
+
+StatusOr<EditResult> ApplyEdits(Sculpture& sculpture, const std::vector<EditRequest>& reqs,
+                                const EditSettings& s) {
   SCULPT_RETURN_IF_ERROR(ValidateEditSettings(s));
-  SCULPT_RETURN_IF_ERROR(ValidateEditRequest(sculpture, req, s));
+  if (reqs.empty() || reqs.size() > kMaxEditsPerBatch) {
+    return InvalidArgument("edits=" + std::to_string(reqs.size()) + " outside [1, " +
+                           std::to_string(kMaxEditsPerBatch) + "]");
+  }
+  for (size_t i = 0; i < reqs.size(); ++i) {
+    SCULPT_RETURN_IF_ERROR(ValidateEditRequest(sculpture, reqs[i], s));
+    if (reqs[i].kind != reqs.front().kind) {
+      return InvalidArgument("edits[" + std::to_string(i) + "].kind=" +
+                             EditKindName(reqs[i].kind) + " outside {" +
+                             EditKindName(reqs.front().kind) + "} (one kind per batch)");
+    }
+  }
   const auto t0 = std::chrono::steady_clock::now();
   Sculpture::Impl& impl = sculpture.impl();
   EditResult res;
   res.volume_before = impl.volume;
   const double dx = impl.dx();
   const double dx3 = dx * dx * dx;
-  const double scale = ToolScale(req.tool);
-  const bool compensate = (req.kind == EditKind::kPress || req.kind == EditKind::kSmooth) &&
+  const EditKind kind = reqs.front().kind;
+  double scale = 0;
+  for (const EditRequest& r : reqs) scale = std::max(scale, ToolScale(r.tool));
+  const bool compensate = (kind == EditKind::kPress || kind == EditKind::kSmooth) &&
                           s.compensation != CompensationRegion::kNone;
   const double shell_outer = std::max(3 * dx, s.shell_radii * scale) + 1.5 * dx;
   const double reach =
       (compensate && s.compensation == CompensationRegion::kShell ? shell_outer : 0) + 2 * dx +
-      (req.kind == EditKind::kAdd || req.kind == EditKind::kSubtract ? impl.background() : 0);
+      (kind == EditKind::kAdd || kind == EditKind::kSubtract ? impl.background() : 0);
 
-  Block b = MakeBlock(impl, req.tool, reach);
+  // One block for the whole batch: each request's operator runs in turn inside it, then the
+  // islands check, compensation and reinitialisation run once for all of them.
+  Block b = MakeBlock(impl, reqs, reach);
   const double base_volume = impl.volume;
-  VoxelList gamma = b.Select([](size_t, float t) { return t < 0.f; });
+  std::vector<float> union_sdf;
+  if (reqs.size() > 1) union_sdf = b.tool_sdf;
 
   bool touched = false;
+  for (const EditRequest& req : reqs) {
+  if (reqs.size() > 1) b.tool_sdf = ToolField(b, req.tool);
+  const VoxelList gamma = b.Select([](size_t, float t) { return t < 0.f; });
   switch (req.kind) {
     case EditKind::kPress: {
       // Seed 000 eq. 5.1 with the digest's sign: phi_t = v |grad phi| chi_Gamma, i.e. F = -v.
@@ -614,7 +668,7 @@ StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
         CurvatureFlowStep(b.phi, w, region, dt, dx);
         ++res.substeps;
       }
-      touched = req.amount > 0;
+      touched = touched || req.amount > 0;
       break;
     }
     case EditKind::kInflate:
@@ -625,15 +679,17 @@ StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
       }
       const double sign = req.kind == EditKind::kInflate ? 1.0 : -1.0;
       res.substeps += MoveNormal(b, w, gamma, sign, req.amount, s);
-      touched = req.amount > 0;
+      touched = touched || req.amount > 0;
       break;
     }
   }
+  }  // for each request
+  if (reqs.size() > 1) b.tool_sdf = std::move(union_sdf);
   b.ClampToBand();
 
   double reference = impl.reference_volume;
   VoxelList reinit_extra;
-  if (touched && (req.kind == EditKind::kPress || req.kind == EditKind::kSubtract)) {
+  if (touched && (kind == EditKind::kPress || kind == EditKind::kSubtract)) {
     IslandReport islands = FindIslands(b, s);
     res.islands_found = islands.found;
     res.islands_removed = islands.removed;
@@ -710,7 +766,7 @@ StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
       double area = 0;
       for (auto v = grid.tree().cbeginValueOn(); v; ++v) {
         const openvdb::Vec3d p = grid.indexToWorld(v.getCoord());
-        if (ToolSignedDistance(req.tool, Vec3{p.x(), p.y(), p.z()}) > gap) {
+        if (UnionDistance(reqs, Vec3{p.x(), p.y(), p.z()}) > gap) {
           area += SmoothedDelta(*v, b.eps) * dx3;
         }
       }
@@ -723,7 +779,7 @@ StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
       const float d = static_cast<float>(std::clamp(err / area, -0.5 * b.bg, 0.5 * b.bg));
       for (auto v = grid.tree().beginValueOn(); v; ++v) {
         const openvdb::Vec3d p = grid.indexToWorld(v.getCoord());
-        if (ToolSignedDistance(req.tool, Vec3{p.x(), p.y(), p.z()}) > gap) {
+        if (UnionDistance(reqs, Vec3{p.x(), p.y(), p.z()}) > gap) {
           v.setValue(std::clamp(*v - d, -b.bg, b.bg));
         }
       }
@@ -733,8 +789,8 @@ StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
     res.changed = true;
   }
 
-  if (req.kind == EditKind::kAdd || req.kind == EditKind::kSubtract ||
-      req.kind == EditKind::kInflate || req.kind == EditKind::kDeflate) {
+  if (kind == EditKind::kAdd || kind == EditKind::kSubtract || kind == EditKind::kInflate ||
+      kind == EditKind::kDeflate) {
     // Material added or removed on purpose (islands included): the new volume is the one to keep.
     reference = impl.reference_volume + (impl.volume - res.volume_before);
   }
@@ -765,7 +821,9 @@ StatusOr<EditResult> ReinitializeRegion(Sculpture& sculpture, const Aabb& region
   const double dx3 = dx * dx * dx;
   const Vec3 c = (region.min + region.max) * 0.5;
   const ToolShape box = ToolShape::Box(c, (region.max - region.min) * 0.5 + Vec3{dx, dx, dx} * 0.5);
-  Block b = MakeBlock(impl, box, 0);
+  EditRequest region_request;
+  region_request.tool = box;
+  Block b = MakeBlock(impl, {region_request}, 0);
   const double base_volume = impl.volume;
   VoxelList active = b.Select([&](size_t idx, float t) {
     return t <= 0.f && std::abs(b.phi.data()[idx]) < b.bg;

@@ -82,6 +82,8 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     c->limits.max_poses_per_stroke = static_cast<uint32_t>(std::clamp<int64_t>(v, 0, 1 << 20));
     Get(*l, "strokes_per_second", &c->limits.strokes_per_second);
     Get(*l, "stroke_burst", &c->limits.stroke_burst);
+    Get(*l, "poses_per_second", &c->limits.poses_per_second);
+    Get(*l, "pose_burst", &c->limits.pose_burst);
     Get(*l, "violations_before_disconnect", &c->limits.violations_before_disconnect);
     v = c->limits.max_clients_per_scene;
     Get(*l, "max_clients_per_scene", &v);
@@ -172,6 +174,8 @@ Status ValidateConfig(const ServerConfig& c) {
   SCULPT_RETURN_IF_ERROR(Range("limits.max_poses_per_stroke", l.max_poses_per_stroke, 1, 1024));
   SCULPT_RETURN_IF_ERROR(Range("limits.strokes_per_second", l.strokes_per_second, 1, 1e5));
   SCULPT_RETURN_IF_ERROR(Range("limits.stroke_burst", l.stroke_burst, 1, 1e6));
+  SCULPT_RETURN_IF_ERROR(Range("limits.poses_per_second", l.poses_per_second, 1, 1e6));
+  SCULPT_RETURN_IF_ERROR(Range("limits.pose_burst", l.pose_burst, 1, 1e7));
   SCULPT_RETURN_IF_ERROR(
       Range("limits.violations_before_disconnect", l.violations_before_disconnect, 1, 1e6));
   SCULPT_RETURN_IF_ERROR(Range("limits.max_clients_per_scene", l.max_clients_per_scene, 1, 1e5));

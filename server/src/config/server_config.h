@@ -52,6 +52,8 @@ struct LimitsConfig {
   uint32_t max_poses_per_stroke = 32;
   double strokes_per_second = 240;  // token bucket rate per client
   double stroke_burst = 60;         // bucket size
+  double poses_per_second = 960;    // each pose is an edit: bounds the work one client queues
+  double pose_burst = 480;
   int violations_before_disconnect = 20;
   uint32_t max_clients_per_scene = 64;
   int auth_timeout_ms = 5000;

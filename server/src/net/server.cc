@@ -52,7 +52,8 @@ class Session : public std::enable_shared_from_this<Session> {
         reader_(server.config().limits.max_frame_bytes),
         id_(id) {
     tokens_ = server.config().limits.stroke_burst;
-    last_refill_ = std::chrono::steady_clock::now();
+    pose_tokens_ = server.config().limits.pose_burst;
+    last_refill_ = last_pose_refill_ = std::chrono::steady_clock::now();
   }
 
   void Start() {
@@ -175,6 +176,13 @@ class Session : public std::enable_shared_from_this<Session> {
                 "the configured token of the requested role", "wrong token", 0);
       return Close("wrong token", true);
     }
+    if (h.client_id() == 0) {
+      // Resends are de-duplicated on (client_id, client_seq) across restarts, so the id must be
+      // the client's own, stable one; a server-made id would collide after a restart.
+      SendError(v1::ERROR_CODE_INVALID_ARGUMENT, "Hello.client_id", "0", "[1, 2^64 - 1]",
+                "choose a random client id once and keep it across reconnects", 0);
+      return Close("client_id 0", true);
+    }
     if (h.client_name().size() > 64) {
       SendError(v1::ERROR_CODE_INVALID_ARGUMENT, "Hello.client_name",
                 std::to_string(h.client_name().size()) + " bytes", "[0, 64] bytes",
@@ -184,7 +192,7 @@ class Session : public std::enable_shared_from_this<Session> {
     auth_timer_.cancel();
     state_ = State::kAuthed;
     role_ = h.role();
-    client_id_ = h.client_id() != 0 ? h.client_id() : (uint64_t{1} << 63) | id_;
+    client_id_ = h.client_id();
     {
       std::lock_guard<std::mutex> lock(presence_mu_);
       presence_.set_session_id(id_);
@@ -216,7 +224,11 @@ class Session : public std::enable_shared_from_this<Session> {
                 "{" + server_.scene().name() + "}", "unknown scene", 0);
       return Violation();
     }
-    if (joined_) return;
+    if (joined_) {
+      SendError(v1::ERROR_CODE_FAILED_PRECONDITION, "JoinScene", "repeated", "once per connection",
+                "already joined", 0);
+      return Violation();
+    }
     size_t joined = 0;
     {
       std::lock_guard<std::mutex> lock(server_.sessions_mu_);
@@ -289,6 +301,20 @@ class Session : public std::enable_shared_from_this<Session> {
       return Violation();
     }
     tokens_ -= 1.0;
+    // Each pose is an edit: a second bucket bounds the edits a client may queue per second.
+    pose_tokens_ = std::min(l.pose_burst, pose_tokens_ + l.poses_per_second *
+                                                       std::chrono::duration<double>(
+                                                           now - last_pose_refill_)
+                                                           .count());
+    last_pose_refill_ = now;
+    if (pose_tokens_ < static_cast<double>(s.pose_count())) {
+      server_.stats().strokes_refused++;
+      SendError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "poses_per_second", "above the limit",
+                "[0, " + Num(l.poses_per_second) + "] (burst " + Num(l.pose_burst) + ")",
+                "pose rate limit", s.client_seq());
+      return Violation();
+    }
+    pose_tokens_ -= static_cast<double>(s.pose_count());
     auto limits = server_.scene().LimitsFor(s.object());
     if (!limits.ok()) {
       server_.stats().strokes_refused++;
@@ -475,7 +501,9 @@ class Session : public std::enable_shared_from_this<Session> {
   uint64_t client_id_ = 0;
   uint64_t id_;
   double tokens_ = 0;
+  double pose_tokens_ = 0;
   std::chrono::steady_clock::time_point last_refill_;
+  std::chrono::steady_clock::time_point last_pose_refill_;
   int violations_ = 0;
   mutable std::mutex presence_mu_;
   v1::PresenceEntry presence_;

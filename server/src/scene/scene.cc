@@ -124,13 +124,28 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
     return r.object();
   };
   const levelset::EditSettings settings = scene->settings_;
-  auto apply = [&settings](levelset::Sculpture& s, const store::LogRecord& rec) -> Status {
+  // The live server applies a stroke's poses as one batch once all are logged; replay gathers
+  // them the same way. A stroke cut short by a crash was neither applied nor acknowledged live,
+  // so its records at the tail are not applied here either.
+  std::vector<levelset::EditRequest> batch;
+  auto apply = [&settings, &batch](levelset::Sculpture& s,
+                                   const store::LogRecord& rec) -> Status {
     v1::EditRecord r;
     if (!r.ParseFromString(rec.payload)) {
       return DataLoss("edit log record " + std::to_string(rec.seq) + " does not parse");
     }
-    // An edit the live server refused after logging it is refused identically here.
-    (void)levelset::ApplyEdit(s, codec::EditFromRecord(r), settings);
+    if (r.pose_count() <= 1) {
+      batch.clear();
+      (void)levelset::ApplyEdit(s, codec::EditFromRecord(r), settings);
+      return Status::Ok();
+    }
+    if (r.pose_index() == 0) batch.clear();
+    batch.push_back(codec::EditFromRecord(r));
+    if (r.pose_index() + 1 == r.pose_count()) {
+      // An edit the live server refused after logging it is refused identically here.
+      (void)levelset::ApplyEdits(s, batch, settings);
+      batch.clear();
+    }
     return Status::Ok();
   };
   const double t0 = NowSeconds();
@@ -246,9 +261,12 @@ void Scene::ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, Stroke
     }
     out.global_seq_first = next_seq_;
     std::string payload;
+    std::vector<levelset::EditRequest> batch;
+    batch.reserve(records.size());
     for (v1::EditRecord& r : records) {
       const uint64_t seq = next_seq_++;
       r.set_global_seq(seq);
+      r.set_pose_count(static_cast<uint32_t>(records.size()));
       payload.clear();
       r.SerializeToString(&payload);
       const Status a = log_->Append(seq, payload);
@@ -259,12 +277,15 @@ void Scene::ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, Stroke
         done(out);
         return;
       }
-      auto res = levelset::ApplyEdit(sculpture, codec::EditFromRecord(r), settings_);
-      if (res.ok()) out.last = std::move(res).value();
-      ++out.edits;
-      applied_seq_ = seq;
-      ++edits_since_snapshot_;
+      batch.push_back(codec::EditFromRecord(r));
     }
+    // The stroke's poses as one batch: one block, one compensation, one reinitialisation.
+    auto res = records.size() == 1 ? levelset::ApplyEdit(sculpture, batch.front(), settings_)
+                                    : levelset::ApplyEdits(sculpture, batch, settings_);
+    if (res.ok()) out.last = std::move(res).value();
+    out.edits = static_cast<uint32_t>(records.size());
+    applied_seq_ = next_seq_ - 1;
+    edits_since_snapshot_ += records.size();
     last = stroke.client_seq;
     {
       std::lock_guard<std::mutex> lock(info_mu_);

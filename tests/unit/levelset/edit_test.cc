@@ -277,5 +277,37 @@ TEST(EditTest, ReinitializeRegionKeepsVolumeTracked) {
   EXPECT_FALSE(ReinitializeRegion(s, Aabb{{0, 0, 0}, {1, 1, 1}}, 0, MotionSettings{}).ok());
 }
 
+TEST(EditTest, BatchOfOverlappingPressesEmptiesEveryToolAndCompensatesOnce) {
+  Sculpture s = Ball();
+  const double v0 = s.volume();
+  std::vector<EditRequest> stroke;
+  for (int i = 0; i < 4; ++i) stroke.push_back(Press({12.8, 0.6 * i, 0}, 2.5));
+  auto r = ApplyEdits(s, stroke, EditSettings{});
+  ASSERT_TRUE(r.ok()) << r.status();
+  EXPECT_TRUE(r->changed);
+  for (int i = 0; i < 4; ++i) EXPECT_GT(s.SampleWorld({11.0, 0.6 * i, 0}), 0.0) << i;
+  EXPECT_NEAR(s.volume(), v0, 1e-5 * v0);
+  EXPECT_NEAR(s.volume(), s.ComputeVolume(), 1e-6 * v0);
+  EXPECT_TRUE(s.CheckLevelSet().ok());
+  // Deterministic.
+  Sculpture t = Ball();
+  ASSERT_TRUE(ApplyEdits(t, stroke, EditSettings{}).ok());
+  EXPECT_EQ(s.StateHash(), t.StateHash());
+}
+
+TEST(EditTest, RejectsEmptyOrMixedBatch) {
+  Sculpture s = Ball();
+  const uint64_t h = s.StateHash();
+  EXPECT_FALSE(ApplyEdits(s, {}, EditSettings{}).ok());
+  std::vector<EditRequest> mixed{Press({12.8, 0, 0}, 2.5), Press({12.8, 1, 0}, 2.5)};
+  mixed[1].kind = EditKind::kAdd;
+  auto r = ApplyEdits(s, mixed, EditSettings{});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("edits[1].kind=add"), std::string::npos) << r.status();
+  std::vector<EditRequest> bad{Press({12.8, 0, 0}, 2.5), Press({NAN, 1, 0}, 2.5)};
+  EXPECT_FALSE(ApplyEdits(s, bad, EditSettings{}).ok());
+  EXPECT_EQ(s.StateHash(), h);
+}
+
 }  // namespace
 }  // namespace sculpt::levelset

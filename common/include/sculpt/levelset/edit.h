@@ -128,6 +128,19 @@ struct EditResult {
 StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& request,
                                const EditSettings& settings);
 
+/// Largest batch ApplyEdits takes.
+inline constexpr size_t kMaxEditsPerBatch = 256;
+
+/// Applies the requests of one stroke (all of one kind) as one edit: each request's operator
+/// runs in turn in one shared block, then the islands check, volume compensation and
+/// reinitialisation run once for the batch and the block is written back once. Cheaper than
+/// ApplyEdit per request when the tools overlap, as the poses of one stroke do; the result
+/// differs from per-request application only in when compensation and reinit run.
+/// InvalidArgument for an empty or oversized batch, mixed kinds, or any bad request (the
+/// sculpture is then unchanged).
+StatusOr<EditResult> ApplyEdits(Sculpture& sculpture, const std::vector<EditRequest>& requests,
+                                const EditSettings& settings);
+
 /// Validates a request against settings and the sculpture (tool inside the object's bounds plus
 /// a margin of the tool size, sizes in range) without applying it.
 Status ValidateEditRequest(const Sculpture& sculpture, const EditRequest& request,

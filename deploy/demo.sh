@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# @brief `make demo`: sculptd on the default data directory, simulated sculptors and a viewer
+# for a bounded time, then the result exported. Everything lands in $DEMO_OUT (demo-output/).
+set -euo pipefail
+BIN=${BIN:-build/bin}
+OUT=${DEMO_OUT:-demo-output}
+DATA=${SCULPT_DATA:-sculpt-data}
+RUN_SECONDS=${DEMO_SECONDS:-10}
+SCULPTORS=${DEMO_SCULPTORS:-4}
+VIEWERS=${DEMO_VIEWERS:-1}
+
+mkdir -p "$OUT"
+PORT_FILE="$OUT/.sculptd.port"
+rm -f "$PORT_FILE"
+"$BIN/sculptd" serve --data "$DATA" --listen 127.0.0.1:0 --port-file "$PORT_FILE" \
+  > "$OUT/sculptd.log" 2>&1 &
+PID=$!
+trap 'kill "$PID" 2>/dev/null || true' EXIT
+for _ in $(seq 1 300); do
+  [ -s "$PORT_FILE" ] && break
+  if ! kill -0 "$PID" 2>/dev/null; then
+    echo "demo: sculptd exited; see $OUT/sculptd.log" >&2
+    tail -5 "$OUT/sculptd.log" >&2
+    exit 1
+  fi
+  sleep 0.1
+done
+PORT=$(cat "$PORT_FILE")
+SERVER="127.0.0.1:$PORT"
+echo "demo: sculptd listening on $SERVER, data directory $DATA ($(grep -o 'recovered.*' "$OUT/sculptd.log" | head -1))"
+
+echo "demo: $SCULPTORS simulated sculptors and $VIEWERS viewer(s) for $RUN_SECONDS s ..."
+"$BIN/sculpt-loadgen" --server "$SERVER" --sculptors "$SCULPTORS" --viewers "$VIEWERS" \
+  --rate 60 --seconds "$RUN_SECONDS" --json > "$OUT/loadgen.json"
+
+"$BIN/sculpt" export --server "$SERVER" --out "$OUT/sculpture.vdb" > /dev/null
+"$BIN/sculpt" export --server "$SERVER" --out "$OUT/sculpture.ply" > /dev/null
+
+kill -TERM "$PID"
+wait "$PID" || true
+trap - EXIT
+rm -f "$PORT_FILE"
+
+field() { grep -o "\"$1\": *[^,}]*" "$OUT/loadgen.json" | head -1 | sed 's/.*: *//'; }
+echo "demo: strokes sent $(field strokes_sent), acknowledged $(field strokes_acked), refused $(field strokes_refused)"
+echo "demo: stroke->ack p50 $(field stroke_ack_p50_ms) ms, p99 $(field stroke_ack_p99_ms) ms"
+echo "demo: results in $OUT/: sculpture.vdb, sculpture.ply, loadgen.json, sculptd.log"
+echo "demo: the scene persists in $DATA/ (edit log and snapshots); run again to keep sculpting it"
