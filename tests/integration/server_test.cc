@@ -163,6 +163,23 @@ TEST_F(ServerTest, AnswersASecondJoin) {
   EXPECT_EQ(e.field(), "JoinScene");
 }
 
+TEST_F(ServerTest, RefusesAClientBeyondTheSceneLimit) {
+  config_.limits.max_clients_per_scene = 2;
+  Start();
+  auto a = Sculptor();
+  auto b = Sculptor();
+  RawClient c(port_);
+  c.Hello(kSculptor, v1::ROLE_SCULPTOR);
+  ASSERT_TRUE(c.ReadUntil(v1::ServerMessage::kWelcome));
+  c.Join();
+  const v1::Error e = ExpectError(c);
+  EXPECT_EQ(e.code(), v1::ERROR_CODE_RESOURCE_EXHAUSTED);
+  EXPECT_EQ(e.field(), "clients");
+  EXPECT_TRUE(c.WaitClosed());
+  a->Send(RawClient::PressStroke(1, {0, 0, 13.3}));
+  EXPECT_TRUE(a->ReadUntil(v1::ServerMessage::kAck));
+}
+
 TEST_F(ServerTest, LimitsPosesPerSecond) {
   config_.limits.poses_per_second = 40;
   config_.limits.pose_burst = 40;

@@ -88,16 +88,47 @@ struct Block {
   }
 };
 
-// The tool's signed distance at every voxel of the block (world units).
-std::vector<float> ToolField(const Block& b, const ToolShape& tool) {
-  std::vector<float> f(b.phi.size());
+// The tool's signed distance (world units) at the voxels of the block within `margin` of the
+// tool's bounds; +max elsewhere, where no operator reads a finite value. Spheres and capsules,
+// the tools strokes use, skip the generic dispatch: this loop is a hot spot of every edit.
+std::vector<float> ToolField(const Block& b, const ToolShape& tool,
+                             double margin = std::numeric_limits<double>::infinity()) {
+  std::vector<float> f(b.phi.size(), std::numeric_limits<float>::max());
   const Int3 o = b.box.min;
   const Int3 d = b.phi.dims();
-  for (int k = 0; k < d.z; ++k) {
-    for (int j = 0; j < d.y; ++j) {
-      for (int i = 0; i < d.x; ++i) {
-        const Vec3 p{(o.x + i) * b.dx, (o.y + j) * b.dx, (o.z + k) * b.dx};
-        f[b.phi.Index(i, j, k)] = static_cast<float>(ToolSignedDistance(tool, p));
+  int lo[3] = {0, 0, 0}, hi[3] = {d.x, d.y, d.z};
+  if (std::isfinite(margin)) {
+    const Aabb tb = ToolBounds(tool);
+    const double mn[3] = {tb.min.x - margin, tb.min.y - margin, tb.min.z - margin};
+    const double mx[3] = {tb.max.x + margin, tb.max.y + margin, tb.max.z + margin};
+    const int orig[3] = {o.x, o.y, o.z};
+    const int dims[3] = {d.x, d.y, d.z};
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::clamp(static_cast<int>(std::floor(mn[a] / b.dx)) - orig[a], 0, dims[a]);
+      hi[a] = std::clamp(static_cast<int>(std::ceil(mx[a] / b.dx)) - orig[a] + 1, 0, dims[a]);
+    }
+  }
+  const Vec3 c = tool.center;
+  const double r = tool.size.x;
+  const Vec3 seg = tool.end - tool.center;
+  const double seg_len2 = seg.LengthSqr();
+  for (int k = lo[2]; k < hi[2]; ++k) {
+    for (int j = lo[1]; j < hi[1]; ++j) {
+      float* row = &f[b.phi.Index(0, j, k)];
+      const double y = (o.y + j) * b.dx, z = (o.z + k) * b.dx;
+      for (int i = lo[0]; i < hi[0]; ++i) {
+        const Vec3 p{(o.x + i) * b.dx, y, z};
+        double v;
+        if (tool.kind == ToolKind::kSphere) {
+          v = (p - c).Length() - r;
+        } else if (tool.kind == ToolKind::kCapsule) {
+          const Vec3 q = p - c;
+          const double t = seg_len2 > 0 ? std::clamp(q.Dot(seg) / seg_len2, 0.0, 1.0) : 0.0;
+          v = (q - seg * t).Length() - r;
+        } else {
+          v = ToolSignedDistance(tool, p);
+        }
+        row[i] = static_cast<float>(v);
       }
     }
   }
@@ -123,8 +154,30 @@ Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& req
   b.box = internal::WorldToIndexBox(tb.min - r, tb.max + r, b.dx, kBlockPad);
   b.before = internal::ExtractDense(*impl.grid, b.box);
   b.phi = b.before;
+  bool equal_spheres = reqs.size() > 1;
+  for (const EditRequest& q : reqs) {
+    equal_spheres = equal_spheres && q.tool.kind == ToolKind::kSphere &&
+                    q.tool.size.x == reqs.front().tool.size.x;
+  }
   if (reqs.size() == 1) {
     b.tool_sdf = ToolField(b, reqs.front().tool);
+  } else if (equal_spheres) {
+    // The poses of a stroke share their tool: the union of equal spheres is the distance to
+    // the nearest centre minus the radius, one square root per voxel instead of one per pose.
+    b.tool_sdf.resize(b.phi.size());
+    const Int3 o = b.box.min;
+    const Int3 d = b.phi.dims();
+    const double r = reqs.front().tool.size.x;
+    for (int k = 0; k < d.z; ++k) {
+      for (int j = 0; j < d.y; ++j) {
+        for (int i = 0; i < d.x; ++i) {
+          const Vec3 p{(o.x + i) * b.dx, (o.y + j) * b.dx, (o.z + k) * b.dx};
+          double best = std::numeric_limits<double>::max();
+          for (const EditRequest& q : reqs) best = std::min(best, (p - q.tool.center).LengthSqr());
+          b.tool_sdf[b.phi.Index(i, j, k)] = static_cast<float>(std::sqrt(best) - r);
+        }
+      }
+    }
   } else {
     b.tool_sdf.assign(b.phi.size(), std::numeric_limits<float>::max());
     for (const EditRequest& q : reqs) {
@@ -394,13 +447,20 @@ CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
   CompensationOutcome out;
   const double dx3 = b.dx * b.dx * b.dx;
   std::vector<float> w(b.phi.size(), 0.f);
+  // Every shell voxel moves (offsetting only the band would leave a growing step at its
+  // edge), but only band voxels can change their inside fraction by a sub-band offset, so the
+  // volume and area sums run over those alone.
   VoxelList shell = b.Select([&](size_t, float t) { return t > 1.5 * b.dx && t < shell_outer; });
+  VoxelList shell_band;
+  for (uint32_t idx : shell) {
+    if (std::abs(b.phi.data()[idx]) < b.bg) shell_band.push_back(idx);
+  }
   for (uint32_t idx : shell) w[idx] = ShellWeight(b.tool_sdf[idx], 1.5 * b.dx, shell_outer, b.dx);
   const double tol = s.compensation_tolerance_voxels * b.dx * b.dx * b.dx;
   // Only shell voxels change here, so the block's inside sum moves by their change alone.
   auto shell_sum = [&] {
     double sum = 0;
-    for (uint32_t idx : shell) sum += InsideFraction(b.phi.data()[idx], b.eps);
+    for (uint32_t idx : shell_band) sum += InsideFraction(b.phi.data()[idx], b.eps);
     return sum;
   };
   const double change0 = b.InsideChange();
@@ -410,7 +470,9 @@ CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
     const double err = target - vol;
     if (std::abs(err) <= tol) break;
     double area = 0;  // weighted smoothed area, seed 000 eq. 5.7 delta
-    for (uint32_t idx : shell) area += w[idx] * SmoothedDelta(b.phi.data()[idx], b.eps) * dx3;
+    for (uint32_t idx : shell_band) {
+      area += w[idx] * SmoothedDelta(b.phi.data()[idx], b.eps) * dx3;
+    }
     if (area < 1e-9 * b.dx * b.dx) {
       out.failed = true;
       break;
@@ -580,7 +642,9 @@ StatusOr<EditResult> ApplyEdits(Sculpture& sculpture, const std::vector<EditRequ
 
   bool touched = false;
   for (const EditRequest& req : reqs) {
-  if (reqs.size() > 1) b.tool_sdf = ToolField(b, req.tool);
+  // Operators read a request's own field only inside its tool, at its rim (2 voxels) and, for
+  // CSG, within the band: nothing beyond bg + 2 voxels of the tool.
+  if (reqs.size() > 1) b.tool_sdf = ToolField(b, req.tool, b.bg + 2 * b.dx);
   const VoxelList gamma = b.Select([](size_t, float t) { return t < 0.f; });
   switch (req.kind) {
     case EditKind::kPress: {

@@ -187,6 +187,11 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
 
 Scene::~Scene() {
   {
+    // Serialisations for late joiners hold only copies, but they report through this scene.
+    std::unique_lock<std::mutex> lock(join_mu_);
+    join_cv_.wait(lock, [this] { return joins_running_ == 0; });
+  }
+  {
     std::lock_guard<std::mutex> lock(jobs_mu_);
     stop_ = true;
   }
@@ -393,22 +398,42 @@ StatusOr<codec::StrokeLimits> Scene::LimitsFor(const std::string& object) const 
 void Scene::RequestJoinState(std::function<void(StatusOr<JoinState>)> done) {
   auto cb = std::make_shared<std::function<void(StatusOr<JoinState>)>>(std::move(done));
   Post([this, cb] {
-    JoinState js;
+    // Only the deep copies happen on the compute thread (milliseconds); serialising the copies
+    // runs on a thread of its own, so a late joiner never stalls the others' edits.
+    auto info = std::make_shared<v1::SceneInfo>();
     {
       std::lock_guard<std::mutex> lock(info_mu_);
-      js.info = info_;
+      *info = info_;
     }
-    for (auto& [name, s] : sculptures_) {
-      auto bytes = s.SerializeVdb();
-      if (!bytes.ok()) {
-        (*cb)(bytes.status());
-        return;
+    auto copies = std::make_shared<std::vector<std::pair<std::string, levelset::Sculpture>>>();
+    for (auto& [name, s] : sculptures_) copies->emplace_back(name, s.Clone());
+    {
+      std::lock_guard<std::mutex> lock(join_mu_);
+      ++joins_running_;
+    }
+    std::thread([this, cb, info, copies] {
+      struct Done {
+        Scene* scene;
+        ~Done() {
+          std::lock_guard<std::mutex> lock(scene->join_mu_);
+          --scene->joins_running_;
+          scene->join_cv_.notify_all();
+        }
+      } done_guard{this};
+      JoinState js;
+      js.info = *info;
+      for (size_t i = 0; i < copies->size(); ++i) {
+        auto& [name, copy] = (*copies)[i];
+        auto bytes = copy.SerializeVdb();
+        if (!bytes.ok()) {
+          (*cb)(bytes.status());
+          return;
+        }
+        js.objects.emplace_back(name, std::move(bytes).value());
+        js.info.mutable_objects(static_cast<int>(i))->set_state_hash(copy.StateHash());
       }
-      js.objects.emplace_back(name, std::move(bytes).value());
-      js.info.mutable_objects(static_cast<int>(js.objects.size() - 1))
-          ->set_state_hash(s.StateHash());
-    }
-    (*cb)(std::move(js));
+      (*cb)(std::move(js));
+    }).detach();
   });
 }
 

@@ -113,6 +113,10 @@ class Scene {
   };
   std::deque<Pending> pending_;
 
+  std::mutex join_mu_;
+  std::condition_variable join_cv_;
+  int joins_running_ = 0;
+
   std::mutex jobs_mu_;
   std::condition_variable jobs_cv_;
   std::deque<std::function<void()>> jobs_;
