@@ -4,7 +4,7 @@ BUILD_DIR ?= build
 JOBS ?= $(shell nproc)
 DEMO_OUT ?= demo-output
 
-.PHONY: all deps configure build demo test test-unit soak bench clean
+.PHONY: all deps configure build demo demo-local test soak bench bench-server clean
 
 all: build
 
@@ -17,9 +17,14 @@ configure: deps
 build: configure
 	cmake --build $(BUILD_DIR) -j $(JOBS)
 
-# The main job: a scripted sculpting session on the default scene, results in $(DEMO_OUT)/.
+# The main job: sculptd on the default data directory (./sculpt-data) with simulated sculptors
+# and a viewer for a bounded time; the result is exported to $(DEMO_OUT)/.
 demo: build
-	$(BUILD_DIR)/bin/sculpt demo --out $(DEMO_OUT)
+	BIN=$(BUILD_DIR)/bin DEMO_OUT=$(DEMO_OUT) bash deploy/demo.sh
+
+# The kernel alone, in-process: a scripted session on a sphere, results in $(DEMO_OUT)/local/.
+demo-local: build
+	$(BUILD_DIR)/bin/sculpt demo --out $(DEMO_OUT)/local
 
 # Every test except the hand-run soaks, through ctest.
 test: build
@@ -31,6 +36,10 @@ soak: build
 bench: build
 	$(BUILD_DIR)/bin/sculpt-bench edit --json
 	$(BUILD_DIR)/bin/sculpt-bench accuracy --json
+
+# Server load runs (minutes): JSON per run in docs/server-bench/.
+bench-server: build
+	BIN=$(BUILD_DIR)/bin bash tests/bench/server_bench.sh docs/server-bench
 
 clean:
 	rm -rf $(BUILD_DIR)

@@ -12,9 +12,9 @@ mkdir -p "$OUT"
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
 
-run() {  # name fsync sculptors rate viewers seconds
-  local name=$1 fsync=$2 sculptors=$3 rate=$4 viewers=$5 secs=$6
-  local data="$WORK/$name" port_file="$WORK/$name.port" rss="$WORK/$name.rss"
+run() {  # name fsync sculptors rate viewers seconds [data-parent]
+  local name=$1 fsync=$2 sculptors=$3 rate=$4 viewers=$5 secs=$6 parent=${7:-$WORK}
+  local data="$parent/$name" port_file="$WORK/$name.port" rss="$WORK/$name.rss"
   rm -rf "$data"
   "$BIN/sculptd" serve --data "$data" --listen 127.0.0.1:0 --port-file "$port_file" \
     --fsync "$fsync" > "$WORK/$name.log" 2>&1 &
@@ -39,14 +39,17 @@ run() {  # name fsync sculptors rate viewers seconds
   first=$(head -1 "$rss"); max=$(sort -n "$rss" | tail -1); last=$(tail -1 "$rss")
   {
     echo "{\"run\": \"$name\", \"fsync\": \"$fsync\", \"sculptors\": $sculptors, \"rate_hz\": $rate,"
-    echo " \"viewers\": $viewers, \"seconds\": $secs,"
+    echo " \"viewers\": $viewers, \"seconds\": $secs, \"data_dir_fs\": \"$(df --output=fstype "$parent" | tail -1)\","
     echo " \"server_rss_kb\": {\"first\": ${first:-0}, \"max\": ${max:-0}, \"last\": ${last:-0}, \"samples\": [$(paste -sd, "$rss")]},"
     echo " \"loadgen\": $(cat "$WORK/$name.json")}"
   } > "$OUT/$name.json"
+  rm -rf "$data"
 }
 
 run main-4x120-group group 4 120 8 "$SECS"
 run main-4x120-always always 4 120 8 "$SECS"
+# The same on tmpfs, where fdatasync costs nothing: separates the kernel's cost from the disk's.
+if [ -d /dev/shm ]; then run main-4x120-tmpfs group 4 120 8 "$SECS" /dev/shm; fi
 for n in 1 2 4 8 16; do
   run "scale-${n}x60" group "$n" 60 0 "$SCALE_SECS"
 done
