@@ -88,7 +88,7 @@ int main(int argc, char** argv) {
   signals.async_wait([&](const boost::system::error_code&, int sig) {
     spdlog::info("signal {}: shutting down", sig);
     server.Stop();
-    (*scene)->Flush();
+    (*scene)->FlushAndSnapshot();
     io.stop();
   });
   std::vector<std::thread> threads;

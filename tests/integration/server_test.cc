@@ -434,6 +434,26 @@ TEST_F(ServerTest, ReplayGivesTheSameHashOnOneAndTwoThreads) {
   }
 }
 
+TEST_F(ServerTest, GracefulShutdownSnapshotsSoRestartReplaysNothing) {
+  Start();
+  {
+    auto c = Sculptor();
+    for (int i = 1; i <= 5; ++i) {
+      c->Send(RawClient::PressStroke(i, {0, 0.5 * i, 13.3}));
+      ASSERT_TRUE(c->ReadUntil(v1::ServerMessage::kAck));
+    }
+  }
+  scene_->FlushAndSnapshot();
+  const uint64_t live = scene_->StateHash("clay");
+  Stop();
+  auto again = Scene::Open(config_);
+  ASSERT_TRUE(again.ok()) << again.status();
+  EXPECT_NE((*again)->recovery_summary().find("(0 records replayed"), std::string::npos)
+      << (*again)->recovery_summary();
+  EXPECT_EQ((*again)->StateHash("clay"), live);
+  EXPECT_EQ((*again)->global_seq(), 20u);
+}
+
 TEST_F(ServerTest, ResendAfterReconnectIsNotAppliedTwice) {
   Start();
   {

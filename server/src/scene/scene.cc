@@ -318,9 +318,10 @@ void Scene::ReleaseDurable(uint64_t durable_seq) {
   for (Pending& p : ready) p.done(p.outcome);
 }
 
-void Scene::MaybeSnapshot() {
-  const bool by_count = config_.snapshot_every_edits > 0 &&
-                        edits_since_snapshot_ >= config_.snapshot_every_edits;
+void Scene::MaybeSnapshot(bool force) {
+  const bool by_count = (force && edits_since_snapshot_ > 0) ||
+                        (config_.snapshot_every_edits > 0 &&
+                         edits_since_snapshot_ >= config_.snapshot_every_edits);
   const bool by_time = config_.snapshot_every_seconds > 0 && edits_since_snapshot_ > 0 &&
                        NowSeconds() - last_snapshot_time_ >= config_.snapshot_every_seconds;
   if (!by_count && !by_time) return;
@@ -444,6 +445,16 @@ void Scene::Flush() {
   (void)log_->Sync();
   ReleaseDurable(log_->durable_seq());
   if (snapshots_) (void)snapshots_->WaitIdle();
+}
+
+void Scene::FlushAndSnapshot() {
+  std::promise<void> taken;
+  Post([this, &taken] {
+    MaybeSnapshot(/*force=*/true);
+    taken.set_value();
+  });
+  taken.get_future().wait();
+  Flush();
 }
 
 uint64_t Scene::StateHash(const std::string& object) {

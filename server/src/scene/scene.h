@@ -75,6 +75,9 @@ class Scene {
 
   /// Waits until every queued stroke is applied and durable (tests, shutdown).
   void Flush();
+  /// Flush, then a snapshot of every object if anything changed since the last one, written
+  /// before returning: a graceful restart then replays nothing.
+  void FlushAndSnapshot();
   /// State hash of one object, taken on the compute thread (0 for an unknown object).
   uint64_t StateHash(const std::string& object);
   /// What recovery found at start-up.
@@ -85,7 +88,7 @@ class Scene {
   void Run();
   void Post(std::function<void()> job);
   void ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, StrokeDone& done);
-  void MaybeSnapshot();
+  void MaybeSnapshot(bool force = false);
   void ReleaseDurable(uint64_t durable_seq);
   void RefreshInfoLocked();
 
