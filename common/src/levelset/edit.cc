@@ -8,6 +8,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "sculpt/core/check.h"
 #include "sculpture_impl.h"
 
 namespace sculpt::levelset {
@@ -18,19 +19,7 @@ namespace {
 constexpr int kStencilMargin = 3;
 constexpr int kBlockPad = kStencilMargin + 2;
 
-std::string Num(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
-
-Status CheckRange(const std::string& field, double v, double lo, double hi) {
-  if (!std::isfinite(v)) return InvalidArgument(field + "=" + Num(v) + " is not finite");
-  if (v < lo || v > hi) {
-    return InvalidArgument(field + "=" + Num(v) + " outside [" + Num(lo) + ", " + Num(hi) + "]");
-  }
-  return Status::Ok();
-}
+std::string Num(double v) { return FormatNumber(v); }
 
 double ToolScale(const ToolShape& t) {
   switch (t.kind) {
@@ -186,6 +175,20 @@ Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& req
     }
   }
   return b;
+}
+
+// Writes the block's changed voxels into the grid, grows the cached bounds, and updates the
+// tracked volume from the changed voxels alone.
+void SpliceBack(Sculpture::Impl& impl, const Block& b, double base_volume, EditResult* res) {
+  internal::WriteBackResult wb = internal::WriteBack(*impl.grid, b.before, b.phi, kStencilMargin);
+  if (wb.changed_voxels > 0) {
+    impl.bounds.expand(openvdb::CoordBBox(openvdb::Coord(b.box.min.x, b.box.min.y, b.box.min.z),
+                                          openvdb::Coord(b.box.max.x, b.box.max.y, b.box.max.z)));
+  }
+  res->changed = wb.changed_voxels > 0;
+  res->changed_voxels = wb.changed_voxels;
+  res->dirty_leaves = std::move(wb.dirty_leaves);
+  impl.volume = base_volume + b.InsideChange() * b.dx * b.dx * b.dx;
 }
 
 double UnionDistance(const std::vector<EditRequest>& reqs, const Vec3& p) {
@@ -809,15 +812,7 @@ StatusOr<EditResult> ApplyEdits(Sculpture& sculpture, const std::vector<EditRequ
     res.substeps += c.substeps;
   }
 
-  internal::WriteBackResult wb = internal::WriteBack(*impl.grid, b.before, b.phi, kStencilMargin);
-  if (wb.changed_voxels > 0) {
-    impl.bounds.expand(openvdb::CoordBBox(openvdb::Coord(b.box.min.x, b.box.min.y, b.box.min.z),
-                                          openvdb::Coord(b.box.max.x, b.box.max.y, b.box.max.z)));
-  }
-  res.changed = wb.changed_voxels > 0;
-  res.changed_voxels = wb.changed_voxels;
-  res.dirty_leaves = std::move(wb.dirty_leaves);
-  impl.volume = base_volume + b.InsideChange() * dx3;
+  SpliceBack(impl, b, base_volume, &res);
 
   if (touched && compensate && s.compensation == CompensationRegion::kGlobal) {
     // The thesis's region: every interface voxel outside the tool (chi of Gamma's complement).
@@ -882,7 +877,6 @@ StatusOr<EditResult> ReinitializeRegion(Sculpture& sculpture, const Aabb& region
   const auto t0 = std::chrono::steady_clock::now();
   Sculpture::Impl& impl = sculpture.impl();
   const double dx = impl.dx();
-  const double dx3 = dx * dx * dx;
   const Vec3 c = (region.min + region.max) * 0.5;
   const ToolShape box = ToolShape::Box(c, (region.max - region.min) * 0.5 + Vec3{dx, dx, dx} * 0.5);
   EditRequest region_request;
@@ -897,15 +891,7 @@ StatusOr<EditResult> ReinitializeRegion(Sculpture& sculpture, const Aabb& region
   res.eikonal_error_before_reinit = MeasureEikonal(b.phi, active, dx, 3 * dx).mean_abs_error;
   res.reinit_passes = Reinitialize(b.phi, active, iterations, dx, motion, 0.5);
   b.ClampToBand();
-  internal::WriteBackResult wb = internal::WriteBack(*impl.grid, b.before, b.phi, kStencilMargin);
-  if (wb.changed_voxels > 0) {
-    impl.bounds.expand(openvdb::CoordBBox(openvdb::Coord(b.box.min.x, b.box.min.y, b.box.min.z),
-                                          openvdb::Coord(b.box.max.x, b.box.max.y, b.box.max.z)));
-  }
-  res.changed = wb.changed_voxels > 0;
-  res.changed_voxels = wb.changed_voxels;
-  res.dirty_leaves = std::move(wb.dirty_leaves);
-  impl.volume = base_volume + b.InsideChange() * dx3;
+  SpliceBack(impl, b, base_volume, &res);
   res.volume_after = impl.volume;
   res.reference_volume = impl.reference_volume;
   res.elapsed_ms =

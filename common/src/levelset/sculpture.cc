@@ -24,6 +24,7 @@
 #include <unistd.h>
 
 #include "sculpt/levelset/kernels.h"
+#include "sculpt/core/check.h"
 #include "sculpture_impl.h"
 
 namespace sculpt::levelset {
@@ -32,27 +33,9 @@ namespace {
 using openvdb::Coord;
 using openvdb::FloatGrid;
 
-std::string Num(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
+std::string Num(double v) { return FormatNumber(v); }
 
-Status CheckRange(const std::string& field, double v, double lo, double hi) {
-  if (!std::isfinite(v)) return InvalidArgument(field + "=" + Num(v) + " is not finite");
-  if (v < lo || v > hi) {
-    return InvalidArgument(field + "=" + Num(v) + " outside [" + Num(lo) + ", " + Num(hi) + "]");
-  }
-  return Status::Ok();
-}
-
-Status CheckPoint(const std::string& field, const Vec3& p) {
-  if (!p.IsFinite()) {
-    return InvalidArgument(field + "=(" + Num(p.x) + ", " + Num(p.y) + ", " + Num(p.z) +
-                           ") is not finite");
-  }
-  return Status::Ok();
-}
+Status CheckPoint(const std::string& field, const Vec3& p) { return CheckFinitePoint(field, p); }
 
 FloatGrid::Ptr NewGrid(const SculptureOptions& o) {
   internal::EnsureOpenVdbInitialized();

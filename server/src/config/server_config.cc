@@ -1,6 +1,8 @@
 /// @brief Reading and checking sculptd's TOML configuration.
 #include "config/server_config.h"
 
+#include "sculpt/core/check.h"
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -10,18 +12,8 @@
 namespace sculpt::server {
 namespace {
 
-std::string Num(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
-
 Status Range(const std::string& key, double v, double lo, double hi) {
-  if (!std::isfinite(v)) return InvalidArgument(key + "=" + Num(v) + " is not finite");
-  if (v < lo || v > hi) {
-    return InvalidArgument(key + "=" + Num(v) + " outside [" + Num(lo) + ", " + Num(hi) + "]");
-  }
-  return Status::Ok();
+  return CheckRange(key, v, lo, hi);
 }
 
 Status OneOf(const std::string& key, const std::string& v, std::initializer_list<const char*> ok) {

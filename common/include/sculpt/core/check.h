@@ -1,0 +1,45 @@
+/// @brief Range checks whose errors name the field, the value and the allowed range, shared by
+/// every validator (kernel parameters, scene configuration).
+#ifndef SCULPT_CORE_CHECK_H_
+#define SCULPT_CORE_CHECK_H_
+
+#include <cmath>
+#include <sstream>
+#include <string>
+
+#include "sculpt/core/status.h"
+#include "sculpt/core/vec3.h"
+
+namespace sculpt {
+
+/// Shortest round-trip-ish text of a number ("0.5", "-1", "nan", "inf").
+inline std::string FormatNumber(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+
+/// InvalidArgument "`field`=v is not finite" or "`field`=v outside [lo, hi]", else Ok.
+inline Status CheckRange(const std::string& field, double v, double lo, double hi) {
+  if (!std::isfinite(v)) {
+    return InvalidArgument(field + "=" + FormatNumber(v) + " is not finite");
+  }
+  if (v < lo || v > hi) {
+    return InvalidArgument(field + "=" + FormatNumber(v) + " outside [" + FormatNumber(lo) +
+                           ", " + FormatNumber(hi) + "]");
+  }
+  return Status::Ok();
+}
+
+/// InvalidArgument "`field`=(x, y, z) is not finite" for a point with a NaN or Inf coordinate.
+inline Status CheckFinitePoint(const std::string& field, const Vec3& p) {
+  if (!p.IsFinite()) {
+    return InvalidArgument(field + "=(" + FormatNumber(p.x) + ", " + FormatNumber(p.y) + ", " +
+                           FormatNumber(p.z) + ") is not finite");
+  }
+  return Status::Ok();
+}
+
+}  // namespace sculpt
+
+#endif  // SCULPT_CORE_CHECK_H_
