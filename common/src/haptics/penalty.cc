@@ -1,0 +1,106 @@
+/// @brief The thesis's penalty haptic model on a dense phi sample (seed 000 §2.4).
+#include "sculpt/haptics/penalty.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace sculpt::haptics {
+namespace {
+
+struct Cell {
+  int i0[3];
+  double t[3];
+};
+
+// The cell holding p and p's fractional position in it, clamped into the box; an axis of
+// extent 1 has a single node and weight 0.
+Cell Locate(const DenseSdf& s, const Vec3& p) {
+  const levelset::Int3 d = s.field->dims();
+  const int dims[3] = {d.x, d.y, d.z};
+  const double o[3] = {s.origin.x, s.origin.y, s.origin.z};
+  Cell c{};
+  for (int a = 0; a < 3; ++a) {
+    if (dims[a] == 1) {
+      c.i0[a] = 0;
+      c.t[a] = 0;
+      continue;
+    }
+    const double u = std::clamp((p[a] - o[a]) / s.h, 0.0, static_cast<double>(dims[a] - 1));
+    int i = std::min(static_cast<int>(std::floor(u)), dims[a] - 2);
+    c.i0[a] = i;
+    c.t[a] = u - i;
+  }
+  return c;
+}
+
+template <typename F>
+auto Trilinear(const DenseSdf& s, const Cell& c, F node) {
+  const levelset::Int3 d = s.field->dims();
+  const int step[3] = {d.x > 1 ? 1 : 0, d.y > 1 ? 1 : 0, d.z > 1 ? 1 : 0};
+  decltype(node(0, 0, 0)) acc{};
+  for (int dk = 0; dk <= step[2]; ++dk) {
+    for (int dj = 0; dj <= step[1]; ++dj) {
+      for (int di = 0; di <= step[0]; ++di) {
+        const double w = (di ? c.t[0] : 1 - c.t[0]) * (dj ? c.t[1] : 1 - c.t[1]) *
+                         (dk ? c.t[2] : 1 - c.t[2]);
+        acc += node(c.i0[0] + di, c.i0[1] + dj, c.i0[2] + dk) * w;
+      }
+    }
+  }
+  return acc;
+}
+
+}  // namespace
+
+double DenseSdf::Phi(const Vec3& p) const {
+  return Trilinear(*this, Locate(*this, p),
+                   [this](int i, int j, int k) { return static_cast<double>(field->at(i, j, k)); });
+}
+
+Vec3 DenseSdf::Gradient(const Vec3& p) const {
+  const levelset::Int3 d = field->dims();
+  auto node_gradient = [this, d](int i, int j, int k) {
+    // Central differences, one-sided at the border (App. A.4 `respcol`); a flat axis gives 0.
+    auto diff = [&](int a) {
+      const int dims[3] = {d.x, d.y, d.z};
+      int idx[3] = {i, j, k};
+      if (dims[a] == 1) return 0.0;
+      int lo[3] = {i, j, k}, hi[3] = {i, j, k};
+      lo[a] = std::max(0, idx[a] - 1);
+      hi[a] = std::min(dims[a] - 1, idx[a] + 1);
+      return (field->at(hi[0], hi[1], hi[2]) - field->at(lo[0], lo[1], lo[2])) /
+             ((hi[a] - lo[a]) * h);
+    };
+    return Vec3{diff(0), diff(1), diff(2)};
+  };
+  return Trilinear(*this, Locate(*this, p), node_gradient);
+}
+
+PenaltyForce ComputePenaltyForce(const DenseSdf& sdf, const std::vector<Vec3>& samples,
+                                 double kappa) {
+  PenaltyForce f;
+  for (const Vec3& x : samples) {
+    const double phi = sdf.Phi(x);
+    if (phi > 0) continue;
+    ++f.colliding;
+    const Vec3 g = sdf.Gradient(x);
+    const double n = g.Length();
+    if (n < 1e-12) continue;  // medial axis: no defined normal
+    // Eq. 3.3 with the digest's correction (errata 1): kappa |phi| times the outward normal.
+    f.sum += g * (kappa * std::abs(phi) / n);
+  }
+  if (f.colliding > 0) f.average = f.sum / f.colliding;
+  return f;
+}
+
+std::vector<Vec3> CircleSamples(const Vec3& center, double radius, int k) {
+  std::vector<Vec3> out;
+  out.reserve(static_cast<size_t>(k) + 1);
+  for (int i = 0; i <= k; ++i) {
+    const double a = 2 * M_PI * i / k;
+    out.push_back(center + Vec3{radius * std::cos(a), radius * std::sin(a), 0});
+  }
+  return out;
+}
+
+}  // namespace sculpt::haptics
