@@ -3,10 +3,12 @@
 // centred at (50, 20), 50 x 30; kappa = 1; h = 0.5 (the thesis's grid of §6.2).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "sculpt/haptics/penalty.h"
 #include "sculpt/levelset/thesis_repro.h"
+#include "sculpt/levelset/tool.h"
 
 namespace sculpt::haptics {
 namespace {
@@ -81,6 +83,33 @@ TEST_F(ThesisHaptics, NoContactMeansNoForce) {
   const PenaltyForce f = ComputePenaltyForce(sdf_, CircleSamples({50, 73, 0}, 15, 50), 1.0);
   EXPECT_EQ(f.colliding, 0);
   EXPECT_EQ(f.sum.Length(), 0.0);
+}
+
+// The same experiment in 3D (issue "Haptic rendering", thesis 6.1 in 3D): a sphere tool of
+// radius 5 pressed 2 units into a sphere of radius 20 (band half-width 8, so phi is not clamped
+// at the tool's samples). The averaged force does not depend on the sample count (within 5%),
+// and it points along the outward normal at the contact (within 2 degrees). Below ~200
+// samples only a dozen fall in the contact cap and their mean depth still wanders by ~15%.
+TEST(ThesisHaptics3D, AveragedForceIsSamplingInvariantAndNormal) {
+  levelset::SculptureOptions o;
+  o.voxel_size = 1.0;
+  o.half_width = 8;
+  auto s = levelset::Sculpture::MakeSphere(o, {0, 0, 0}, 20.0);
+  ASSERT_TRUE(s.ok());
+  const SculptureSdf sdf(*s);
+  const Vec3 normal = Vec3{1, 2, 3} / Vec3{1, 2, 3}.Length();
+  const Vec3 centre = normal * (20.0 + 5.0 - 2.0);
+  double reference = 0;
+  for (int k : {200, 400, 800, 1600}) {
+    const auto samples = levelset::ToolSurfaceSamples(levelset::ToolShape::Sphere(centre, 5), k);
+    const PenaltyForce f = ComputePenaltyForce(sdf, samples, 1.0);
+    ASSERT_GT(f.colliding, 0) << k;
+    const double m = f.average.Length();
+    if (reference == 0) reference = m;
+    EXPECT_NEAR(m, reference, 0.05 * reference) << k << " samples";
+    const double angle = std::acos(std::clamp(f.average.Dot(normal) / m, -1.0, 1.0));
+    EXPECT_LT(angle * 180 / M_PI, 2.0) << k << " samples";
+  }
 }
 
 }  // namespace

@@ -76,7 +76,15 @@ Vec3 DenseSdf::Gradient(const Vec3& p) const {
   return Trilinear(*this, Locate(*this, p), node_gradient);
 }
 
-PenaltyForce ComputePenaltyForce(const DenseSdf& sdf, const std::vector<Vec3>& samples,
+Vec3 SculptureSdf::Gradient(const Vec3& p) const {
+  const double h = sculpture_.voxel_size();
+  auto d = [&](const Vec3& e) {
+    return (sculpture_.SampleWorld(p + e * h) - sculpture_.SampleWorld(p - e * h)) / (2 * h);
+  };
+  return {d({1, 0, 0}), d({0, 1, 0}), d({0, 0, 1})};
+}
+
+PenaltyForce ComputePenaltyForce(const SdfSampler& sdf, const std::vector<Vec3>& samples,
                                  double kappa) {
   PenaltyForce f;
   for (const Vec3& x : samples) {
