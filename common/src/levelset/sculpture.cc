@@ -380,15 +380,21 @@ StatusOr<Sculpture> Sculpture::LoadVdb(const std::string& path) {
   }
 }
 
+namespace {
+void StampMetadata(openvdb::FloatGrid& grid, const Sculpture::Impl& impl) {
+  grid.setName(impl.name);
+  grid.setGridClass(openvdb::GRID_LEVEL_SET);
+  grid.insertMeta("voxel_size", openvdb::DoubleMetadata(impl.dx()));
+  grid.insertMeta("half_width", openvdb::Int32Metadata(impl.half_width));
+  grid.insertMeta("scene_name", openvdb::StringMetadata(impl.name));
+  grid.insertMeta("reference_volume", openvdb::DoubleMetadata(impl.reference_volume));
+}
+}  // namespace
+
 Status Sculpture::SaveVdb(const std::string& path) const {
   try {
     FloatGrid::Ptr grid = impl_->grid;
-    grid->setName(impl_->name);
-    grid->setGridClass(openvdb::GRID_LEVEL_SET);
-    grid->insertMeta("voxel_size", openvdb::DoubleMetadata(voxel_size()));
-    grid->insertMeta("half_width", openvdb::Int32Metadata(half_width()));
-    grid->insertMeta("scene_name", openvdb::StringMetadata(impl_->name));
-    grid->insertMeta("reference_volume", openvdb::DoubleMetadata(impl_->reference_volume));
+    StampMetadata(*grid, *impl_);
     const std::string tmp = path + ".tmp";
     openvdb::io::File file(tmp);
     file.write({grid});
@@ -401,81 +407,41 @@ Status Sculpture::SaveVdb(const std::string& path) const {
 }
 
 namespace {
-void StampMetadata(openvdb::FloatGrid& grid, const Sculpture::Impl& impl) {
-  grid.setName(impl.name);
-  grid.setGridClass(openvdb::GRID_LEVEL_SET);
-  grid.insertMeta("voxel_size", openvdb::DoubleMetadata(impl.dx()));
-  grid.insertMeta("half_width", openvdb::Int32Metadata(impl.half_width));
-  grid.insertMeta("scene_name", openvdb::StringMetadata(impl.name));
-  grid.insertMeta("reference_volume", openvdb::DoubleMetadata(impl.reference_volume));
+// A private temporary .vdb path (process id and a per-call address keep concurrent calls apart).
+std::filesystem::path TempVdbPath(const void* tag) {
+  return std::filesystem::temp_directory_path() /
+         ("sculpt-" + std::to_string(::getpid()) + "-" +
+          std::to_string(reinterpret_cast<uintptr_t>(tag)) + ".vdb");
 }
+
+struct RemoveOnExit {
+  std::filesystem::path path;
+  ~RemoveOnExit() {
+    std::error_code ec;
+    std::filesystem::remove(path, ec);
+  }
+};
 }  // namespace
 
+// Both directions go through a temporary file and SaveVdb/LoadVdb: OpenVDB 10's io::Stream
+// crashes in its destructor after it threw on a malformed stream, io::File fails cleanly.
 StatusOr<std::string> Sculpture::SerializeVdb() const {
-  try {
-    StampMetadata(*impl_->grid, *impl_);
-    // Written as a .vdb file image, which DeserializeVdb reads back through io::File.
-    const std::filesystem::path tmp =
-        std::filesystem::temp_directory_path() /
-        ("sculpt-" + std::to_string(::getpid()) + "-" +
-         std::to_string(reinterpret_cast<uintptr_t>(this)) + "-out.vdb");
-    {
-      openvdb::io::File file(tmp.string());
-      file.write({impl_->grid});
-      file.close();
-    }
-    std::ifstream in(tmp, std::ios::binary);
-    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    return bytes;
-  } catch (const std::exception& e) {
-    return Internal(std::string("serializing the sculpture: ") + e.what());
-  }
+  const RemoveOnExit tmp{TempVdbPath(this)};
+  SCULPT_RETURN_IF_ERROR(SaveVdb(tmp.path.string()));
+  std::ifstream in(tmp.path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (!in.eof() && in.fail()) return Internal("reading " + tmp.path.string() + " failed");
+  return bytes;
 }
 
 StatusOr<Sculpture> Sculpture::DeserializeVdb(const std::string& bytes) {
-  internal::EnsureOpenVdbInitialized();
-  // OpenVDB 10's io::Stream crashes in its destructor after it threw on a malformed stream, so
-  // the bytes go through a private temporary file and io::File, which fails cleanly.
-  const std::filesystem::path tmp =
-      std::filesystem::temp_directory_path() /
-      ("sculpt-" + std::to_string(::getpid()) + "-" +
-       std::to_string(reinterpret_cast<uintptr_t>(&bytes)) + ".vdb");
+  const RemoveOnExit tmp{TempVdbPath(&bytes)};
   {
-    std::ofstream out(tmp, std::ios::binary);
+    std::ofstream out(tmp.path, std::ios::binary);
     out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    if (!out) return Internal("cannot write temporary file " + tmp.string());
+    if (!out) return Internal("cannot write temporary file " + tmp.path.string());
   }
-  struct Remove {
-    std::filesystem::path p;
-    ~Remove() {
-      std::error_code ec;
-      std::filesystem::remove(p, ec);
-    }
-  } remove_tmp{tmp};
-  try {
-    openvdb::io::File file(tmp.string());
-    file.open();
-    openvdb::GridPtrVecPtr grids = file.getGrids();
-    file.close();
-    for (auto& base : *grids) {
-      auto grid = openvdb::gridPtrCast<FloatGrid>(base);
-      if (!grid || grid->getGridClass() != openvdb::GRID_LEVEL_SET) continue;
-      auto impl = std::make_unique<Impl>();
-      impl->grid = grid;
-      impl->name = grid->getName();
-      impl->half_width = static_cast<int>(std::lround(grid->background() / grid->voxelSize()[0]));
-      Sculpture s = SculptureAccess::Make(std::move(impl));
-      if (auto m = grid->getMetadata<openvdb::DoubleMetadata>("reference_volume")) {
-        s.set_reference_volume(m->value());
-      }
-      return s;
-    }
-    return InvalidArgument("vdb stream holds no float level-set grid");
-  } catch (const std::exception& e) {
-    return DataLoss(std::string("vdb stream: ") + e.what());
-  }
+  return LoadVdb(tmp.path.string());
 }
 
 StatusOr<MeshStats> Sculpture::ExportMesh(const std::string& path, double adaptivity) const {
