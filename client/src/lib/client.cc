@@ -653,14 +653,10 @@ StatusOr<uint64_t> Client::SendStroke(const StrokeRequest& stroke) {
   s.set_object(stroke.object);
   s.set_kind(stroke.kind);
   s.set_tool(stroke.tool);
-  s.mutable_tool_size()->set_x(static_cast<float>(stroke.tool_size.x));
-  s.mutable_tool_size()->set_y(static_cast<float>(stroke.tool_size.y));
-  s.mutable_tool_size()->set_z(static_cast<float>(stroke.tool_size.z));
+  *s.mutable_tool_size() = codec::ToProto(stroke.tool_size);
   s.set_speed(static_cast<float>(stroke.speed));
   s.set_amount(static_cast<float>(stroke.amount));
-  s.mutable_origin()->set_x(static_cast<float>(origin.x));
-  s.mutable_origin()->set_y(static_cast<float>(origin.y));
-  s.mutable_origin()->set_z(static_cast<float>(origin.z));
+  *s.mutable_origin() = codec::ToProto(origin);
   s.set_t0_ms(stroke.t0_ms);
   s.set_pose_count(static_cast<uint32_t>(stroke.poses.size()));
   s.set_poses(std::move(packed));
@@ -695,9 +691,7 @@ Status Client::SendHover(const Vec3& position, double radius) {
   if (impl_->phase != Impl::Phase::kJoined) return FailedPrecondition("Hover needs a joined scene");
   v1::ClientMessage m;
   v1::Hover* h = m.mutable_hover();
-  h->mutable_position()->set_x(static_cast<float>(position.x));
-  h->mutable_position()->set_y(static_cast<float>(position.y));
-  h->mutable_position()->set_z(static_cast<float>(position.z));
+  *h->mutable_position() = codec::ToProto(position);
   h->set_radius(static_cast<float>(radius));
   impl_->QueueLocked(Impl::Frame(m), 0);
   return Status::Ok();

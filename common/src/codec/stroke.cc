@@ -358,4 +358,55 @@ levelset::EditRequest EditFromRecord(const v1::EditRecord& record) {
   return edit;
 }
 
+v1::Vec3f ToProto(const Vec3& v) {
+  v1::Vec3f out;
+  out.set_x(static_cast<float>(v.x));
+  out.set_y(static_cast<float>(v.y));
+  out.set_z(static_cast<float>(v.z));
+  return out;
+}
+
+namespace {
+
+v1::EditKind EditKindToProto(levelset::EditKind k) {
+  switch (k) {
+    case levelset::EditKind::kPress: return v1::EDIT_KIND_PRESS;
+    case levelset::EditKind::kAdd: return v1::EDIT_KIND_ADD;
+    case levelset::EditKind::kSubtract: return v1::EDIT_KIND_SUBTRACT;
+    case levelset::EditKind::kSmooth: return v1::EDIT_KIND_SMOOTH;
+    case levelset::EditKind::kInflate: return v1::EDIT_KIND_INFLATE;
+    case levelset::EditKind::kDeflate: return v1::EDIT_KIND_DEFLATE;
+  }
+  return v1::EDIT_KIND_UNSPECIFIED;
+}
+
+v1::ToolKind ToolKindToProto(levelset::ToolKind k) {
+  switch (k) {
+    case levelset::ToolKind::kSphere: return v1::TOOL_KIND_SPHERE;
+    case levelset::ToolKind::kEllipsoid: return v1::TOOL_KIND_ELLIPSOID;
+    case levelset::ToolKind::kBox: return v1::TOOL_KIND_BOX;
+    case levelset::ToolKind::kCapsule: return v1::TOOL_KIND_CAPSULE;
+  }
+  return v1::TOOL_KIND_UNSPECIFIED;
+}
+
+}  // namespace
+
+v1::EditRecord RecordFromEdit(const levelset::EditRequest& e) {
+  v1::EditRecord r;
+  r.set_kind(EditKindToProto(e.kind));
+  r.set_tool(ToolKindToProto(e.tool.kind));
+  *r.mutable_tool_size() = ToProto(e.tool.size);
+  if (e.tool.kind == levelset::ToolKind::kCapsule) {
+    *r.mutable_previous() = ToProto(e.tool.center);
+    *r.mutable_position() = ToProto(e.tool.end);
+  } else {
+    *r.mutable_position() = ToProto(e.tool.center);
+  }
+  r.set_speed(static_cast<float>(e.speed));
+  r.set_dt(static_cast<float>(e.dt));
+  r.set_amount(static_cast<float>(e.amount));
+  return r;
+}
+
 }  // namespace sculpt::codec

@@ -333,10 +333,7 @@ class Session : public std::enable_shared_from_this<Session> {
     }
     {
       std::lock_guard<std::mutex> lock(presence_mu_);
-      const auto& last = decoded->poses.back().position;
-      presence_.mutable_position()->set_x(static_cast<float>(last.x));
-      presence_.mutable_position()->set_y(static_cast<float>(last.y));
-      presence_.mutable_position()->set_z(static_cast<float>(last.z));
+      *presence_.mutable_position() = codec::ToProto(decoded->poses.back().position);
       presence_.set_radius(s.tool_size().x());
     }
     auto self = shared_from_this();

@@ -38,58 +38,15 @@ StatusOr<levelset::Sculpture> MakeObject(const SceneConfig& scene, const ObjectC
                          " outside {sphere, box, capsule, torus}");
 }
 
-v1::Vec3f ToProto(const Vec3& v) {
-  v1::Vec3f out;
-  out.set_x(static_cast<float>(v.x));
-  out.set_y(static_cast<float>(v.y));
-  out.set_z(static_cast<float>(v.z));
-  return out;
-}
-
-v1::EditKind KindToProto(levelset::EditKind k) {
-  switch (k) {
-    case levelset::EditKind::kPress: return v1::EDIT_KIND_PRESS;
-    case levelset::EditKind::kAdd: return v1::EDIT_KIND_ADD;
-    case levelset::EditKind::kSubtract: return v1::EDIT_KIND_SUBTRACT;
-    case levelset::EditKind::kSmooth: return v1::EDIT_KIND_SMOOTH;
-    case levelset::EditKind::kInflate: return v1::EDIT_KIND_INFLATE;
-    case levelset::EditKind::kDeflate: return v1::EDIT_KIND_DEFLATE;
-  }
-  return v1::EDIT_KIND_UNSPECIFIED;
-}
-
-v1::ToolKind ToolToProto(levelset::ToolKind k) {
-  switch (k) {
-    case levelset::ToolKind::kSphere: return v1::TOOL_KIND_SPHERE;
-    case levelset::ToolKind::kEllipsoid: return v1::TOOL_KIND_ELLIPSOID;
-    case levelset::ToolKind::kBox: return v1::TOOL_KIND_BOX;
-    case levelset::ToolKind::kCapsule: return v1::TOOL_KIND_CAPSULE;
-  }
-  return v1::TOOL_KIND_UNSPECIFIED;
-}
-
 // The record of one pose. Live application goes through EditFromRecord(record) too, so the
 // server applies exactly the (float-rounded) edit that recovery and replicas replay.
-v1::EditRecord MakeRecord(uint64_t seq, uint64_t client_id, uint64_t client_seq, uint32_t pose,
+v1::EditRecord MakeRecord(uint64_t client_id, uint64_t client_seq, uint32_t pose,
                           const std::string& object, const levelset::EditRequest& e) {
-  v1::EditRecord r;
-  r.set_global_seq(seq);
+  v1::EditRecord r = codec::RecordFromEdit(e);
   r.set_client_id(client_id);
   r.set_client_seq(client_seq);
   r.set_pose_index(pose);
   r.set_object(object);
-  r.set_kind(KindToProto(e.kind));
-  r.set_tool(ToolToProto(e.tool.kind));
-  *r.mutable_tool_size() = ToProto(e.tool.size);
-  if (e.tool.kind == levelset::ToolKind::kCapsule) {
-    *r.mutable_previous() = ToProto(e.tool.center);
-    *r.mutable_position() = ToProto(e.tool.end);
-  } else {
-    *r.mutable_position() = ToProto(e.tool.center);
-  }
-  r.set_speed(static_cast<float>(e.speed));
-  r.set_dt(static_cast<float>(e.dt));
-  r.set_amount(static_cast<float>(e.amount));
   return r;
 }
 
@@ -254,7 +211,7 @@ void Scene::ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, Stroke
     std::vector<v1::EditRecord> records;
     records.reserve(stroke.edits.size());
     for (size_t i = 0; i < stroke.edits.size(); ++i) {
-      records.push_back(MakeRecord(0, client_id, stroke.client_seq, static_cast<uint32_t>(i),
+      records.push_back(MakeRecord(client_id, stroke.client_seq, static_cast<uint32_t>(i),
                                    stroke.object, stroke.edits[i]));
       const Status v = levelset::ValidateEditRequest(
           sculpture, codec::EditFromRecord(records.back()), settings_);
@@ -366,8 +323,8 @@ void Scene::RefreshInfoLocked() {
     auto b = bounds_.find(name);
     const levelset::Aabb ab = b != bounds_.end() ? b->second : s.WorldBounds();
     if (b == bounds_.end()) bounds_[name] = ab;
-    *o->mutable_bounds_min() = ToProto(ab.min);
-    *o->mutable_bounds_max() = ToProto(ab.max);
+    *o->mutable_bounds_min() = codec::ToProto(ab.min);
+    *o->mutable_bounds_max() = codec::ToProto(ab.max);
     o->set_volume(s.volume());
     o->set_reference_volume(s.reference_volume());
   }

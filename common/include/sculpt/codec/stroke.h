@@ -16,6 +16,7 @@
 namespace sculpt::v1 {
 class Stroke;
 class EditRecord;
+class Vec3f;
 }  // namespace sculpt::v1
 
 namespace sculpt::codec {
@@ -81,6 +82,12 @@ FieldError SplitFieldError(const Status& status);
 
 /// The kernel edit of a logged record (replay), and the record of an edit.
 levelset::EditRequest EditFromRecord(const v1::EditRecord& record);
+/// The inverse: the edit fields of a record (kind, tool, pose, speed, dt, amount; rounded to
+/// float), leaving sequence numbers, client and object to the caller. Applying
+/// EditFromRecord(RecordFromEdit(e)) is what the server and every replay do.
+v1::EditRecord RecordFromEdit(const levelset::EditRequest& edit);
+/// A world vector on the wire (float).
+v1::Vec3f ToProto(const Vec3& v);
 
 }  // namespace sculpt::codec
 
