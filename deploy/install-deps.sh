@@ -11,7 +11,7 @@ PACKAGES=(
   libspdlog-dev libfmt-dev libcli11-dev libtomlplusplus-dev nlohmann-json3-dev
   libassimp-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libxxhash-dev libsodium-dev
+  libxxhash-dev libsodium-dev libzstd-dev
   gnuplot-nox
 )
 
