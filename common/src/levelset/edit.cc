@@ -573,7 +573,23 @@ Status ValidateEditSettings(const EditSettings& s) {
   return Status::Ok();
 }
 
+namespace {
+
+// The request's own fields; `check_extent` adds the test against the object's extent, which a
+// replica (holding only part of the object) cannot make and the server already made.
+Status ValidateRequestFields(const Sculpture& sc, const EditRequest& r, const EditSettings& s,
+                             bool check_extent);
+
+}  // namespace
+
 Status ValidateEditRequest(const Sculpture& sc, const EditRequest& r, const EditSettings& s) {
+  return ValidateRequestFields(sc, r, s, true);
+}
+
+namespace {
+
+Status ValidateRequestFields(const Sculpture& sc, const EditRequest& r, const EditSettings& s,
+                             bool check_extent) {
   const int kind = static_cast<int>(r.kind);
   if (kind < 0 || kind > static_cast<int>(EditKind::kDeflate)) {
     return InvalidArgument("edit.kind=" + std::to_string(kind) + " outside [0, 5]");
@@ -588,6 +604,7 @@ Status ValidateEditRequest(const Sculpture& sc, const EditRequest& r, const Edit
   if (r.kind == EditKind::kSmooth) {
     SCULPT_RETURN_IF_ERROR(CheckRange("edit.amount", r.amount, 0, 100));
   }
+  if (!check_extent) return Status::Ok();
   // A tool far larger than the whole object is a unit mistake, not an edit.
   const Aabb ob = sc.WorldBounds();
   const double extent = std::max({ob.max.x - ob.min.x, ob.max.y - ob.min.y, ob.max.z - ob.min.z,
@@ -600,20 +617,75 @@ Status ValidateEditRequest(const Sculpture& sc, const EditRequest& r, const Edit
   return Status::Ok();
 }
 
+}  // namespace
+
 StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
                                const EditSettings& s) {
   return ApplyEdits(sculpture, std::vector<EditRequest>{req}, s);
 }
 
+namespace {
+StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<EditRequest>& reqs,
+                                    const EditSettings& s, const ReplayState* replay);
+}  // namespace
+
 StatusOr<EditResult> ApplyEdits(Sculpture& sculpture, const std::vector<EditRequest>& reqs,
                                 const EditSettings& s) {
+  return ApplyEditsImpl(sculpture, reqs, s, nullptr);
+}
+
+StatusOr<EditResult> ReplayEdits(Sculpture& sculpture, const std::vector<EditRequest>& reqs,
+                                 const EditSettings& s, const ReplayState& state) {
+  return ApplyEditsImpl(sculpture, reqs, s, &state);
+}
+
+ReplayState CaptureReplayState(const Sculpture& sculpture) {
+  const Sculpture::Impl& impl = sculpture.impl();
+  return ReplayState{impl.volume, impl.reference_volume, impl.edits_since_reinit};
+}
+
+EditFootprint FootprintOf(const Sculpture& sculpture, const std::vector<EditRequest>& reqs,
+                          const EditSettings& s) {
+  EditFootprint f;
+  if (reqs.empty()) return f;
+  const Sculpture::Impl& impl = sculpture.impl();
+  const double dx = impl.dx();
+  const EditKind kind = reqs.front().kind;
+  double scale = 0;
+  for (const EditRequest& r : reqs) scale = std::max(scale, ToolScale(r.tool));
+  const bool compensate = (kind == EditKind::kPress || kind == EditKind::kSmooth) &&
+                          s.compensation != CompensationRegion::kNone;
+  // Must match ApplyEditsImpl's block (MakeBlock with the same reach).
+  const double shell_outer = std::max(3 * dx, s.shell_radii * scale) + 1.5 * dx;
+  const double reach =
+      (compensate && s.compensation == CompensationRegion::kShell ? shell_outer : 0) + 2 * dx +
+      (kind == EditKind::kAdd || kind == EditKind::kSubtract ? impl.background() : 0);
+  Aabb tb = ToolBounds(reqs.front().tool);
+  for (const EditRequest& r : reqs) {
+    const Aabb a = ToolBounds(r.tool);
+    tb.min = {std::min(tb.min.x, a.min.x), std::min(tb.min.y, a.min.y),
+              std::min(tb.min.z, a.min.z)};
+    tb.max = {std::max(tb.max.x, a.max.x), std::max(tb.max.y, a.max.y),
+              std::max(tb.max.z, a.max.z)};
+  }
+  const Vec3 r{reach, reach, reach};
+  const internal::IndexBox box = internal::WorldToIndexBox(tb.min - r, tb.max + r, dx, kBlockPad);
+  f.min = box.min;
+  f.max = box.max;
+  f.whole_object = compensate && s.compensation == CompensationRegion::kGlobal;
+  return f;
+}
+
+namespace {
+StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<EditRequest>& reqs,
+                                    const EditSettings& s, const ReplayState* replay) {
   SCULPT_RETURN_IF_ERROR(ValidateEditSettings(s));
   if (reqs.empty() || reqs.size() > kMaxEditsPerBatch) {
     return InvalidArgument("edits=" + std::to_string(reqs.size()) + " outside [1, " +
                            std::to_string(kMaxEditsPerBatch) + "]");
   }
   for (size_t i = 0; i < reqs.size(); ++i) {
-    SCULPT_RETURN_IF_ERROR(ValidateEditRequest(sculpture, reqs[i], s));
+    SCULPT_RETURN_IF_ERROR(ValidateRequestFields(sculpture, reqs[i], s, replay == nullptr));
     if (reqs[i].kind != reqs.front().kind) {
       return InvalidArgument("edits[" + std::to_string(i) + "].kind=" +
                              EditKindName(reqs[i].kind) + " outside {" +
@@ -622,6 +694,14 @@ StatusOr<EditResult> ApplyEdits(Sculpture& sculpture, const std::vector<EditRequ
   }
   const auto t0 = std::chrono::steady_clock::now();
   Sculpture::Impl& impl = sculpture.impl();
+  if (replay) {
+    // The scalars the server held before this edit: a replica holding part of the object, or
+    // one resynchronised by leaf deltas, tracks different totals (seed 000 ch. 5 compensates
+    // towards the reference volume, a global quantity).
+    impl.volume = replay->volume;
+    impl.reference_volume = replay->reference_volume;
+    impl.edits_since_reinit = replay->edits_since_reinit;
+  }
   EditResult res;
   res.volume_before = impl.volume;
   const double dx = impl.dx();
@@ -861,6 +941,8 @@ StatusOr<EditResult> ApplyEdits(Sculpture& sculpture, const std::vector<EditRequ
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return res;
 }
+
+}  // namespace
 
 StatusOr<EditResult> ReinitializeRegion(Sculpture& sculpture, const Aabb& region, int iterations,
                                         const MotionSettings& motion) {

@@ -25,6 +25,7 @@
 
 #include "sculpt/levelset/kernels.h"
 #include "sculpt/core/check.h"
+#include "sculpt/levelset/region.h"
 #include "sculpture_impl.h"
 
 namespace sculpt::levelset {
@@ -595,6 +596,19 @@ double Sculpture::SampleWorld(const Vec3& p) const {
   openvdb::tools::GridSampler<FloatGrid::ConstAccessor, openvdb::tools::BoxSampler> sampler(
       impl_->grid->getConstAccessor(), impl_->grid->transform());
   return sampler.wsSample(openvdb::Vec3d(p.x, p.y, p.z));
+}
+
+}  // namespace sculpt::levelset
+
+namespace sculpt::levelset {
+
+StatusOr<Sculpture> MakeEmptySculpture(const SculptureOptions& o) {
+  SCULPT_RETURN_IF_ERROR(ValidateSculptureOptions(o));
+  auto impl = std::make_unique<Sculpture::Impl>();
+  impl->grid = NewGrid(o);
+  impl->name = o.name;
+  impl->half_width = o.half_width;
+  return SculptureAccess::Make(std::move(impl));
 }
 
 }  // namespace sculpt::levelset

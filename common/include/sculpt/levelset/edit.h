@@ -141,6 +141,33 @@ inline constexpr size_t kMaxEditsPerBatch = 256;
 StatusOr<EditResult> ApplyEdits(Sculpture& sculpture, const std::vector<EditRequest>& requests,
                                 const EditSettings& settings);
 
+/// The server's scalars an edit starts from, beyond the voxels it reads: a replica replaying the
+/// edit sets them first, so its compensation aims at the same volumes as the server's did.
+struct ReplayState {
+  double volume = 0;
+  double reference_volume = 0;
+  uint64_t edits_since_reinit = 0;
+};
+ReplayState CaptureReplayState(const Sculpture& sculpture);
+
+/// Replays a batch the server applied (ApplyEdits with the same requests and settings), on a
+/// replica holding at least the batch's footprint: sets `state`, skips the check against the
+/// object's extent (the replica may hold part of it), then runs the same kernel. On equal input
+/// voxels the result is bit-identical to the server's.
+StatusOr<EditResult> ReplayEdits(Sculpture& sculpture, const std::vector<EditRequest>& requests,
+                                 const EditSettings& settings, const ReplayState& state);
+
+/// The index box a batch reads (its block: tools, reach, compensation shell, stencil halo), so
+/// a replica holding it can replay the batch. `whole_object` when global compensation reads
+/// the whole grid.
+struct EditFootprint {
+  Int3 min{0, 0, 0};
+  Int3 max{-1, -1, -1};
+  bool whole_object = false;
+};
+EditFootprint FootprintOf(const Sculpture& sculpture, const std::vector<EditRequest>& requests,
+                          const EditSettings& settings);
+
 /// Validates a request against settings and the sculpture (tool inside the object's bounds plus
 /// a margin of the tool size, sizes in range) without applying it.
 Status ValidateEditRequest(const Sculpture& sculpture, const EditRequest& request,
