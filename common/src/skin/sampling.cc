@@ -1,0 +1,128 @@
+/// @brief Adaptive sampling and polyline predicates for the skin (digest §8.5, §7 claims 21-22).
+#include "sampling.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+namespace sculpt::skin::internal {
+namespace {
+
+constexpr int kInitialIntervals = 8;
+constexpr int kMaxDepth = 40;
+
+double SegmentDistance(Vec2 p, Vec2 a, Vec2 b) {
+  const Vec2 ab = b - a;
+  const double l2 = ab.LengthSqr();
+  double t = l2 > 0 ? (p - a).Dot(ab) / l2 : 0.0;
+  t = std::clamp(t, 0.0, 1.0);
+  return (p - (a + ab * t)).Length();
+}
+
+/// Subdivides [ta, tb] of a curve `f` until the chord is within tol; appends points after pa.
+template <typename F>
+void Refine(const F& f, double ta, Vec2 pa, double tb, Vec2 pb, double tol, int depth,
+            Polyline2& out) {
+  const double tm = 0.5 * (ta + tb);
+  const Vec2 pm = f(tm);
+  double dev = SegmentDistance(pm, pa, pb);
+  if (dev <= tol) {
+    dev = std::max(SegmentDistance(f(0.5 * (ta + tm)), pa, pb),
+                   SegmentDistance(f(0.5 * (tm + tb)), pa, pb));
+  }
+  if (dev > tol && depth < kMaxDepth) {
+    Refine(f, ta, pa, tm, pm, tol, depth + 1, out);
+    Refine(f, tm, pm, tb, pb, tol, depth + 1, out);
+  } else {
+    out.push_back(pb);
+  }
+}
+
+template <typename F>
+void SampleCurve(const F& f, double ta, double tb, double tol, bool skip_first, Polyline2& out) {
+  Vec2 prev = f(ta);
+  if (!skip_first) out.push_back(prev);
+  for (int i = 1; i <= kInitialIntervals; ++i) {
+    const double t0 = ta + (tb - ta) * (i - 1) / kInitialIntervals;
+    const double t1 = i == kInitialIntervals ? tb : ta + (tb - ta) * i / kInitialIntervals;
+    const Vec2 p1 = f(t1);
+    Refine(f, t0, prev, t1, p1, tol, 0, out);
+    prev = p1;
+  }
+}
+
+double Orient(Vec2 a, Vec2 b, Vec2 c) { return (b - a).Cross(c - a); }
+
+}  // namespace
+
+void SampleOffset(const Offset& off, double ta, double tb, double tol, bool skip_first,
+                  Polyline2& out) {
+  SampleCurve([&](double t) { return off.P(t); }, ta, tb, tol, skip_first, out);
+}
+
+void SampleASpline(const ASpline& s, double tol, bool skip_first, Polyline2& out) {
+  // phi runs from pi/2 (P0) down to 0 (P2), so the samples go from P0 to P2.
+  const size_t first = out.size();
+  SampleCurve([&](double u) { return s.AtPhi(std::numbers::pi / 2 * (1 - u)); }, 0.0, 1.0, tol,
+              skip_first, out);
+  // The closed form reaches the nodes only up to rounding; pin them so neighbours share them.
+  if (!skip_first && out.size() > first) out[first] = s.p0;
+  if (!out.empty()) out.back() = s.p2;
+}
+
+int CountCrossings(const Polyline2& pts, bool closed) {
+  const size_t n = pts.size();
+  if (n < 4) return 0;
+  const size_t nseg = closed ? n : n - 1;
+  struct Seg {
+    double minx, maxx, miny, maxy;
+    size_t i;
+  };
+  std::vector<Seg> segs(nseg);
+  for (size_t i = 0; i < nseg; ++i) {
+    const Vec2 a = pts[i], b = pts[(i + 1) % n];
+    segs[i] = {std::min(a.x, b.x), std::max(a.x, b.x), std::min(a.y, b.y), std::max(a.y, b.y), i};
+  }
+  std::sort(segs.begin(), segs.end(), [](const Seg& a, const Seg& b) { return a.minx < b.minx; });
+  int crossings = 0;
+  for (size_t s = 0; s < nseg; ++s) {
+    const Seg& A = segs[s];
+    for (size_t u = s + 1; u < nseg && segs[u].minx <= A.maxx; ++u) {
+      const Seg& B = segs[u];
+      if (B.miny > A.maxy || B.maxy < A.miny) continue;
+      const size_t lo = std::min(A.i, B.i), hi = std::max(A.i, B.i);
+      if (hi - lo <= 1 || (closed && lo == 0 && hi == nseg - 1)) continue;
+      const Vec2 a = pts[A.i], b = pts[(A.i + 1) % n], c = pts[B.i], d = pts[(B.i + 1) % n];
+      const double o1 = Orient(a, b, c), o2 = Orient(a, b, d);
+      const double o3 = Orient(c, d, a), o4 = Orient(c, d, b);
+      if (((o1 > 0 && o2 < 0) || (o1 < 0 && o2 > 0)) && ((o3 > 0 && o4 < 0) || (o3 < 0 && o4 > 0))) {
+        ++crossings;
+      }
+    }
+  }
+  return crossings;
+}
+
+int Winding(const Polyline2& pts, Vec2 p) {
+  int w = 0;
+  const size_t n = pts.size();
+  for (size_t i = 0; i < n; ++i) {
+    const Vec2 a = pts[i], b = pts[(i + 1) % n];
+    if (a.y <= p.y) {
+      if (b.y > p.y && Orient(a, b, p) > 0) ++w;
+    } else if (b.y <= p.y && Orient(a, b, p) < 0) {
+      --w;
+    }
+  }
+  return w;
+}
+
+double DistanceToClosed(const Polyline2& pts, Vec2 p) {
+  double best = INFINITY;
+  const size_t n = pts.size();
+  for (size_t i = 0; i < n; ++i) best = std::min(best, SegmentDistance(p, pts[i], pts[(i + 1) % n]));
+  return best;
+}
+
+}  // namespace sculpt::skin::internal

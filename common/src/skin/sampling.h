@@ -1,0 +1,29 @@
+/// @brief Internal: chord-tolerance sampling of offsets, A-splines and caps, and the polyline
+/// predicates the validation uses (crossings, winding, distances).
+#ifndef SCULPT_SKIN_INTERNAL_SAMPLING_H_
+#define SCULPT_SKIN_INTERNAL_SAMPLING_H_
+
+#include "sculpt/skin/curves.h"
+#include "sculpt/skin/vec2.h"
+
+namespace sculpt::skin::internal {
+
+/// Appends samples of the offset on [ta, tb] to `out`, excluding the point at ta when
+/// `skip_first`. Adaptive recursive subdivision from 8 uniform intervals until the chord
+/// deviation at the mid and quarter points is within `tol` (digest §8.5).
+void SampleOffset(const Offset& off, double ta, double tb, double tol, bool skip_first,
+                  Polyline2& out);
+/// Appends samples of the A-spline from P0 to P2, same rule on the pencil angle.
+void SampleASpline(const ASpline& s, double tol, bool skip_first, Polyline2& out);
+
+/// Pairs of non-adjacent segments that cross properly. `closed` joins the last point to the
+/// first (and treats that segment as adjacent to both ends).
+int CountCrossings(const Polyline2& pts, bool closed);
+/// Winding number of `p` around the closed polygon `pts`.
+int Winding(const Polyline2& pts, Vec2 p);
+/// Distance from `p` to the closed polygon `pts`.
+double DistanceToClosed(const Polyline2& pts, Vec2 p);
+
+}  // namespace sculpt::skin::internal
+
+#endif  // SCULPT_SKIN_INTERNAL_SAMPLING_H_
