@@ -7,6 +7,9 @@
 namespace sculpt::haptics {
 namespace {
 
+// Below this |grad phi| (per world unit) a sample has no usable direction.
+constexpr double kMinGradient = 1e-6;
+
 struct Cell {
   int i0[3];
   double t[3];
@@ -86,6 +89,11 @@ Vec3 SculptureSdf::Gradient(const Vec3& p) const {
 
 PenaltyForce ComputePenaltyForce(const SdfSampler& sdf, const std::vector<Vec3>& samples,
                                  double kappa) {
+  return ComputePenaltyForce(sdf, samples, kappa, Vec3{});
+}
+
+PenaltyForce ComputePenaltyForce(const SdfSampler& sdf, const std::vector<Vec3>& samples,
+                                 double kappa, const Vec3& fallback_normal) {
   PenaltyForce f;
   for (const Vec3& x : samples) {
     const double phi = sdf.Phi(x);
@@ -93,11 +101,46 @@ PenaltyForce ComputePenaltyForce(const SdfSampler& sdf, const std::vector<Vec3>&
     ++f.colliding;
     const Vec3 g = sdf.Gradient(x);
     const double n = g.Length();
-    if (n < 1e-12) continue;  // medial axis: no defined normal
     // Eq. 3.3 with the digest's correction (errata 1): kappa |phi| times the outward normal.
+    if (n < kMinGradient) {
+      ++f.without_normal;  // medial axis or beyond the band: no defined normal here
+      f.sum += fallback_normal * (kappa * std::abs(phi));
+      continue;
+    }
     f.sum += g * (kappa * std::abs(phi) / n);
   }
   if (f.colliding > 0) f.average = f.sum / f.colliding;
+  return f;
+}
+
+PenaltyForce ComputeAreaWeightedPenaltyForce(const SdfSampler& sdf,
+                                             const std::vector<Vec3>& samples, double sample_area,
+                                             double kappa, const Vec3& fallback_normal) {
+  PenaltyForce f;
+  if (!(sample_area > 0) || !std::isfinite(sample_area)) return f;
+  const double rho = std::sqrt(sample_area / M_PI);
+  double covered = 0;  // sum of inside fractions, in units of one patch
+  for (const Vec3& x : samples) {
+    const double phi = sdf.Phi(x);
+    if (phi >= rho) continue;
+    if (phi <= 0) ++f.colliding;
+    // phi uniform on [phi - rho, phi + rho] over the patch: the inside fraction is the share
+    // below 0, the mean depth the integral of max(-u, 0) over the patch divided by its width.
+    const double lo = phi - rho;
+    const double inside = std::clamp(-lo / (2 * rho), 0.0, 1.0);
+    const double depth =
+        phi <= -rho ? -phi : (lo * lo) / (4 * rho);  // -lo > 0 here: a triangle of height -lo
+    covered += inside;
+    const Vec3 g = sdf.Gradient(x);
+    const double n = g.Length();
+    if (n < kMinGradient) {
+      ++f.without_normal;
+      f.sum += fallback_normal * (kappa * depth);
+      continue;
+    }
+    f.sum += g * (kappa * depth / n);
+  }
+  if (covered > 0) f.average = f.sum / covered;
   return f;
 }
 

@@ -19,6 +19,8 @@ class SdfSampler {
   virtual double Phi(const Vec3& p) const = 0;
   /// Not necessarily unit length; zero where phi has no direction (medial axis, beyond the band).
   virtual Vec3 Gradient(const Vec3& p) const = 0;
+  /// Grid spacing in world units: continuous contact detection steps at most half of it.
+  virtual double cell_size() const = 0;
 };
 
 /// phi of a Sculpture (trilinear in its narrow band) and its central-difference gradient over
@@ -28,6 +30,7 @@ class SculptureSdf : public SdfSampler {
   explicit SculptureSdf(const levelset::Sculpture& sculpture) : sculpture_(sculpture) {}
   double Phi(const Vec3& p) const override { return sculpture_.SampleWorld(p); }
   Vec3 Gradient(const Vec3& p) const override;
+  double cell_size() const override { return sculpture_.voxel_size(); }
 
  private:
   const levelset::Sculpture& sculpture_;
@@ -47,12 +50,16 @@ struct DenseSdf : SdfSampler {
   /// Trilinear interpolation of the nodes' central-difference gradients (eq. 3.2, App. A.4
   /// `respcol`: one-sided at the box border), not normalised.
   Vec3 Gradient(const Vec3& p) const override;
+  double cell_size() const override { return h; }
 };
 
 struct PenaltyForce {
   Vec3 sum;          // eq. 3.4
   Vec3 average;      // eq. 3.5, divided by the colliding samples (digest claim 7)
   int colliding = 0;
+  /// Colliding samples whose gradient vanished (medial axis, beyond the band): they took the
+  /// fallback normal, or no direction when none was given.
+  int without_normal = 0;
 };
 
 /// Force on a tool given by its surface samples: every sample with phi <= 0 (eq. 3.1, §3.1)
@@ -60,6 +67,25 @@ struct PenaltyForce {
 /// interpolated gradient vanishes (the medial axis) the sample contributes no direction.
 PenaltyForce ComputePenaltyForce(const SdfSampler& sdf, const std::vector<Vec3>& samples,
                                  double kappa);
+
+/// As above, but a colliding sample whose gradient vanishes pushes along `fallback_normal` (unit,
+/// or zero for no direction) instead of contributing nothing: the renderer passes the last valid
+/// normal (seed 000 §5 item 15, the previous-frame rule of §8).
+PenaltyForce ComputePenaltyForce(const SdfSampler& sdf, const std::vector<Vec3>& samples,
+                                 double kappa, const Vec3& fallback_normal);
+
+/// The penalty average weighted by each sample's share of the tool surface that lies inside the
+/// material. Sample k stands for a patch of area `sample_area` (the tool's area over the sample
+/// count: ToolSurfaceSamples spreads a sphere's samples evenly) and radius rho = sqrt(area / pi);
+/// phi is taken to vary linearly by +-rho over the patch, so the patch's inside fraction f_k and
+/// mean depth d_k are smooth in phi_k and samples up to rho outside still count. Then
+///   average = kappa * sum_k d_k N_k / sum_k f_k,   sum = kappa * sum_k d_k N_k,
+/// the mean depth over the contact area rather than over the colliding samples (eq. 3.5 with the
+/// area of each sample as its weight). `colliding` counts samples with phi <= 0 as before.
+/// A non-positive or non-finite sample_area gives an empty force.
+PenaltyForce ComputeAreaWeightedPenaltyForce(const SdfSampler& sdf,
+                                             const std::vector<Vec3>& samples, double sample_area,
+                                             double kappa, const Vec3& fallback_normal = {});
 
 /// The thesis's circle tool samples (App. A.1): k + 1 points r (cos 2 pi i/k, sin 2 pi i/k) + c,
 /// i = 0..k, in the z = c.z plane (the last repeats the first, as the MATLAB code does).

@@ -1,0 +1,106 @@
+/// @brief HapticLoop: the 1 kHz force loop on its own thread, reading immutable snapshots that a
+/// SnapshotPublisher swaps in atomically, with its own timing statistics.
+#ifndef SCULPT_HAPTICS_HAPTIC_LOOP_H_
+#define SCULPT_HAPTICS_HAPTIC_LOOP_H_
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+
+#include "sculpt/core/status.h"
+#include "sculpt/haptics/haptic_device.h"
+#include "sculpt/haptics/haptic_renderer.h"
+#include "sculpt/haptics/haptic_settings.h"
+#include "sculpt/haptics/penalty.h"
+
+namespace sculpt::haptics {
+
+/// One published field: immutable, with the version and time it was published at.
+struct Snapshot {
+  std::shared_ptr<const SdfSampler> sdf;  // null: nothing to touch
+  uint64_t version = 0;
+  std::chrono::steady_clock::time_point published;
+};
+
+/// Hands snapshots from whoever builds them (the replica, a test) to the haptic loop through an
+/// atomically swapped std::shared_ptr. The loop only loads the pointer; it never takes the
+/// mutex that orders publishers. The publisher keeps the last kRetained snapshots alive, so the
+/// loop dropping a snapshot is almost never the last reference: a large grid is freed on the
+/// publisher's thread, not in the middle of a tick.
+/// Thread safety: Publish from any thread; Current from any thread, lock-free with respect to
+/// publishers apart from the atomic's own pointer swap.
+class SnapshotPublisher {
+ public:
+  static constexpr size_t kRetained = 3;
+
+  SnapshotPublisher();
+  /// Publishes `sdf` as the next version (starting at 1).
+  void Publish(std::shared_ptr<const SdfSampler> sdf);
+  /// The latest snapshot (version 0 with a null sdf before the first Publish).
+  std::shared_ptr<const Snapshot> Current() const { return current_.load(); }
+
+ private:
+  std::atomic<std::shared_ptr<const Snapshot>> current_;
+  std::mutex publish_mu_;  // orders publishers; never taken by the loop
+  uint64_t next_version_ = 1;
+  std::deque<std::shared_ptr<const Snapshot>> retained_;
+};
+
+/// The loop's timing and event counters. Percentiles come from fixed histograms (tick cost to
+/// 0.1 us, period error to 1 us, snapshot lag to 10 us); maxima are exact.
+struct HapticLoopStats {
+  uint64_t ticks = 0;
+  double elapsed_s = 0;
+  double rate_hz = 0;  // ticks / elapsed
+  double tick_cost_p50_us = 0, tick_cost_p99_us = 0, tick_cost_p999_us = 0, tick_cost_max_us = 0;
+  /// |actual period - nominal period| between consecutive tick starts.
+  double period_err_p50_us = 0, period_err_p99_us = 0, period_err_max_us = 0;
+  uint64_t overruns = 0;          // ticks whose own cost exceeded the period
+  uint64_t missed_deadlines = 0;  // tick slots skipped because a tick started a period late
+  uint64_t ticks_over_2ms = 0;    // periods between tick starts longer than 2 ms
+  uint64_t nan_samples = 0;       // device samples ignored because they were not finite
+  uint64_t snapshots_seen = 0;    // distinct snapshot versions the loop switched to
+  /// From Publish to the first tick that used the snapshot.
+  double snapshot_lag_p50_ms = 0, snapshot_lag_p99_ms = 0, snapshot_lag_max_ms = 0;
+  Vec3 last_force;
+  bool contact = false;
+};
+
+/// The haptic loop: a dedicated thread that wakes every 1 / rate_hz seconds (sleep_until on
+/// steady_clock, deadlines advanced by the period, not by the wake-up time), loads the current
+/// snapshot, reads the device, runs the HapticRenderer and sends the force.
+/// Thread safety: Start/Stop from one controlling thread; stats() and SamplePose() from any.
+class HapticLoop {
+ public:
+  /// InvalidArgument for bad settings or a null publisher or device. Both must outlive the loop.
+  static StatusOr<std::unique_ptr<HapticLoop>> Create(const HapticSettings& settings,
+                                                      SnapshotPublisher* publisher,
+                                                      HapticDevice* device);
+  ~HapticLoop();
+  HapticLoop(const HapticLoop&) = delete;
+  HapticLoop& operator=(const HapticLoop&) = delete;
+
+  /// Starts the thread; FailedPrecondition if it is running.
+  Status Start();
+  /// Stops and joins the thread (no-op if it is not running).
+  void Stop();
+  bool running() const;
+
+  HapticLoopStats stats() const;
+  /// The stroke sampler hook: the device pose of the latest tick (time in loop seconds), for the
+  /// stroke sender to call at stroke rate. Wait-free for the loop, never blocks the caller for
+  /// longer than a concurrent pose write.
+  DeviceSample SamplePose() const;
+
+ private:
+  struct Impl;
+  explicit HapticLoop(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace sculpt::haptics
+
+#endif  // SCULPT_HAPTICS_HAPTIC_LOOP_H_

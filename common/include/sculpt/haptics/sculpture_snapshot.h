@@ -1,0 +1,43 @@
+/// @brief SculptureSnapshot: an immutable copy of a sculpture that the haptic loop samples.
+#ifndef SCULPT_HAPTICS_SCULPTURE_SNAPSHOT_H_
+#define SCULPT_HAPTICS_SCULPTURE_SNAPSHOT_H_
+
+#include <cstdint>
+#include <memory>
+
+#include "sculpt/haptics/penalty.h"
+#include "sculpt/levelset/sculpture.h"
+
+namespace sculpt::haptics {
+
+/// phi and its gradient on a deep copy of a Sculpture (trilinear phi in the narrow band, the
+/// gradient by central differences of it over one voxel, as SculptureSdf). Unlike SculptureSdf
+/// it owns its copy, so a publisher can hand it to the haptic loop and keep editing, and each
+/// reading thread keeps one unregistered OpenVDB accessor for it (seed 000 §8: one accessor per
+/// haptic thread), so consecutive samples of a tick hit the accessor's node cache.
+/// Thread safety: immutable after construction; any number of threads may sample it.
+class SculptureSnapshot : public SdfSampler {
+ public:
+  /// Takes a copy of `sculpture` (Sculpture::Clone, a deep copy).
+  explicit SculptureSnapshot(const levelset::Sculpture& sculpture);
+  /// Adopts `sculpture`, which nobody else may hold.
+  explicit SculptureSnapshot(levelset::Sculpture&& sculpture);
+  ~SculptureSnapshot() override;
+
+  double Phi(const Vec3& p) const override;
+  Vec3 Gradient(const Vec3& p) const override;
+  double cell_size() const override { return voxel_size_; }
+
+  const levelset::Sculpture& sculpture() const { return sculpture_; }
+  /// A process-unique id (never reused), distinct for every snapshot constructed.
+  uint64_t id() const { return id_; }
+
+ private:
+  levelset::Sculpture sculpture_;
+  double voxel_size_;
+  uint64_t id_;
+};
+
+}  // namespace sculpt::haptics
+
+#endif  // SCULPT_HAPTICS_SCULPTURE_SNAPSHOT_H_

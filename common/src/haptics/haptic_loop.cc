@@ -1,0 +1,252 @@
+/// @brief The haptic loop thread, its lock-free statistics and the pose seqlock.
+#include "sculpt/haptics/haptic_loop.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <thread>
+#include <vector>
+
+namespace sculpt::haptics {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+
+// Counts values into fixed-width bins with relaxed atomics, so the loop never blocks on a
+// reader; the last bin takes everything above the range. The exact maximum is kept beside.
+class AtomicHistogram {
+ public:
+  AtomicHistogram(double bin_width, size_t bins) : width_(bin_width), bins_(bins + 1) {}
+  void Add(double v) {
+    if (!(v >= 0)) v = 0;
+    const size_t i = std::min(bins_.size() - 1, static_cast<size_t>(v / width_));
+    bins_[i].fetch_add(1, std::memory_order_relaxed);
+    count_.fetch_add(1, std::memory_order_relaxed);
+    double m = max_.load(std::memory_order_relaxed);
+    while (v > m && !max_.compare_exchange_weak(m, v, std::memory_order_relaxed)) {
+    }
+  }
+  // Upper edge of the bin holding quantile q (the exact max for the overflow bin).
+  double Quantile(double q) const {
+    const uint64_t n = count_.load(std::memory_order_relaxed);
+    if (n == 0) return 0;
+    const uint64_t rank = static_cast<uint64_t>(std::ceil(q * static_cast<double>(n)));
+    uint64_t seen = 0;
+    for (size_t i = 0; i < bins_.size(); ++i) {
+      seen += bins_[i].load(std::memory_order_relaxed);
+      if (seen >= std::max<uint64_t>(rank, 1)) {
+        return i + 1 == bins_.size() ? Max() : std::min(Max(), (i + 1) * width_);
+      }
+    }
+    return Max();
+  }
+  double Max() const { return max_.load(std::memory_order_relaxed); }
+
+ private:
+  double width_;
+  std::vector<std::atomic<uint64_t>> bins_;
+  std::atomic<uint64_t> count_{0};
+  std::atomic<double> max_{0};
+};
+
+}  // namespace
+
+SnapshotPublisher::SnapshotPublisher() : current_(std::make_shared<const Snapshot>()) {}
+
+void SnapshotPublisher::Publish(std::shared_ptr<const SdfSampler> sdf) {
+  std::lock_guard<std::mutex> lock(publish_mu_);
+  auto s = std::make_shared<const Snapshot>(Snapshot{std::move(sdf), next_version_++, Clock::now()});
+  current_.store(s);
+  retained_.push_back(std::move(s));
+  // Dropping the oldest here frees it on this thread unless the loop still holds it.
+  while (retained_.size() > kRetained) retained_.pop_front();
+}
+
+struct HapticLoop::Impl {
+  Impl(const HapticSettings& s, HapticRenderer r, SnapshotPublisher* p, HapticDevice* d)
+      : settings(s),
+        renderer(std::move(r)),
+        publisher(p),
+        device(d),
+        cost_us(0.1, 20000),
+        period_err_us(1.0, 20000),
+        lag_ms(0.01, 10000) {}
+
+  void Run();
+  void PublishPose(const DeviceSample& s, const TickOutput& out);
+
+  HapticSettings settings;
+  HapticRenderer renderer;
+  SnapshotPublisher* publisher;
+  HapticDevice* device;
+  std::thread thread;
+  std::atomic<bool> running{false};
+  std::atomic<bool> stop{false};
+
+  AtomicHistogram cost_us, period_err_us, lag_ms;
+  std::atomic<uint64_t> ticks{0}, overruns{0}, missed{0}, over_2ms{0}, nan_samples{0},
+      snapshots_seen{0};
+  std::atomic<int64_t> start_ns{0}, last_tick_ns{0};
+
+  // Seqlock over the latest pose and force: the loop is the only writer; readers retry while
+  // the sequence is odd or changed under them. Every field is an atomic, so there is no race.
+  std::atomic<uint64_t> seq{0};
+  std::array<std::atomic<double>, 11> pose{};  // t, x, y, z, qw, qx, qy, qz, fx, fy, fz
+  std::atomic<bool> contact{false};
+};
+
+void HapticLoop::Impl::PublishPose(const DeviceSample& s, const TickOutput& out) {
+  const uint64_t v = seq.load(std::memory_order_relaxed);
+  seq.store(v + 1, std::memory_order_relaxed);
+  std::atomic_thread_fence(std::memory_order_release);
+  const double values[11] = {s.time,          s.position.x,    s.position.y,    s.position.z,
+                             s.orientation.w, s.orientation.x, s.orientation.y, s.orientation.z,
+                             out.force.x,     out.force.y,     out.force.z};
+  for (size_t i = 0; i < pose.size(); ++i) pose[i].store(values[i], std::memory_order_relaxed);
+  contact.store(out.contact, std::memory_order_relaxed);
+  seq.store(v + 2, std::memory_order_release);
+}
+
+void HapticLoop::Impl::Run() {
+  const auto period = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(1.0 / settings.rate_hz));
+  const double period_us = Seconds(period) * 1e6;
+  const Clock::time_point start = Clock::now();
+  start_ns.store(start.time_since_epoch().count(), std::memory_order_relaxed);
+  Clock::time_point deadline = start + period;
+  Clock::time_point previous_wake{};
+  uint64_t version = 0;
+  DeviceSample last_good;
+  while (!stop.load(std::memory_order_relaxed)) {
+    std::this_thread::sleep_until(deadline);
+    const Clock::time_point wake = Clock::now();
+    if (previous_wake != Clock::time_point{}) {
+      const double actual_us = Seconds(wake - previous_wake) * 1e6;
+      period_err_us.Add(std::abs(actual_us - period_us));
+      if (actual_us > 2000) over_2ms.fetch_add(1, std::memory_order_relaxed);
+    }
+    previous_wake = wake;
+
+    // The only shared state touched: one atomic shared_ptr load.
+    const std::shared_ptr<const Snapshot> snap = publisher->Current();
+    if (snap->version != version) {
+      version = snap->version;
+      if (version != 0) {
+        snapshots_seen.fetch_add(1, std::memory_order_relaxed);
+        lag_ms.Add(Seconds(wake - snap->published) * 1e3);
+      }
+    }
+    const double t = Seconds(wake - start);
+    DeviceSample sample = device->Read(t);
+    const TickOutput& out = renderer.Tick(snap->sdf, sample);
+    device->ApplyForce(out.force, t);
+    if (out.nan_ignored) {
+      nan_samples.fetch_add(1, std::memory_order_relaxed);
+      sample = last_good;  // the stroke sender keeps the last real pose
+    } else {
+      last_good = sample;
+    }
+    PublishPose(sample, out);
+
+    const Clock::time_point done = Clock::now();
+    const double cost = Seconds(done - wake) * 1e6;
+    cost_us.Add(cost);
+    if (cost > period_us) overruns.fetch_add(1, std::memory_order_relaxed);
+    ticks.fetch_add(1, std::memory_order_relaxed);
+    last_tick_ns.store(done.time_since_epoch().count(), std::memory_order_relaxed);
+
+    deadline += period;
+    if (done >= deadline) {
+      // Late by more than a period: skip the lost slots rather than firing a burst of ticks.
+      const auto behind = (done - deadline) / period + 1;
+      missed.fetch_add(static_cast<uint64_t>(behind), std::memory_order_relaxed);
+      deadline += period * behind;
+    }
+  }
+}
+
+StatusOr<std::unique_ptr<HapticLoop>> HapticLoop::Create(const HapticSettings& settings,
+                                                         SnapshotPublisher* publisher,
+                                                         HapticDevice* device) {
+  if (publisher == nullptr) return InvalidArgument("HapticLoop.publisher is null");
+  if (device == nullptr) return InvalidArgument("HapticLoop.device is null");
+  auto renderer = HapticRenderer::Create(settings);
+  if (!renderer.ok()) return renderer.status();
+  return std::unique_ptr<HapticLoop>(new HapticLoop(
+      std::make_unique<Impl>(settings, std::move(renderer).value(), publisher, device)));
+}
+
+HapticLoop::HapticLoop(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+HapticLoop::~HapticLoop() { Stop(); }
+
+Status HapticLoop::Start() {
+  if (impl_->running.load()) return FailedPrecondition("HapticLoop is already running");
+  impl_->stop.store(false);
+  impl_->running.store(true);
+  impl_->thread = std::thread([this] { impl_->Run(); });
+  return Status::Ok();
+}
+
+void HapticLoop::Stop() {
+  if (!impl_->running.load()) return;
+  impl_->stop.store(true);
+  if (impl_->thread.joinable()) impl_->thread.join();
+  impl_->running.store(false);
+}
+
+bool HapticLoop::running() const { return impl_->running.load(); }
+
+HapticLoopStats HapticLoop::stats() const {
+  const Impl& m = *impl_;
+  HapticLoopStats s;
+  s.ticks = m.ticks.load(std::memory_order_relaxed);
+  const int64_t start = m.start_ns.load(std::memory_order_relaxed);
+  const int64_t last = m.last_tick_ns.load(std::memory_order_relaxed);
+  s.elapsed_s = s.ticks > 0 ? Seconds(Clock::duration(last - start)) : 0;
+  s.rate_hz = s.elapsed_s > 0 ? static_cast<double>(s.ticks) / s.elapsed_s : 0;
+  s.tick_cost_p50_us = m.cost_us.Quantile(0.5);
+  s.tick_cost_p99_us = m.cost_us.Quantile(0.99);
+  s.tick_cost_p999_us = m.cost_us.Quantile(0.999);
+  s.tick_cost_max_us = m.cost_us.Max();
+  s.period_err_p50_us = m.period_err_us.Quantile(0.5);
+  s.period_err_p99_us = m.period_err_us.Quantile(0.99);
+  s.period_err_max_us = m.period_err_us.Max();
+  s.overruns = m.overruns.load(std::memory_order_relaxed);
+  s.missed_deadlines = m.missed.load(std::memory_order_relaxed);
+  s.ticks_over_2ms = m.over_2ms.load(std::memory_order_relaxed);
+  s.nan_samples = m.nan_samples.load(std::memory_order_relaxed);
+  s.snapshots_seen = m.snapshots_seen.load(std::memory_order_relaxed);
+  s.snapshot_lag_p50_ms = m.lag_ms.Quantile(0.5);
+  s.snapshot_lag_p99_ms = m.lag_ms.Quantile(0.99);
+  s.snapshot_lag_max_ms = m.lag_ms.Max();
+  for (;;) {
+    const uint64_t v0 = m.seq.load(std::memory_order_acquire);
+    if (v0 & 1) continue;
+    s.last_force = {m.pose[8].load(std::memory_order_relaxed),
+                    m.pose[9].load(std::memory_order_relaxed),
+                    m.pose[10].load(std::memory_order_relaxed)};
+    s.contact = m.contact.load(std::memory_order_relaxed);
+    std::atomic_thread_fence(std::memory_order_acquire);
+    if (m.seq.load(std::memory_order_relaxed) == v0) break;
+  }
+  return s;
+}
+
+DeviceSample HapticLoop::SamplePose() const {
+  const Impl& m = *impl_;
+  for (;;) {
+    const uint64_t v0 = m.seq.load(std::memory_order_acquire);
+    if (v0 & 1) continue;
+    double v[8];
+    for (int i = 0; i < 8; ++i) v[i] = m.pose[i].load(std::memory_order_relaxed);
+    std::atomic_thread_fence(std::memory_order_acquire);
+    if (m.seq.load(std::memory_order_relaxed) == v0) {
+      return DeviceSample{v[0], {v[1], v[2], v[3]}, Quat{v[4], v[5], v[6], v[7]}};
+    }
+  }
+}
+
+}  // namespace sculpt::haptics

@@ -1,0 +1,82 @@
+#include "sculpt/haptics/haptic_loop.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+#include "unit/haptics/field_helpers.h"
+
+namespace sculpt::haptics {
+namespace {
+
+using namespace std::chrono_literals;
+
+TEST(SnapshotPublisherTest, VersionsIncreaseAndOldOnesAreReleased) {
+  SnapshotPublisher pub;
+  EXPECT_EQ(pub.Current()->version, 0u);
+  EXPECT_EQ(pub.Current()->sdf, nullptr);
+  std::weak_ptr<const SdfSampler> first;
+  {
+    auto f = testing::Floor(0, 8);
+    first = f;
+    pub.Publish(f);
+  }
+  EXPECT_EQ(pub.Current()->version, 1u);
+  for (size_t i = 0; i < SnapshotPublisher::kRetained; ++i) pub.Publish(testing::Floor(1, 8));
+  EXPECT_EQ(pub.Current()->version, 1 + SnapshotPublisher::kRetained);
+  EXPECT_TRUE(first.expired());  // freed on the publishing thread once out of the retained set
+}
+
+TEST(HapticLoopTest, RejectsNullDeviceAndBadSettings) {
+  SnapshotPublisher pub;
+  EXPECT_FALSE(HapticLoop::Create(HapticSettings{}, &pub, nullptr).ok());
+  ScriptedDevice dev([](double) { return Vec3{}; });
+  HapticSettings bad;
+  bad.rate_hz = 0;
+  const auto r = HapticLoop::Create(bad, &pub, &dev);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("HapticSettings.rate_hz=0"), std::string::npos);
+}
+
+// The thread runs for a fifth of a second: it ticks near its rate, sees the snapshots published
+// meanwhile, renders a force, counts NaN samples, and exposes the pose to the stroke sampler.
+TEST(HapticLoopTest, TicksRendersAndCountsOnItsOwnThread) {
+  SnapshotPublisher pub;
+  pub.Publish(testing::Floor(0));
+  // Device: 1 deep in the floor, with a dropout every 50th millisecond.
+  ScriptedDevice dev([](double t) {
+    const long ms = std::lround(t * 1000);
+    return ms % 50 == 25 ? Vec3{NAN, 0, 0} : Vec3{0.001 * ms, 0, -1};
+  });
+  HapticSettings s;
+  auto loop = HapticLoop::Create(s, &pub, &dev);
+  ASSERT_TRUE(loop.ok()) << loop.status();
+  ASSERT_TRUE((*loop)->Start().ok());
+  EXPECT_FALSE((*loop)->Start().ok());
+  std::this_thread::sleep_for(80ms);
+  pub.Publish(testing::Floor(0.5));
+  std::this_thread::sleep_for(120ms);
+  const DeviceSample pose = (*loop)->SamplePose();
+  (*loop)->Stop();
+  const HapticLoopStats st = (*loop)->stats();
+  EXPECT_FALSE((*loop)->running());
+  EXPECT_GT(st.ticks, 100u);  // 200 ms at 1 kHz, with room for a loaded machine
+  EXPECT_GT(st.rate_hz, 500);
+  EXPECT_LT(st.rate_hz, 1100);
+  EXPECT_EQ(st.snapshots_seen, 2u);
+  EXPECT_GE(st.snapshot_lag_max_ms, 0);
+  EXPECT_GT(st.nan_samples, 0u);
+  EXPECT_GT(st.tick_cost_max_us, 0);
+  EXPECT_LE(st.tick_cost_p50_us, st.tick_cost_p99_us);
+  EXPECT_LE(st.tick_cost_p99_us, st.tick_cost_max_us);
+  EXPECT_TRUE(st.contact);
+  EXPECT_GT(st.last_force.z, 0);
+  EXPECT_TRUE(pose.position.IsFinite());
+  EXPECT_NEAR(pose.position.z, -1, 1e-12);
+  EXPECT_GT(dev.last_force().z, 0);
+}
+
+}  // namespace
+}  // namespace sculpt::haptics
