@@ -1,0 +1,407 @@
+/// @brief The contour codec: quantise, predict, zigzag, then varints or Draco's entropy coder.
+#include "sculpt/skin/contour_codec.h"
+
+#include <draco/compression/entropy/symbol_decoding.h>
+#include <draco/compression/entropy/symbol_encoding.h>
+#include <draco/core/decoder_buffer.h>
+#include <draco/core/encoder_buffer.h>
+
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "sculpt/core/check.h"
+
+namespace sculpt::skin {
+namespace {
+
+constexpr char kMagic[4] = {'S', 'K', 'C', '1'};
+enum Kind : uint8_t { kPolylineSet = 0, kSnapshot = 1, kUpdate = 2 };
+enum Coding : uint8_t { kVarint = 0, kRans = 1 };
+constexpr double kMaxQuantised = 4503599627370496.0;  // 2^52
+
+using Q = std::array<int64_t, 2>;
+using QLine = std::vector<Q>;
+
+void PutVarint(std::string& out, uint64_t v) {
+  while (v >= 0x80) {
+    out.push_back(static_cast<char>((v & 0x7f) | 0x80));
+    v >>= 7;
+  }
+  out.push_back(static_cast<char>(v));
+}
+
+uint64_t Zig(int64_t v) { return (static_cast<uint64_t>(v) << 1) ^ static_cast<uint64_t>(v >> 63); }
+int64_t Unzig(uint64_t u) { return static_cast<int64_t>(u >> 1) ^ -static_cast<int64_t>(u & 1); }
+
+/// Bounded reader over untrusted bytes.
+struct Reader {
+  std::string_view in;
+  size_t pos = 0;
+  bool Varint(uint64_t* v) {
+    uint64_t r = 0;
+    for (int shift = 0; shift < 64; shift += 7) {
+      if (pos >= in.size()) return false;
+      const uint8_t b = static_cast<uint8_t>(in[pos++]);
+      r |= static_cast<uint64_t>(b & 0x7f) << shift;
+      if (!(b & 0x80)) {
+        *v = r;
+        return true;
+      }
+    }
+    return false;
+  }
+  bool Bytes(void* dst, size_t n) {
+    if (in.size() - pos < n) return false;
+    std::memcpy(dst, in.data() + pos, n);
+    pos += n;
+    return true;
+  }
+};
+
+/// Constant-curvature prediction of point k of a line from its decoded points 0..k-1: the last
+/// step turned and scaled as the step before it was (complex a * a / b); integer arithmetic in and
+/// out, IEEE double in between (+ - * / only, so encoder and decoder agree on every platform).
+Q Predict(const QLine& q, size_t k) {
+  if (k == 1) return q[0];
+  const Q& p1 = q[k - 1];
+  const double ax = static_cast<double>(p1[0] - q[k - 2][0]);
+  const double ay = static_cast<double>(p1[1] - q[k - 2][1]);
+  double zx = ax, zy = ay;
+  if (k >= 3) {
+    const double bx = static_cast<double>(q[k - 2][0] - q[k - 3][0]);
+    const double by = static_cast<double>(q[k - 2][1] - q[k - 3][1]);
+    const double bb = bx * bx + by * by;
+    if (bb > 0) {
+      const double re = (ax * bx + ay * by) / bb, im = (ay * bx - ax * by) / bb;
+      const double cx = re * ax - im * ay, cy = re * ay + im * ax;
+      // A wild ratio (a step after a near-stop) predicts worse than a plain step.
+      if (cx * cx + cy * cy <= 16 * (ax * ax + ay * ay) && std::abs(cx) < kMaxQuantised &&
+          std::abs(cy) < kMaxQuantised) {
+        zx = cx, zy = cy;
+      }
+    }
+  }
+  return {p1[0] + static_cast<int64_t>(std::llround(zx)),
+          p1[1] + static_cast<int64_t>(std::llround(zy))};
+}
+
+Status Quantise(const std::vector<const Polyline2*>& lines, double step, std::vector<QLine>* out) {
+  SCULPT_RETURN_IF_ERROR(CheckRange("step", step, 0, 1e300));
+  if (!(step > 0)) return InvalidArgument("step=" + FormatNumber(step) + " outside (0, inf)");
+  out->clear();
+  out->reserve(lines.size());
+  for (size_t i = 0; i < lines.size(); ++i) {
+    QLine q;
+    q.reserve(lines[i]->size());
+    for (size_t j = 0; j < lines[i]->size(); ++j) {
+      const Vec2 p = (*lines[i])[j];
+      const double x = p.x / step, y = p.y / step;
+      if (!p.IsFinite() || !(std::abs(x) < kMaxQuantised) || !(std::abs(y) < kMaxQuantised)) {
+        return InvalidArgument("polylines[" + std::to_string(i) + "][" + std::to_string(j) +
+                               "]=(" + FormatNumber(p.x) + ", " + FormatNumber(p.y) +
+                               ") / step=" + FormatNumber(step) +
+                               " is not finite or outside [-2^52, 2^52]");
+      }
+      q.push_back({static_cast<int64_t>(std::llround(x)), static_cast<int64_t>(std::llround(y))});
+    }
+    out->push_back(std::move(q));
+  }
+  return Status::Ok();
+}
+
+/// Magic, kind, step, coding, `header`, the per-line counts and first points, the residuals.
+std::string Assemble(Kind kind, double step, const std::string& header,
+                     const std::vector<QLine>& lines) {
+  std::string firsts;
+  std::vector<uint64_t> res;
+  for (const QLine& q : lines) {
+    PutVarint(firsts, q.size());
+    if (q.empty()) continue;
+    PutVarint(firsts, Zig(q[0][0]));
+    PutVarint(firsts, Zig(q[0][1]));
+    for (size_t k = 1; k < q.size(); ++k) {
+      const Q p = Predict(q, k);
+      res.push_back(Zig(q[k][0] - p[0]));
+      res.push_back(Zig(q[k][1] - p[1]));
+    }
+  }
+  std::string varints;
+  bool fits32 = true;
+  for (uint64_t r : res) {
+    PutVarint(varints, r);
+    fits32 = fits32 && r <= std::numeric_limits<uint32_t>::max() / 2;
+  }
+  Coding coding = kVarint;
+  std::string body = varints;
+  if (fits32 && !res.empty()) {
+    std::vector<uint32_t> sym(res.begin(), res.end());
+    draco::EncoderBuffer buf;
+    if (draco::EncodeSymbols(sym.data(), static_cast<int>(sym.size()), 2, nullptr, &buf) &&
+        buf.size() < varints.size()) {
+      coding = kRans;
+      body.assign(buf.data(), buf.size());
+    }
+  }
+  std::string out(kMagic, 4);
+  out.push_back(static_cast<char>(kind));
+  char sb[8];
+  std::memcpy(sb, &step, 8);  // little-endian hosts only (x86-64, aarch64)
+  out.append(sb, 8);
+  out.push_back(static_cast<char>(coding));
+  out += header;
+  out += firsts;
+  out += body;
+  return out;
+}
+
+struct Parsed {
+  Kind kind = kPolylineSet;
+  double step = 0;
+  uint64_t section_count = 0, splice_at = 0, removed = 0, inserted = 0;
+  std::vector<uint64_t> index, id, version;  // per section entry (snapshot or update)
+  std::vector<Polyline2> lines;
+};
+
+Status Truncated(const char* what) { return DataLoss(std::string("contour: truncated ") + what); }
+
+StatusOr<Parsed> Parse(std::string_view bytes) {
+  Reader r{bytes};
+  char magic[4];
+  uint8_t kind = 0, coding = 0;
+  Parsed p;
+  if (!r.Bytes(magic, 4) || std::memcmp(magic, kMagic, 4) != 0) {
+    return DataLoss("contour: bad magic (want SKC1)");
+  }
+  if (!r.Bytes(&kind, 1)) return Truncated("kind");
+  if (kind > kUpdate) return InvalidArgument("contour.kind=" + std::to_string(kind) + " outside [0, 2]");
+  p.kind = static_cast<Kind>(kind);
+  if (!r.Bytes(&p.step, 8)) return Truncated("step");
+  if (!std::isfinite(p.step) || !(p.step > 0)) {
+    return InvalidArgument("contour.step=" + FormatNumber(p.step) + " outside (0, inf)");
+  }
+  if (!r.Bytes(&coding, 1)) return Truncated("coding");
+  if (coding > kRans) return InvalidArgument("contour.coding=" + std::to_string(coding) + " outside [0, 1]");
+  uint64_t nlines = 0;
+  if (p.kind == kPolylineSet) {
+    if (!r.Varint(&nlines)) return Truncated("polyline count");
+    if (nlines > kMaxContourPolylines) {
+      return InvalidArgument("contour.polylines=" + std::to_string(nlines) + " outside [0, " +
+                             std::to_string(kMaxContourPolylines) + "]");
+    }
+  } else {
+    uint64_t entries = 0;
+    if (!r.Varint(&p.section_count)) return Truncated("section count");
+    if (p.section_count > kMaxContourPolylines) {
+      return InvalidArgument("contour.sections=" + std::to_string(p.section_count) +
+                             " outside [0, " + std::to_string(kMaxContourPolylines) + "]");
+    }
+    entries = p.section_count;
+    if (p.kind == kUpdate) {
+      if (!r.Varint(&p.splice_at) || !r.Varint(&p.removed) || !r.Varint(&p.inserted) ||
+          !r.Varint(&entries)) {
+        return Truncated("update header");
+      }
+      if (entries > p.section_count) {
+        return InvalidArgument("contour.changed=" + std::to_string(entries) + " outside [0, " +
+                               std::to_string(p.section_count) + "]");
+      }
+    }
+    for (uint64_t i = 0; i < entries; ++i) {
+      uint64_t idx = i, id = 0, ver = 0;
+      if (p.kind == kUpdate && !r.Varint(&idx)) return Truncated("section index");
+      if (!r.Varint(&id) || !r.Varint(&ver)) return Truncated("section id");
+      if (idx >= p.section_count) {
+        return InvalidArgument("contour.section_index=" + std::to_string(idx) + " outside [0, " +
+                               std::to_string(p.section_count) + ")");
+      }
+      p.index.push_back(idx);
+      p.id.push_back(id);
+      p.version.push_back(ver);
+    }
+    nlines = 2 * entries;
+  }
+  std::vector<QLine> q(nlines);
+  uint64_t total = 0, nres = 0;
+  for (uint64_t i = 0; i < nlines; ++i) {
+    uint64_t n = 0, zx = 0, zy = 0;
+    if (!r.Varint(&n)) return Truncated("point count");
+    total += n;
+    if (total > kMaxContourPoints) {
+      return InvalidArgument("contour.points=" + std::to_string(total) + " outside [0, " +
+                             std::to_string(kMaxContourPoints) + "]");
+    }
+    if (n == 0) continue;
+    if (!r.Varint(&zx) || !r.Varint(&zy)) return Truncated("first point");
+    q[i].resize(n);
+    q[i][0] = {Unzig(zx), Unzig(zy)};
+    nres += 2 * (n - 1);
+  }
+  std::vector<uint64_t> res(nres);
+  if (coding == kVarint) {
+    for (uint64_t& v : res) {
+      if (!r.Varint(&v)) return Truncated("residuals");
+    }
+  } else if (nres > 0) {
+    std::vector<uint32_t> sym(nres);
+    draco::DecoderBuffer buf;
+    buf.Init(bytes.data() + r.pos, bytes.size() - r.pos);
+    // The symbol decoder reads the layout of the current bitstream only when told so.
+    buf.set_bitstream_version(draco::kDracoPointCloudBitstreamVersion);
+    if (!draco::DecodeSymbols(static_cast<uint32_t>(nres), 2, &buf, sym.data())) {
+      return DataLoss("contour: residual symbols do not decode");
+    }
+    r.pos += static_cast<size_t>(buf.decoded_size());
+    for (uint64_t i = 0; i < nres; ++i) res[i] = sym[i];
+  }
+  if (r.pos != bytes.size()) {
+    return DataLoss("contour: " + std::to_string(bytes.size() - r.pos) + " trailing bytes");
+  }
+  size_t next = 0;
+  p.lines.resize(nlines);
+  for (uint64_t i = 0; i < nlines; ++i) {
+    QLine& line = q[i];
+    for (size_t k = 1; k < line.size(); ++k) {
+      const Q pr = Predict(line, k);
+      const int64_t x = pr[0] + Unzig(res[next++]);
+      const int64_t y = pr[1] + Unzig(res[next++]);
+      if (std::abs(static_cast<double>(x)) > kMaxQuantised ||
+          std::abs(static_cast<double>(y)) > kMaxQuantised) {
+        return InvalidArgument("contour: decoded point outside [-2^52, 2^52] steps");
+      }
+      line[k] = {x, y};
+    }
+    p.lines[i].reserve(line.size());
+    for (const Q& v : line) {
+      p.lines[i].push_back({static_cast<double>(v[0]) * p.step, static_cast<double>(v[1]) * p.step});
+    }
+  }
+  return p;
+}
+
+StatusOr<double> SkinStep(const Skin& skin, double step) {
+  if (step <= 0) return skin.chord_tolerance();
+  SCULPT_RETURN_IF_ERROR(CheckRange("step", step, 0, skin.chord_tolerance()));
+  return step;
+}
+
+}  // namespace
+
+StatusOr<std::string> EncodeContours(const std::vector<Polyline2>& polylines, double step) {
+  std::vector<const Polyline2*> ptrs;
+  for (const Polyline2& p : polylines) ptrs.push_back(&p);
+  std::vector<QLine> q;
+  SCULPT_RETURN_IF_ERROR(Quantise(ptrs, step, &q));
+  std::string header;
+  PutVarint(header, polylines.size());
+  return Assemble(kPolylineSet, step, header, q);
+}
+
+StatusOr<std::vector<Polyline2>> DecodeContours(std::string_view bytes) {
+  SCULPT_ASSIGN_OR_RETURN(Parsed p, Parse(bytes));
+  if (p.kind != kPolylineSet) return InvalidArgument("contour.kind=" + std::to_string(p.kind) + " is a skin message, not a polyline set");
+  return std::move(p.lines);
+}
+
+StatusOr<std::string> EncodeSkinSnapshot(const Skin& skin, double step) {
+  SCULPT_ASSIGN_OR_RETURN(const double s, SkinStep(skin, step));
+  std::string header;
+  PutVarint(header, skin.sections().size());
+  std::vector<const Polyline2*> ptrs;
+  for (const Section& sec : skin.sections()) {
+    PutVarint(header, sec.id);
+    PutVarint(header, sec.version);
+    ptrs.push_back(&sec.plus);
+    ptrs.push_back(&sec.minus);
+  }
+  std::vector<QLine> q;
+  SCULPT_RETURN_IF_ERROR(Quantise(ptrs, s, &q));
+  return Assemble(kSnapshot, s, header, q);
+}
+
+StatusOr<std::string> EncodeSkinUpdate(const Skin& skin, const SkinChange& change, double step) {
+  SCULPT_ASSIGN_OR_RETURN(const double s, SkinStep(skin, step));
+  std::string header;
+  PutVarint(header, skin.sections().size());
+  PutVarint(header, change.splice_at);
+  PutVarint(header, change.removed);
+  PutVarint(header, change.inserted);
+  PutVarint(header, change.changed.size());
+  std::vector<const Polyline2*> ptrs;
+  for (size_t k : change.changed) {
+    if (k >= skin.sections().size()) {
+      return InvalidArgument("change.changed=" + std::to_string(k) + " outside [0, " +
+                             std::to_string(skin.sections().size()) + ")");
+    }
+    const Section& sec = skin.section(k);
+    PutVarint(header, k);
+    PutVarint(header, sec.id);
+    PutVarint(header, sec.version);
+    ptrs.push_back(&sec.plus);
+    ptrs.push_back(&sec.minus);
+  }
+  std::vector<QLine> q;
+  SCULPT_RETURN_IF_ERROR(Quantise(ptrs, s, &q));
+  return Assemble(kUpdate, s, header, q);
+}
+
+Status ContourView::Apply(std::string_view bytes) {
+  SCULPT_ASSIGN_OR_RETURN(Parsed p, Parse(bytes));
+  if (p.kind == kPolylineSet) return InvalidArgument("contour.kind=0 is a polyline set, not a skin message");
+  std::vector<SectionContour> next;
+  if (p.kind == kSnapshot) {
+    next.resize(p.section_count);
+  } else {
+    if (p.splice_at > sections_.size() || p.removed > sections_.size() - p.splice_at) {
+      return InvalidArgument("contour.splice at " + std::to_string(p.splice_at) + " removing " +
+                             std::to_string(p.removed) + " outside the view's " +
+                             std::to_string(sections_.size()) + " sections");
+    }
+    if (p.inserted > p.index.size()) {
+      return InvalidArgument("contour.inserted=" + std::to_string(p.inserted) + " outside [0, " +
+                             std::to_string(p.index.size()) + "] (the changed sections)");
+    }
+    if (sections_.size() - p.removed + p.inserted != p.section_count) {
+      return InvalidArgument("contour.sections=" + std::to_string(p.section_count) +
+                             " does not match the view after the splice");
+    }
+    next = sections_;
+    const auto at = next.begin() + static_cast<std::ptrdiff_t>(p.splice_at);
+    next.erase(at, at + static_cast<std::ptrdiff_t>(p.removed));
+    next.insert(next.begin() + static_cast<std::ptrdiff_t>(p.splice_at), p.inserted,
+                SectionContour{});
+  }
+  std::vector<bool> filled(next.size(), p.kind == kUpdate);
+  if (p.kind == kUpdate) {
+    for (uint64_t k = p.splice_at; k < p.splice_at + p.inserted; ++k) filled[k] = false;
+  }
+  for (size_t e = 0; e < p.index.size(); ++e) {
+    SectionContour& s = next[p.index[e]];
+    s.id = p.id[e];
+    s.version = p.version[e];
+    s.plus = std::move(p.lines[2 * e]);
+    s.minus = std::move(p.lines[2 * e + 1]);
+    filled[p.index[e]] = true;
+  }
+  for (size_t k = 0; k < filled.size(); ++k) {
+    if (!filled[k]) {
+      return InvalidArgument("contour: section " + std::to_string(k) + " left without points");
+    }
+  }
+  sections_ = std::move(next);
+  step_ = p.step;
+  return Status::Ok();
+}
+
+Polyline2 ContourView::Chain(int side) const {
+  Polyline2 out;
+  for (const SectionContour& s : sections_) {
+    const Polyline2& p = side > 0 ? s.plus : s.minus;
+    if (p.empty()) continue;
+    out.insert(out.end(), p.begin() + (out.empty() ? 0 : 1), p.end());
+  }
+  return out;
+}
+
+}  // namespace sculpt::skin
