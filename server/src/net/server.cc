@@ -143,10 +143,17 @@ class Session : public std::enable_shared_from_this<Session> {
       case v1::ClientMessage::kStroke: return OnStroke(msg.stroke());
       case v1::ClientMessage::kHover: return OnHover(msg.hover());
       case v1::ClientMessage::kBye: return Close("client said bye: " + msg.bye().reason(), false);
+      case v1::ClientMessage::kSubscribe: return OnSubscribe(msg.subscribe());
+      case v1::ClientMessage::kSetInterest: return OnSetInterest(msg.set_interest());
+      case v1::ClientMessage::kDivergence:
+        if (subscribed_) server_.scene().ReportDivergence(id_, msg.divergence());
+        return;
+      case v1::ClientMessage::kViewerSubscribe: return OnViewerSubscribe(msg.viewer_subscribe());
       case v1::ClientMessage::BODY_NOT_SET: break;
     }
     SendError(v1::ERROR_CODE_MALFORMED, "ClientMessage.body", "unknown or empty",
-              "{hello, join, stroke, hover, bye}", "unknown message", 0);
+              "{hello, join, stroke, hover, bye, subscribe, set_interest, divergence, viewer_subscribe}",
+              "unknown message", 0);
     Violation();
   }
 
@@ -243,6 +250,13 @@ class Session : public std::enable_shared_from_this<Session> {
     joined_ = true;
     joined_flag_ = true;
     auto self = shared_from_this();
+    if (j.skip_state()) {
+      // A replica loads its region through Subscribe: scene info only.
+      v1::ServerMessage info;
+      *info.mutable_scene_info() = server_.scene().Info();
+      Send(info);
+      return;
+    }
     server_.scene().RequestJoinState([self](StatusOr<JoinState> js) {
       asio::post(self->socket_.get_executor(), [self, js = std::move(js)]() mutable {
         if (self->closing_) return;
@@ -376,6 +390,83 @@ class Session : public std::enable_shared_from_this<Session> {
     Send(m);
   }
 
+  // A refusal from the scene as an Error naming field, value and range.
+  void SendStatus(const Status& st) {
+    const codec::FieldError fe = codec::SplitFieldError(st);
+    const auto code = st.code() == Status::Code::kNotFound ? v1::ERROR_CODE_NOT_FOUND
+                      : st.code() == Status::Code::kFailedPrecondition
+                          ? v1::ERROR_CODE_FAILED_PRECONDITION
+                          : v1::ERROR_CODE_INVALID_ARGUMENT;
+    SendError(code, fe.field, fe.value, fe.allowed_range, fe.message, 0);
+  }
+
+  ReplicaSink Sink() {
+    ReplicaSink sink;
+    sink.session_id = id_;
+    sink.client_id = client_id_;
+    std::weak_ptr<Session> weak = shared_from_this();
+    sink.send = [weak](std::shared_ptr<const std::string> frame) {
+      auto self = weak.lock();
+      if (!self) return;
+      asio::post(self->socket_.get_executor(), [self, frame] { self->SendFrame(*frame); });
+    };
+    return sink;
+  }
+
+  void OnSubscribe(const v1::Subscribe& sub) {
+    if (!joined_) {
+      SendError(v1::ERROR_CODE_FAILED_PRECONDITION, "Subscribe", "before JoinScene",
+                "after JoinScene", "join a scene first", 0);
+      return Violation();
+    }
+    if (subscribed_) {
+      SendError(v1::ERROR_CODE_FAILED_PRECONDITION, "Subscribe", "repeated",
+                "once per connection", "use SetInterest to move the region", 0);
+      return Violation();
+    }
+    subscribed_ = true;
+    auto self = shared_from_this();
+    server_.scene().Subscribe(Sink(), sub, [self](Status st) {
+      if (st.ok()) return;
+      asio::post(self->socket_.get_executor(), [self, st] {
+        self->subscribed_ = false;
+        self->SendStatus(st);
+        self->Violation();
+      });
+    });
+  }
+
+  void OnSetInterest(const v1::SetInterest& si) {
+    auto self = shared_from_this();
+    server_.scene().SetInterest(id_, si, [self](Status st) {
+      if (st.ok()) return;
+      asio::post(self->socket_.get_executor(), [self, st] {
+        self->SendStatus(st);
+        self->Violation();
+      });
+    });
+  }
+
+  void OnViewerSubscribe(const v1::ViewerSubscribe& vs) {
+    (void)vs;
+    SendError(v1::ERROR_CODE_FAILED_PRECONDITION, "ViewerSubscribe", "mesh chunks",
+              "{}", "this server does not stream meshes yet", 0);
+  }
+
+  // A pre-built frame shared with other sessions (replication). Replica loads may be large, so
+  // they get the state allowance on top of the queue bound.
+  void SendFrame(const std::string& frame) {
+    if (closing_) return;
+    const size_t limit = server_.config().limits.send_queue_bytes + (64u << 20);
+    if (out_.size() + writing_bytes_ + frame.size() > limit) {
+      server_.stats().disconnects_for_cause++;
+      Close("send queue overflow: replica is not reading", true);
+      return;
+    }
+    out_ += frame;
+    DoWrite();
+  }
+
   void OnHover(const v1::Hover& h) {
     if (!joined_) return;
     if (!std::isfinite(h.position().x()) || !std::isfinite(h.position().y()) ||
@@ -477,6 +568,7 @@ class Session : public std::enable_shared_from_this<Session> {
     socket_.shutdown(tcp::socket::shutdown_both, ec);
     socket_.close(ec);
     close_timer_.cancel();
+    if (subscribed_) server_.scene().Unsubscribe(id_);
     server_.Unregister(this);
   }
 
@@ -492,6 +584,7 @@ class Session : public std::enable_shared_from_this<Session> {
   bool presence_queued_ = false;
   bool closing_ = false;
   bool joined_ = false;
+  bool subscribed_ = false;
   std::atomic<bool> joined_flag_{false};
   State state_ = State::kAwaitHello;
   v1::Role role_ = v1::ROLE_UNSPECIFIED;

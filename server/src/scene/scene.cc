@@ -7,6 +7,9 @@
 #include <filesystem>
 #include <future>
 
+#include "sculpt/codec/frame.h"
+#include "sculpt/codec/settings.h"
+#include "sculpt/core/check.h"
 #include "store/edit_log.h"
 #include "store/recovery.h"
 #include "store/snapshot_store.h"
@@ -113,6 +116,7 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   scene->snapshots_ = std::move(rec.snapshots);
   scene->next_seq_ = rec.last_seq + 1;
   scene->applied_seq_ = rec.last_seq;
+  scene->versions_floor_ = rec.last_seq;
   // Resends after a restart are recognised by the newest client sequence of each client.
   Status s = scene->log_->ForEachFrom(0, [&](const store::LogRecord& lr) {
     v1::EditRecord r;
@@ -242,9 +246,16 @@ void Scene::ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, Stroke
       batch.push_back(codec::EditFromRecord(r));
     }
     // The stroke's poses as one batch: one block, one compensation, one reinitialisation.
+    const levelset::ReplayState before = levelset::CaptureReplayState(sculpture);
+    const levelset::EditFootprint footprint = levelset::FootprintOf(sculpture, batch, settings_);
     auto res = records.size() == 1 ? levelset::ApplyEdit(sculpture, batch.front(), settings_)
                                     : levelset::ApplyEdits(sculpture, batch, settings_);
-    if (res.ok()) out.last = std::move(res).value();
+    if (res.ok()) {
+      // Leaf versions always (cheap), so a replica subscribing later resyncs by version.
+      versions_[stroke.object].Record(res->dirty_leaves, next_seq_ - 1);
+      if (!subs_.empty()) Replicate(stroke.object, sculpture, records, before, footprint, *res);
+      out.last = std::move(res).value();
+    }
     out.edits = static_cast<uint32_t>(records.size());
     applied_seq_ = next_seq_ - 1;
     edits_since_snapshot_ += records.size();
@@ -309,6 +320,8 @@ void Scene::RefreshInfoLocked() {
   info_.set_min_tool_size(static_cast<float>(config_.scene.min_tool_size));
   info_.set_max_tool_size(static_cast<float>(config_.scene.max_tool_size));
   info_.set_max_speed(static_cast<float>(config_.scene.max_speed));
+  *info_.mutable_edit_settings() = codec::SettingsToProto(settings_);
+  info_.set_replica_halo_voxels(kReplicaHaloVoxels);
   v1::Effects* e = info_.mutable_effects();
   e->set_volume_preservation(config_.scene.effects.volume_preservation);
   e->set_smoothing(config_.scene.effects.smoothing);

@@ -19,6 +19,7 @@
 #include "sculpt/codec/stroke.h"
 #include "sculpt/core/status.h"
 #include "sculpt/levelset/edit.h"
+#include "sculpt/levelset/region.h"
 #include "sculpt/levelset/sculpture.h"
 #include "sculpt/v1/sculpt.pb.h"
 
@@ -44,6 +45,32 @@ struct JoinState {
   v1::SceneInfo info;
   std::vector<std::pair<std::string, std::string>> objects;  // name, .vdb bytes
 };
+
+/// Where a subscription's messages go: `send` takes one length-prefixed ServerMessage frame
+/// (shared by every session that gets the same bytes), may be called from the compute thread,
+/// and must only post.
+struct ReplicaSink {
+  uint64_t session_id = 0;
+  uint64_t client_id = 0;
+  std::function<void(std::shared_ptr<const std::string>)> send;
+};
+
+/// Replication counters since start.
+struct ReplicationStats {
+  std::atomic<uint64_t> broadcasts{0};       // EditBroadcast frames built
+  std::atomic<uint64_t> leaf_deltas{0};      // LeafDelta frames built
+  std::atomic<uint64_t> resyncs{0};          // subscribe / interest answers
+  std::atomic<uint64_t> divergences{0};      // replicas' reports of a hash mismatch
+  std::atomic<uint64_t> broadcast_bytes{0};
+  std::atomic<uint64_t> leaf_delta_bytes{0};
+};
+
+/// Largest interest box edge accepted, in voxels; a replica wanting more subscribes to the
+/// whole object.
+inline constexpr int kMaxInterestVoxels = 1024;
+/// A subscription holds its interest box dilated by this many voxels, so edits touching the box
+/// usually fit (replayed) and the haptic look-ahead has material around the tool.
+inline constexpr int kReplicaHaloVoxels = 16;
 
 /// The scene actor. Edits are applied in global-sequence order on one compute thread (one
 /// writer per object); readers get copies. Thread safety: every public method may be called
@@ -80,6 +107,22 @@ class Scene {
   void FlushAndSnapshot();
   /// State hash of one object, taken on the compute thread (0 for an unknown object).
   uint64_t StateHash(const std::string& object);
+  /// Registers a replica of one object (v1::Subscribe, validated here: object, mode, interest
+  /// box, have_seq) and sends it, through `sink`, the leaf records that bring its region to the
+  /// current sequence, then every later edit touching the region. Runs on the compute thread,
+  /// between two edits; `done` gets the refusal (InvalidArgument/NotFound naming the field).
+  void Subscribe(ReplicaSink sink, v1::Subscribe request, std::function<void(Status)> done);
+  /// Moves a subscription's box: sends the leaves of the new region. FailedPrecondition when the
+  /// session has no subscription to the object.
+  void SetInterest(uint64_t session_id, v1::SetInterest request, std::function<void(Status)> done);
+  void Unsubscribe(uint64_t session_id);
+  /// A replica's hash mismatch: logged with both hashes and counted.
+  void ReportDivergence(uint64_t session_id, const v1::DivergenceReport& report);
+  /// Hash of every voxel of an index box of one object, on the compute thread (tests); 0 for an
+  /// unknown object.
+  uint64_t RegionHash(const std::string& object, const levelset::VoxelBox& box);
+  ReplicationStats& replication_stats() { return repl_stats_; }
+
   /// What recovery found at start-up.
   const std::string& recovery_summary() const { return recovery_summary_; }
 
@@ -91,6 +134,25 @@ class Scene {
   void MaybeSnapshot(bool force = false);
   void ReleaseDurable(uint64_t durable_seq);
   void RefreshInfoLocked();
+  struct Sub {
+    ReplicaSink sink;
+    std::string object;
+    v1::ReplicaMode mode = v1::REPLICA_MODE_REPLAY;
+    bool whole = true;
+    levelset::VoxelBox held;  // interest dilated by the halo (when !whole)
+  };
+  // The index box an interest box selects (dilated by the halo); InvalidArgument naming `field`.
+  StatusOr<levelset::VoxelBox> HeldBox(const levelset::Sculpture& s, const v1::Box3* interest,
+                                       const char* field) const;
+  void SendRegion(Sub& sub, const levelset::Sculpture& sculpture, uint64_t have_seq,
+                  bool replace);
+  void Replicate(const std::string& object, const levelset::Sculpture& sculpture,
+                 const std::vector<v1::EditRecord>& records, const levelset::ReplayState& before,
+                 const levelset::EditFootprint& footprint, const levelset::EditResult& result);
+  std::map<uint64_t, Sub> subs_;                              // compute thread only
+  std::map<std::string, levelset::LeafVersions> versions_;    // compute thread only
+  uint64_t versions_floor_ = 0;  // leaf versions are known only for edits after this sequence
+  ReplicationStats repl_stats_;
 
   ServerConfig config_;
   levelset::EditSettings settings_;

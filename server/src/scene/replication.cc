@@ -1,0 +1,231 @@
+/// @brief The scene's replication (issue 4): subscriptions, edit broadcasts for replay, leaf
+/// deltas, region loads. Everything here runs on the compute thread, between two edits.
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cmath>
+#include <future>
+
+#include "scene/scene.h"
+#include "sculpt/codec/frame.h"
+#include "sculpt/core/check.h"
+
+namespace sculpt::server {
+namespace {
+
+uint64_t UnixMicros() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::microseconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count());
+}
+
+std::shared_ptr<const std::string> Frame(const v1::ServerMessage& m) {
+  auto f = std::make_shared<std::string>();
+  codec::AppendMessage(m, f.get());
+  return f;
+}
+
+Vec3 V(const v1::Vec3f& v) { return {v.x(), v.y(), v.z()}; }
+
+}  // namespace
+
+StatusOr<levelset::VoxelBox> Scene::HeldBox(const levelset::Sculpture& s, const v1::Box3* interest,
+                                            const char* field) const {
+  if (!interest) {
+    const levelset::Aabb b = s.WorldBounds();
+    return levelset::WorldToVoxelBox(s, b.min, b.max).Dilated(kReplicaHaloVoxels);
+  }
+  const std::string f(field);
+  const Vec3 lo = V(interest->min());
+  const Vec3 hi = V(interest->max());
+  SCULPT_RETURN_IF_ERROR(CheckFinitePoint(f + ".min", lo));
+  SCULPT_RETURN_IF_ERROR(CheckFinitePoint(f + ".max", hi));
+  const double dx = s.voxel_size();
+  const double limit = kMaxInterestVoxels * dx;
+  const char* axis[3] = {"x", "y", "z"};
+  const double l[3] = {lo.x, lo.y, lo.z};
+  const double h[3] = {hi.x, hi.y, hi.z};
+  for (int a = 0; a < 3; ++a) {
+    if (!(h[a] >= l[a]) || h[a] - l[a] > limit) {
+      return InvalidArgument(f + ".max." + axis[a] + "=" + FormatNumber(h[a]) + " outside [" +
+                             FormatNumber(l[a]) + ", " + FormatNumber(l[a] + limit) +
+                             "] (min to min + " + std::to_string(kMaxInterestVoxels) +
+                             " voxels; leave interest unset for the whole object)");
+    }
+  }
+  return levelset::WorldToVoxelBox(s, lo, hi).Dilated(kReplicaHaloVoxels);
+}
+
+void Scene::SendRegion(Sub& sub, const levelset::Sculpture& sculpture, uint64_t have_seq,
+                       bool replace) {
+  levelset::VoxelBox box = sub.held;
+  if (sub.whole) {
+    const levelset::Aabb b = sculpture.WorldBounds();
+    box = levelset::WorldToVoxelBox(sculpture, b.min, b.max).Dilated(kReplicaHaloVoxels);
+  }
+  const levelset::LeafVersions& versions = versions_[sub.object];
+  std::vector<levelset::Int3> cells = replace ? levelset::OccupiedLeafCells(sculpture, box)
+                                              : versions.NewerThan(have_seq, sub.whole ? levelset::VoxelBox{} : box);
+  levelset::LeafRecordStats st;
+  v1::ServerMessage m;
+  v1::LeafDelta* d = m.mutable_leaf_delta();
+  d->set_object(sub.object);
+  d->set_global_seq(applied_seq_.load());
+  d->set_records(levelset::EncodeLeafRecords(sculpture, cells, &versions, 3, &st));
+  d->set_record_count(static_cast<uint32_t>(cells.size()));
+  d->set_replace_region(replace);
+  for (int v : {box.min.x, box.min.y, box.min.z}) d->add_region_min(v);
+  for (int v : {box.max.x, box.max.y, box.max.z}) d->add_region_max(v);
+  const levelset::ReplayState rs = levelset::CaptureReplayState(sculpture);
+  d->set_volume(rs.volume);
+  d->set_reference_volume(rs.reference_volume);
+  d->set_edits_since_reinit(rs.edits_since_reinit);
+  auto frame = Frame(m);
+  repl_stats_.resyncs++;
+  repl_stats_.leaf_delta_bytes += frame->size();
+  spdlog::info("replica {}: region of {} leaf cells ({} leaves) to seq {}, {} bytes{}",
+               sub.sink.session_id, cells.size(), st.leaves, applied_seq_.load(), frame->size(),
+               replace ? " (replace)" : "");
+  sub.sink.send(std::move(frame));
+}
+
+void Scene::Subscribe(ReplicaSink sink, v1::Subscribe req, std::function<void(Status)> done) {
+  auto cb = std::make_shared<std::function<void(Status)>>(std::move(done));
+  Post([this, sink = std::move(sink), req = std::move(req), cb]() mutable {
+    auto it = sculptures_.find(req.object());
+    if (it == sculptures_.end()) {
+      return (*cb)(NotFound("Subscribe.object=" + req.object() + " outside the scene's objects"));
+    }
+    if (req.mode() != v1::REPLICA_MODE_REPLAY && req.mode() != v1::REPLICA_MODE_LEAF_DELTA) {
+      return (*cb)(InvalidArgument("Subscribe.mode=" + std::to_string(req.mode()) +
+                                   " outside {1 (REPLAY), 2 (LEAF_DELTA)}"));
+    }
+    const uint64_t now = applied_seq_.load();
+    if (req.have_seq() > now) {
+      return (*cb)(InvalidArgument("Subscribe.have_seq=" + std::to_string(req.have_seq()) +
+                                   " outside [0, " + std::to_string(now) +
+                                   "] (the server's sequence); subscribe with 0 to load anew"));
+    }
+    Sub sub;
+    sub.sink = std::move(sink);
+    sub.object = req.object();
+    sub.mode = req.mode();
+    sub.whole = !req.has_interest();
+    auto held = HeldBox(it->second, sub.whole ? nullptr : &req.interest(), "Subscribe.interest");
+    if (!held.ok()) return (*cb)(held.status());
+    sub.held = *held;
+    // A replica holding state from before this process started (or before the oldest version
+    // kept) cannot be brought forward by leaf versions: it gets its region anew.
+    const bool replace = req.have_seq() == 0 || req.have_seq() < versions_floor_;
+    (*cb)(Status::Ok());
+    SendRegion(sub, it->second, req.have_seq(), replace);
+    subs_[sub.sink.session_id] = std::move(sub);
+  });
+}
+
+void Scene::SetInterest(uint64_t session_id, v1::SetInterest req, std::function<void(Status)> done) {
+  auto cb = std::make_shared<std::function<void(Status)>>(std::move(done));
+  Post([this, session_id, req = std::move(req), cb] {
+    auto s = subs_.find(session_id);
+    if (s == subs_.end() || s->second.object != req.object()) {
+      return (*cb)(FailedPrecondition("SetInterest.object=" + req.object() +
+                                      " outside this session's subscriptions"));
+    }
+    const levelset::Sculpture& sculpture = sculptures_.at(req.object());
+    const bool whole = !req.has_interest();
+    auto held = HeldBox(sculpture, whole ? nullptr : &req.interest(), "SetInterest.interest");
+    if (!held.ok()) return (*cb)(held.status());
+    s->second.whole = whole;
+    s->second.held = *held;
+    (*cb)(Status::Ok());
+    SendRegion(s->second, sculpture, 0, /*replace=*/true);
+  });
+}
+
+void Scene::Unsubscribe(uint64_t session_id) {
+  Post([this, session_id] { subs_.erase(session_id); });
+}
+
+void Scene::ReportDivergence(uint64_t session_id, const v1::DivergenceReport& r) {
+  repl_stats_.divergences++;
+  spdlog::warn("replica {} diverged on {} at seq {}: server hash {:016x}, replica hash {:016x}",
+               session_id, r.object(), r.global_seq(), r.expected_hash(), r.actual_hash());
+}
+
+uint64_t Scene::RegionHash(const std::string& object, const levelset::VoxelBox& box) {
+  std::promise<uint64_t> p;
+  Post([&] {
+    auto it = sculptures_.find(object);
+    p.set_value(it == sculptures_.end() ? 0 : levelset::RegionHash(it->second, box));
+  });
+  return p.get_future().get();
+}
+
+void Scene::Replicate(const std::string& object, const levelset::Sculpture& sculpture,
+                      const std::vector<v1::EditRecord>& records,
+                      const levelset::ReplayState& before,
+                      const levelset::EditFootprint& footprint,
+                      const levelset::EditResult& result) {
+  if (records.empty()) return;
+  const uint64_t last_seq = records.back().global_seq();
+  const levelset::VoxelBox fb{footprint.min, footprint.max};
+  const levelset::LeafVersions& versions = versions_[object];
+  std::shared_ptr<const std::string> broadcast;   // built once, shared by replay replicas
+  std::shared_ptr<const std::string> whole_delta; // built once, shared by whole delta replicas
+  const levelset::ReplayState after = levelset::CaptureReplayState(sculpture);
+  auto delta_frame = [&](const std::vector<levelset::Int3>& cells) {
+    v1::ServerMessage m;
+    v1::LeafDelta* d = m.mutable_leaf_delta();
+    d->set_object(object);
+    d->set_global_seq(last_seq);
+    d->set_records(levelset::EncodeLeafRecords(sculpture, cells, &versions));
+    d->set_record_count(static_cast<uint32_t>(cells.size()));
+    d->set_volume(after.volume);
+    d->set_reference_volume(after.reference_volume);
+    d->set_edits_since_reinit(after.edits_since_reinit);
+    d->set_client_id(records.front().client_id());
+    d->set_client_seq(records.front().client_seq());
+    auto f = Frame(m);
+    repl_stats_.leaf_deltas++;
+    repl_stats_.leaf_delta_bytes += f->size();
+    return f;
+  };
+  for (auto& [id, sub] : subs_) {
+    if (sub.object != object) continue;
+    const bool fits = sub.whole ? true : (!footprint.whole_object && sub.held.Contains(fb));
+    const bool touches = sub.whole || footprint.whole_object || sub.held.Intersects(fb);
+    if (!touches) continue;
+    if (fits && sub.mode == v1::REPLICA_MODE_REPLAY) {
+      if (!broadcast) {
+        v1::ServerMessage m;
+        v1::EditBroadcast* b = m.mutable_edit();
+        b->set_object(object);
+        b->set_global_seq_first(records.front().global_seq());
+        for (const v1::EditRecord& r : records) *b->add_records() = r;
+        b->set_volume(before.volume);
+        b->set_reference_volume(before.reference_volume);
+        b->set_edits_since_reinit(before.edits_since_reinit);
+        b->set_leaves_hash(levelset::LeavesHash(sculpture, result.dirty_leaves));
+        b->set_dirty_leaves(static_cast<uint32_t>(result.dirty_leaves.size()));
+        b->set_sent_unix_us(UnixMicros());
+        broadcast = Frame(m);
+        repl_stats_.broadcasts++;
+        repl_stats_.broadcast_bytes += broadcast->size();
+      }
+      sub.sink.send(broadcast);
+    } else if (sub.whole) {
+      if (!whole_delta) whole_delta = delta_frame(result.dirty_leaves);
+      sub.sink.send(whole_delta);
+    } else {
+      // The edit reaches beyond what this replica holds: its changed leaves inside the region.
+      std::vector<levelset::Int3> cells;
+      for (const levelset::Int3& c : result.dirty_leaves) {
+        const levelset::VoxelBox cb{c, {c.x + 7, c.y + 7, c.z + 7}};
+        if (sub.held.Intersects(cb)) cells.push_back(c);
+      }
+      if (!cells.empty() || sub.mode == v1::REPLICA_MODE_LEAF_DELTA) sub.sink.send(delta_frame(cells));
+    }
+  }
+}
+
+}  // namespace sculpt::server
