@@ -1,4 +1,4 @@
-/// @brief `sculpt`: the command-line client. Subcommands: demo, info, export, play, thesis.
+/// @brief `sculpt`: the command-line client. Subcommands: demo, info, export, play, thesis, skin.
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -13,6 +13,7 @@
 #include "play_cmd.h"
 #include "sculpt/client/client.h"
 #include "sculpt/levelset/sculpture.h"
+#include "skin_cmd.h"
 #include "thesis_cmd.h"
 
 namespace {
@@ -209,7 +210,12 @@ int main(int argc, char** argv) {
   CLI::App* thesis_cmd = app.add_subcommand(
       "thesis", "Rerun the thesis's 2D carve and compensation experiments; print JSON");
 
+  sculpt::client::SkinCmdOptions skin_opts;
+  CLI::App* skin_cmd = sculpt::client::AddSkinCommand(app, skin_opts);
+
   CLI11_PARSE(app, argc, argv);
+
+  if (*skin_cmd) return sculpt::client::RunSkin(skin_opts);
 
   if (*thesis_cmd) {
     std::printf("%s\n", sculpt::client::RunThesisReproduction().c_str());
