@@ -10,7 +10,9 @@ namespace {
 
 constexpr double kMinGradient = 1e-6;
 constexpr int kProjectIterations = 6;
-constexpr int kSlideIterations = 3;
+constexpr int kSlideIterations = 8;
+// Normals further apart than 30 degrees between two slide steps mean a crease between them.
+constexpr double kCreaseCos = 0.8660254037844387;
 // Proxies rest this fraction of a cell outside phi = iso, so round-off never puts them inside.
 constexpr double kSkin = 1e-3;
 
@@ -70,30 +72,53 @@ const ProxyState& ProxyModel::Update(const SdfSampler* sdf, const Vec3& device, 
   }
   const double h = sdf->cell_size();
   Vec3 p = state_.proxy;
-  Vec3 goal = device;
   bool contact = false, fallback = false;
   Vec3 normal = last_normal_;
-  for (int iter = 0; iter < kSlideIterations; ++iter) {
-    const SegmentHit hit = SweepSegment(*sdf, p, goal, iso_);
-    if (!hit.hit) {
-      p = goal;
-      break;
-    }
+  const SegmentHit first = SweepSegment(*sdf, p, device, iso_);
+  if (!first.hit) {
+    p = device;
+  } else {
     contact = true;
-    const Vec3 stop = p + (goal - p) * hit.free_time;
+    p = p + (device - p) * first.free_time;
+    // Slide towards the device on the surface: the proxy settles where (device - proxy) lies
+    // along the normal, the surface point locally closest to the device. Each step moves along
+    // the tangent plane and back onto phi = iso by the closest-point rule.
     bool fb = false;
-    normal = NormalAt(*sdf, stop, &fb);
+    normal = NormalAt(*sdf, p, &fb);
     fallback = fallback || fb;
-    // Slide: drop the inward normal part of what is left of the motion.
-    Vec3 rest = goal - stop;
-    const double inward = rest.Dot(normal);
-    if (inward < 0) rest -= normal * inward;
-    Vec3 q = stop + rest;
-    // Back onto phi = iso by the closest-point rule; where it cannot (no gradient), stay put.
-    if (sdf->Phi(q) - iso_ < 0 && !Project(*sdf, &q)) q = stop;
-    p = stop;
-    if ((q - stop).Length() < 1e-6 * h) break;
-    goal = q;
+    for (int iter = 0; iter < kSlideIterations; ++iter) {
+      const Vec3 r = device - p;
+      const double in = r.Dot(normal);
+      const Vec3 step = in < 0 ? r - normal * in : r;
+      if (step.Length() < 1e-4 * h) break;
+      Vec3 q = p + step;
+      if (!Project(*sdf, &q)) break;
+      // Thin-feature guard: sliding must not cross material more than half a cell deep.
+      if (SweepSegment(*sdf, p, q, iso_ - 0.5 * h).hit) break;
+      const Vec3 nq = NormalAt(*sdf, q, &fb);
+      fallback = fallback || fb;
+      if (nq.Dot(normal) < kCreaseCos) {
+        // A crease between p and q (a concave one made the projection jump faces): the proxy
+        // goes to the point of the two faces' common line closest to the device, as a
+        // god-object constrained by two planes does, instead of bouncing between them.
+        const double c = normal.Dot(nq);
+        const double c1 = normal.Dot(p), c2 = nq.Dot(q);
+        const double det = 1 - c * c;
+        Vec3 x = (normal * (c1 - c2 * c) + nq * (c2 - c1 * c)) / det;
+        Vec3 u = normal.Cross(nq);
+        u = u / u.Length();
+        x += u * u.Dot(device - x);
+        if (x.IsFinite() && sdf->Phi(x) - iso_ >= -0.05 * h &&
+            !SweepSegment(*sdf, p, x, iso_ - 0.5 * h).hit) {
+          p = x;
+          const Vec3 sum = normal + nq;
+          normal = sum / sum.Length();
+        }
+        break;
+      }
+      p = q;
+      normal = nq;
+    }
   }
   // A proxy that ended in the material (it cannot by construction, but a snapshot swap can put
   // material where it stands) is projected out.
