@@ -7,7 +7,7 @@ PACKAGES=(
   libopenvdb-dev libtbb-dev libblosc-dev libimath-dev
   libboost-dev libboost-system-dev libboost-iostreams-dev
   libprotobuf-dev protobuf-compiler
-  libdraco-dev draco libeigen3-dev
+  libdraco-dev draco libeigen3-dev libtinygltf-dev
   libspdlog-dev libfmt-dev libcli11-dev libtomlplusplus-dev nlohmann-json3-dev
   libassimp-dev
   libgtest-dev libgmock-dev libbenchmark-dev

@@ -1,0 +1,75 @@
+/// @brief TriangleMesh <-> draco::Mesh.
+#include "mesh/draco_mesh.h"
+
+#include <draco/attributes/geometry_attribute.h>
+#include <draco/attributes/point_attribute.h>
+
+#include <string>
+
+namespace sculpt::mesh::internal {
+
+StatusOr<std::unique_ptr<draco::Mesh>> ToDracoMesh(const TriangleMesh& mesh) {
+  if (mesh.positions.size() % 3 != 0 || mesh.indices.size() % 3 != 0) {
+    return InvalidArgument("TriangleMesh sizes positions=" + std::to_string(mesh.positions.size()) +
+                           " indices=" + std::to_string(mesh.indices.size()) +
+                           " are not multiples of 3");
+  }
+  const uint32_t nv = static_cast<uint32_t>(mesh.vertex_count());
+  for (size_t i = 0; i < mesh.indices.size(); ++i) {
+    if (mesh.indices[i] >= nv) {
+      return InvalidArgument("TriangleMesh.indices[" + std::to_string(i) +
+                             "]=" + std::to_string(mesh.indices[i]) + " outside [0, " +
+                             std::to_string(nv) + ")");
+    }
+  }
+  auto out = std::make_unique<draco::Mesh>();
+  out->set_num_points(nv);
+  draco::GeometryAttribute pos;
+  pos.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_FLOAT32, false,
+           sizeof(float) * 3, 0);
+  const int att_id = out->AddAttribute(pos, /*identity_mapping=*/true, nv);
+  draco::PointAttribute* att = out->attribute(att_id);
+  for (uint32_t v = 0; v < nv; ++v) {
+    att->SetAttributeValue(draco::AttributeValueIndex(v), &mesh.positions[3 * v]);
+  }
+  const size_t nf = mesh.face_count();
+  out->SetNumFaces(nf);
+  for (size_t f = 0; f < nf; ++f) {
+    draco::Mesh::Face face;
+    for (int c = 0; c < 3; ++c) face[c] = draco::PointIndex(mesh.indices[3 * f + c]);
+    out->SetFace(draco::FaceIndex(static_cast<uint32_t>(f)), face);
+  }
+  return out;
+}
+
+StatusOr<TriangleMesh> FromDracoMesh(const draco::Mesh& mesh) {
+  const draco::PointAttribute* att = mesh.GetNamedAttribute(draco::GeometryAttribute::POSITION);
+  if (att == nullptr || att->num_components() != 3) {
+    return InvalidArgument("Draco mesh has no 3-component POSITION attribute");
+  }
+  TriangleMesh out;
+  const uint32_t np = mesh.num_points();
+  out.positions.resize(3 * static_cast<size_t>(np));
+  for (uint32_t p = 0; p < np; ++p) {
+    if (!att->ConvertValue<float, 3>(att->mapped_index(draco::PointIndex(p)),
+                                     &out.positions[3 * static_cast<size_t>(p)])) {
+      return InvalidArgument("Draco POSITION value of point " + std::to_string(p) +
+                             " is not convertible to float");
+    }
+  }
+  out.indices.reserve(3 * static_cast<size_t>(mesh.num_faces()));
+  for (draco::FaceIndex f(0); f < mesh.num_faces(); ++f) {
+    const draco::Mesh::Face& face = mesh.face(f);
+    for (int c = 0; c < 3; ++c) {
+      if (face[c].value() >= np) {
+        return InvalidArgument("Draco face " + std::to_string(f.value()) + " corner " +
+                               std::to_string(c) + "=" + std::to_string(face[c].value()) +
+                               " outside [0, " + std::to_string(np) + ")");
+      }
+      out.indices.push_back(face[c].value());
+    }
+  }
+  return out;
+}
+
+}  // namespace sculpt::mesh::internal
