@@ -549,23 +549,36 @@ std::vector<Element> SharedElements(const Net& self, const Net& other, double to
   return shared;
 }
 
-// The box of the sub-cell's control points on element e, when the sub-cell reaches e.
-bool ElementBox(const SubCell& s, const Element& e, Aabb* box) {
+// The sub-cell's control points on element e, when the sub-cell reaches e.
+bool ElementPoints(const SubCell& s, const Element& e, std::vector<Vec3>* pts) {
   for (int a = 0; a < 3; ++a) {
     const int f = e.fixed[static_cast<size_t>(a)];
     if (f == 0 && s.lo[static_cast<size_t>(a)] != 0.0) return false;
     if (f == 1 && s.hi[static_cast<size_t>(a)] != 1.0) return false;
   }
-  Aabb b;
+  pts->clear();
   for (int i = 0; i < 4; ++i) {
     for (int j = 0; j < 4; ++j) {
       for (int k = 0; k < 4; ++k) {
-        if (OnElement(e, i, j, k)) b.Extend(s.net[static_cast<size_t>(Hyperpatch::Index(i, j, k))]);
+        if (OnElement(e, i, j, k)) pts->push_back(s.net[static_cast<size_t>(Hyperpatch::Index(i, j, k))]);
       }
     }
   }
-  *box = b;
   return true;
+}
+
+Aabb BoxOf(const std::vector<Vec3>& pts) {
+  Aabb b;
+  for (const Vec3& p : pts) b.Extend(p);
+  return b;
+}
+
+void Project(const Vec3& n, std::span<const Vec3> pts, double* lo, double* hi) {
+  for (const Vec3& p : pts) {
+    const double x = n.Dot(p);
+    *lo = std::min(*lo, x);
+    *hi = std::max(*hi, x);
+  }
 }
 
 struct OverlapJob {
@@ -583,26 +596,45 @@ struct OverlapJob {
 
   // True when a and b face each other across a shared element: the parts of the shared element
   // each reaches are in contact, so their contact is the legitimate gluing of (6.8).
-  // The pair is excused only when the overlap of their boxes lies inside the box of the shared
-  // parts themselves: a bulge of one cell through the other's face leaves the shared parts'
-  // box and is pursued to the leaves.
+  // The pair is excused only when their contact is explained by the shared parts they reach:
+  // across a shared face, the overlap of the two nets along the face normal must stay within
+  // the face's own spread along it (a coefficient pushed through the face leaves it); at a
+  // shared curve or corner, likewise along the direction between the two sub-cells.
   bool Facing(const SubCell& a, const SubCell& b) const {
-    const Aabb box_a = Box(a), box_b = Box(b);
-    Aabb overlap;
-    overlap.min = {std::max(box_a.min.x, box_b.min.x), std::max(box_a.min.y, box_b.min.y),
-                   std::max(box_a.min.z, box_b.min.z)};
-    overlap.max = {std::min(box_a.max.x, box_b.max.x), std::min(box_a.max.y, box_b.max.y),
-                   std::min(box_a.max.z, box_b.max.z)};
+    std::vector<Vec3> pa, pb;
     for (const Element& ea : *shared_a) {
-      Aabb ba;
-      if (!ElementBox(a, ea, &ba)) continue;
+      if (!ElementPoints(a, ea, &pa)) continue;
+      const Aabb ba = BoxOf(pa);
       for (const Element& eb : *shared_b) {
-        Aabb bb;
-        if (!ElementBox(b, eb, &bb) || !BoxesTouch(ba, bb, tol)) continue;
-        Aabb both = ba;
-        both.Extend(bb.min);
-        both.Extend(bb.max);
-        if (both.Contains(overlap.min, tol) && both.Contains(overlap.max, tol)) return true;
+        if (!ElementPoints(b, eb, &pb)) continue;
+        const Aabb bb = BoxOf(pb);
+        if (!BoxesTouch(ba, bb, tol)) continue;
+        // The axis along which the shared part must explain the contact: the face normal, or
+        // for a curve or a corner the direction between the sub-cells' centroids (made
+        // perpendicular to the curve's chord).
+        Vec3 n;
+        if (pa.size() == 16 && pb.size() == 16) {
+          n = (pa[15] - pa[0]).Cross(pa[12] - pa[3]);
+        } else {
+          Vec3 ca, cb;
+          for (const Vec3& p : a.net) ca += p;
+          for (const Vec3& p : b.net) cb += p;
+          n = cb - ca;
+          if (pa.size() == 4) {
+            const Vec3 t = pa[3] - pa[0];
+            if (t.LengthSqr() > 0) n = n - t * (n.Dot(t) / t.LengthSqr());
+          }
+        }
+        const double len = n.Length();
+        if (len <= 0) continue;
+        const Vec3 u = n / len;
+        double alo = 1e300, ahi = -1e300, blo = 1e300, bhi = -1e300, flo = 1e300, fhi = -1e300;
+        Project(u, a.net, &alo, &ahi);
+        Project(u, b.net, &blo, &bhi);
+        Project(u, pa, &flo, &fhi);
+        Project(u, pb, &flo, &fhi);
+        const double olo = std::max(alo, blo), ohi = std::min(ahi, bhi);
+        if (olo >= flo - tol && ohi <= fhi + tol) return true;
       }
     }
     return false;
