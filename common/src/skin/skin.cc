@@ -200,6 +200,23 @@ Section BuildSectionImpl(const OrientedBall& b0, const OrientedBall& b1, size_t 
     }
   }
 
+  // An offset whose 1 + kappa d is negative at a ball runs against t_i there: the contour is not
+  // G1 at that contact point and cannot be repaired by node insertion (digest §3.6, §6 item 8).
+  for (int s = 0; s < 2; ++s) {
+    for (const SkinPiece& p : sec.pieces[s]) {
+      if (p.kind != SkinPiece::Kind::kOffset) continue;
+      for (double tau : {p.tau_a, p.tau_b}) {
+        if ((tau == 0 || tau == 1) && offs[s].OnePlusKappaD(tau) <= 0) {
+          rep.end_reversed = true;
+          rep.notes.push_back(std::string("side ") + SideName(s == 0 ? 1 : -1) +
+                              " offset runs backwards at " + (tau == 0 ? n0 : n1) +
+                              " (1+kappa d=" + Num(offs[s].OnePlusKappaD(tau)) +
+                              "): not G1 there (digest §3.6)");
+        }
+      }
+    }
+  }
+
   // Validation on the sampled contour (digest §7 claims 21-22, §8.7).
   const OrientedBall* balls[2] = {&b0, &b1};
   const std::string names[2] = {n0, n1};
@@ -249,7 +266,7 @@ void FinishValidation(Section& sec, const OrientedBall& b0, const OrientedBall& 
   SectionReport& rep = sec.report;
   const Polyline2 loop = ClosedContour(sec, b0, b1, tol);
   const int crossings = internal::CountCrossings(loop, true);
-  rep.simple = crossings == 0 && rep.mother_regular;
+  rep.simple = crossings == 0 && rep.mother_regular && !rep.end_reversed;
   if (crossings > 0) {
     rep.notes.push_back("closed contour not simple (" + std::to_string(crossings) +
                         " crossings, digest Def 2.4)");

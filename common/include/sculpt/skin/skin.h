@@ -65,6 +65,7 @@ struct SideReport {
 /// passed on its sampled closed contour (Def 2.3-2.5).
 struct SectionReport {
   bool mother_regular = true;  // min |p'| > 1e-6 L
+  bool end_reversed = false;   // an offset piece runs against t_i at a ball (not G1 there)
   bool simple = false;         // the closed contour (both sides and the caps) does not cross
   bool total = false;          // simple, and both balls inside within the chord tolerance
   double clearance = 0;        // min of the two sides' clearances
