@@ -13,6 +13,7 @@
 #include "play_cmd.h"
 #include "sculpt/client/client.h"
 #include "sculpt/levelset/sculpture.h"
+#include "sculpt/mesh/glb_writer.h"
 #include "skin_cmd.h"
 #include "thesis_cmd.h"
 
@@ -71,7 +72,8 @@ struct ExportArgs {
   double adaptivity = 0.0;
 };
 
-/// `sculpt export`: a .vdb file or a server's current state, written as .vdb, .obj or .ply.
+/// `sculpt export`: a .vdb file or a server's current state, written as .vdb, .obj, .ply or .glb
+/// (glTF 2.0 binary, Draco-compressed with KHR_draco_mesh_compression).
 int Export(const ExportArgs& a) {
   if (a.in.empty() == a.server.empty()) {
     spdlog::error("export: give either a .vdb file or --server HOST:PORT (not both)");
@@ -82,9 +84,9 @@ int Export(const ExportArgs& a) {
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   const std::string format = a.format.empty() ? ext : a.format;
-  if (format != "vdb" && format != "obj" && format != "ply") {
+  if (format != "vdb" && format != "obj" && format != "ply" && format != "glb") {
     spdlog::error(
-        "export: format={} outside {{vdb, obj, ply}} (from --format or the --out "
+        "export: format={} outside {{vdb, obj, ply, glb}} (from --format or the --out "
         "extension)",
         format.empty() ? "(none)" : format);
     return 2;
@@ -135,6 +137,15 @@ int Export(const ExportArgs& a) {
     spdlog::info("wrote {}: {} active voxels", out, sculpture->ActiveVoxelCount());
     return 0;
   }
+  if (format == "glb") {
+    auto g = sculpt::mesh::WriteGlb(*sculpture, out);
+    if (!g.ok()) {
+      spdlog::error("{}", g.status().ToString());
+      return 1;
+    }
+    spdlog::info("wrote {}: {} vertices, {} triangles (Draco)", out, g->vertices, g->triangles);
+    return 0;
+  }
   auto m = sculpture->ExportMesh(out, a.adaptivity);
   if (!m.ok()) {
     spdlog::error("{}", m.status().ToString());
@@ -176,11 +187,13 @@ int main(int argc, char** argv) {
 
   ExportArgs ex;
   CLI::App* export_cmd = app.add_subcommand(
-      "export", "Write a .vdb sculpture, or a running server's current state, as VDB, OBJ or PLY");
+      "export",
+      "Write a .vdb sculpture, or a running server's current state, as VDB, OBJ, PLY or GLB");
   export_cmd->add_option("file", ex.in, ".vdb file (or --server)")->check(CLI::ExistingFile);
-  export_cmd->add_option("--out", ex.out, "Output file (.vdb, .obj or .ply)")->required();
-  export_cmd->add_option("--format", ex.format, "vdb | obj | ply (default: the --out extension)")
-      ->check(CLI::IsMember({"vdb", "obj", "ply"}));
+  export_cmd->add_option("--out", ex.out, "Output file (.vdb, .obj, .ply or .glb)")->required();
+  export_cmd
+      ->add_option("--format", ex.format, "vdb | obj | ply | glb (default: the --out extension)")
+      ->check(CLI::IsMember({"vdb", "obj", "ply", "glb"}));
   export_cmd->add_option("--adaptivity", ex.adaptivity, "volumeToMesh adaptivity")
       ->check(CLI::Range(0.0, 1.0));
   export_cmd->add_option("--server", ex.server,

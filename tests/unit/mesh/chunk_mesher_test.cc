@@ -117,7 +117,8 @@ TEST(ChunkMesherTest, RemeshingTouchedChunksEqualsRemeshingAll) {
   ASSERT_EQ(chunks.size(), fresh.size());
   for (const auto& [k, m] : fresh) {
     ASSERT_TRUE(chunks.count(k)) << k.x << "," << k.y << "," << k.z;
-    EXPECT_TRUE(SortedTriangles(chunks[k]) == SortedTriangles(m)) << k.x << "," << k.y << "," << k.z;
+    EXPECT_TRUE(SortedTriangles(chunks[k]) == SortedTriangles(m))
+        << k.x << "," << k.y << "," << k.z;
   }
 }
 

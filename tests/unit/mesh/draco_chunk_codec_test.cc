@@ -88,7 +88,9 @@ TEST(DracoChunkCodecTest, RoundTripKeepsCountsAndPositionsWithinOneStep) {
 // (b) of the brief: Debian's draco_decoder reads every chunk and finds our vertex and face counts.
 TEST(DracoChunkCodecTest, DracoDecoderCommandReproducesEveryChunksCounts) {
   const std::string decoder = SCULPT_DRACO_DECODER;
-  if (decoder.empty()) GTEST_SKIP() << "draco_decoder not found (deploy/install-deps.sh installs draco)";
+  if (decoder.empty()) {
+    GTEST_SKIP() << "draco_decoder not found (deploy/install-deps.sh installs draco)";
+  }
   const levelset::Sculpture s = CutSphere(30);
   const DracoChunkOptions o = OptionsFor(s);
   const auto dir = std::filesystem::temp_directory_path() /
