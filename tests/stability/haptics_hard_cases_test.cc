@@ -101,10 +101,10 @@ TEST(HapticsHardCases, DeepDeviceGetsBoundedOutwardProxyForce) {
 // Across a sharp (convex) box edge and a concave cusp (the crease where two spheres meet), the
 // force direction turns continuously. The tool centre moves 0.02 voxels per tick (20 voxels/s)
 // at a constant 0.5-voxel penetration. Stated bounds, per tick: the proxy turns the force by at
-// most 1 degree (measured 0.76 at the edge, 0.66 at the cusp); the penalty average by at most 4
-// (measured 3.67 and 3.14: its direction turns fastest where the contact patch shrinks to the
-// edge line, and it changes with the colliding set, which the blend smooths over 4 ms).
-double MaxTurnPerTickDeg(ForceModel m) { return m == ForceModel::kProxy ? 1.0 : 4.0; }
+// most 1 degree (measured 0.76 at the edge, 0.66 at the cusp); the area-weighted penalty average
+// by at most 5 (measured 4.42 and 3.68: its direction turns fastest where the contact patch
+// shrinks to the edge line, and it changes with the colliding set, which the blend smooths).
+double MaxTurnPerTickDeg(ForceModel m) { return m == ForceModel::kProxy ? 1.0 : 5.0; }
 
 struct TurnReport {
   double max_turn_deg = 0;

@@ -114,3 +114,41 @@ TEST(ThesisHaptics3D, AveragedForceIsSamplingInvariantAndNormal) {
 
 }  // namespace
 }  // namespace sculpt::haptics
+
+namespace sculpt::haptics {
+namespace {
+
+// The same 3D scene with the area-weighted average (ComputeAreaWeightedPenaltyForce: each
+// sample weighted by its share of the tool surface inside the material). It is the mean depth
+// over the contact area, so it no longer depends on how many samples happen to fall in the
+// contact cap, and it holds the 5% from far fewer samples than the plain mean.
+// Measured against 3200 samples: 64 -> +4.2%, 96 -> +2.5%, 128 -> +1.9%, 200 -> +1.2%,
+// 400 -> +0.4% (converging from above); below 64 it does not hold (32 -> +9%, 16 -> +19%).
+// The plain mean of the test above wanders instead: -7.6% at 64, -4.1% at 200, -1.4% at 1600.
+TEST(ThesisHaptics3D, AreaWeightedAverageIsSamplingInvariantFromFewSamples) {
+  levelset::SculptureOptions o;
+  o.voxel_size = 1.0;
+  o.half_width = 8;
+  auto s = levelset::Sculpture::MakeSphere(o, {0, 0, 0}, 20.0);
+  ASSERT_TRUE(s.ok());
+  const SculptureSdf sdf(*s);
+  const Vec3 normal = Vec3{1, 2, 3} / Vec3{1, 2, 3}.Length();
+  const Vec3 centre = normal * (20.0 + 5.0 - 2.0);
+  const levelset::ToolShape tool = levelset::ToolShape::Sphere(centre, 5);
+  auto weighted = [&](int k) {
+    const auto samples = levelset::ToolSurfaceSamples(tool, k);
+    return ComputeAreaWeightedPenaltyForce(sdf, samples, 4 * M_PI * 25 / samples.size(), 1.0,
+                                           centre);
+  };
+  const double reference = weighted(3200).average.Length();
+  for (int k : {64, 96, 128, 200, 400, 800, 1600}) {
+    const PenaltyForce f = weighted(k);
+    const double m = f.average.Length();
+    EXPECT_NEAR(m, reference, 0.05 * reference) << k << " samples";
+    const double angle = std::acos(std::clamp(f.average.Dot(normal) / m, -1.0, 1.0));
+    EXPECT_LT(angle * 180 / M_PI, 2.0) << k << " samples";
+  }
+}
+
+}  // namespace
+}  // namespace sculpt::haptics

@@ -57,7 +57,7 @@ const TickOutput& HapticRenderer::Tick(const std::shared_ptr<const SdfSampler>& 
       const PenaltyForce f =
           settings_.area_weighted && sample_area_ > 0
               ? ComputeAreaWeightedPenaltyForce(*sdf, current_, sample_area_, settings_.stiffness,
-                                                last_normal_)
+                                                sample.position, last_normal_)
               : ComputePenaltyForce(*sdf, current_, settings_.stiffness, last_normal_);
       out.model_force = f.average;
       out.colliding = f.colliding;

@@ -115,24 +115,38 @@ PenaltyForce ComputePenaltyForce(const SdfSampler& sdf, const std::vector<Vec3>&
 
 PenaltyForce ComputeAreaWeightedPenaltyForce(const SdfSampler& sdf,
                                              const std::vector<Vec3>& samples, double sample_area,
-                                             double kappa, const Vec3& fallback_normal) {
+                                             double kappa, const Vec3& tool_centre,
+                                             const Vec3& fallback_normal) {
   PenaltyForce f;
   if (!(sample_area > 0) || !std::isfinite(sample_area)) return f;
   const double rho = std::sqrt(sample_area / M_PI);
   double covered = 0;  // sum of inside fractions, in units of one patch
   for (const Vec3& x : samples) {
     const double phi = sdf.Phi(x);
-    if (phi >= rho) continue;
+    if (phi >= rho) continue;  // |grad phi| <= 1: no part of the patch can be inside
     if (phi <= 0) ++f.colliding;
-    // phi uniform on [phi - rho, phi + rho] over the patch: the inside fraction is the share
-    // below 0, the mean depth the integral of max(-u, 0) over the patch divided by its width.
-    const double lo = phi - rho;
-    const double inside = std::clamp(-lo / (2 * rho), 0.0, 1.0);
-    const double depth =
-        phi <= -rho ? -phi : (lo * lo) / (4 * rho);  // -lo > 0 here: a triangle of height -lo
-    covered += inside;
     const Vec3 g = sdf.Gradient(x);
     const double n = g.Length();
+    // Over the patch (a disc of radius rho on the tool's surface) phi changes by the gradient's
+    // component along the tool surface: a spread of +-s around phi.
+    Vec3 m = x - tool_centre;
+    const double ml = m.Length();
+    m = ml > 0 ? m / ml : Vec3{};
+    const double s = rho * (g - m * g.Dot(m)).Length();
+    double inside, depth;
+    if (s < 1e-9 * rho) {
+      inside = phi <= 0 ? 1.0 : 0.0;
+      depth = phi <= 0 ? -phi : 0.0;
+    } else {
+      // phi + s y with y distributed over the disc, density (2/pi) sqrt(1 - y^2) on [-1, 1]:
+      // inside for y < b = -phi / s.
+      const double b = std::clamp(-phi / s, -1.0, 1.0);
+      const double root = std::sqrt(1 - b * b);
+      inside = (b * root + std::asin(b) + M_PI / 2) / M_PI;
+      depth = -phi * inside + s * (2.0 / (3.0 * M_PI)) * root * root * root;
+    }
+    if (inside <= 0) continue;
+    covered += inside;
     if (n < kMinGradient) {
       ++f.without_normal;
       f.sum += fallback_normal * (kappa * depth);

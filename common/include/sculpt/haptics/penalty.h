@@ -75,17 +75,19 @@ PenaltyForce ComputePenaltyForce(const SdfSampler& sdf, const std::vector<Vec3>&
                                  double kappa, const Vec3& fallback_normal);
 
 /// The penalty average weighted by each sample's share of the tool surface that lies inside the
-/// material. Sample k stands for a patch of area `sample_area` (the tool's area over the sample
-/// count: ToolSurfaceSamples spreads a sphere's samples evenly) and radius rho = sqrt(area / pi);
-/// phi is taken to vary linearly by +-rho over the patch, so the patch's inside fraction f_k and
-/// mean depth d_k are smooth in phi_k and samples up to rho outside still count. Then
-///   average = kappa * sum_k d_k N_k / sum_k f_k,   sum = kappa * sum_k d_k N_k,
-/// the mean depth over the contact area rather than over the colliding samples (eq. 3.5 with the
-/// area of each sample as its weight). `colliding` counts samples with phi <= 0 as before.
+/// material. Sample k stands for a disc of area `sample_area` (the tool's area over the sample
+/// count: ToolSurfaceSamples spreads a sphere's samples evenly) and radius rho = sqrt(area/pi) on
+/// the surface of a sphere tool centred at `tool_centre`; over the disc phi changes linearly by
+/// the gradient's component along the tool surface (+-s, s = rho |grad_t phi|). The disc's
+/// inside fraction f_k and mean depth d_k are then closed-form and smooth in phi_k, and samples
+/// up to rho outside still count. average = kappa sum_k d_k N_k / sum_k f_k (sum: the
+/// numerator): the mean depth over the contact area instead of over the colliding samples
+/// (eq. 3.5 with each sample's area as its weight). `colliding` counts samples with phi <= 0.
 /// A non-positive or non-finite sample_area gives an empty force.
 PenaltyForce ComputeAreaWeightedPenaltyForce(const SdfSampler& sdf,
                                              const std::vector<Vec3>& samples, double sample_area,
-                                             double kappa, const Vec3& fallback_normal = {});
+                                             double kappa, const Vec3& tool_centre,
+                                             const Vec3& fallback_normal = {});
 
 /// The thesis's circle tool samples (App. A.1): k + 1 points r (cos 2 pi i/k, sin 2 pi i/k) + c,
 /// i = 0..k, in the z = c.z plane (the last repeats the first, as the MATLAB code does).
