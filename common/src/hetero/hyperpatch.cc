@@ -24,6 +24,11 @@ bool Aabb::Contains(const Vec3& p, double tol) const {
          p.z >= min.z - tol && p.z <= max.z + tol;
 }
 
+bool Aabb::Touches(const Aabb& o, double tol) const {
+  return min.x <= o.max.x + tol && o.min.x <= max.x + tol && min.y <= o.max.y + tol &&
+         o.min.y <= max.y + tol && min.z <= o.max.z + tol && o.min.z <= max.z + tol;
+}
+
 std::array<double, 4> Bernstein3(double t) {
   const double s = 1.0 - t;
   return {s * s * s, 3 * t * s * s, 3 * t * t * s, t * t * t};

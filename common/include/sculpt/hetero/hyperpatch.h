@@ -24,6 +24,8 @@ struct Aabb {
   /// True when the boxes overlap by more than `tol` along every axis (touching is not overlap).
   bool Overlaps(const Aabb& o, double tol) const;
   bool Contains(const Vec3& p, double tol) const;
+  /// True when the boxes overlap or come within `tol` of each other (closed sets).
+  bool Touches(const Aabb& o, double tol) const;
   double Diagonal() const { return (max - min).Length(); }
 };
 
