@@ -3,12 +3,19 @@
 ///
 ///   sculpt-bench edit --json       per-edit latency vs object size, naive pipeline, volume drift
 ///   sculpt-bench accuracy --json   accuracy vs time over schemes, voxel sizes, policies
+///   sculpt-bench skin --json       ball skins: build/update time, contour bytes, accuracy cost
+///   sculpt-bench haptics --json    haptic tick cost (penalty/proxy, 32/128/512 samples), 1 kHz loop
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <iostream>
 #include <string>
 
 #include "bench_common.h"
+
+namespace sculpt::bench {
+Json RunSkinBench(bool quick, const std::string& out_dat);  // skin_bench.cc
+Json RunHapticsBench(bool quick);                           // haptics_bench.cc
+}  // namespace sculpt::bench
 
 namespace {
 
@@ -106,11 +113,32 @@ int main(int argc, char** argv) {
   acc->add_flag("--one-factor", one_factor,
                 "vary the schemes one factor at a time instead of the full spatial x temporal grid");
 
+  bool skin_quick = false;
+  std::string skin_dat;
+  CLI::App* skin = app.add_subcommand(
+      "skin", "ball skins: build time for 1e3-1e5 balls, update time after one move, contour "
+              "bytes vs float32 and Draco, codec speed, chord tolerance vs points/bytes/time");
+  skin->add_flag("--json", json, "print the JSON document (the only output of skin)");
+  skin->add_flag("--quick", skin_quick, "seconds-long smoke configuration");
+  skin->add_option("--out-dat", skin_dat, "also write the accuracy table as gnuplot data");
+
+  bool haptics_quick = false;
+  CLI::App* haptics = app.add_subcommand(
+      "haptics", "haptic tick cost p50/p99/p99.9/max for the penalty and proxy models at 32, 128 "
+                 "and 512 tool samples on a radius-128 sphere; the 1 kHz loop's rate, period "
+                 "error and snapshot lag while snapshots are swapped at 120 Hz");
+  haptics->add_flag("--json", json, "print the JSON document (the only output of haptics)");
+  haptics->add_flag("--quick", haptics_quick, "seconds-long smoke configuration");
+
   CLI11_PARSE(app, argc, argv);
   const std::string cmd = CommandLine(argc, argv);
 
   Json doc;
-  if (*edit) {
+  if (*haptics) {
+    doc = sculpt::bench::RunHapticsBench(haptics_quick);
+  } else if (*skin) {
+    doc = sculpt::bench::RunSkinBench(skin_quick, skin_dat);
+  } else if (*edit) {
     if (eo.quick) {
       // Seconds long: two small spheres, few edits, a short stroke run. The ratios then use the
       // radii that ran (see "ratios" in the output).
@@ -139,7 +167,7 @@ int main(int argc, char** argv) {
   Json out{{"command", cmd}};
   out.update(doc);
   doc = std::move(out);
-  if (json) {
+  if (json || *skin || *haptics) {
     std::cout << doc.dump(2) << std::endl;
   } else if (*edit) {
     PrintEditSummary(doc);

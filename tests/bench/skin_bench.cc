@@ -1,0 +1,294 @@
+/// @brief `sculpt-bench skin`: ball-skin build time against chain length, update time after one
+/// move, contour bytes against float32 and Draco, codec speed, and what accuracy costs.
+#include <draco/compression/decode.h>
+#include <draco/compression/encode.h>
+#include <draco/point_cloud/point_cloud_builder.h>
+
+#include <cmath>
+#include <fstream>
+#include <numbers>
+#include <random>
+
+#include "bench_common.h"
+#include "sculpt/skin/contour_codec.h"
+#include "sculpt/skin/skin.h"
+
+namespace sculpt::bench {
+namespace {
+
+using skin::OrientedBall;
+using skin::Polyline2;
+using skin::Skin;
+using skin::Vec2;
+
+constexpr double kDeg = std::numbers::pi / 180;
+
+/// An admissible wavy chain: radii 0.5-1, gaps 1.1-2 times the radii, headings within 35 deg,
+/// touching directions within 20 deg of the heading. Deterministic in `seed`.
+std::vector<OrientedBall> Chain(size_t n, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<OrientedBall> b;
+  b.reserve(n);
+  Vec2 c{0, 0};
+  double heading = 0;
+  while (b.size() < n) {
+    const double r = 0.5 + 0.5 * u(rng);
+    Vec2 nc = c;
+    double h = heading;
+    if (!b.empty()) {
+      h = std::clamp(heading + (u(rng) - 0.5) * 40 * kDeg, -35 * kDeg, 35 * kDeg);
+      nc = c + Vec2{std::cos(h), std::sin(h)} * ((b.back().r + r) * (1.1 + 0.9 * u(rng)));
+    }
+    const OrientedBall ball{nc, r, h + (u(rng) - 0.5) * 40 * kDeg};
+    if (!b.empty() && !skin::CheckAdmissiblePair(b.size() - 1, b.back(), ball).ok()) continue;
+    b.push_back(ball);
+    c = nc;
+    heading = h;
+  }
+  return b;
+}
+
+double PolylineLength(const Polyline2& p) {
+  double l = 0;
+  for (size_t i = 1; i < p.size(); ++i) l += (p[i] - p[i - 1]).Length();
+  return l;
+}
+
+/// Draco point cloud of the points, sequential encoding (keeps the order), position quantised
+/// so that Draco's step (bounding-box range / (2^bits - 1)) is no larger than `step`.
+struct DracoResult {
+  size_t bytes = 0;
+  int bits = 0;
+  double max_error = NAN;
+  std::string error;
+};
+DracoResult DracoEncode(const Polyline2& pts, double step) {
+  DracoResult r;
+  double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+  for (const Vec2& p : pts) {
+    lo[0] = std::min(lo[0], p.x), hi[0] = std::max(hi[0], p.x);
+    lo[1] = std::min(lo[1], p.y), hi[1] = std::max(hi[1], p.y);
+  }
+  const double range = std::max(hi[0] - lo[0], hi[1] - lo[1]);
+  r.bits = 1;
+  while (r.bits < 30 && range / (std::ldexp(1.0, r.bits) - 1) > step) ++r.bits;
+  draco::PointCloudBuilder builder;
+  builder.Start(static_cast<draco::PointIndex::ValueType>(pts.size()));
+  const int att = builder.AddAttribute(draco::GeometryAttribute::POSITION, 2, draco::DT_FLOAT32);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    // Relative to the box corner, so float32 does not add its own rounding to the comparison.
+    const float v[2] = {static_cast<float>(pts[i].x - lo[0]), static_cast<float>(pts[i].y - lo[1])};
+    builder.SetAttributeValueForPoint(att, draco::PointIndex(static_cast<uint32_t>(i)), v);
+  }
+  std::unique_ptr<draco::PointCloud> pc = builder.Finalize(false);
+  draco::Encoder enc;
+  enc.SetEncodingMethod(draco::POINT_CLOUD_SEQUENTIAL_ENCODING);
+  enc.SetAttributeQuantization(draco::GeometryAttribute::POSITION, r.bits);
+  enc.SetSpeedOptions(0, 0);  // best compression
+  draco::EncoderBuffer buf;
+  const draco::Status s = enc.EncodePointCloudToBuffer(*pc, &buf);
+  if (!s.ok()) {
+    r.error = s.error_msg_string();
+    return r;
+  }
+  r.bytes = buf.size();
+  draco::DecoderBuffer in;
+  in.Init(buf.data(), buf.size());
+  draco::Decoder dec;
+  auto back = dec.DecodePointCloudFromBuffer(&in);
+  if (back.ok()) {
+    const draco::PointAttribute* a = back.value()->GetNamedAttribute(draco::GeometryAttribute::POSITION);
+    r.max_error = 0;
+    for (size_t i = 0; i < pts.size() && a; ++i) {
+      float v[2];
+      a->GetMappedValue(draco::PointIndex(static_cast<uint32_t>(i)), v);
+      r.max_error = std::max(r.max_error, (Vec2{v[0] + lo[0], v[1] + lo[1]} - pts[i]).Length());
+    }
+  }
+  return r;
+}
+
+}  // namespace
+
+Json RunSkinBench(bool quick, const std::string& out_dat) {
+  Json doc;
+  const std::vector<size_t> sizes{1000, 10000, 100000};
+  const int update_moves = quick ? 50 : 400;
+  for (size_t n : sizes) {
+    const auto balls = Chain(n, 20261122 + n);
+    const int reps = n >= 100000 ? (quick ? 1 : 3) : (quick ? 2 : 7);
+    Samples build;
+    std::optional<Skin> skin;
+    for (int r = 0; r < reps; ++r) {
+      const auto t0 = Clock::now();
+      auto s = Skin::Build(balls);
+      build.Add(MsSince(t0));
+      if (!s.ok()) return Json{{"error", s.status().ToString()}};
+      skin.emplace(std::move(s).value());
+    }
+    const skin::SkinSummary sum = skin->Summary();
+    // Moves of one ball by up to 0.1 radius, alternating back, at random places in the chain.
+    std::mt19937_64 rng(n);
+    Samples update;
+    size_t refused = 0;
+    for (int m = 0; m < update_moves; ++m) {
+      const size_t i = rng() % n;
+      OrientedBall b = skin->balls()[i];
+      b.c = b.c + Vec2{0.05, (m % 2 ? -0.1 : 0.1)} * b.r;
+      const auto t0 = Clock::now();
+      auto c = skin->SetBall(i, b);
+      const double us = 1000 * MsSince(t0);
+      if (c.ok()) {
+        update.Add(us);
+      } else {
+        ++refused;
+      }
+    }
+    const std::string tag = n == 1000 ? "1e3" : n == 10000 ? "1e4" : "1e5";
+    doc["build_ms_" + tag] = build.P(0.5);
+    doc["update_us_" + tag] = update.P(0.5);
+    doc["chains"].push_back({{"balls", n},
+                             {"build_ms", build.Summary()},
+                             {"build_us_per_ball", 1000 * build.P(0.5) / static_cast<double>(n)},
+                             {"update_us", update.Summary()},
+                             {"moves_refused", refused},
+                             {"sections", sum.sections},
+                             {"total_sections", sum.total},
+                             {"simple_sections", sum.simple},
+                             {"points", sum.points},
+                             {"chord_tolerance", skin->chord_tolerance()}});
+    Progress("skin: %zu balls: build p50 %.1f ms, update p50 %.1f us, %zu/%zu sections total", n,
+             build.P(0.5), update.P(0.5), sum.total, sum.sections);
+  }
+
+  // Contour bytes: the 1e3-ball skin's snapshot at step = chord tolerance.
+  {
+    auto skin = Skin::Build(Chain(1000, 20261122 + 1000));
+    const double tol = skin->chord_tolerance();
+    const auto bytes = skin::EncodeSkinSnapshot(*skin);
+    if (!bytes.ok()) return Json{{"error", bytes.status().ToString()}};
+    skin::ContourView view;
+    const Status applied = view.Apply(*bytes);
+    if (!applied.ok()) return Json{{"error", applied.ToString()}};
+    double max_err = 0;
+    Polyline2 all;
+    for (size_t k = 0; k < skin->sections().size(); ++k) {
+      const skin::Section& s = skin->section(k);
+      for (int side = 0; side < 2; ++side) {
+        const Polyline2& a = side == 0 ? s.plus : s.minus;
+        const Polyline2& b = side == 0 ? view.sections()[k].plus : view.sections()[k].minus;
+        for (size_t i = 0; i < a.size(); ++i) max_err = std::max(max_err, (a[i] - b[i]).Length());
+        all.insert(all.end(), a.begin(), a.end());
+      }
+    }
+    const size_t float32 = all.size() * 2 * sizeof(float);
+    const DracoResult draco = DracoEncode(all, tol);
+    doc["contour_points"] = all.size();
+    doc["contour_bytes"] = bytes->size();
+    doc["contour_bytes_per_point"] = static_cast<double>(bytes->size()) / all.size();
+    doc["contour_float32_bytes"] = float32;
+    doc["contour_draco_bytes"] = draco.bytes;
+    doc["contour_draco_bits"] = draco.bits;
+    doc["contour_draco_max_error_over_tol"] = draco.max_error / tol;
+    if (!draco.error.empty()) doc["contour_draco_error"] = draco.error;
+    doc["contour_ratio_vs_float32"] = static_cast<double>(float32) / bytes->size();
+    doc["contour_ratio_vs_draco"] = static_cast<double>(draco.bytes) / bytes->size();
+    doc["contour_max_error_over_tol"] = max_err / tol;
+    // One update after a move: the two sections only.
+    OrientedBall b = skin->balls()[500];
+    b.c.y += 0.05;
+    auto change = skin->SetBall(500, b);
+    if (change.ok()) doc["contour_update_bytes"] = skin::EncodeSkinUpdate(*skin, *change)->size();
+
+    // Encode / decode time for 2,000 points (the first polylines up to 2,000 points).
+    std::vector<Polyline2> lines;
+    size_t np = 0;
+    for (const skin::Section& s : skin->sections()) {
+      for (const Polyline2* p : {&s.plus, &s.minus}) {
+        if (np >= 2000) break;
+        Polyline2 q(p->begin(), p->begin() + std::min(p->size(), 2000 - np));
+        np += q.size();
+        lines.push_back(std::move(q));
+      }
+    }
+    Samples enc, dec;
+    std::string blob;
+    for (int r = 0; r < (quick ? 20 : 200); ++r) {
+      auto t0 = Clock::now();
+      blob = *skin::EncodeContours(lines, tol);
+      enc.Add(1000 * MsSince(t0));
+      t0 = Clock::now();
+      auto back = skin::DecodeContours(blob);
+      dec.Add(1000 * MsSince(t0));
+      if (!back.ok()) return Json{{"error", back.status().ToString()}};
+    }
+    doc["codec_points"] = np;
+    doc["codec_bytes_2000"] = blob.size();
+    doc["encode_us_per_2000_points"] = enc.P(0.5) * 2000.0 / static_cast<double>(np);
+    doc["decode_us_per_2000_points"] = dec.P(0.5) * 2000.0 / static_cast<double>(np);
+    Progress("skin: contour %zu points: %zu bytes (float32 %zu, draco %zu), max error %.3f tol",
+             all.size(), bytes->size(), float32, draco.bytes, max_err / tol);
+  }
+
+  // What accuracy costs: chord tolerance from 1e-1 to 1e-5 of the smallest radius.
+  {
+    const auto balls = Chain(quick ? 50 : 200, 77);
+    double min_r = INFINITY;
+    for (const auto& b : balls) min_r = std::min(min_r, b.r);
+    std::ofstream dat;
+    if (!out_dat.empty()) {
+      dat.open(out_dat);
+      dat << "# rel_tol tol points points_per_unit_length bytes bytes_per_point build_ms "
+             "max_error_over_tol total_sections sections\n";
+    }
+    for (double rel : {1e-1, 1e-2, 1e-3, 1e-4, 1e-5}) {
+      skin::SkinOptions o;
+      o.chord_tolerance = rel * min_r;
+      Samples t;
+      std::optional<Skin> skin;
+      for (int r = 0; r < (quick ? 1 : 5); ++r) {
+        const auto t0 = Clock::now();
+        auto s = Skin::Build(balls, o);
+        t.Add(MsSince(t0));
+        skin.emplace(std::move(s).value());
+      }
+      const skin::SkinSummary sum = skin->Summary();
+      double length = 0;
+      for (const auto& s : skin->sections()) length += PolylineLength(s.plus) + PolylineLength(s.minus);
+      const auto bytes = skin::EncodeSkinSnapshot(*skin);
+      skin::ContourView view;
+      double max_err = 0;
+      if (bytes.ok() && view.Apply(*bytes).ok()) {
+        for (size_t k = 0; k < skin->sections().size(); ++k) {
+          const auto& a = skin->section(k).plus;
+          for (size_t i = 0; i < a.size(); ++i) {
+            max_err = std::max(max_err, (a[i] - view.sections()[k].plus[i]).Length());
+          }
+        }
+      }
+      const double ppl = static_cast<double>(sum.points) / length;
+      doc["accuracy"].push_back({{"rel_tol", rel},
+                                 {"chord_tolerance", o.chord_tolerance},
+                                 {"points", sum.points},
+                                 {"points_per_unit_length", ppl},
+                                 {"bytes", bytes.ok() ? bytes->size() : 0},
+                                 {"bytes_per_point", bytes.ok() ? static_cast<double>(bytes->size()) / sum.points : NAN},
+                                 {"build_ms", t.P(0.5)},
+                                 {"max_error_over_tol", max_err / o.chord_tolerance},
+                                 {"total_sections", sum.total},
+                                 {"sections", sum.sections}});
+      if (dat) {
+        dat << rel << ' ' << o.chord_tolerance << ' ' << sum.points << ' ' << ppl << ' '
+            << (bytes.ok() ? bytes->size() : 0) << ' '
+            << (bytes.ok() ? static_cast<double>(bytes->size()) / sum.points : NAN) << ' '
+            << t.P(0.5) << ' ' << max_err / o.chord_tolerance << ' ' << sum.total << ' '
+            << sum.sections << '\n';
+      }
+      Progress("skin: tol %.0e r_min: %zu points, %.1f ms", rel, sum.points, t.P(0.5));
+    }
+  }
+  return doc;
+}
+
+}  // namespace sculpt::bench
