@@ -145,7 +145,7 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
           next_chunk.clear();
           objects_complete = 0;
           for (const v1::ObjectInfo& o : join.info.objects()) next_chunk[o.name()] = 0;
-          if (join.info.objects_size() == 0) CompleteJoinLocked();
+          if (join.info.objects_size() == 0 || options.skip_state) CompleteJoinLocked();
         }
         return;
       case v1::ServerMessage::kStateChunk:
@@ -167,6 +167,12 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
         e.reason = m.bye().reason();
         return EmitLocked(std::move(e));
       }
+      case v1::ServerMessage::kEdit:
+      case v1::ServerMessage::kLeafDelta:
+      case v1::ServerMessage::kMeshChunk:
+        ++stats.replication_messages;
+        if (replication_handler) replication_handler(std::move(m));
+        return;
       case v1::ServerMessage::BODY_NOT_SET:
         return;
     }
@@ -448,6 +454,7 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
 
   std::mutex handler_mu;  // taken before mu, never after
   EventHandler handler;
+  std::function<void(v1::ServerMessage&&)> replication_handler;
 };
 
 Client::Client(ClientOptions options) {
@@ -567,6 +574,7 @@ StatusOr<JoinedScene> Client::Join(const std::string& scene) {
   d.join = JoinedScene{};
   v1::ClientMessage m;
   m.mutable_join()->set_scene(scene);
+  m.mutable_join()->set_skip_state(d.options.skip_state);
   d.phase = Impl::Phase::kAwaitJoin;
   d.QueueLocked(Impl::Frame(m), 0);
   const bool settled = d.cv.wait_for(lock, d.options.timeout, [&] {
@@ -722,6 +730,20 @@ std::vector<Event> Client::DrainEvents() {
                          std::make_move_iterator(impl_->events.end()));
   impl_->events.clear();
   return out;
+}
+
+void Client::SetReplicationHandler(std::function<void(v1::ServerMessage&&)> handler) {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  impl_->replication_handler = std::move(handler);
+}
+
+Status Client::SendMessage(const v1::ClientMessage& message) {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  if (impl_->phase != Impl::Phase::kJoined) {
+    return FailedPrecondition("SendMessage needs a joined connection");
+  }
+  impl_->QueueLocked(Impl::Frame(message), 0);
+  return Status::Ok();
 }
 
 void Client::SetEventHandler(EventHandler handler) {

@@ -644,6 +644,13 @@ ReplayState CaptureReplayState(const Sculpture& sculpture) {
   return ReplayState{impl.volume, impl.reference_volume, impl.edits_since_reinit};
 }
 
+void RestoreReplayState(Sculpture& sculpture, const ReplayState& state) {
+  Sculpture::Impl& impl = sculpture.impl();
+  impl.volume = state.volume;
+  impl.reference_volume = state.reference_volume;
+  impl.edits_since_reinit = state.edits_since_reinit;
+}
+
 EditFootprint FootprintOf(const Sculpture& sculpture, const std::vector<EditRequest>& reqs,
                           const EditSettings& s) {
   EditFootprint f;

@@ -48,6 +48,8 @@ struct ClientOptions {
   size_t max_queued_events = 1u << 16;
   /// Largest frame accepted from the server (a state chunk is 256 KiB).
   uint32_t max_frame_bytes = 4u << 20;
+  /// Join without the objects' .vdb state (a replica loads its region through Subscribe).
+  bool skip_state = false;
 };
 
 /// A stroke as the caller describes it; SendStroke packs the poses (proto/README.md, "Packed
@@ -106,6 +108,7 @@ struct ClientStats {
   uint64_t poses_acked = 0;        // sum of Ack.edits over fresh (non-duplicate) acks
   uint64_t events_dropped = 0;     // queue overflow (no handler and nobody draining)
   uint64_t reconnects = 0;
+  uint64_t replication_messages = 0;  // EditBroadcast, LeafDelta, MeshChunk
 };
 
 /// A connection to sculptd. The I/O runs on an IoThread (its own, or a shared one); the caller's
@@ -179,6 +182,12 @@ class Client {
   /// nullptr to return to the queue; returns only once no call of the old handler is running.
   void SetEventHandler(EventHandler handler);
 
+  /// Replication messages (EditBroadcast, LeafDelta, MeshChunk) go to `handler`, called on the
+  /// I/O thread under the client's lock: it must only queue the message (Replica does).
+  void SetReplicationHandler(std::function<void(v1::ServerMessage&&)> handler);
+  /// Queues any client message (Subscribe, SetInterest, DivergenceReport, ViewerSubscribe).
+  /// FailedPrecondition when not joined.
+  Status SendMessage(const v1::ClientMessage& message);
   /// Says Bye, flushes what is queued and closes. Un-acked strokes stay pending. Ok if already
   /// closed.
   Status Close(const std::string& reason = "client done");

@@ -149,6 +149,8 @@ struct ReplayState {
   uint64_t edits_since_reinit = 0;
 };
 ReplayState CaptureReplayState(const Sculpture& sculpture);
+/// Sets the tracked scalars (a replica after loading leaf records).
+void RestoreReplayState(Sculpture& sculpture, const ReplayState& state);
 
 /// Replays a batch the server applied (ApplyEdits with the same requests and settings), on a
 /// replica holding at least the batch's footprint: sets `state`, skips the check against the

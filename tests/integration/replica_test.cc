@@ -1,0 +1,269 @@
+/// @brief Replicas against the real server in-process (issue 4): concurrent sculptors and every
+/// kind of replica converge to the server's voxels; a dropped connection resyncs by leaf
+/// versions; a moving interest box ends equal over its new region; bad subscriptions are refused
+/// with field, value and range while the server keeps serving.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "config/server_config.h"
+#include "net/server.h"
+#include "scene/scene.h"
+#include "sculpt/client/client.h"
+#include "sculpt/client/replica.h"
+#include "sculpt/levelset/region.h"
+
+namespace sculpt::client {
+namespace {
+
+namespace fs = std::filesystem;
+using std::chrono::milliseconds;
+using std::chrono::seconds;
+
+// A press stroke on a horizontal circle at height z, one unit inside the default sphere (radius
+// 24); stroke i continues where stroke i - 1 ended.
+StrokeRequest Arc(double z, int i, int poses = 4) {
+  StrokeRequest s;
+  s.object = "clay";
+  s.tool_size = {2.5, 0, 0};
+  s.speed = 60;
+  s.t0_ms = static_cast<uint64_t>(i) * 33;
+  const double r = std::sqrt(23.0 * 23.0 - z * z);
+  for (int k = 0; k < poses; ++k) {
+    const double a = (i * poses + k) * 0.5 / r;
+    codec::Pose p;
+    p.position = {r * std::cos(a), r * std::sin(a), z};
+    p.t_ms = static_cast<uint32_t>(k * 8);
+    s.poses.push_back(p);
+  }
+  return s;
+}
+
+class ReplicaTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("sculpt_replica_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    config_.data_dir = (dir_ / "data").string();
+    config_.listen = "127.0.0.1:0";
+    auto scene = server::Scene::Open(config_);
+    ASSERT_TRUE(scene.ok()) << scene.status();
+    scene_ = std::move(scene).value();
+    server_ = std::make_unique<server::Server>(io_, config_, *scene_);
+    auto port = server_->Start();
+    ASSERT_TRUE(port.ok()) << port.status();
+    port_ = *port;
+    io_thread_ = std::thread([this] { io_.run(); });
+  }
+
+  void TearDown() override {
+    if (server_) server_->Stop();
+    io_.stop();
+    if (io_thread_.joinable()) io_thread_.join();
+    server_.reset();
+    scene_.reset();
+    fs::remove_all(dir_);
+  }
+
+  std::unique_ptr<Client> Joined(v1::Role role, bool skip_state) {
+    ClientOptions options;
+    options.timeout = seconds(10);
+    options.skip_state = skip_state;
+    auto c = std::make_unique<Client>(options);
+    EXPECT_TRUE(c->Connect("127.0.0.1", port_).ok());
+    auto w = c->Hello(role == v1::ROLE_SCULPTOR ? "sculpt-dev-sculptor" : "sculpt-dev-viewer",
+                      role, "t", 0);
+    EXPECT_TRUE(w.ok()) << w.status();
+    auto j = c->Join();
+    EXPECT_TRUE(j.ok()) << j.status();
+    return c;
+  }
+
+  // True once the replica's voxels over `box` equal the server's (polled: a partial replica
+  // sees only the edits touching its region, so no sequence number tells it is done).
+  bool Converges(const Replica& r, const levelset::VoxelBox& box, seconds limit = seconds(20)) {
+    const auto end = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < end) {
+      if (r.RegionHash(box) == scene_->RegionHash("clay", box)) return true;
+      std::this_thread::sleep_for(milliseconds(50));
+    }
+    return false;
+  }
+
+  levelset::VoxelBox Box(const levelset::Aabb& world) const {
+    const double dx = config_.scene.voxel_size;
+    return {{int(std::floor(world.min.x / dx)), int(std::floor(world.min.y / dx)),
+             int(std::floor(world.min.z / dx))},
+            {int(std::ceil(world.max.x / dx)), int(std::ceil(world.max.y / dx)),
+             int(std::ceil(world.max.z / dx))}};
+  }
+
+  fs::path dir_;
+  server::ServerConfig config_;
+  server::asio::io_context io_;
+  std::unique_ptr<server::Scene> scene_;
+  std::unique_ptr<server::Server> server_;
+  std::thread io_thread_;
+  uint16_t port_ = 0;
+};
+
+TEST_F(ReplicaTest, ConcurrentSculptorsAndEveryReplicaKindConverge) {
+  constexpr int kStrokes = 25;
+  auto a = Joined(v1::ROLE_SCULPTOR, true);
+  auto b = Joined(v1::ROLE_SCULPTOR, true);
+  auto c = Joined(v1::ROLE_VIEWER, true);
+  auto d = Joined(v1::ROLE_VIEWER, true);
+  Replica ra(*a, {});
+  Replica rb(*b, {});
+  ReplicaOptions delta;
+  delta.mode = v1::REPLICA_MODE_LEAF_DELTA;
+  Replica rc(*c, delta);
+  ReplicaOptions part;
+  part.interest = levelset::Aabb{{15, -10, 5}, {25, 10, 15}};
+  Replica rd(*d, part);
+  for (Replica* r : {&ra, &rb, &rc, &rd}) ASSERT_TRUE(r->Start().ok());
+
+  // Overlapping arcs (z = 2 and z = -2 with a 2.5 tool) at the same time.
+  auto send = [](Client* cl, double z) {
+    for (int i = 0; i < kStrokes; ++i) EXPECT_TRUE(cl->SendStroke(Arc(z, i)).ok());
+  };
+  std::thread ta(send, a.get(), 2.0);
+  std::thread tb(send, b.get(), -2.0);
+  ta.join();
+  tb.join();
+  ASSERT_TRUE(a->WaitAllAcked(seconds(30)));
+  ASSERT_TRUE(b->WaitAllAcked(seconds(30)));
+  const uint64_t seq = scene_->global_seq();
+  ASSERT_EQ(seq, 2u * kStrokes * 4);
+  for (Replica* r : {&ra, &rb, &rc}) {
+    ASSERT_TRUE(r->WaitForSeq(seq, seconds(30)));
+    const levelset::VoxelBox held = r->held();
+    ASSERT_FALSE(held.Empty());
+    EXPECT_EQ(r->RegionHash(held), scene_->RegionHash("clay", held));
+    EXPECT_EQ(r->stats().hash_mismatches, 0u);
+    EXPECT_EQ(r->stats().errors, 0u);
+  }
+  EXPECT_EQ(ra.stats().broadcasts_applied, 2u * kStrokes);
+  EXPECT_EQ(rc.stats().deltas_applied, 2u * kStrokes);
+  EXPECT_EQ(rc.stats().broadcasts_applied, 0u);
+  // The partial replica: equal over its interest, and it saw only part of the strokes.
+  EXPECT_TRUE(Converges(rd, Box(*part.interest)));
+  EXPECT_LT(rd.stats().broadcasts_applied + rd.stats().deltas_applied, 2u * kStrokes);
+  EXPECT_GT(rd.stats().broadcasts_applied + rd.stats().deltas_applied, 0u);
+  EXPECT_EQ(scene_->replication_stats().divergences.load(), 0u);
+  // Replay moves far fewer bytes than leaf deltas for the same edits.
+  EXPECT_LT(ra.stats().bytes * 5, rc.stats().bytes);
+}
+
+TEST_F(ReplicaTest, DroppedConnectionResyncsToTheServerState) {
+  auto a = Joined(v1::ROLE_SCULPTOR, true);
+  auto c = Joined(v1::ROLE_VIEWER, true);
+  Replica rc(*c, {});
+  ASSERT_TRUE(rc.Start().ok());
+  for (int i = 0; i < 10; ++i) ASSERT_TRUE(a->SendStroke(Arc(5, i)).ok());
+  ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
+  ASSERT_TRUE(rc.WaitForSeq(scene_->global_seq(), seconds(20)));
+  const uint64_t before = rc.stats().seq;
+  // Mid-stream: the replica's connection drops while the sculptor goes on.
+  c->DropConnection();
+  for (int i = 10; i < 30; ++i) ASSERT_TRUE(a->SendStroke(Arc(5, i)).ok());
+  ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
+  EXPECT_EQ(rc.stats().seq, before);
+  ASSERT_TRUE(c->Reconnect().ok());
+  ASSERT_TRUE(rc.Resubscribe().ok());
+  ASSERT_TRUE(rc.WaitForSeq(scene_->global_seq(), seconds(20)));
+  const levelset::VoxelBox held = rc.held();
+  EXPECT_EQ(rc.RegionHash(held), scene_->RegionHash("clay", held));
+  EXPECT_EQ(rc.stats().region_loads, 1u);  // the resync sent leaves by version, not the region
+  EXPECT_EQ(rc.stats().hash_mismatches, 0u);
+  // And it keeps replaying afterwards.
+  for (int i = 30; i < 35; ++i) ASSERT_TRUE(a->SendStroke(Arc(5, i)).ok());
+  ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
+  ASSERT_TRUE(rc.WaitForSeq(scene_->global_seq(), seconds(20)));
+  EXPECT_EQ(rc.RegionHash(held), scene_->RegionHash("clay", held));
+}
+
+TEST_F(ReplicaTest, InterestMovingAcrossTheObjectWhileOthersEditEndsEqual) {
+  auto a = Joined(v1::ROLE_SCULPTOR, true);
+  auto c = Joined(v1::ROLE_VIEWER, true);
+  ReplicaOptions part;
+  part.interest = levelset::Aabb{{15, -10, -15}, {25, 10, -5}};
+  Replica rc(*c, part);
+  ASSERT_TRUE(rc.Start().ok());
+  const levelset::Aabb boxes[] = {{{-5, 10, -15}, {10, 25, -5}},
+                                  {{-25, -5, -15}, {-10, 15, -5}},
+                                  {{-10, -25, -15}, {10, -10, -5}}};
+  int stroke = 0;
+  for (const levelset::Aabb& next : boxes) {
+    for (int i = 0; i < 12; ++i) ASSERT_TRUE(a->SendStroke(Arc(-10, stroke++)).ok());
+    ASSERT_TRUE(rc.MoveInterest(next).ok());
+    for (int i = 0; i < 12; ++i) ASSERT_TRUE(a->SendStroke(Arc(-10, stroke++)).ok());
+    ASSERT_TRUE(a->WaitAllAcked(seconds(30)));
+    EXPECT_TRUE(Converges(rc, Box(next))) << "interest " << next.min.x << "," << next.min.y;
+  }
+  EXPECT_EQ(rc.stats().region_loads, 4u);
+  EXPECT_EQ(rc.stats().hash_mismatches, 0u);
+}
+
+TEST_F(ReplicaTest, BadSubscriptionsAreRefusedAndOthersKeepBeingServed) {
+  auto a = Joined(v1::ROLE_SCULPTOR, true);
+  auto c = Joined(v1::ROLE_VIEWER, true);
+  auto refuse = [&](v1::ClientMessage m, const std::string& field) {
+    c->DrainEvents();
+    ASSERT_TRUE(c->SendMessage(m).ok());
+    auto e = c->NextEvent(seconds(5));
+    ASSERT_TRUE(e.has_value()) << field;
+    ASSERT_EQ(e->type, Event::Type::kError) << field;
+    EXPECT_EQ(e->error.field(), field);
+    EXPECT_FALSE(e->error.allowed_range().empty()) << field;
+  };
+  v1::ClientMessage m;
+  v1::Subscribe* s = m.mutable_subscribe();
+  s->set_object("clay");
+  s->set_mode(v1::REPLICA_MODE_REPLAY);
+  // A negative box (max below min).
+  s->mutable_interest()->mutable_min()->set_x(10);
+  s->mutable_interest()->mutable_max()->set_x(-10);
+  refuse(m, "Subscribe.interest.max.x");
+  // A huge box.
+  s->mutable_interest()->mutable_min()->set_x(-1e6f);
+  s->mutable_interest()->mutable_max()->set_x(1e6f);
+  refuse(m, "Subscribe.interest.max.x");
+  // Not finite.
+  s->mutable_interest()->mutable_min()->set_y(NAN);
+  refuse(m, "Subscribe.interest.min");
+  s->clear_interest();
+  // A sequence the server never had.
+  s->set_have_seq(1u << 30);
+  refuse(m, "Subscribe.have_seq");
+  s->set_have_seq(0);
+  s->set_mode(static_cast<v1::ReplicaMode>(7));
+  refuse(m, "Subscribe.mode");
+  s->set_mode(v1::REPLICA_MODE_REPLAY);
+  s->set_object("nothing");
+  refuse(m, "Subscribe.object");
+  // SetInterest without a subscription.
+  v1::ClientMessage si;
+  si.mutable_set_interest()->set_object("clay");
+  refuse(si, "SetInterest.object");
+  // Garbage divergence reports are only logged; the sculptor is still served.
+  ASSERT_TRUE(a->SendStroke(Arc(0, 0)).ok());
+  ASSERT_TRUE(a->WaitAllAcked(seconds(10)));
+  // A replica whose have_seq predates what the server knows loads its region anew.
+  Replica r(*c, {});
+  ASSERT_TRUE(r.Start().ok());
+  ASSERT_TRUE(r.WaitForSeq(scene_->global_seq(), seconds(20)));
+  EXPECT_EQ(r.RegionHash(r.held()), scene_->RegionHash("clay", r.held()));
+}
+
+}  // namespace
+}  // namespace sculpt::client
