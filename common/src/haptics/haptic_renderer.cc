@@ -44,10 +44,9 @@ const TickOutput& HapticRenderer::Tick(const std::shared_ptr<const SdfSampler>& 
 
   TickOutput out;
   if (sdf != nullptr && have_previous_) {
-    out.swept = settings_.model == ForceModel::kProxy
-                    ? FindFirstContact(*sdf, {previous_[0] - local_[0]},
-                                       {current_[0] - local_[0]}, settings_.proxy_radius)
-                    : FindFirstContact(*sdf, previous_, current_);
+    // Both models report the tool surface's first contact; the proxy also sweeps its own
+    // centre inside ProxyModel.
+    out.swept = FindFirstContact(*sdf, previous_, current_);
   }
 
   bool contact_set_changed = false;

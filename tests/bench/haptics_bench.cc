@@ -1,0 +1,153 @@
+/// @brief sculpt-bench haptics: the cost of one haptic tick (penalty and proxy, 32/128/512 tool
+/// samples) on a radius-128 sphere, and the 1 kHz loop's own timing while snapshots are swapped.
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <numbers>
+#include <thread>
+
+#include "bench_common.h"
+#include "sculpt/haptics/haptic_loop.h"
+#include "sculpt/haptics/haptic_renderer.h"
+#include "sculpt/haptics/sculpture_snapshot.h"
+
+namespace sculpt::bench {
+namespace {
+
+using haptics::DeviceSample;
+using haptics::ForceModel;
+using haptics::HapticRenderer;
+using haptics::HapticSettings;
+
+constexpr double kSphereRadius = 128;  // voxels (voxel size 1)
+constexpr double kToolRadius = 4;
+constexpr double kPenetration = 1;
+constexpr double kSpeed = 20;  // voxels per second along the surface
+
+// The tool centre sliding along a great circle of the sphere, kPenetration deep.
+Vec3 PathAt(double t) {
+  const double r = kSphereRadius + kToolRadius - kPenetration;
+  const double a = kSpeed * t / r;
+  return Vec3{r * std::cos(a), r * std::sin(a) * 0.6, r * std::sin(a) * 0.8};
+}
+
+HapticSettings Settings(ForceModel model, int samples) {
+  HapticSettings s;
+  s.model = model;
+  s.tool_radius = kToolRadius;
+  s.tool_samples = samples;
+  // The proxy keeps the tool sphere's centre on phi = tool radius (inside the 6-voxel band).
+  s.proxy_radius = model == ForceModel::kProxy ? kToolRadius : 0.0;
+  return s;
+}
+
+Json TickCost(const std::shared_ptr<const haptics::SdfSampler>& sdf, ForceModel model, int samples,
+              int ticks) {
+  auto r = HapticRenderer::Create(Settings(model, samples));
+  if (!r.ok()) return Json{{"error", r.status().ToString()}};
+  Samples us;
+  int contact = 0;
+  for (int i = -200; i < ticks; ++i) {  // 200 untimed ticks reach steady contact
+    const double t = (i + 200) * 1e-3;
+    const DeviceSample d{t, PathAt(t), {}};
+    const auto t0 = Clock::now();
+    const haptics::TickOutput& o = r->Tick(sdf, d);
+    const double cost = std::chrono::duration<double, std::micro>(Clock::now() - t0).count();
+    if (i < 0) continue;
+    us.Add(cost);
+    contact += o.contact ? 1 : 0;
+  }
+  Json j = us.Summary();
+  j["p999"] = us.P(0.999);
+  j["contact_fraction"] = static_cast<double>(contact) / ticks;
+  return j;
+}
+
+// The real thread for `seconds`, following the same path, while another thread publishes a
+// snapshot (alternating two prepared ones) at `publish_hz`, as replica updates would arrive.
+Json LoopRun(const std::shared_ptr<const haptics::SdfSampler>& a,
+             const std::shared_ptr<const haptics::SdfSampler>& b, double seconds,
+             double publish_hz) {
+  haptics::SnapshotPublisher pub;
+  pub.Publish(a);
+  haptics::ScriptedDevice device(PathAt);
+  auto loop = haptics::HapticLoop::Create(Settings(ForceModel::kProxy, 128), &pub, &device);
+  if (!loop.ok()) return Json{{"error", loop.status().ToString()}};
+  std::atomic<bool> stop{false};
+  std::thread publisher([&] {
+    const auto period = std::chrono::duration<double>(1.0 / publish_hz);
+    auto next = Clock::now();
+    for (int i = 0; !stop.load(); ++i) {
+      next += std::chrono::duration_cast<Clock::duration>(period);
+      std::this_thread::sleep_until(next);
+      pub.Publish(i % 2 ? a : b);
+    }
+  });
+  if (Status s = (*loop)->Start(); !s.ok()) {
+    stop = true;
+    publisher.join();
+    return Json{{"error", s.ToString()}};
+  }
+  std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+  (*loop)->Stop();
+  stop = true;
+  publisher.join();
+  const haptics::HapticLoopStats s = (*loop)->stats();
+  return Json{{"seconds", seconds},
+              {"publish_hz", publish_hz},
+              {"ticks", s.ticks},
+              {"haptic_rate_hz", s.rate_hz},
+              {"tick_cost_p50_us", s.tick_cost_p50_us},
+              {"tick_cost_p99_us", s.tick_cost_p99_us},
+              {"tick_cost_p999_us", s.tick_cost_p999_us},
+              {"tick_cost_max_us", s.tick_cost_max_us},
+              {"haptic_period_err_p50_us", s.period_err_p50_us},
+              {"haptic_period_err_p99_us", s.period_err_p99_us},
+              {"haptic_period_err_max_us", s.period_err_max_us},
+              {"overruns", s.overruns},
+              {"missed_deadlines", s.missed_deadlines},
+              {"haptic_ticks_over_2ms", s.ticks_over_2ms},
+              {"snapshots_seen", s.snapshots_seen},
+              {"haptic_snapshot_lag_p50_ms", s.snapshot_lag_p50_ms},
+              {"haptic_snapshot_lag_p99_ms", s.snapshot_lag_p99_ms},
+              {"haptic_snapshot_lag_max_ms", s.snapshot_lag_max_ms}};
+}
+
+}  // namespace
+
+Json RunHapticsBench(bool quick) {
+  const int ticks = quick ? 2000 : 20000;
+  const double loop_seconds = quick ? 0.5 : 10.0;
+  levelset::SculptureOptions o;
+  o.voxel_size = 1.0;
+  Progress("haptics: building a radius-%g sphere", kSphereRadius);
+  auto sphere = levelset::Sculpture::MakeSphere(o, {0, 0, 0}, kSphereRadius);
+  if (!sphere.ok()) return Json{{"error", sphere.status().ToString()}};
+  auto a = std::make_shared<const haptics::SculptureSnapshot>(*sphere);
+  auto b = std::make_shared<const haptics::SculptureSnapshot>(std::move(sphere).value());
+
+  Json doc{{"sphere_radius_voxels", kSphereRadius}, {"tool_radius_voxels", kToolRadius},
+           {"penetration_voxels", kPenetration},    {"speed_voxels_per_s", kSpeed},
+           {"ticks_per_configuration", ticks},      {"quick", quick}};
+  Json configs = Json::array();
+  for (ForceModel model : {ForceModel::kPenalty, ForceModel::kProxy}) {
+    for (int n : {32, 128, 512}) {
+      Progress("haptics: %s, %d samples, %d ticks", haptics::ForceModelName(model), n, ticks);
+      Json c = TickCost(a, model, n, ticks);
+      const std::string key = std::string(haptics::ForceModelName(model)) + "_";
+      doc[key + "p50_us_" + std::to_string(n)] = c["p50"];
+      doc[key + "p99_us_" + std::to_string(n)] = c["p99"];
+      doc[key + "p999_us_" + std::to_string(n)] = c["p999"];
+      doc[key + "max_us_" + std::to_string(n)] = c["max"];
+      configs.push_back(Json{{"model", haptics::ForceModelName(model)}, {"samples", n},
+                             {"tick_us", std::move(c)}});
+    }
+  }
+  doc["configurations"] = std::move(configs);
+  Progress("haptics: the loop thread for %.1f s with snapshots swapped at 120 Hz", loop_seconds);
+  doc["loop"] = LoopRun(a, b, loop_seconds, 120.0);
+  return doc;
+}
+
+}  // namespace sculpt::bench
