@@ -131,6 +131,9 @@ TEST_F(ReplicaTest, ConcurrentSculptorsAndEveryReplicaKindConverge) {
   part.interest = levelset::Aabb{{15, -10, 5}, {25, 10, 15}};
   Replica rd(*d, part);
   for (Replica* r : {&ra, &rb, &rc, &rd}) ASSERT_TRUE(r->Start().ok());
+  // Subscriptions are ordered with strokes on the server: wait until each region is loaded, so
+  // every stroke below reaches every replica as an edit.
+  for (Replica* r : {&ra, &rb, &rc, &rd}) ASSERT_TRUE(r->WaitLoaded(1, seconds(20)));
 
   // Overlapping arcs (z = 2 and z = -2 with a 2.5 tool) at the same time.
   auto send = [](Client* cl, double z) {
@@ -169,6 +172,7 @@ TEST_F(ReplicaTest, DroppedConnectionResyncsToTheServerState) {
   auto c = Joined(v1::ROLE_VIEWER, true);
   Replica rc(*c, {});
   ASSERT_TRUE(rc.Start().ok());
+  ASSERT_TRUE(rc.WaitLoaded(1, seconds(20)));
   for (int i = 0; i < 10; ++i) ASSERT_TRUE(a->SendStroke(Arc(5, i)).ok());
   ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
   ASSERT_TRUE(rc.WaitForSeq(scene_->global_seq(), seconds(20)));
@@ -199,6 +203,7 @@ TEST_F(ReplicaTest, InterestMovingAcrossTheObjectWhileOthersEditEndsEqual) {
   part.interest = levelset::Aabb{{15, -10, -15}, {25, 10, -5}};
   Replica rc(*c, part);
   ASSERT_TRUE(rc.Start().ok());
+  ASSERT_TRUE(rc.WaitLoaded(1, seconds(20)));
   const levelset::Aabb boxes[] = {{{-5, 10, -15}, {10, 25, -5}},
                                   {{-25, -5, -15}, {-10, 15, -5}},
                                   {{-10, -25, -15}, {10, -10, -5}}};

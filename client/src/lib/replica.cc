@@ -200,7 +200,7 @@ void Replica::ApplyDelta(const v1::LeafDelta& d) {
   levelset::VoxelBox region;
   {
     std::lock_guard<std::mutex> lock(mu_);
-    stats_.bytes += d.records().size();
+    (d.replace_region() ? stats_.load_bytes : stats_.bytes) += d.records().size();
     if (!sculpture_) {
       ++stats_.errors;
       return;
@@ -261,6 +261,11 @@ bool Replica::WaitForSeq(uint64_t seq, std::chrono::milliseconds timeout) {
   std::unique_lock<std::mutex> lock(mu_);
   return cv_.wait_for(lock, timeout,
                       [&] { return stats_.seq >= seq && queue_.empty() && !busy_; });
+}
+
+bool Replica::WaitLoaded(uint64_t loads, std::chrono::milliseconds timeout) {
+  std::unique_lock<std::mutex> lock(mu_);
+  return cv_.wait_for(lock, timeout, [&] { return stats_.region_loads >= loads; });
 }
 
 bool Replica::WaitIdle(std::chrono::milliseconds timeout) {

@@ -38,7 +38,8 @@ struct ReplicaStats {
   uint64_t region_loads = 0;
   uint64_t hash_mismatches = 0;
   uint64_t errors = 0;  // messages that failed to decode or apply
-  uint64_t bytes = 0;   // replication payload bytes received (records + broadcasts)
+  uint64_t bytes = 0;       // per-edit payload bytes received (broadcasts, per-edit deltas)
+  uint64_t load_bytes = 0;  // region loads (subscribe, resync, interest moves)
   uint64_t seq = 0;     // highest global sequence applied
   double apply_ms = 0;  // time spent applying
   uint64_t snapshots = 0;
@@ -74,6 +75,8 @@ class Replica {
   Status MoveInterest(std::optional<levelset::Aabb> interest);
   /// Waits until the replica has applied `seq` (or a later sequence) and its queue is empty.
   bool WaitForSeq(uint64_t seq, std::chrono::milliseconds timeout);
+  /// Waits until at least `loads` region loads have been applied (Start: 1).
+  bool WaitLoaded(uint64_t loads, std::chrono::milliseconds timeout);
   /// Waits until the queue is empty and nothing is being applied.
   bool WaitIdle(std::chrono::milliseconds timeout);
 
