@@ -1,6 +1,7 @@
 /// @brief The per-tick haptic pipeline: detect, model, blend, clamp.
 #include "sculpt/haptics/haptic_renderer.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "sculpt/levelset/tool.h"
@@ -25,6 +26,8 @@ HapticRenderer::HapticRenderer(const HapticSettings& s)
   blend_ticks_ = static_cast<int>(std::lround(s.blend_ms * 1e-3 * s.rate_hz));
   previous_.resize(local_.size());
   current_.resize(local_.size());
+  previous_phi_.assign(local_.size(), std::nan(""));
+  current_phi_.assign(local_.size(), std::nan(""));
 }
 
 const TickOutput& HapticRenderer::Tick(const std::shared_ptr<const SdfSampler>& snapshot,
@@ -43,10 +46,13 @@ const TickOutput& HapticRenderer::Tick(const std::shared_ptr<const SdfSampler>& 
   const SdfSampler* sdf = snapshot.get();
 
   TickOutput out;
+  // phi carried over is only valid on the same snapshot.
+  if (sdf != previous_snapshot_) std::fill(previous_phi_.begin(), previous_phi_.end(), std::nan(""));
+  std::fill(current_phi_.begin(), current_phi_.end(), std::nan(""));
   if (sdf != nullptr && have_previous_) {
     // Both models report the tool surface's first contact; the proxy also sweeps its own
     // centre inside ProxyModel.
-    out.swept = FindFirstContact(*sdf, previous_, current_);
+    out.swept = FindFirstContact(*sdf, previous_, current_, 0.0, previous_phi_, &current_phi_);
   }
 
   bool contact_set_changed = false;
@@ -56,7 +62,7 @@ const TickOutput& HapticRenderer::Tick(const std::shared_ptr<const SdfSampler>& 
       const PenaltyForce f =
           settings_.area_weighted && sample_area_ > 0
               ? ComputeAreaWeightedPenaltyForce(*sdf, current_, sample_area_, settings_.stiffness,
-                                                sample.position, last_normal_)
+                                                sample.position, last_normal_, &current_phi_)
               : ComputePenaltyForce(*sdf, current_, settings_.stiffness, last_normal_);
       out.model_force = f.average;
       out.colliding = f.colliding;
@@ -97,6 +103,7 @@ const TickOutput& HapticRenderer::Tick(const std::shared_ptr<const SdfSampler>& 
   out.force = f;
 
   std::swap(previous_, current_);
+  std::swap(previous_phi_, current_phi_);
   have_previous_ = true;
   previous_time_ = sample.time;
   previous_snapshot_ = sdf;

@@ -116,13 +116,16 @@ PenaltyForce ComputePenaltyForce(const SdfSampler& sdf, const std::vector<Vec3>&
 PenaltyForce ComputeAreaWeightedPenaltyForce(const SdfSampler& sdf,
                                              const std::vector<Vec3>& samples, double sample_area,
                                              double kappa, const Vec3& tool_centre,
-                                             const Vec3& fallback_normal) {
+                                             const Vec3& fallback_normal,
+                                             const std::vector<double>* known) {
   PenaltyForce f;
   if (!(sample_area > 0) || !std::isfinite(sample_area)) return f;
+  if (known != nullptr && known->size() != samples.size()) known = nullptr;
   const double rho = std::sqrt(sample_area / M_PI);
   double covered = 0;  // sum of inside fractions, in units of one patch
-  for (const Vec3& x : samples) {
-    const double phi = sdf.Phi(x);
+  for (size_t i = 0; i < samples.size(); ++i) {
+    const Vec3& x = samples[i];
+    const double phi = known != nullptr && !std::isnan((*known)[i]) ? (*known)[i] : sdf.Phi(x);
     if (phi >= rho) continue;  // |grad phi| <= 1: no part of the patch can be inside
     if (phi <= 0) ++f.colliding;
     const Vec3 g = sdf.Gradient(x);

@@ -25,6 +25,11 @@ struct SegmentHit {
 /// changes by at most sqrt(3) per unit length, so a step of (phi - iso) / sqrt(3) cannot cross
 /// phi = iso. A one-cell-thick wall is therefore never stepped over. Non-finite a or b: no hit.
 SegmentHit SweepSegment(const SdfSampler& sdf, const Vec3& a, const Vec3& b, double iso = 0);
+/// As above with phi(a) already known (`phi_a`, not offset by iso; NaN: unknown); phi(b) is
+/// written to `*phi_b` when the march reaches b without a hit, NaN otherwise. The haptic
+/// renderer carries each sample's phi from one tick to the next this way.
+SegmentHit SweepSegment(const SdfSampler& sdf, const Vec3& a, const Vec3& b, double iso,
+                        double phi_a, double* phi_b);
 
 /// The first contact of a tool moving from `from` to `to` (sample k moves from from[k] to to[k];
 /// the two must have the same size, otherwise no contact is reported).
@@ -36,6 +41,11 @@ struct SweptContact {
 };
 SweptContact FindFirstContact(const SdfSampler& sdf, const std::vector<Vec3>& from,
                               const std::vector<Vec3>& to, double iso = 0);
+/// As above, reading phi at `from` from `phi_from` (NaN entries: unknown) and writing phi at `to`
+/// into `phi_to` (NaN where the march stopped at a hit). Both must have from.size() entries.
+SweptContact FindFirstContact(const SdfSampler& sdf, const std::vector<Vec3>& from,
+                              const std::vector<Vec3>& to, double iso,
+                              const std::vector<double>& phi_from, std::vector<double>* phi_to);
 
 }  // namespace sculpt::haptics
 

@@ -69,6 +69,9 @@ class HapticRenderer {
   ProxyModel proxy_;
 
   std::vector<Vec3> previous_, current_;
+  // phi at each sample on the previous and current tick (NaN: not known), so each sample's phi
+  // is sampled once per tick, by the sweep, and reused by the force.
+  std::vector<double> previous_phi_, current_phi_;
   bool have_previous_ = false;
   double previous_time_ = 0;
   const SdfSampler* previous_snapshot_ = nullptr;

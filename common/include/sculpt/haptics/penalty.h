@@ -84,10 +84,12 @@ PenaltyForce ComputePenaltyForce(const SdfSampler& sdf, const std::vector<Vec3>&
 /// numerator): the mean depth over the contact area instead of over the colliding samples
 /// (eq. 3.5 with each sample's area as its weight). `colliding` counts samples with phi <= 0.
 /// A non-positive or non-finite sample_area gives an empty force.
+/// `phi`, when given, holds phi at each sample (NaN entries are sampled here).
 PenaltyForce ComputeAreaWeightedPenaltyForce(const SdfSampler& sdf,
                                              const std::vector<Vec3>& samples, double sample_area,
                                              double kappa, const Vec3& tool_centre,
-                                             const Vec3& fallback_normal = {});
+                                             const Vec3& fallback_normal = {},
+                                             const std::vector<double>* phi = nullptr);
 
 /// The thesis's circle tool samples (App. A.1): k + 1 points r (cos 2 pi i/k, sin 2 pi i/k) + c,
 /// i = 0..k, in the z = c.z plane (the last repeats the first, as the MATLAB code does).
