@@ -60,11 +60,26 @@ struct Reader {
   }
 };
 
+/// Where a line starts: the end of its context line (the previous line of the same side in a skin
+/// message, the previous line in a polyline set), which is exactly the joint for consecutive
+/// skin sections; the origin without one.
+Q PredictFirst(const QLine* ctx) {
+  return ctx && !ctx->empty() ? ctx->back() : Q{0, 0};
+}
+
 /// Constant-curvature prediction of point k of a line from its decoded points 0..k-1: the last
 /// step turned and scaled as the step before it was (complex a * a / b); integer arithmetic in and
 /// out, IEEE double in between (+ - * / only, so encoder and decoder agree on every platform).
-Q Predict(const QLine& q, size_t k) {
-  if (k == 1) return q[0];
+/// The second point continues the context line's last step (G1 across skin joints).
+Q Predict(const QLine& q, size_t k, const QLine* ctx) {
+  if (k == 1) {
+    if (ctx && ctx->size() >= 2 && ctx->back() == q[0]) {
+      const Q& a = (*ctx)[ctx->size() - 1];
+      const Q& b = (*ctx)[ctx->size() - 2];
+      return {q[0][0] + (a[0] - b[0]), q[0][1] + (a[1] - b[1])};
+    }
+    return q[0];
+  }
   const Q& p1 = q[k - 1];
   const double ax = static_cast<double>(p1[0] - q[k - 2][0]);
   const double ay = static_cast<double>(p1[1] - q[k - 2][1]);
@@ -112,17 +127,26 @@ Status Quantise(const std::vector<const Polyline2*>& lines, double step, std::ve
 }
 
 /// Magic, kind, step, coding, `header`, the per-line counts and first points, the residuals.
+/// The context line of line j (see PredictFirst).
+const QLine* Context(const std::vector<QLine>& lines, size_t j, Kind kind) {
+  const size_t stride = kind == kPolylineSet ? 1 : 2;
+  return j >= stride ? &lines[j - stride] : nullptr;
+}
+
 std::string Assemble(Kind kind, double step, const std::string& header,
                      const std::vector<QLine>& lines) {
   std::string firsts;
   std::vector<uint64_t> res;
-  for (const QLine& q : lines) {
+  for (size_t j = 0; j < lines.size(); ++j) {
+    const QLine& q = lines[j];
+    const QLine* ctx = Context(lines, j, kind);
     PutVarint(firsts, q.size());
     if (q.empty()) continue;
-    PutVarint(firsts, Zig(q[0][0]));
-    PutVarint(firsts, Zig(q[0][1]));
+    const Q first = PredictFirst(ctx);
+    PutVarint(firsts, Zig(q[0][0] - first[0]));
+    PutVarint(firsts, Zig(q[0][1] - first[1]));
     for (size_t k = 1; k < q.size(); ++k) {
-      const Q p = Predict(q, k);
+      const Q p = Predict(q, k, ctx);
       res.push_back(Zig(q[k][0] - p[0]));
       res.push_back(Zig(q[k][1] - p[1]));
     }
@@ -163,6 +187,15 @@ struct Parsed {
   std::vector<uint64_t> index, id, version;  // per section entry (snapshot or update)
   std::vector<Polyline2> lines;
 };
+
+/// a + b into *out when it neither overflows nor leaves [-2^52, 2^52] (untrusted residuals).
+bool AddBounded(int64_t a, int64_t b, int64_t* out) {
+  int64_t r = 0;
+  if (__builtin_add_overflow(a, b, &r)) return false;
+  if (std::abs(static_cast<double>(r)) > kMaxQuantised) return false;
+  *out = r;
+  return true;
+}
 
 Status Truncated(const char* what) { return DataLoss(std::string("contour: truncated ") + what); }
 
@@ -223,9 +256,10 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
     nlines = 2 * entries;
   }
   std::vector<QLine> q(nlines);
+  std::vector<std::array<uint64_t, 2>> firsts(nlines);
   uint64_t total = 0, nres = 0;
   for (uint64_t i = 0; i < nlines; ++i) {
-    uint64_t n = 0, zx = 0, zy = 0;
+    uint64_t n = 0;
     if (!r.Varint(&n)) return Truncated("point count");
     total += n;
     if (total > kMaxContourPoints) {
@@ -233,9 +267,8 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
                              std::to_string(kMaxContourPoints) + "]");
     }
     if (n == 0) continue;
-    if (!r.Varint(&zx) || !r.Varint(&zy)) return Truncated("first point");
+    if (!r.Varint(&firsts[i][0]) || !r.Varint(&firsts[i][1])) return Truncated("first point");
     q[i].resize(n);
-    q[i][0] = {Unzig(zx), Unzig(zy)};
     nres += 2 * (n - 1);
   }
   std::vector<uint64_t> res(nres);
@@ -262,15 +295,19 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
   p.lines.resize(nlines);
   for (uint64_t i = 0; i < nlines; ++i) {
     QLine& line = q[i];
+    if (line.empty()) continue;
+    const QLine* ctx = Context(q, i, p.kind);
+    const Q first = PredictFirst(ctx);
+    if (!AddBounded(first[0], Unzig(firsts[i][0]), &line[0][0]) ||
+        !AddBounded(first[1], Unzig(firsts[i][1]), &line[0][1])) {
+      return InvalidArgument("contour: decoded point outside [-2^52, 2^52] steps");
+    }
     for (size_t k = 1; k < line.size(); ++k) {
-      const Q pr = Predict(line, k);
-      const int64_t x = pr[0] + Unzig(res[next++]);
-      const int64_t y = pr[1] + Unzig(res[next++]);
-      if (std::abs(static_cast<double>(x)) > kMaxQuantised ||
-          std::abs(static_cast<double>(y)) > kMaxQuantised) {
+      const Q pr = Predict(line, k, ctx);
+      const int64_t dx = Unzig(res[next++]), dy = Unzig(res[next++]);
+      if (!AddBounded(pr[0], dx, &line[k][0]) || !AddBounded(pr[1], dy, &line[k][1])) {
         return InvalidArgument("contour: decoded point outside [-2^52, 2^52] steps");
       }
-      line[k] = {x, y};
     }
     p.lines[i].reserve(line.size());
     for (const Q& v : line) {

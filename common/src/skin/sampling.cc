@@ -2,6 +2,8 @@
 #include "sampling.h"
 
 #include <algorithm>
+#include <array>
+#include <functional>
 #include <cmath>
 #include <numbers>
 #include <vector>
@@ -39,16 +41,62 @@ void Refine(const F& f, double ta, Vec2 pa, double tb, Vec2 pb, double tol, int 
   }
 }
 
+/// Places samples where the chord rule needs them: the sagitta of a chord of length l on a curve
+/// of curvature k is about k l^2 / 8, so a stretch of arc needs about l sqrt(k / (8 tol))
+/// intervals. That count is integrated over a coarse scan and the samples are put at equal
+/// steps of it, so spacing varies smoothly along the curve (which the contour codec's
+/// constant-curvature predictor relies on); Refine then checks every interval and splits
+/// the few that still exceed the tolerance.
 template <typename F>
-void SampleCurve(const F& f, double ta, double tb, double tol, bool skip_first, Polyline2& out) {
-  Vec2 prev = f(ta);
-  if (!skip_first) out.push_back(prev);
-  for (int i = 1; i <= kInitialIntervals; ++i) {
-    const double t0 = ta + (tb - ta) * (i - 1) / kInitialIntervals;
-    const double t1 = i == kInitialIntervals ? tb : ta + (tb - ta) * i / kInitialIntervals;
-    const Vec2 p1 = f(t1);
-    Refine(f, t0, prev, t1, p1, tol, 0, out);
-    prev = p1;
+void SampleCurve(const F& f, double ta, double tb, double tol, bool skip_first, Polyline2& out,
+                 int scan_per_unit = 64) {
+  const int kScan = std::max(8, static_cast<int>(std::ceil((tb - ta) * scan_per_unit)));
+  constexpr double kTarget = 0.75;  // aim below the tolerance so Refine rarely has to split
+  constexpr double kDensityFloor = 0.9;
+  std::vector<Vec2> p(kScan + 1);
+  for (int i = 0; i <= kScan; ++i) p[i] = f(ta + (tb - ta) * i / kScan);
+  std::vector<double> kappa(kScan + 1);
+  for (int i = 1; i < kScan; ++i) {
+    const Vec2 a = p[i] - p[i - 1], b = p[i + 1] - p[i];
+    const double den = a.Length() * b.Length() * (a + b).Length();
+    kappa[i] = den > 0 ? 2 * std::abs(a.Cross(b)) / den : 0.0;
+  }
+  kappa[0] = kappa[1];
+  kappa[kScan] = kappa[kScan - 1];
+  // Density per unit length, floored at a fraction of its mean so nearly straight stretches do not
+  // get spacings far beyond their neighbours' (abrupt spacing changes cost the codec most).
+  std::vector<double> dens(kScan), len(kScan);
+  double mean = 0, length = 0;
+  for (int i = 0; i < kScan; ++i) {
+    len[i] = (p[i + 1] - p[i]).Length();
+    dens[i] = std::sqrt(std::max(kappa[i], kappa[i + 1]) / (8 * kTarget * tol));
+    mean += dens[i] * len[i];
+    length += len[i];
+  }
+  const double floor = length > 0 ? kDensityFloor * mean / length : 0.0;
+  std::vector<double> cum(kScan + 1);
+  for (int i = 0; i < kScan; ++i) cum[i + 1] = cum[i] + len[i] * std::max(dens[i], floor);
+  const double total = cum[kScan];
+  const int n = std::max(kInitialIntervals, static_cast<int>(std::min(std::ceil(total), 1e7)));
+  if (!skip_first) out.push_back(p[0]);
+  double prev_t = ta;
+  Vec2 prev = p[0];
+  int seg = 0;
+  for (int j = 1; j <= n; ++j) {
+    double t = tb;
+    Vec2 pt = p[kScan];
+    if (j < n) {
+      const double target = total > 0 ? total * j / n : 0.0;
+      while (seg < kScan - 1 && cum[seg + 1] < target) ++seg;
+      const double span = cum[seg + 1] - cum[seg];
+      const double w = total > 0 && span > 0 ? (target - cum[seg]) / span
+                                             : static_cast<double>(j) * kScan / n - seg;
+      t = ta + (tb - ta) * (seg + std::clamp(w, 0.0, 1.0)) / kScan;
+      pt = f(t);
+    }
+    Refine(f, prev_t, prev, t, pt, tol, 0, out);
+    prev_t = t;
+    prev = pt;
   }
 }
 
@@ -59,6 +107,10 @@ double Orient(Vec2 a, Vec2 b, Vec2 c) { return (b - a).Cross(c - a); }
 void SampleOffset(const Offset& off, double ta, double tb, double tol, bool skip_first,
                   Polyline2& out) {
   SampleCurve([&](double t) { return off.P(t); }, ta, tb, tol, skip_first, out);
+}
+
+void SampleSide(const std::function<Vec2(double)>& f, int pieces, double tol, Polyline2& out) {
+  SampleCurve(f, 0.0, static_cast<double>(pieces), tol, false, out);
 }
 
 void SampleASpline(const ASpline& s, double tol, bool skip_first, Polyline2& out) {

@@ -3,6 +3,8 @@
 #ifndef SCULPT_SKIN_INTERNAL_SAMPLING_H_
 #define SCULPT_SKIN_INTERNAL_SAMPLING_H_
 
+#include <functional>
+
 #include "sculpt/skin/curves.h"
 #include "sculpt/skin/vec2.h"
 
@@ -13,6 +15,9 @@ namespace sculpt::skin::internal {
 /// deviation at the mid and quarter points is within `tol` (digest §8.5).
 void SampleOffset(const Offset& off, double ta, double tb, double tol, bool skip_first,
                   Polyline2& out);
+/// Samples a whole side as one curve f(u), u in [0, pieces] (piece j on [j, j+1]), so the spacing
+/// stays smooth across the joints between pieces; the joints themselves need not be samples.
+void SampleSide(const std::function<Vec2(double)>& f, int pieces, double tol, Polyline2& out);
 /// Appends samples of the A-spline from P0 to P2, same rule on the pencil angle.
 void SampleASpline(const ASpline& s, double tol, bool skip_first, Polyline2& out);
 

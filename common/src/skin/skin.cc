@@ -179,19 +179,25 @@ Section BuildSectionImpl(const OrientedBall& b0, const OrientedBall& b1, size_t 
     }
   }
 
-  // Sampling: pieces joined end to start without repeating the shared point.
+  // Sampling: each side as one curve over its pieces (piece j on u in [j, j+1]), pinned to the
+  // contact points at both ends so neighbouring sections share them exactly.
   for (int s = 0; s < 2; ++s) {
     Polyline2& out = s == 0 ? sec.plus : sec.minus;
-    for (const SkinPiece& p : sec.pieces[s]) {
-      const bool skip = !out.empty();
-      const size_t first = out.size();
-      if (p.kind == SkinPiece::Kind::kOffset) {
-        internal::SampleOffset(offs[s], p.tau_a, p.tau_b, tol, skip, out);
-        if (!skip) out[first] = p.start;
-        out.back() = p.end;
-      } else {
-        internal::SampleASpline(p.spline, tol, skip, out);
-      }
+    const auto& pieces = sec.pieces[s];
+    const Offset& off = offs[s];
+    const int np = static_cast<int>(pieces.size());
+    internal::SampleSide(
+        [&](double u) {
+          const int j = std::clamp(static_cast<int>(std::floor(u)), 0, np - 1);
+          const double w = u - j;
+          const SkinPiece& p = pieces[j];
+          if (p.kind == SkinPiece::Kind::kOffset) return off.P(p.tau_a + (p.tau_b - p.tau_a) * w);
+          return p.spline.AtPhi(kPi / 2 * (1 - w));
+        },
+        np, tol, out);
+    out.front() = pieces.front().start;
+    out.back() = pieces.back().end;
+    for (const SkinPiece& p : pieces) {
       if (p.kind == SkinPiece::Kind::kOffset) {
         ++rep.side[s].offset_pieces;
       } else {

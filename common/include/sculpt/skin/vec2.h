@@ -26,7 +26,7 @@ struct Vec2 {
   constexpr double Dot(const Vec2& o) const { return x * o.x + y * o.y; }
   /// The z of the 3D cross product: positive when `o` is counter-clockwise from this.
   constexpr double Cross(const Vec2& o) const { return x * o.y - y * o.x; }
-  double Length() const { return std::hypot(x, y); }
+  double Length() const { return std::sqrt(x * x + y * y); }
   constexpr double LengthSqr() const { return x * x + y * y; }
   bool IsFinite() const { return std::isfinite(x) && std::isfinite(y); }
   /// This divided by its length; (0, 0) stays (0, 0).
