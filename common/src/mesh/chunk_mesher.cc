@@ -8,7 +8,6 @@
 #include <algorithm>
 #include <chrono>
 #include <string>
-#include <unordered_map>
 #include <utility>
 
 #include "levelset/sculpture_impl.h"
@@ -56,20 +55,6 @@ TriangleMesh Collect(const std::vector<openvdb::Vec3s>& points,
     for (int c : {0, 1, 2}) use(t[c]);
   }
   return out;
-}
-
-// True if some value of the leaf is inside (below zero) and some is not.
-struct SignFlags {
-  bool inside = false, outside = false;
-};
-SignFlags LeafSigns(const FloatLeaf& leaf) {
-  SignFlags f;
-  const float* v = leaf.buffer().data();
-  for (openvdb::Index i = 0; i < FloatLeaf::SIZE; ++i) {
-    (v[i] < 0.f ? f.inside : f.outside) = true;
-    if (f.inside && f.outside) break;
-  }
-  return f;
 }
 
 }  // namespace
@@ -189,39 +174,76 @@ std::vector<ChunkKey> AllChunks(const levelset::Sculpture& sculpture,
   if (!ValidateChunkMeshOptions(options).ok()) return keys;
   const int n = options.chunk_voxels;
   const FloatGrid& grid = *sculpture.impl().grid;
-  const auto& tree = grid.tree();
   FloatGrid::ConstAccessor acc = grid.getConstAccessor();
-  std::unordered_map<Coord, SignFlags> signs;
-  auto signs_of = [&](const Coord& origin) -> SignFlags {
-    if (auto it = signs.find(origin); it != signs.end()) return it->second;
-    SignFlags f;
-    if (const FloatLeaf* leaf = tree.probeConstLeaf(origin)) {
-      f = LeafSigns(*leaf);
-    } else {
-      (acc.getValue(origin) < 0.f ? f.inside : f.outside) = true;
-    }
-    signs.emplace(origin, f);
-    return f;
-  };
-  for (auto leaf = tree.cbeginLeaf(); leaf; ++leaf) {
+  constexpr int kDim = static_cast<int>(FloatLeaf::DIM);
+  for (auto leaf = grid.tree().cbeginLeaf(); leaf; ++leaf) {
+    // Bounding box of the voxels p whose edge to p + e_axis changes sign (active or not: a
+    // superset of the edges volumeToMesh meshes). Edges entering the leaf from a tile below it
+    // are found here too; from a leaf below, by that leaf.
     const Coord o = leaf->origin();
-    const SignFlags f = signs_of(o);
-    // A crossing touches this leaf if its own values change sign or a face neighbour has the
-    // other sign (the crossing then sits on the shared face).
-    bool surface = f.inside && f.outside;
-    for (int axis = 0; axis < 3 && !surface; ++axis) {
-      for (int step : {-8, 8}) {
-        Coord nb = o;
-        nb[axis] += step;
-        const SignFlags g = signs_of(nb);
-        if ((f.inside && g.outside) || (f.outside && g.inside)) surface = true;
+    const float* v = leaf->buffer().data();
+    bool any_in = false, any_out = false;
+    for (openvdb::Index i = 0; i < FloatLeaf::SIZE; ++i) (v[i] < 0.f ? any_in : any_out) = true;
+    // A leaf of one sign can only meet the surface on its faces.
+    const bool uniform = !(any_in && any_out);
+    auto on_face = [](int c) { return c == 0 || c == kDim - 1; };
+    // The six face neighbours, probed once: a leaf's values, or a tile's sign.
+    const float* hi_leaf[3];
+    bool hi_tile_in[3], lo_tile[3], lo_tile_in[3];
+    for (int axis = 0; axis < 3; ++axis) {
+      Coord up = o, down = o;
+      up[axis] += kDim;
+      down[axis] -= kDim;
+      const FloatLeaf* u = acc.probeConstLeaf(up);
+      hi_leaf[axis] = u ? u->buffer().data() : nullptr;
+      hi_tile_in[axis] = u ? false : acc.getValue(up) < 0.f;
+      lo_tile[axis] = acc.probeConstLeaf(down) == nullptr;
+      lo_tile_in[axis] = lo_tile[axis] && acc.getValue(down) < 0.f;
+    }
+    // Range of the cells that polygons on these edges can be owned by: the polygon on the edge
+    // from p along `axis` has its vertex mean in [p - 1, p + 0.5] across the edge and in
+    // [p, p + 1] along it (its four cells' vertices lie in those cells).
+    Coord lo(INT32_MAX), hi(INT32_MIN);
+    auto add = [&](const Coord& p, int axis) {
+      Coord a = p.offsetBy(-1), b = p;
+      a[axis] += 1;
+      b[axis] += 1;
+      lo.minComponent(a);
+      hi.maxComponent(b);
+    };
+    for (int i = 0; i < kDim; ++i) {
+      for (int j = 0; j < kDim; ++j) {
+        for (int k = 0; k < kDim; ++k) {
+          if (uniform && !on_face(i) && !on_face(j) && !on_face(k)) continue;
+          const Coord c(i, j, k);
+          const bool in = v[FloatLeaf::coordToOffset(c)] < 0.f;
+          for (int axis = 0; axis < 3; ++axis) {
+            Coord q = c;
+            q[axis] += 1;
+            bool next_in;
+            if (q[axis] < kDim) {
+              next_in = v[FloatLeaf::coordToOffset(q)] < 0.f;
+            } else if (hi_leaf[axis]) {
+              q[axis] = 0;
+              next_in = hi_leaf[axis][FloatLeaf::coordToOffset(q)] < 0.f;
+            } else {
+              next_in = hi_tile_in[axis];
+            }
+            if (in != next_in) add(o + c, axis);
+            // The edge from a tile voxel below the leaf's low face (a leaf below finds it itself).
+            if (c[axis] == 0 && lo_tile[axis] && lo_tile_in[axis] != in) {
+              Coord below = o + c;
+              below[axis] -= 1;
+              add(below, axis);
+            }
+          }
+        }
       }
     }
-    if (!surface) continue;
-    // Polygons from crossings at voxels [o - 1, o + 8] have vertex means in [o - 2, o + 9].
-    for (int z = FloorDiv(o.z() - 2, n); z <= FloorDiv(o.z() + 9, n); ++z) {
-      for (int y = FloorDiv(o.y() - 2, n); y <= FloorDiv(o.y() + 9, n); ++y) {
-        for (int x = FloorDiv(o.x() - 2, n); x <= FloorDiv(o.x() + 9, n); ++x) {
+    if (lo.x() > hi.x()) continue;
+    for (int z = FloorDiv(lo.z(), n); z <= FloorDiv(hi.z(), n); ++z) {
+      for (int y = FloorDiv(lo.y(), n); y <= FloorDiv(hi.y(), n); ++y) {
+        for (int x = FloorDiv(lo.x(), n); x <= FloorDiv(hi.x(), n); ++x) {
           keys.push_back({x, y, z});
         }
       }
