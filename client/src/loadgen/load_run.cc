@@ -15,6 +15,7 @@
 
 #include "loadgen/surface_walk.h"
 #include "sculpt/client/client.h"
+#include "sculpt/client/replica.h"
 
 namespace sculpt::client {
 namespace {
@@ -69,6 +70,15 @@ struct SimClient {
   Clock::time_point next_send;
   uint64_t send_failures = 0;
   uint64_t reconnect_failures = 0;
+  std::unique_ptr<Replica> replica;  // replica clients only
+  v1::ReplicaMode mode = v1::REPLICA_MODE_UNSPECIFIED;
+};
+
+// Stroke send times by (client_id, client_seq), for edit->replica-visible latency.
+struct SendTimes {
+  std::mutex mu;
+  std::map<std::pair<uint64_t, uint64_t>, Clock::time_point> at;
+  std::vector<double> visible_ms[3];  // by ReplicaMode
 };
 
 Client::EventHandler MakeHandler(std::shared_ptr<Observed> seen) {
@@ -114,6 +124,12 @@ Status CheckOptions(const LoadOptions& o) {
   }
   if (!(o.depth >= 0 && o.depth < 64)) return bad("depth", o.depth, "[0, 64)");
   if (o.io_threads < 1 || o.io_threads > 64) return bad("io-threads", o.io_threads, "[1, 64]");
+  if (o.replay_replicas < 0 || o.replay_replicas > 64) {
+    return bad("replay-replicas", o.replay_replicas, "[0, 64]");
+  }
+  if (o.leafdelta_replicas < 0 || o.leafdelta_replicas > 64) {
+    return bad("leafdelta-replicas", o.leafdelta_replicas, "[0, 64]");
+  }
   // A stroke spans (K - 1) / rate seconds; its t_ms offsets are 16-bit milliseconds.
   if ((o.poses_per_stroke - 1) * 1000.0 / o.rate_hz > 65535) {
     return InvalidArgument("--poses-per-stroke / --rate: a stroke spans more than 65.535 s");
@@ -163,6 +179,47 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
   }
   const double setup_s = Seconds(Clock::now() - t_setup);
 
+  // Replica clients: whole-object replicas in replay and in leaf-delta mode.
+  auto times = std::make_shared<SendTimes>();
+  std::vector<SimClient> replicas(static_cast<size_t>(o.replay_replicas + o.leafdelta_replicas));
+  for (size_t i = 0; i < replicas.size(); ++i) {
+    SimClient& c = replicas[i];
+    c.mode = i < static_cast<size_t>(o.replay_replicas) ? v1::REPLICA_MODE_REPLAY
+                                                         : v1::REPLICA_MODE_LEAF_DELTA;
+    c.name = std::string(c.mode == v1::REPLICA_MODE_REPLAY ? "replay-" : "leafdelta-") +
+             std::to_string(i);
+    ClientOptions co;
+    co.io = io[i % io.size()];
+    co.skip_state = true;
+    c.client = std::make_unique<Client>(co);
+    c.client->SetEventHandler(MakeHandler(c.seen));
+    SCULPT_RETURN_IF_ERROR(c.client->Connect(host, port));
+    auto welcome = c.client->Hello(o.viewer_token, v1::ROLE_VIEWER, "loadgen-" + c.name,
+                                   NewClientId());
+    if (!welcome.ok()) return Status(welcome.status().code(), c.name + ": " + welcome.status().message());
+    auto joined = c.client->Join(o.scene);
+    if (!joined.ok()) return Status(joined.status().code(), c.name + ": " + joined.status().message());
+    ReplicaOptions ro;
+    ro.object = o.object.empty() && joined->info.objects_size() > 0 ? joined->info.objects(0).name()
+                                                                    : o.object;
+    ro.mode = c.mode;
+    c.replica = std::make_unique<Replica>(*c.client, ro);
+    const int kind = static_cast<int>(c.mode);
+    c.replica->SetAppliedHandler([times, kind](const AppliedEdit& e) {
+      const auto now = Clock::now();
+      std::lock_guard<std::mutex> lock(times->mu);
+      auto it = times->at.find({e.client_id, e.client_seq});
+      if (it != times->at.end()) {
+        times->visible_ms[kind].push_back(
+            std::chrono::duration<double, std::milli>(now - it->second).count());
+      }
+    });
+    SCULPT_RETURN_IF_ERROR(c.replica->Start());
+    if (!c.replica->WaitLoaded(1, std::chrono::seconds(60))) {
+      return Status(Status::Code::kUnavailable, c.name + ": region not loaded within 60 s");
+    }
+  }
+
   // The walk follows the object's surface as SceneInfo bounds it: the bounds hold the centres
   // of the active voxels, which reach up to half_width voxels outside the surface, so the
   // outermost centre lies about (half_width - 1) voxels out (26.5 for the default sphere of
@@ -192,6 +249,7 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
   const double stroke_period = o.poses_per_stroke / o.rate_hz;
   const double pose_dt = 1.0 / o.rate_hz;
   const auto t_start = Clock::now();
+  for (SimClient& c : replicas) c.at_start = c.client->stats();  // after the region loads
   for (size_t i = 0; i < clients.size(); ++i) {
     SimClient& c = clients[i];
     c.at_start = c.client->stats();
@@ -232,7 +290,16 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
       p.t_ms = static_cast<uint32_t>(std::lround(k * pose_dt * 1000.0));
       s.poses.push_back(p);
     }
-    if (!due->client->SendStroke(s).ok()) ++due->send_failures;
+    {
+      // Recorded before the send, so a fast replica never sees its edit before the time exists.
+      std::lock_guard<std::mutex> lock(times->mu);
+      const auto seq = due->client->SendStroke(s);
+      if (!seq.ok()) {
+        ++due->send_failures;
+      } else {
+        times->at[{due->client->client_id(), *seq}] = Clock::now();
+      }
+    }
     due->next_send +=
         std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(stroke_period));
   }
@@ -244,6 +311,12 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
     if (!c.sculptor) continue;
     const auto left = std::max(Clock::duration::zero(), drain_deadline - Clock::now());
     c.client->WaitAllAcked(std::chrono::duration_cast<std::chrono::milliseconds>(left));
+  }
+  uint64_t last_seq = 0;
+  for (SimClient& c : clients) last_seq = std::max(last_seq, c.client->stats().last_global_seq);
+  for (SimClient& c : replicas) {
+    const auto left = std::max(Clock::duration::zero(), drain_deadline - Clock::now());
+    c.replica->WaitForSeq(last_seq, std::chrono::duration_cast<std::chrono::milliseconds>(left));
   }
   const auto t_end = Clock::now();
   const double duration_s = Seconds(t_end - t_start);
@@ -367,8 +440,102 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
       {"clients", per_client},
   };
 
+  // Replication (issue 4): bytes each replica client received during the run, per second.
+  uint64_t mode_bytes[3] = {0, 0, 0};
+  int mode_count[3] = {0, 0, 0};
+  uint64_t mismatches = 0, replica_errors = 0;
+  json replica_entries = json::array();
+  for (SimClient& c : replicas) {
+    const ClientStats st = c.client->stats();
+    const ReplicaStats rs = c.replica->stats();
+    const int kind = static_cast<int>(c.mode);
+    mode_bytes[kind] += st.bytes_received - c.at_start.bytes_received;
+    ++mode_count[kind];
+    mismatches += rs.hash_mismatches;
+    replica_errors += rs.errors;
+    replica_entries.push_back({{"name", c.name},
+                               {"bytes_down", st.bytes_received - c.at_start.bytes_received},
+                               {"region_load_bytes", rs.load_bytes},
+                               {"edit_payload_bytes", rs.bytes},
+                               {"broadcasts_applied", rs.broadcasts_applied},
+                               {"deltas_applied", rs.deltas_applied},
+                               {"hash_mismatches", rs.hash_mismatches},
+                               {"errors", rs.errors},
+                               {"seq", rs.seq},
+                               {"apply_ms_total", Round3(rs.apply_ms)}});
+  }
+  std::vector<double> vis_replay, vis_delta;
+  {
+    std::lock_guard<std::mutex> lock(times->mu);
+    vis_replay = times->visible_ms[v1::REPLICA_MODE_REPLAY];
+    vis_delta = times->visible_ms[v1::REPLICA_MODE_LEAF_DELTA];
+  }
+  std::sort(vis_replay.begin(), vis_replay.end());
+  std::sort(vis_delta.begin(), vis_delta.end());
+  const double replay_bps = per_s(static_cast<double>(mode_bytes[v1::REPLICA_MODE_REPLAY]),
+                                  mode_count[v1::REPLICA_MODE_REPLAY]);
+  const double delta_bps = per_s(static_cast<double>(mode_bytes[v1::REPLICA_MODE_LEAF_DELTA]),
+                                 mode_count[v1::REPLICA_MODE_LEAF_DELTA]);
+  report["replica_bytes_down_per_s"] = replay_bps;
+  report["leafdelta_bytes_down_per_s"] = delta_bps;
+  report["leafdelta_over_replay_bytes"] = replay_bps > 0 ? Round3(delta_bps / replay_bps) : 0.0;
+  report["edit_visible_p50_ms"] = Round3(Percentile(vis_replay, 0.50));
+  report["edit_visible_p99_ms"] = Round3(Percentile(vis_replay, 0.99));
+  report["edit_visible_samples"] = vis_replay.size();
+  report["leafdelta_visible_p50_ms"] = Round3(Percentile(vis_delta, 0.50));
+  report["leafdelta_visible_p99_ms"] = Round3(Percentile(vis_delta, 0.99));
+  report["hash_mismatches"] = mismatches;
+  report["replica_errors"] = replica_errors;
+  report["replicas"] = replica_entries;
+  report["config"]["replay_replicas"] = o.replay_replicas;
+  report["config"]["leafdelta_replicas"] = o.leafdelta_replicas;
+
+  for (SimClient& c : replicas) c.replica.reset();
+  for (SimClient& c : replicas) (void)c.client->Close("load run finished");
   for (SimClient& c : clients) (void)c.client->Close("load run finished");
   return report;
+}
+
+StatusOr<nlohmann::ordered_json> RunLateJoin(const LoadOptions& o) {
+  std::string host;
+  uint16_t port = 0;
+  SCULPT_RETURN_IF_ERROR(ParseServerAddress(o.server, &host, &port));
+  const auto t0 = Clock::now();
+  ClientOptions co;
+  co.skip_state = true;
+  co.timeout = std::chrono::seconds(60);
+  Client client(co);
+  SCULPT_RETURN_IF_ERROR(client.Connect(host, port));
+  auto welcome = client.Hello(o.viewer_token, v1::ROLE_VIEWER, "loadgen-late-join", NewClientId());
+  if (!welcome.ok()) return welcome.status();
+  auto joined = client.Join(o.scene);
+  if (!joined.ok()) return joined.status();
+  ReplicaOptions ro;
+  ro.object = o.object.empty() && joined->info.objects_size() > 0 ? joined->info.objects(0).name()
+                                                                  : o.object;
+  Replica replica(client, ro);
+  SCULPT_RETURN_IF_ERROR(replica.Start());
+  if (!replica.WaitLoaded(1, std::chrono::seconds(120))) {
+    return Status(Status::Code::kUnavailable, "late join: region not loaded within 120 s");
+  }
+  const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  const ClientStats st = client.stats();
+  const ReplicaStats rs = replica.stats();
+  json r = {{"late_join_bytes", st.bytes_received},
+            {"late_join_ms", Round3(ms)},
+            {"region_load_bytes", rs.load_bytes},
+            {"apply_ms", Round3(rs.apply_ms)},
+            {"object", ro.object},
+            {"server", o.server}};
+  for (const v1::ObjectInfo& obj : joined->info.objects()) {
+    if (obj.name() != ro.object) continue;
+    r["voxel_size"] = obj.voxel_size();
+    r["half_width"] = obj.half_width();
+    r["bounds_min"] = {obj.bounds_min().x(), obj.bounds_min().y(), obj.bounds_min().z()};
+    r["bounds_max"] = {obj.bounds_max().x(), obj.bounds_max().y(), obj.bounds_max().z()};
+  }
+  (void)client.Close("late join measured");
+  return r;
 }
 
 }  // namespace sculpt::client

@@ -29,7 +29,15 @@ struct LoadOptions {
   double depth = 1.0;         // poses this far inside the surface, world units
   double drain_seconds = 60;  // wait for the last acks after the sending phase
   int io_threads = 2;
+  /// Replica clients (issue 4), each holding the whole object: in replay mode and in leaf-delta
+  /// mode, so one run measures both on the same edits.
+  int replay_replicas = 1;
+  int leafdelta_replicas = 1;
 };
+
+/// Late join: one replica client subscribes to the whole object; bytes and time until its
+/// region is loaded.
+StatusOr<nlohmann::ordered_json> RunLateJoin(const LoadOptions& options);
 
 /// Connects every client, runs the sending phase, waits for the acks and returns the report.
 /// InvalidArgument for bad options; the connection's error when a client cannot join.

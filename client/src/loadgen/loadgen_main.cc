@@ -46,8 +46,33 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--io-threads", o.io_threads, "Client I/O threads shared by all clients")
       ->capture_default_str();
+  app.add_option("--replay-replicas", o.replay_replicas,
+                 "Whole-object replica clients in replay mode (edit broadcasts)")
+      ->capture_default_str();
+  app.add_option("--leafdelta-replicas", o.leafdelta_replicas,
+                 "Whole-object replica clients in leaf-delta mode (the same edits as leaves)")
+      ->capture_default_str();
+  bool late_join = false;
+  app.add_flag("--late-join", late_join,
+               "Only measure a late join: one replica loads the whole object (bytes, ms)");
   app.add_flag("--json", as_json, "Print the JSON report (otherwise a short summary)");
   CLI11_PARSE(app, argc, argv);
+
+  if (late_join) {
+    auto lj = sculpt::client::RunLateJoin(o);
+    if (!lj.ok()) {
+      spdlog::error("late join failed: {}", lj.status().ToString());
+      return 1;
+    }
+    if (as_json) {
+      std::printf("%s\n", lj->dump(2).c_str());
+    } else {
+      std::printf("late join: %llu bytes in %.1f ms\n",
+                  (*lj)["late_join_bytes"].get<unsigned long long>(),
+                  (*lj)["late_join_ms"].get<double>());
+    }
+    return 0;
+  }
 
   auto report = sculpt::client::RunLoad(o);
   if (!report.ok()) {
