@@ -7,11 +7,13 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <vector>
 
+#include "sculpt/levelset/edit.h"
 #include "sculpt/mesh/chunk_mesher.h"
 #include "sculpt/mesh/draco_chunk_codec.h"
 #include "sculpt/mesh/glb_writer.h"
@@ -99,6 +101,54 @@ void Figures(double radius, int bits, int speed) {
   std::printf("%s\n", out.dump().c_str());
   std::filesystem::remove(glb);
 }
+
+// After one press of a 5-voxel tool on the radius-128 sphere: how many chunks ChunksTouchedBy
+// returns and what remeshing and encoding them costs (the server's work per coalesced update).
+void EditFigures(int presses) {
+  levelset::SculptureOptions so;
+  auto s = levelset::Sculpture::MakeSphere(so, {0, 0, 0}, 128);
+  ASSERT_TRUE(s.ok()) << s.status();
+  DracoChunkOptions o;
+  auto frame = FrameAround(*s, 8);
+  ASSERT_TRUE(frame.ok());
+  o.frame = *frame;
+  Dist touched, update_ms, update_bytes;
+  for (int i = 0; i < presses; ++i) {
+    const double a = 0.37 * i, b = 0.23 * i;
+    const Vec3 c{127 * std::cos(a) * std::cos(b), 127 * std::sin(a) * std::cos(b),
+                 127 * std::sin(b)};
+    levelset::EditRequest press;
+    press.kind = levelset::EditKind::kPress;
+    press.tool = levelset::ToolShape::Sphere(c, 5.0);
+    press.speed = 10;
+    press.dt = 0.2;
+    auto r = levelset::ApplyEdit(*s, press, levelset::EditSettings{});
+    ASSERT_TRUE(r.ok()) << r.status();
+    const auto t0 = std::chrono::steady_clock::now();
+    size_t bytes = 0;
+    const std::vector<ChunkKey> keys = ChunksTouchedBy(r->dirty_leaves);
+    for (const ChunkKey& k : keys) {
+      auto m = MeshChunk(*s, k);
+      ASSERT_TRUE(m.ok());
+      auto enc = EncodeChunk(m->mesh, o);
+      ASSERT_TRUE(enc.ok()) << enc.status();
+      bytes += enc->bytes.size();
+    }
+    touched.v.push_back(static_cast<double>(keys.size()));
+    update_ms.v.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    update_bytes.v.push_back(static_cast<double>(bytes));
+  }
+  const nlohmann::json out = {{"radius_voxels", 128},
+                              {"tool_radius_voxels", 5},
+                              {"presses", presses},
+                              {"chunks_touched", touched.Json()},
+                              {"remesh_encode_ms", update_ms.Json()},
+                              {"update_bytes", update_bytes.Json()}};
+  std::printf("%s\n", out.dump().c_str());
+}
+
+TEST(ChunkCodecFigures, DISABLED_OnePress) { EditFigures(40); }
 
 TEST(ChunkCodecFigures, DISABLED_Spheres) {
   for (double r : {64.0, 128.0}) {
