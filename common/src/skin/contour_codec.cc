@@ -6,6 +6,7 @@
 #include <draco/core/decoder_buffer.h>
 #include <draco/core/encoder_buffer.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -262,9 +263,13 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
     uint64_t n = 0;
     if (!r.Varint(&n)) return Truncated("point count");
     total += n;
-    if (total > kMaxContourPoints) {
+    // Even entropy-coded, a point costs far more than 1/256 byte: a claim beyond that is a lie
+    // that would only make us allocate.
+    const uint64_t cap = std::min<uint64_t>(kMaxContourPoints, 65536 + 256 * bytes.size());
+    if (total > cap) {
       return InvalidArgument("contour.points=" + std::to_string(total) + " outside [0, " +
-                             std::to_string(kMaxContourPoints) + "]");
+                             std::to_string(cap) + "] for a " + std::to_string(bytes.size()) +
+                             "-byte message");
     }
     if (n == 0) continue;
     if (!r.Varint(&firsts[i][0]) || !r.Varint(&firsts[i][1])) return Truncated("first point");

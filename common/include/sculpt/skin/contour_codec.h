@@ -33,7 +33,8 @@
 
 namespace sculpt::skin {
 
-/// Upper bounds a decoder enforces on untrusted input.
+/// Upper bounds a decoder enforces on untrusted input (points also to 65536 + 256 per message
+/// byte).
 inline constexpr uint64_t kMaxContourPoints = 1ull << 26;
 inline constexpr uint64_t kMaxContourPolylines = 1ull << 24;
 
