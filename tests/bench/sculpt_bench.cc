@@ -5,6 +5,7 @@
 ///   sculpt-bench accuracy --json   accuracy vs time over schemes, voxel sizes, policies
 ///   sculpt-bench skin --json       ball skins: build/update time, contour bytes, accuracy cost
 ///   sculpt-bench haptics --json    haptic tick cost (penalty/proxy, 32/128/512 samples), 1 kHz loop
+///   sculpt-bench hetero --json     hyperpatch validity per cell and per 1,000 cells, edits, inverse map
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <iostream>
@@ -15,6 +16,7 @@
 namespace sculpt::bench {
 Json RunSkinBench(bool quick, const std::string& out_dat);  // skin_bench.cc
 Json RunHapticsBench(bool quick);                           // haptics_bench.cc
+Json RunHeteroBench(bool quick, const std::string& write_scenes);  // hetero_bench.cc
 }  // namespace sculpt::bench
 
 namespace {
@@ -130,11 +132,23 @@ int main(int argc, char** argv) {
   haptics->add_flag("--json", json, "print the JSON document (the only output of haptics)");
   haptics->add_flag("--quick", haptics_quick, "seconds-long smoke configuration");
 
+  bool hetero_quick = false;
+  std::string hetero_scenes;
+  CLI::App* hetero = app.add_subcommand(
+      "hetero", "heterogeneous hyperpatches: validity check time per cell and for a 1,000-cell "
+                "model, intent edits, inverse-map point location, model size");
+  hetero->add_flag("--json", json, "print the JSON document (the only output of hetero)");
+  hetero->add_flag("--quick", hetero_quick, "seconds-long smoke configuration");
+  hetero->add_option("--write-scenes", hetero_scenes,
+                     "write the example models (tyre, mechanical part) into this directory");
+
   CLI11_PARSE(app, argc, argv);
   const std::string cmd = CommandLine(argc, argv);
 
   Json doc;
-  if (*haptics) {
+  if (*hetero) {
+    doc = sculpt::bench::RunHeteroBench(hetero_quick, hetero_scenes);
+  } else if (*haptics) {
     doc = sculpt::bench::RunHapticsBench(haptics_quick);
   } else if (*skin) {
     doc = sculpt::bench::RunSkinBench(skin_quick, skin_dat);
@@ -167,7 +181,7 @@ int main(int argc, char** argv) {
   Json out{{"command", cmd}};
   out.update(doc);
   doc = std::move(out);
-  if (json || *skin || *haptics) {
+  if (json || *skin || *haptics || *hetero) {
     std::cout << doc.dump(2) << std::endl;
   } else if (*edit) {
     PrintEditSummary(doc);

@@ -196,7 +196,7 @@ StatusOr<AddCellResult> Extrude(CompositeModel* model, ValidityChecker* checker,
 }
 
 StatusOr<AddCellResult> Blend(CompositeModel* model, ValidityChecker* checker, const Face& a,
-                              const Face& b, bool continuous) {
+                              const Face& b, bool continuous, std::array<bool, 2> flip_b) {
   SCULPT_RETURN_IF_ERROR(CheckFace(*model, a, "blend.a"));
   SCULPT_RETURN_IF_ERROR(CheckFace(*model, b, "blend.b"));
   if (a.cell == b.cell) {
@@ -214,12 +214,13 @@ StatusOr<AddCellResult> Blend(CompositeModel* model, ValidityChecker* checker, c
   const int sa = a.side * 3, ia = a.side ? 2 : 1, sb = b.side * 3, ib = b.side ? 2 : 1;
   for (int j = 0; j < 4; ++j) {
     for (int k = 0; k < 4; ++k) {
-      const int ai = FaceIndex(a.axis, sa, j, k), bi = FaceIndex(b.axis, sb, j, k);
+      const int jb = flip_b[0] ? 3 - j : j, kb = flip_b[1] ? 3 - k : k;
+      const int ai = FaceIndex(a.axis, sa, j, k), bi = FaceIndex(b.axis, sb, jb, kb);
       const Vec3 A = pa.position(ai), B = pb.position(bi);
       Vec3 m1, m2;
       if (continuous) {
         m1 = A * 2.0 - pa.position(FaceIndex(a.axis, ia, j, k));  // (7.6)
-        m2 = B * 2.0 - pb.position(FaceIndex(b.axis, ib, j, k));
+        m2 = B * 2.0 - pb.position(FaceIndex(b.axis, ib, jb, kb));
       } else {
         m1 = A + (B - A) / 3.0;
         m2 = A + (B - A) * (2.0 / 3.0);

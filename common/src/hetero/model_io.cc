@@ -36,26 +36,30 @@ std::string ModelToJson(const CompositeModel& model, const std::string& name,
     mats.push_back({{"name", m.name}, {"colour", m.colour}});
   }
   doc["materials"] = mats;
-  Json coefs = Json::array();
-  for (uint32_t q = 0; q < model.coefficient_count(); ++q) {
-    Json c = Json::array({model.position(q).x, model.position(q).y, model.position(q).z});
-    for (double a : model.fractions(q)) c.push_back(a);
-    coefs.push_back(std::move(c));
-  }
-  doc["coefficients"] = std::move(coefs);
-  Json cells = Json::array();
-  for (size_t c = 0; c < model.cell_count(); ++c) {
-    cells.push_back(model.cell(static_cast<int>(c)).coef);
-  }
-  doc["cells"] = std::move(cells);
   Json corners = Json::array();
   for (const auto& [q, f] : model.all_corner_flags()) {
     corners.push_back({{"coefficient", q}, {"geometry_c1", f.geometry_c1},
                        {"material_c1", f.material_c1}});
   }
   doc["corners"] = std::move(corners);
-  return doc.dump(1);
+  // One coefficient and one cell per line: readable, and a diff of an edited model stays small.
+  std::string head = doc.dump(1);
+  head.pop_back();  // the closing brace
+  while (!head.empty() && (head.back() == '\n' || head.back() == ' ')) head.pop_back();
+  std::string out = head + ",\n \"coefficients\": [";
+  for (uint32_t q = 0; q < model.coefficient_count(); ++q) {
+    Json c = Json::array({model.position(q).x, model.position(q).y, model.position(q).z});
+    for (double a : model.fractions(q)) c.push_back(a);
+    out += (q ? ",\n  " : "\n  ") + c.dump();
+  }
+  out += "\n ],\n \"cells\": [";
+  for (size_t c = 0; c < model.cell_count(); ++c) {
+    out += (c ? ",\n  " : "\n  ") + Json(model.cell(static_cast<int>(c)).coef).dump();
+  }
+  out += "\n ]\n}";
+  return out;
 }
+
 
 StatusOr<CompositeModel> ModelFromJson(const std::string& text, size_t max_cells) {
   Json doc = Json::parse(text, nullptr, /*allow_exceptions=*/false);

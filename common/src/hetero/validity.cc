@@ -86,6 +86,25 @@ const std::vector<Mat3>& CandidateFrames() {
   return frames;
 }
 
+// True when the two patches' corners project onto disjoint intervals (gap > tol) along axis n:
+// the patches, being in their corners' convex hull, are then apart.
+bool SeparatedAlong(const Vec3& n, const std::array<Vec3, 4>& a, const std::array<Vec3, 4>& b,
+                    double tol) {
+  if (n.LengthSqr() == 0) return false;
+  double alo = 1e300, ahi = -1e300, blo = 1e300, bhi = -1e300;
+  for (const Vec3& p : a) {
+    const double x = n.Dot(p);
+    alo = std::min(alo, x);
+    ahi = std::max(ahi, x);
+  }
+  for (const Vec3& p : b) {
+    const double x = n.Dot(p);
+    blo = std::min(blo, x);
+    bhi = std::max(bhi, x);
+  }
+  return alo > bhi + tol || blo > ahi + tol;
+}
+
 // ---- Triangle contact (closed sets: touching counts, per the digest's caveat on §7.3.1) ----
 
 struct Tri {
@@ -212,6 +231,8 @@ bool BoxesTouch(const Aabb& a, const Aabb& b, double tol) {
 struct Skin {
   Aabb box;
   std::array<Aabb, 9> patch_box;
+  std::array<std::array<Vec3, 4>, 9> corners;  // p00, p10, p01, p11 of each bilinear patch
+  std::array<Vec3, 9> normal;                  // unit normal from the diagonals (0 if degenerate)
   std::array<std::array<Tri, 4>, 9> tris;  // both diagonal splits of each bilinear patch
 };
 
@@ -231,6 +252,10 @@ Skin MakeSkin(const Net& net, int dir, int s) {
       skin.box.Extend(b.max);
       skin.tris[idx] = {Tri{p00, p10, p11}, Tri{p00, p11, p01}, Tri{p00, p10, p01},
                         Tri{p10, p11, p01}};
+      skin.corners[idx] = {p00, p10, p01, p11};
+      const Vec3 n = (p11 - p00).Cross(p01 - p10);
+      const double len = n.Length();
+      skin.normal[idx] = len > 0 ? n / len : Vec3{};
     }
   }
   return skin;
@@ -322,35 +347,72 @@ Rejection CheckSpansOrdered(const Net& net, const CellCheckOptions& opt, int* fr
   }
   const auto& frames = CandidateFrames();
   const size_t tries = opt.frame_search ? frames.size() : 1;
-  for (size_t f = 0; f < tries; ++f) {
-    const Mat3& m = frames[f];
-    bool pass = true;
-    for (int span = 0; span < 48 && pass; ++span) {
-      for (int c = 0; c < 3 && pass; ++c) {
-        bool pos = false, neg = false;
+  // How far a frame is from ordering every span: per span and coordinate, the smaller of the
+  // positive and negative parts of its three differences; 0 means requirement 1 holds.
+  auto score = [&](const Mat3& m, bool record) {
+    double total = 0;
+    for (int span = 0; span < 48; ++span) {
+      for (int c = 0; c < 3; ++c) {
+        double pos = 0, neg = 0;
         for (int q = 0; q < 3; ++q) {
           const double x = m.rows[static_cast<size_t>(c)].Dot(d[static_cast<size_t>(span * 3 + q)]);
-          pos |= x > tol;
-          neg |= x < -tol;
+          pos += std::max(x - tol, 0.0);
+          neg += std::max(-x - tol, 0.0);
         }
-        if (pos && neg) {
-          pass = false;
-          if (f == 0) {
-            // Report where the canonical frame itself fails.
-            r.direction = span / 16;
-            r.span = span % 16;
-            r.coord = c;
-          }
+        const double v = std::min(pos, neg);
+        if (v > 0 && record && r.direction < 0) {
+          r.direction = span / 16;
+          r.span = span % 16;
+          r.coord = c;
         }
+        total += v;
       }
     }
-    if (pass) {
+    return total;
+  };
+  std::vector<std::pair<double, size_t>> ranked;
+  for (size_t f = 0; f < tries; ++f) {
+    const double v = score(frames[f], f == 0);
+    if (v == 0) {
       if (frame_index) *frame_index = static_cast<int>(f);
       return Rejection{};
     }
+    ranked.emplace_back(v, f);
+  }
+  if (opt.frame_search) {
+    // The grid is coarse: refine the three best frames by small rotations about each axis,
+    // halving the step from 7.5° to under 0.1° (deterministic, so still rotation invariant).
+    std::partial_sort(ranked.begin(), ranked.begin() + std::min<size_t>(3, ranked.size()),
+                      ranked.end());
+    for (size_t t = 0; t < std::min<size_t>(3, ranked.size()); ++t) {
+      Mat3 m = frames[ranked[t].second];
+      double best = ranked[t].first;
+      for (double step = 7.5; step > 0.05 && best > 0; step *= 0.5) {
+        bool improved = true;
+        while (improved && best > 0) {
+          improved = false;
+          for (int axis = 0; axis < 3 && best > 0; ++axis) {
+            for (double sign : {1.0, -1.0}) {
+              const Mat3 cand = Mul(Rot(axis, sign * step), m);
+              const double v = score(cand, false);
+              if (v < best) {
+                best = v;
+                m = cand;
+                improved = true;
+              }
+            }
+          }
+        }
+      }
+      if (best == 0) {
+        if (frame_index) *frame_index = static_cast<int>(tries);  // a refined frame
+        return Rejection{};
+      }
+    }
   }
   r.reason = Reason::kSpanNotOrdered;
-  r.detail = "no monotone frame among " + std::to_string(tries) + " candidate frames";
+  r.detail = "no monotone frame among " + std::to_string(tries) + " candidate frames" +
+             (opt.frame_search ? " and their refinements" : "");
   return r;
 }
 
@@ -366,8 +428,10 @@ Rejection CheckSkinsDisjoint(const Net& net, const CellCheckOptions& opt) {
         if (!BoxesTouch(sa.box, sb.box, tol)) continue;
         for (int pa = 0; pa < 9; ++pa) {
           for (int pb = 0; pb < 9; ++pb) {
-            if (!BoxesTouch(sa.patch_box[static_cast<size_t>(pa)],
-                            sb.patch_box[static_cast<size_t>(pb)], tol)) {
+            const size_t ia = static_cast<size_t>(pa), ib = static_cast<size_t>(pb);
+            if (!BoxesTouch(sa.patch_box[ia], sb.patch_box[ib], tol) ||
+                SeparatedAlong(sa.normal[ia], sa.corners[ia], sb.corners[ib], tol) ||
+                SeparatedAlong(sb.normal[ib], sa.corners[ia], sb.corners[ib], tol)) {
               continue;
             }
             for (const Tri& x : sa.tris[static_cast<size_t>(pa)]) {
@@ -392,49 +456,91 @@ Rejection CheckSkinsDisjoint(const Net& net, const CellCheckOptions& opt) {
   return Rejection{};
 }
 
+namespace {
+
+// Values of a Bézier-form vector field with (nu, nv, nw) control points (degrees nu-1, ...) at
+// the (n+1)^3 nodes t = i/n, by contracting one axis at a time (w, then v, then u).
+template <int NU, int NV, int NW>
+void EvaluateOnNodes(const Vec3 (&c)[NU][NV][NW], int n, std::vector<Vec3>* out) {
+  auto basis = [](int count, double t, double* b) {
+    if (count == 4) {
+      const auto v = Bernstein3(t);
+      std::copy(v.begin(), v.end(), b);
+    } else {
+      const auto v = Bernstein2(t);
+      std::copy(v.begin(), v.end(), b);
+    }
+  };
+  const int m = n + 1;
+  std::vector<double> bu(static_cast<size_t>(m * NU)), bv(static_cast<size_t>(m * NV)),
+      bw(static_cast<size_t>(m * NW));
+  for (int t = 0; t < m; ++t) {
+    basis(NU, static_cast<double>(t) / n, &bu[static_cast<size_t>(t * NU)]);
+    basis(NV, static_cast<double>(t) / n, &bv[static_cast<size_t>(t * NV)]);
+    basis(NW, static_cast<double>(t) / n, &bw[static_cast<size_t>(t * NW)]);
+  }
+  std::vector<Vec3> tw(static_cast<size_t>(NU * NV * m)), tv(static_cast<size_t>(NU * m * m));
+  for (int i = 0; i < NU; ++i)
+    for (int j = 0; j < NV; ++j)
+      for (int w = 0; w < m; ++w) {
+        Vec3 acc;
+        for (int k = 0; k < NW; ++k) acc += c[i][j][k] * bw[static_cast<size_t>(w * NW + k)];
+        tw[static_cast<size_t>((i * NV + j) * m + w)] = acc;
+      }
+  for (int i = 0; i < NU; ++i)
+    for (int v = 0; v < m; ++v)
+      for (int w = 0; w < m; ++w) {
+        Vec3 acc;
+        for (int j = 0; j < NV; ++j) acc += tw[static_cast<size_t>((i * NV + j) * m + w)] * bv[static_cast<size_t>(v * NV + j)];
+        tv[static_cast<size_t>((i * m + v) * m + w)] = acc;
+      }
+  out->assign(static_cast<size_t>(m * m * m), Vec3{});
+  for (int u = 0; u < m; ++u)
+    for (int v = 0; v < m; ++v)
+      for (int w = 0; w < m; ++w) {
+        Vec3 acc;
+        for (int i = 0; i < NU; ++i) acc += tv[static_cast<size_t>((i * m + v) * m + w)] * bu[static_cast<size_t>(u * NU + i)];
+        (*out)[static_cast<size_t>((u * m + v) * m + w)] = acc;
+      }
+}
+
+}  // namespace
+
 Rejection CheckJacobianSign(const Hyperpatch& patch, int n, double relative_tolerance,
                             double* min_det, double* max_det) {
   const Net& net = patch.positions();
   const double scale = NetScale(net);
   const double tol = relative_tolerance * scale * scale * scale;
   n = std::max(n, 1);
-  std::vector<std::array<double, 4>> b3(static_cast<size_t>(n + 1));
-  std::vector<std::array<double, 3>> b2(static_cast<size_t>(n + 1));
-  for (int t = 0; t <= n; ++t) {
-    b3[static_cast<size_t>(t)] = Bernstein3(static_cast<double>(t) / n);
-    b2[static_cast<size_t>(t)] = Bernstein2(static_cast<double>(t) / n);
-  }
+  // Difference nets of the three partial derivatives (seed 001 §2.5 INFERENCE), without the 3s.
+  Vec3 du[3][4][4], dv[4][3][4], dw[4][4][3];
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j)
+      for (int k = 0; k < 4; ++k) {
+        const Vec3& p = net[static_cast<size_t>(Hyperpatch::Index(i, j, k))];
+        if (i < 3) du[i][j][k] = net[static_cast<size_t>(Hyperpatch::Index(i + 1, j, k))] - p;
+        if (j < 3) dv[i][j][k] = net[static_cast<size_t>(Hyperpatch::Index(i, j + 1, k))] - p;
+        if (k < 3) dw[i][j][k] = net[static_cast<size_t>(Hyperpatch::Index(i, j, k + 1))] - p;
+      }
+  std::vector<Vec3> pu, pv, pw;
+  EvaluateOnNodes(du, n, &pu);
+  EvaluateOnNodes(dv, n, &pv);
+  EvaluateOnNodes(dw, n, &pw);
+  const int m = n + 1;
   double lo = 1e300, hi = -1e300;
   Rejection first_zero;
-  for (int iu = 0; iu <= n; ++iu) {
-    for (int iv = 0; iv <= n; ++iv) {
-      for (int iw = 0; iw <= n; ++iw) {
-        const auto &bu = b3[static_cast<size_t>(iu)], &bv = b3[static_cast<size_t>(iv)],
-                   &bw = b3[static_cast<size_t>(iw)];
-        const auto &du = b2[static_cast<size_t>(iu)], &dv = b2[static_cast<size_t>(iv)],
-                   &dw = b2[static_cast<size_t>(iw)];
-        Vec3 pu, pv, pw;
-        for (int i = 0; i < 4; ++i) {
-          for (int j = 0; j < 4; ++j) {
-            for (int k = 0; k < 4; ++k) {
-              const Vec3& p = net[static_cast<size_t>(Hyperpatch::Index(i, j, k))];
-              if (i < 3) pu += (net[static_cast<size_t>(Hyperpatch::Index(i + 1, j, k))] - p) * (du[i] * bv[j] * bw[k]);
-              if (j < 3) pv += (net[static_cast<size_t>(Hyperpatch::Index(i, j + 1, k))] - p) * (bu[i] * dv[j] * bw[k]);
-              if (k < 3) pw += (net[static_cast<size_t>(Hyperpatch::Index(i, j, k + 1))] - p) * (bu[i] * bv[j] * dw[k]);
-            }
-          }
-        }
-        const double det = 27.0 * pu.Dot(pv.Cross(pw));
-        if (std::abs(det) <= tol && first_zero.ok()) {
-          first_zero.reason = Reason::kJacobianSign;
-          first_zero.uvw = {static_cast<double>(iu) / n, static_cast<double>(iv) / n,
-                            static_cast<double>(iw) / n};
-          first_zero.detail = "det J=" + FormatNumber(det) + " at a subdivision node";
-        }
-        lo = std::min(lo, det);
-        hi = std::max(hi, det);
-      }
+  for (int node = 0; node < m * m * m; ++node) {
+    const size_t s = static_cast<size_t>(node);
+    const double det = 27.0 * pu[s].Dot(pv[s].Cross(pw[s]));
+    if (std::abs(det) <= tol && first_zero.ok()) {
+      first_zero.reason = Reason::kJacobianSign;
+      first_zero.uvw = {static_cast<double>(node / (m * m)) / n,
+                        static_cast<double>((node / m) % m) / n,
+                        static_cast<double>(node % m) / n};
+      first_zero.detail = "det J=" + FormatNumber(det) + " at a subdivision node";
     }
+    lo = std::min(lo, det);
+    hi = std::max(hi, det);
   }
   const double norm = scale * scale * scale;
   if (min_det) *min_det = lo / norm;

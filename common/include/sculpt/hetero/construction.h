@@ -63,8 +63,11 @@ StatusOr<AddCellResult> Extrude(CompositeModel* model, ValidityChecker* checker,
 /// coefficients with (7.6) (2p* − p_interior), otherwise by linear interpolation at 1/3 and 2/3;
 /// materials are copied from the associated surface coefficient. Face points correspond in the
 /// order of each face's two free axes (the thesis keeps i, j, k consistent).
+/// `flip_b` reverses B's first / second in-face index: the manual correspondence the thesis
+/// offers when the two faces are parametrised in opposite senses.
 StatusOr<AddCellResult> Blend(CompositeModel* model, ValidityChecker* checker, const Face& a,
-                              const Face& b, bool continuous);
+                              const Face& b, bool continuous,
+                              std::array<bool, 2> flip_b = {false, false});
 
 /// De Casteljau subdivision of a cell into two at t along `axis` (Fig. 7.4), replacing it: the
 /// first half keeps the index, the second is appended. Same geometry and materials.
