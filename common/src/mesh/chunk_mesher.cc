@@ -24,8 +24,10 @@ using FloatLeaf = openvdb::FloatTree::LeafNodeType;
 // A polygon of the dual mesh owned by a chunk has its vertex mean inside the chunk. Its crossing
 // edge then lies within one voxel of the chunk and its four cells' corners within two, so the
 // polygon reads voxels at most kReach voxels outside the chunk (the vertex of a cell depends
-// only on that cell's 8 corner values at adaptivity 0). The copy adds one more voxel so that
-// the spurious surface where the copy ends never reaches an owned polygon.
+// only on that cell's 8 corner values at adaptivity 0). The copy keeps whole leaves (exact
+// values out to the leaf boundary) but only the voxels within kMargin of the chunk stay active,
+// which bounds what volumeToMesh meshes; the spurious surface where the copy ends lies beyond
+// the leaf boundary, out of every owned polygon's reach.
 constexpr int kReach = 2;
 constexpr int kMargin = kReach + 1;
 
