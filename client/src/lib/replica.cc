@@ -57,6 +57,7 @@ Status Replica::Start() {
   {
     std::lock_guard<std::mutex> lock(mu_);
     settings_ = *settings;
+    voxel_size_ = obj->voxel_size();
     sculpture_.emplace(std::move(empty).value());
     stats_.seq = 0;
   }
@@ -144,8 +145,21 @@ void Replica::Apply(v1::ServerMessage& m) {
 
 void Replica::ApplyBroadcast(const v1::EditBroadcast& b) {
   std::vector<levelset::EditRequest> reqs;
-  reqs.reserve(static_cast<size_t>(b.records_size()));
-  for (const v1::EditRecord& r : b.records()) reqs.push_back(codec::EditFromRecord(r));
+  uint64_t author = b.client_id(), author_seq = b.stroke().client_seq();
+  if (b.records_size() > 0) {
+    for (const v1::EditRecord& r : b.records()) reqs.push_back(codec::EditFromRecord(r));
+    author = b.records(0).client_id();
+    author_seq = b.records(0).client_seq();
+  } else {
+    // The compact form: decode the author's stroke as the server did, then round each edit
+    // through its record exactly as the server's log and apply do.
+    auto decoded = codec::DecodeStroke(b.stroke(), codec::ReplicaLimits(voxel_size_));
+    if (decoded.ok()) {
+      for (const levelset::EditRequest& e : decoded->edits) {
+        reqs.push_back(codec::EditFromRecord(codec::RecordFromEdit(e)));
+      }
+    }
+  }
   uint64_t mismatch_seq = 0;
   uint64_t actual = 0;
   AppliedEdit applied;
@@ -174,7 +188,7 @@ void Replica::ApplyBroadcast(const v1::EditBroadcast& b) {
     }
     ++stats_.broadcasts_applied;
     stats_.seq = std::max(stats_.seq, last);
-    applied = {b.records(0).client_id(), b.records(0).client_seq(), last, true};
+    applied = {author, author_seq, last, true};
   }
   if (mismatch_seq) {
     v1::ClientMessage m;

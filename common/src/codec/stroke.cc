@@ -317,7 +317,21 @@ StatusOr<DecodedStroke> DecodeStroke(const v1::Stroke& stroke, const StrokeLimit
     out.edits.push_back(edit);
   }
   out.poses = std::move(poses);
+  out.source = stroke.SerializeAsString();
   return out;
+}
+
+StrokeLimits ReplicaLimits(double voxel_size) {
+  StrokeLimits l;
+  l.voxel_size = voxel_size;
+  l.max_poses = 1u << 16;
+  l.min_tool_size = 0;
+  l.max_tool_size = 1e30;
+  l.max_speed = 1e30;
+  l.max_amount = 1e30;
+  l.bounds = {{-1e30, -1e30, -1e30}, {1e30, 1e30, 1e30}};
+  l.bounds_margin = 0;
+  return l;
 }
 
 FieldError SplitFieldError(const Status& status) {

@@ -162,7 +162,7 @@ uint64_t Scene::RegionHash(const std::string& object, const levelset::VoxelBox& 
 }
 
 void Scene::Replicate(const std::string& object, const levelset::Sculpture& sculpture,
-                      const std::vector<v1::EditRecord>& records,
+                      const std::vector<v1::EditRecord>& records, const std::string& source,
                       const levelset::ReplayState& before,
                       const levelset::EditFootprint& footprint,
                       const levelset::EditResult& result) {
@@ -201,7 +201,8 @@ void Scene::Replicate(const std::string& object, const levelset::Sculpture& scul
         v1::EditBroadcast* b = m.mutable_edit();
         b->set_object(object);
         b->set_global_seq_first(records.front().global_seq());
-        for (const v1::EditRecord& r : records) *b->add_records() = r;
+        b->mutable_stroke()->ParseFromString(source);
+        b->set_client_id(records.front().client_id());
         b->set_volume(before.volume);
         b->set_reference_volume(before.reference_volume);
         b->set_edits_since_reinit(before.edits_since_reinit);

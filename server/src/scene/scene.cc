@@ -253,7 +253,7 @@ void Scene::ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, Stroke
     if (res.ok()) {
       // Leaf versions always (cheap), so a replica subscribing later resyncs by version.
       versions_[stroke.object].Record(res->dirty_leaves, next_seq_ - 1);
-      if (!subs_.empty()) Replicate(stroke.object, sculpture, records, before, footprint, *res);
+      if (!subs_.empty()) Replicate(stroke.object, sculpture, records, stroke.source, before, footprint, *res);
       out.last = std::move(res).value();
     }
     out.edits = static_cast<uint32_t>(records.size());

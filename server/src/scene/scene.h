@@ -147,7 +147,8 @@ class Scene {
   void SendRegion(Sub& sub, const levelset::Sculpture& sculpture, uint64_t have_seq,
                   bool replace);
   void Replicate(const std::string& object, const levelset::Sculpture& sculpture,
-                 const std::vector<v1::EditRecord>& records, const levelset::ReplayState& before,
+                 const std::vector<v1::EditRecord>& records, const std::string& source,
+                 const levelset::ReplayState& before,
                  const levelset::EditFootprint& footprint, const levelset::EditResult& result);
   std::map<uint64_t, Sub> subs_;                              // compute thread only
   std::map<std::string, levelset::LeafVersions> versions_;    // compute thread only

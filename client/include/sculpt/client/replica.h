@@ -102,6 +102,7 @@ class Replica {
   Client& client_;
   ReplicaOptions options_;
   levelset::EditSettings settings_;
+  double voxel_size_ = 1.0;
   mutable std::mutex mu_;  // guards sculpture_, held_, stats_, queue_, busy_
   std::condition_variable cv_;
   std::optional<levelset::Sculpture> sculpture_;

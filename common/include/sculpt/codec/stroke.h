@@ -63,7 +63,14 @@ struct DecodedStroke {
   std::string object;
   std::vector<levelset::EditRequest> edits;
   std::vector<Pose> poses;
+  /// The validated wire message, serialized: replicas receive it (about 8 bytes a pose) and
+  /// decode it into the same edits.
+  std::string source;
 };
+
+/// Limits that accept any stroke the server accepted, for a replica decoding a broadcast stroke
+/// (the server validated it; only the voxel size matters for unpacking).
+StrokeLimits ReplicaLimits(double voxel_size);
 
 /// Checks every field of an untrusted stroke and builds its edits. On failure returns
 /// InvalidArgument whose message has the form `<field>=<value> outside <allowed range>` (e.g.
