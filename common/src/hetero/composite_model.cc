@@ -81,6 +81,22 @@ StatusOr<uint32_t> CompositeModel::FindOrAddCoefficient(const Vec3& p, std::span
   return AddCoefficient(p, a);
 }
 
+std::vector<uint32_t> CompositeModel::CoincidentCoefficients(const Vec3& p, double tol) const {
+  std::vector<uint32_t> out;
+  if (!p.IsFinite()) return out;
+  const auto [kx, ky, kz] = WeldKey(p);
+  for (int64_t dx = -1; dx <= 1; ++dx)
+    for (int64_t dy = -1; dy <= 1; ++dy)
+      for (int64_t dz = -1; dz <= 1; ++dz) {
+        auto range = weld_index_.equal_range({kx + dx, ky + dy, kz + dz});
+        for (auto it = range.first; it != range.second; ++it) {
+          if ((positions_[it->second] - p).Length() <= tol) out.push_back(it->second);
+        }
+      }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 StatusOr<int> CompositeModel::AddCell(const std::array<uint32_t, 64>& coef) {
   for (int s = 0; s < 64; ++s) {
     if (coef[static_cast<size_t>(s)] >= positions_.size()) {

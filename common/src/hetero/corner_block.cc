@@ -37,7 +37,12 @@ StatusOr<CornerBlock> BuildCornerBlock(const CompositeModel& model, uint32_t cor
     int slot[3];
   };
   std::vector<Hit> hits;
-  for (int c = 0; c < static_cast<int>(model.cell_count()); ++c) {
+  // Only cells using a coefficient at p can have a corner there.
+  std::set<int> candidates;
+  for (uint32_t q : model.CoincidentCoefficients(p, tol)) {
+    candidates.insert(model.users(q).begin(), model.users(q).end());
+  }
+  for (int c : candidates) {
     const auto& rec = model.cell(c);
     for (const auto& s : kCornerSlots) {
       const uint32_t q = rec.coef[static_cast<size_t>(Hyperpatch::Index(s[0], s[1], s[2]))];

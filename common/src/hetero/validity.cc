@@ -629,9 +629,14 @@ bool OnElement(const Element& e, int i, int j, int k) {
 std::vector<Element> SharedElements(const Net& self, const Net& other, double tol) {
   std::array<bool, 64> coincident{};
   const double tol2 = tol * tol;
+  // Sort the other net by x so each lookup scans only the points within tol in x.
+  std::array<std::pair<double, int>, 64> xs;
+  for (int q = 0; q < 64; ++q) xs[static_cast<size_t>(q)] = {other[static_cast<size_t>(q)].x, q};
+  std::sort(xs.begin(), xs.end());
   for (size_t s = 0; s < 64; ++s) {
-    for (const Vec3& q : other) {
-      if ((self[s] - q).LengthSqr() <= tol2) {
+    auto it = std::lower_bound(xs.begin(), xs.end(), std::pair<double, int>{self[s].x - tol, -1});
+    for (; it != xs.end() && it->first <= self[s].x + tol; ++it) {
+      if ((self[s] - other[static_cast<size_t>(it->second)]).LengthSqr() <= tol2) {
         coincident[s] = true;
         break;
       }
@@ -706,7 +711,7 @@ struct OverlapJob {
   // across a shared face, the overlap of the two nets along the face normal must stay within
   // the face's own spread along it (a coefficient pushed through the face leaves it); at a
   // shared curve or corner, likewise along the direction between the two sub-cells.
-  bool Facing(const SubCell& a, const SubCell& b) const {
+  bool Facing(const SubCell& a, const SubCell& b, int level) const {
     std::vector<Vec3> pa, pb;
     for (const Element& ea : *shared_a) {
       if (!ElementPoints(a, ea, &pa)) continue;
@@ -715,11 +720,15 @@ struct OverlapJob {
         if (!ElementPoints(b, eb, &pb)) continue;
         const Aabb bb = BoxOf(pb);
         if (!BoxesTouch(ba, bb, tol)) continue;
+        // A shared face's normal test is decisive at once; curves and corners, whose test only
+        // looks along one direction, wait until the sub-cells are small.
+        const bool face = pa.size() == 16 && pb.size() == 16;
+        if (!face && level < opt->excuse_depth) continue;
         // The axis along which the shared part must explain the contact: the face normal, or
         // for a curve or a corner the direction between the sub-cells' centroids (made
         // perpendicular to the curve's chord).
         Vec3 n;
-        if (pa.size() == 16 && pb.size() == 16) {
+        if (face) {
           n = (pa[15] - pa[0]).Cross(pa[12] - pa[3]);
         } else {
           Vec3 ca, cb;
@@ -784,7 +793,7 @@ struct OverlapJob {
     ++boxes;
     if (!Box(a).Overlaps(Box(b), tol)) return false;
     if (Separated(a, b)) return false;
-    if (level >= opt->excuse_depth && Facing(a, b)) return false;
+    if (Facing(a, b, level)) return false;
     if (level >= opt->max_depth) return true;  // conservative leaf policy (digest §3.4 gap)
     const int axis = level % 3;  // alternate U, V, W (§7.3.2)
     const auto [a0, a1] = Halve(a, axis);
@@ -819,9 +828,17 @@ bool NetsOverlap(const Net& a, const Net& b, const OverlapOptions& opt, int* box
 
 // ---------------------------------- ValidityChecker ----------------------------------
 
+const Aabb& ValidityChecker::CellBox(const CompositeModel& model, int cell) {
+  if (box_cache_.size() < model.cell_count()) box_cache_.resize(model.cell_count(), {0, Aabb{}});
+  auto& e = box_cache_[static_cast<size_t>(cell)];
+  if (e.first != model.cell(cell).version) e = {model.cell(cell).version, model.CellBounds(cell)};
+  return e.second;
+}
+
 void ValidityChecker::Clear() {
   cell_cache_.clear();
   pair_cache_.clear();
+  box_cache_.clear();
   hits_ = 0;
 }
 
@@ -883,7 +900,7 @@ ValidityChecker::Report ValidityChecker::CheckModel(const CompositeModel& model,
   std::vector<int> order(static_cast<size_t>(n));
   double scale = 0;
   for (int c = 0; c < n; ++c) {
-    boxes[static_cast<size_t>(c)] = model.CellBounds(c);
+    boxes[static_cast<size_t>(c)] = CellBox(model, c);
     scale = std::max(scale, boxes[static_cast<size_t>(c)].Diagonal());
     order[static_cast<size_t>(c)] = c;
   }
@@ -935,7 +952,7 @@ ValidityChecker::Report ValidityChecker::CheckCells(const CompositeModel& model,
   double scale = 0;
   std::vector<Aabb> boxes(static_cast<size_t>(n));
   for (int c = 0; c < n; ++c) {
-    boxes[static_cast<size_t>(c)] = model.CellBounds(c);
+    boxes[static_cast<size_t>(c)] = CellBox(model, c);
     scale = std::max(scale, boxes[static_cast<size_t>(c)].Diagonal());
   }
   const double tol = overlap_.relative_tolerance * scale;

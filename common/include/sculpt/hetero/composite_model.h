@@ -65,6 +65,9 @@ class CompositeModel {
   /// fractions (within 1e-12), or a new one. Sharing coefficients is how cells glue (6.8).
   StatusOr<uint32_t> FindOrAddCoefficient(const Vec3& p, std::span<const double> a, double tol);
 
+  /// Every coefficient within `tol` of p (ascending); `tol` should be below 1e-6.
+  std::vector<uint32_t> CoincidentCoefficients(const Vec3& p, double tol) const;
+
   /// Appends a cell of existing coefficients. InvalidArgument naming the slot when an index is
   /// out of range. Returns the cell index.
   StatusOr<int> AddCell(const std::array<uint32_t, 64>& coef);

@@ -98,7 +98,7 @@ CellVerdict CheckCell(const Hyperpatch& patch, const CellCheckOptions& opt = {})
 
 struct OverlapOptions {
   int max_depth = 6;     // levels of alternating subdivision (both cells split per level)
-  int excuse_depth = 2;  // from this level, pairs facing each other across a shared element pass
+  int excuse_depth = 2;  // from this level, sub-cells meeting at a shared curve or corner pass
   double relative_tolerance = 1e-9;
 };
 
@@ -148,6 +148,8 @@ class ValidityChecker {
   OverlapOptions overlap_;
   std::unordered_map<int, CellEntry> cell_cache_;
   std::unordered_map<uint64_t, PairEntry> pair_cache_;
+  std::vector<std::pair<uint64_t, Aabb>> box_cache_;  // per cell: version, control-point box
+  const Aabb& CellBox(const CompositeModel& model, int cell);
   int hits_ = 0;
 };
 
