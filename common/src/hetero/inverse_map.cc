@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "sculpt/hetero/validity.h"
+
 namespace sculpt::hetero {
 
 InverseMap::InverseMap(const CompositeModel& model, InverseMapOptions opt)
@@ -13,6 +15,19 @@ InverseMap::InverseMap(const CompositeModel& model, InverseMapOptions opt)
   for (int c = 0; c < n; ++c) {
     patches_.push_back(model.CellPatch(c));
     boxes_.push_back(patches_.back().Bounds());
+    std::array<Vec3, 3> frame{Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
+    CanonicalFrame(patches_.back().positions(), &frame);  // a degenerate cell keeps x, y, z
+    std::array<std::pair<double, double>, 3> ext;
+    for (int a = 0; a < 3; ++a) {
+      ext[static_cast<size_t>(a)] = {1e300, -1e300};
+      for (const Vec3& p : patches_.back().positions()) {
+        const double t = frame[static_cast<size_t>(a)].Dot(p);
+        ext[static_cast<size_t>(a)].first = std::min(ext[static_cast<size_t>(a)].first, t);
+        ext[static_cast<size_t>(a)].second = std::max(ext[static_cast<size_t>(a)].second, t);
+      }
+    }
+    frames_.push_back(frame);
+    extents_.push_back(ext);
     bounds_.Extend(boxes_.back().min);
     bounds_.Extend(boxes_.back().max);
     std::vector<Vec3> st;
@@ -27,7 +42,8 @@ InverseMap::InverseMap(const CompositeModel& model, InverseMapOptions opt)
   if (n == 0) return;
   tol_ = opt_.relative_tolerance * std::max(bounds_.Diagonal(), 1e-300);
   // About one cell per bucket along each axis.
-  const double per_axis = std::max(1.0, std::cbrt(static_cast<double>(n)));
+  // About eight buckets per cell: fewer candidates per query.
+  const double per_axis = std::max(1.0, 2.0 * std::cbrt(static_cast<double>(n)));
   const Vec3 ext = bounds_.max - bounds_.min;
   const double h = std::max({ext.x, ext.y, ext.z}) / per_axis;
   for (int a = 0; a < 3; ++a) {
@@ -51,8 +67,12 @@ InverseMap::InverseMap(const CompositeModel& model, InverseMapOptions opt)
 }
 
 std::optional<Location> InverseMap::LocateInCell(int cell, const Vec3& x) const {
-  const Hyperpatch& h = patches_[static_cast<size_t>(cell)];
   if (!boxes_[static_cast<size_t>(cell)].Contains(x, tol_)) return std::nullopt;
+  for (int a = 0; a < 3; ++a) {
+    const double t = frames_[static_cast<size_t>(cell)][static_cast<size_t>(a)].Dot(x);
+    const auto& e = extents_[static_cast<size_t>(cell)][static_cast<size_t>(a)];
+    if (t < e.first - tol_ || t > e.second + tol_) return std::nullopt;
+  }
   // Start from the nearest subdivision node.
   const int s = std::max(opt_.start_subdivisions, 1);
   const auto& st = starts_[static_cast<size_t>(cell)];
@@ -68,8 +88,15 @@ std::optional<Location> InverseMap::LocateInCell(int cell, const Vec3& x) const 
   const int bi = static_cast<int>(best) / ((s + 1) * (s + 1));
   const int bj = (static_cast<int>(best) / (s + 1)) % (s + 1);
   const int bk = static_cast<int>(best) % (s + 1);
-  double uvw[3] = {static_cast<double>(bi) / s, static_cast<double>(bj) / s,
-                   static_cast<double>(bk) / s};
+  return NewtonInCell(cell, x,
+                      {static_cast<double>(bi) / s, static_cast<double>(bj) / s,
+                       static_cast<double>(bk) / s});
+}
+
+std::optional<Location> InverseMap::NewtonInCell(int cell, const Vec3& x, Vec3 start) const {
+  const Hyperpatch& h = patches_[static_cast<size_t>(cell)];
+  double uvw[3] = {start.x, start.y, start.z};
+  bool was_pinned = false;
   for (int it = 0; it < opt_.max_iterations; ++it) {
     const Vec3 r = h.Evaluate(uvw[0], uvw[1], uvw[2]) - x;
     if (r.Length() <= tol_) {
@@ -97,6 +124,12 @@ std::optional<Location> InverseMap::LocateInCell(int cell, const Vec3& x) const 
     uvw[0] = std::clamp(uvw[0] + du, -0.25, 1.25);
     uvw[1] = std::clamp(uvw[1] + dv, -0.25, 1.25);
     uvw[2] = std::clamp(uvw[2] + dw, -0.25, 1.25);
+    // Pinned against the clamp twice in a row: the root lies outside this cell.
+    const bool pinned = std::abs(std::abs(uvw[0] - 0.5) - 0.75) < 1e-12 ||
+                        std::abs(std::abs(uvw[1] - 0.5) - 0.75) < 1e-12 ||
+                        std::abs(std::abs(uvw[2] - 0.5) - 0.75) < 1e-12;
+    if (pinned && was_pinned) return std::nullopt;
+    was_pinned = pinned;
   }
   return std::nullopt;
 }
@@ -112,6 +145,22 @@ std::optional<Location> InverseMap::Locate(const Vec3& x) const {
     if (auto loc = LocateInCell(c, x)) return loc;
   }
   return std::nullopt;
+}
+
+std::optional<Location> InverseMap::Locate(const Vec3& x, const Location* hint) const {
+  if (hint != nullptr && hint->cell >= 0 && hint->cell < static_cast<int>(patches_.size()) &&
+      x.IsFinite() && boxes_[static_cast<size_t>(hint->cell)].Contains(x, tol_)) {
+    if (auto loc = NewtonInCell(hint->cell, x, hint->uvw)) {
+      const Vec3& t = loc->uvw;
+      const double e = 1e-7;
+      const bool interior = t.x > e && t.x < 1 - e && t.y > e && t.y < 1 - e && t.z > e &&
+                            t.z < 1 - e;
+      // Inside a valid model cells overlap only on shared boundaries, so an interior hit is
+      // the answer; a boundary hit must go through the lowest-index rule.
+      if (interior) return loc;
+    }
+  }
+  return Locate(x);
 }
 
 bool InverseMap::MaterialsAt(const Vec3& x, std::span<double> out) const {

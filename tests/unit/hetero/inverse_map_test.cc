@@ -69,3 +69,29 @@ TEST(InverseMapTest, PointsOutsideAreNotFound) {
 
 }  // namespace
 }  // namespace sculpt::hetero
+
+namespace sculpt::hetero {
+namespace {
+
+TEST(InverseMapTest, HintedLookupGivesTheSameAnswers) {
+  const CompositeModel m = RingModel();
+  const InverseMap map(m);
+  std::optional<Location> prev;
+  int found = 0;
+  for (double x = 0.05; x < 2.0; x += 0.1)
+    for (double y = 0.05; y < 2.0; y += 0.1)
+      for (double z = 0.05; z < 1.0; z += 0.1) {
+        const auto plain = map.Locate({x, y, z});
+        const auto hinted = map.Locate({x, y, z}, prev ? &*prev : nullptr);
+        ASSERT_EQ(plain.has_value(), hinted.has_value()) << x << " " << y << " " << z;
+        if (!plain) continue;
+        ++found;
+        EXPECT_EQ(plain->cell, hinted->cell);
+        EXPECT_NEAR((plain->uvw - hinted->uvw).Length(), 0, 1e-8);
+        prev = hinted;
+      }
+  EXPECT_GT(found, 100);
+}
+
+}  // namespace
+}  // namespace sculpt::hetero

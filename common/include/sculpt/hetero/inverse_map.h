@@ -4,6 +4,7 @@
 #ifndef SCULPT_HETERO_INVERSE_MAP_H_
 #define SCULPT_HETERO_INVERSE_MAP_H_
 
+#include <array>
 #include <optional>
 #include <span>
 #include <vector>
@@ -41,10 +42,17 @@ class InverseMap {
   /// faces take the lower-index cell's material ((5.4), §7.4.1); nullopt outside the model or
   /// for a non-finite x.
   std::optional<Location> Locate(const Vec3& x) const;
+  /// As Locate, trying first Newton from `hint` (the location of a nearby point, e.g. the
+  /// previous voxel of a scan): same answers, far fewer iterations. Falls back to the full
+  /// search when the hint misses or lands on its cell's boundary (where a lower-index cell may
+  /// own the point).
+  std::optional<Location> Locate(const Vec3& x, const Location* hint) const;
   /// As Locate, writing only the materials (size materials()); false outside.
   bool MaterialsAt(const Vec3& x, std::span<double> out) const;
   /// Newton inversion within one cell; nullopt when x is not in it.
   std::optional<Location> LocateInCell(int cell, const Vec3& x) const;
+  /// Newton within one cell from a given start.
+  std::optional<Location> NewtonInCell(int cell, const Vec3& x, Vec3 start) const;
 
   int materials() const { return materials_; }
   const Aabb& bounds() const { return bounds_; }
@@ -55,6 +63,10 @@ class InverseMap {
   int materials_ = 1;
   std::vector<Hyperpatch> patches_;
   std::vector<Aabb> boxes_;
+  // Per cell: canonical-frame axes and the control points' interval along each (a tighter
+  // convex bound than the box for thin curved cells).
+  std::vector<std::array<Vec3, 3>> frames_;
+  std::vector<std::array<std::pair<double, double>, 3>> extents_;
   std::vector<std::vector<Vec3>> starts_;  // P at the subdivision nodes, per cell
   Aabb bounds_;
   double tol_ = 0;
