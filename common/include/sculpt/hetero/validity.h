@@ -110,7 +110,7 @@ bool NetsOverlap(const std::array<Vec3, 64>& a, const std::array<Vec3, 64>& b,
 
 /// Checks the cells of a model and keeps verdicts keyed by cell version, so a re-check after an
 /// edit costs only the touched cells and their neighbours (§7.3.2-3, §7.3.3-3).
-/// Not thread-safe (it owns caches).
+/// Use one checker per model (versions are per model). Not thread-safe (it owns caches).
 class ValidityChecker {
  public:
   ValidityChecker() = default;
