@@ -2,6 +2,9 @@
 #include "config/server_config.h"
 
 #include "sculpt/core/check.h"
+#include "sculpt/levelset/sweep.h"
+#include "sculpt/skin/oriented_ball.h"
+#include "sculpt/skin/skin.h"
 
 #include <algorithm>
 #include <cmath>
@@ -36,6 +39,32 @@ void GetVec(const toml::table& t, const char* key, Vec3* out) {
     for (size_t i = 0; i < 3; ++i) c[i] = (*a)[i].value<double>().value_or(NAN);
     *out = {c[0], c[1], c[2]};
   }
+}
+
+// A skin: name, plane, method, tolerance, and the chain (fields in range, admissible pairs).
+Status ValidateSkinConfig(const std::string& k, const SkinConfig& c) {
+  if (c.name.empty() || c.name.size() > 64) return InvalidArgument(k + ".name must be 1..64 bytes");
+  levelset::SweepPlane plane{c.origin, c.u, c.v};
+  SCULPT_RETURN_IF_ERROR(levelset::ValidatePlane(k, plane));
+  SCULPT_RETURN_IF_ERROR(skin::ParseMethod(c.method).status());
+  SCULPT_RETURN_IF_ERROR(Range(k + ".chord_tolerance", c.chord_tolerance, 0, 1e3));
+  if (c.balls.size() < 2 || c.balls.size() > kMaxSkinBalls) {
+    return InvalidArgument(k + ".balls.size=" + std::to_string(c.balls.size()) + " outside [2, " +
+                           std::to_string(kMaxSkinBalls) + "]");
+  }
+  std::vector<skin::OrientedBall> balls;
+  for (size_t i = 0; i < c.balls.size(); ++i) {
+    const std::string b = k + ".balls[" + std::to_string(i) + "]";
+    const auto& v = c.balls[i];
+    SCULPT_RETURN_IF_ERROR(Range(b + ".x", v[0], -kMaxSkinCoordinate, kMaxSkinCoordinate));
+    SCULPT_RETURN_IF_ERROR(Range(b + ".y", v[1], -kMaxSkinCoordinate, kMaxSkinCoordinate));
+    SCULPT_RETURN_IF_ERROR(Range(b + ".r", v[2], kMinSkinRadius, kMaxSkinCoordinate));
+    SCULPT_RETURN_IF_ERROR(Range(b + ".theta", v[3], -kMaxSkinTheta, kMaxSkinTheta));
+    balls.push_back({{v[0], v[1]}, v[2], v[3]});
+  }
+  const Status chain = skin::ValidateChain(balls);
+  if (!chain.ok()) return InvalidArgument(k + ".balls: " + chain.message());
+  return Status::Ok();
 }
 
 }  // namespace
@@ -120,6 +149,34 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
         GetVec(*o, "size", &oc.size);
         GetVec(*o, "end", &oc.end);
         sc.objects.push_back(oc);
+      }
+    }
+    if (const toml::array* skins = (*s)["skins"].as_array()) {
+      sc.skins.clear();
+      for (const auto& node : *skins) {
+        const toml::table* t = node.as_table();
+        if (!t) return InvalidArgument("scene.skins entries must be tables");
+        SkinConfig k;
+        Get(*t, "name", &k.name);
+        GetVec(*t, "origin", &k.origin);
+        GetVec(*t, "u", &k.u);
+        GetVec(*t, "v", &k.v);
+        Get(*t, "method", &k.method);
+        Get(*t, "chord_tolerance", &k.chord_tolerance);
+        if (const toml::array* balls = (*t)["balls"].as_array()) {
+          for (size_t i = 0; i < balls->size(); ++i) {
+            const toml::array* b = (*balls)[i].as_array();
+            if (!b || b->size() != 4) {
+              return InvalidArgument("scene.skins[" + std::to_string(sc.skins.size()) +
+                                     "].balls[" + std::to_string(i) +
+                                     "] outside arrays of 4 numbers [x, y, r, theta]");
+            }
+            std::array<double, 4> v;
+            for (size_t j = 0; j < 4; ++j) v[j] = (*b)[j].value<double>().value_or(NAN);
+            k.balls.push_back(v);
+          }
+        }
+        sc.skins.push_back(k);
       }
     }
   }
@@ -210,6 +267,15 @@ Status ValidateConfig(const ServerConfig& c) {
     }
     SCULPT_RETURN_IF_ERROR(OneOf(k + ".primitive", o.primitive, {"sphere", "box", "capsule", "torus"}));
     if (!o.center.IsFinite()) return InvalidArgument(k + ".center is not finite");
+  }
+  for (size_t i = 0; i < s.skins.size(); ++i) {
+    SCULPT_RETURN_IF_ERROR(ValidateSkinConfig("scene.skins[" + std::to_string(i) + "]", s.skins[i]));
+    for (size_t j = 0; j < i; ++j) {
+      if (s.skins[j].name == s.skins[i].name) {
+        return InvalidArgument("scene.skins[" + std::to_string(i) + "].name=" + s.skins[i].name +
+                               " repeats");
+      }
+    }
   }
   return Status::Ok();
 }

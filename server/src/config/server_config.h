@@ -3,6 +3,7 @@
 #ifndef SCULPT_SERVER_CONFIG_SERVER_CONFIG_H_
 #define SCULPT_SERVER_CONFIG_SERVER_CONFIG_H_
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -24,6 +25,24 @@ struct ObjectConfig {
   Vec3 end{0, 0, 16};                 // capsule second end (center is the first)
 };
 
+/// A ball skin of the scene (issue 6): a sketch plane (origin, unit orthogonal in-plane axes u
+/// and v) and an ordered chain of oriented balls in its coordinates.
+struct SkinConfig {
+  std::string name = "skin";
+  Vec3 origin{0, 0, 0};
+  Vec3 u{1, 0, 0};
+  Vec3 v{0, 1, 0};
+  std::string method = "hybrid";  // naive | offset | hybrid
+  double chord_tolerance = 0;     // world units; 0: 1e-3 of the smallest radius
+  std::vector<std::array<double, 4>> balls;  // x, y, r, theta (radians)
+};
+
+/// Limits of a skin's balls (config and wire), world units and radians.
+inline constexpr size_t kMaxSkinBalls = 4096;
+inline constexpr double kMaxSkinCoordinate = 1e6;
+inline constexpr double kMinSkinRadius = 1e-3;
+inline constexpr double kMaxSkinTheta = 64;
+
 /// The effects the scene calls for; nothing else is computed (ARCHITECTURE principle 2).
 struct EffectsConfig {
   std::string volume_preservation = "shell";  // none | shell | global
@@ -39,6 +58,7 @@ struct SceneConfig {
   double voxel_size = 0.5;
   int half_width = 6;
   std::vector<ObjectConfig> objects{ObjectConfig{}};
+  std::vector<SkinConfig> skins;  // [[scene.skins]]
   EffectsConfig effects;
   double min_tool_size = 0.5;   // world units
   double max_tool_size = 16.0;

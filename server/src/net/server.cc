@@ -13,6 +13,7 @@
 #include "sculpt/codec/frame.h"
 #include "sculpt/codec/stroke.h"
 #include "sculpt/v1/sculpt.pb.h"
+#include "scene/skins.h"
 
 namespace sculpt::server {
 namespace {
@@ -149,6 +150,9 @@ class Session : public std::enable_shared_from_this<Session> {
         if (subscribed_) server_.scene().ReportDivergence(id_, msg.divergence());
         return;
       case v1::ClientMessage::kViewerSubscribe: return OnViewerSubscribe(msg.viewer_subscribe());
+      case v1::ClientMessage::kSkinBallEdit: return OnSkinBallEdit(msg.skin_ball_edit());
+      case v1::ClientMessage::kContourSubscribe: return OnContourSubscribe(msg.contour_subscribe());
+      case v1::ClientMessage::kSkinSweep: return OnSkinSweep(msg.skin_sweep());
       case v1::ClientMessage::BODY_NOT_SET: break;
     }
     SendError(v1::ERROR_CODE_MALFORMED, "ClientMessage.body", "unknown or empty",
@@ -453,6 +457,107 @@ class Session : public std::enable_shared_from_this<Session> {
               "{}", "this server does not stream meshes yet", 0);
   }
 
+  // Ball skins (issue 6). Ball edits and sweeps are strokes: joined sculptors only, the stroke
+  // token bucket, every field checked here before the scene sees it.
+  bool MaySkinEdit(const char* what, uint64_t seq) {
+    if (!joined_) {
+      SendError(v1::ERROR_CODE_FAILED_PRECONDITION, what, "before JoinScene", "after JoinScene",
+                "join a scene first", seq);
+      Violation();
+      return false;
+    }
+    if (role_ != v1::ROLE_SCULPTOR) {
+      server_.stats().strokes_refused++;
+      SendError(v1::ERROR_CODE_PERMISSION_DENIED, "Hello.role", "ROLE_VIEWER", "{ROLE_SCULPTOR}",
+                "viewers may not edit", seq);
+      Violation();
+      return false;
+    }
+    const LimitsConfig& l = server_.config().limits;
+    const auto now = std::chrono::steady_clock::now();
+    tokens_ = std::min(l.stroke_burst,
+                       tokens_ + l.strokes_per_second *
+                                     std::chrono::duration<double>(now - last_refill_).count());
+    last_refill_ = now;
+    if (tokens_ < 1.0) {
+      server_.stats().strokes_refused++;
+      SendError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "strokes_per_second", "above the limit",
+                "[0, " + Num(l.strokes_per_second) + "] (burst " + Num(l.stroke_burst) + ")",
+                "stroke rate limit", seq);
+      Violation();
+      return false;
+    }
+    tokens_ -= 1.0;
+    return true;
+  }
+
+  // Refusals go out twice: as the generic Error, and in the SkinAck a skin client waits for.
+  void SendSkinAck(const v1::SkinAck& a) {
+    if (closing_) return;
+    if (!a.accepted()) {
+      server_.stats().strokes_refused++;
+      const v1::Error& e = a.error();
+      SendError(e.code(), e.field(), e.value(), e.allowed_range(), e.message(), 0);
+    }
+    v1::ServerMessage m;
+    *m.mutable_skin_ack() = a;
+    Send(m);
+  }
+
+  void RefuseSkin(const Status& st, uint64_t seq) {
+    const codec::FieldError fe = codec::SplitFieldError(st);
+    v1::SkinAck a;
+    a.set_client_seq(seq);
+    v1::Error* e = a.mutable_error();
+    e->set_code(v1::ERROR_CODE_INVALID_ARGUMENT);
+    e->set_field(fe.field);
+    e->set_value(fe.value);
+    e->set_allowed_range(fe.allowed_range);
+    e->set_message(fe.message);
+    e->set_client_seq(seq);
+    SendSkinAck(a);
+    Violation();
+  }
+
+  std::function<void(v1::SkinAck)> PostSkinAck() {
+    auto self = shared_from_this();
+    return [self](v1::SkinAck a) {
+      asio::post(self->socket_.get_executor(), [self, a = std::move(a)] { self->SendSkinAck(a); });
+    };
+  }
+
+  void OnSkinBallEdit(const v1::SkinBallEdit& e) {
+    if (!MaySkinEdit("SkinBallEdit", e.client_seq())) return;
+    if (const Status st = ValidateSkinBallEdit(e); !st.ok()) return RefuseSkin(st, e.client_seq());
+    server_.scene().EditSkin(e, PostSkinAck());
+  }
+
+  void OnSkinSweep(const v1::SkinSweep& s) {
+    if (!MaySkinEdit("SkinSweep", s.client_seq())) return;
+    if (const Status st = ValidateSkinSweep(s); !st.ok()) return RefuseSkin(st, s.client_seq());
+    server_.scene().SweepSkin(client_id_, s, PostSkinAck());
+  }
+
+  void OnContourSubscribe(const v1::ContourSubscribe& c) {
+    if (!joined_) {
+      SendError(v1::ERROR_CODE_FAILED_PRECONDITION, "ContourSubscribe", "before JoinScene",
+                "after JoinScene", "join a scene first", 0);
+      return Violation();
+    }
+    if (const Status st = ValidateContourSubscribe(c); !st.ok()) {
+      SendStatus(st);
+      return Violation();
+    }
+    auto self = shared_from_this();
+    server_.scene().SubscribeContours(Sink(), c, [self](Status st) {
+      if (st.ok()) return;
+      asio::post(self->socket_.get_executor(), [self, st] {
+        self->SendStatus(st);
+        self->Violation();
+      });
+    });
+  }
+
   // A pre-built frame shared with other sessions (replication). Replica loads may be large, so
   // they get the state allowance on top of the queue bound.
   void SendFrame(const std::string& frame) {
@@ -569,6 +674,7 @@ class Session : public std::enable_shared_from_this<Session> {
     socket_.close(ec);
     close_timer_.cancel();
     if (subscribed_) server_.scene().Unsubscribe(id_);
+    if (joined_) server_.scene().UnsubscribeContours(id_);
     server_.Unregister(this);
   }
 

@@ -12,6 +12,7 @@
 #include "sculpt/core/check.h"
 #include "store/edit_log.h"
 #include "store/recovery.h"
+#include "scene/skins.h"
 #include "store/snapshot_store.h"
 
 namespace sculpt::server {
@@ -77,6 +78,7 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
     return NotFound("object " + name);
   };
   auto route = [](const store::LogRecord& rec) -> StatusOr<std::string> {
+    if (IsSweepPayload(rec.payload)) return SweepPayloadObject(rec.seq, rec.payload);
     v1::EditRecord r;
     if (!r.ParseFromString(rec.payload)) {
       return DataLoss("edit log record " + std::to_string(rec.seq) + " does not parse");
@@ -90,6 +92,10 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   std::vector<levelset::EditRequest> batch;
   auto apply = [&settings, &batch](levelset::Sculpture& s,
                                    const store::LogRecord& rec) -> Status {
+    if (IsSweepPayload(rec.payload)) {
+      batch.clear();
+      return ReplaySweepPayload(s, rec.seq, rec.payload);
+    }
     v1::EditRecord r;
     if (!r.ParseFromString(rec.payload)) {
       return DataLoss("edit log record " + std::to_string(rec.seq) + " does not parse");
@@ -135,6 +141,7 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
            ? ", dropped a torn tail of " + std::to_string(rec.report.dropped_tail_bytes) + " bytes"
            : std::string()) +
       ") in " + std::to_string(NowSeconds() - t0) + " s";
+  SCULPT_RETURN_IF_ERROR(scene->OpenSkins());
   scene->last_snapshot_time_ = NowSeconds();
   {
     std::lock_guard<std::mutex> lock(scene->info_mu_);
@@ -272,6 +279,7 @@ void Scene::ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, Stroke
   }
   ReleaseDurable(log_->durable_seq());
   MaybeSnapshot();
+  if (out.edits > 0) SendSlices(stroke.object);
 }
 
 void Scene::ReleaseDurable(uint64_t durable_seq) {

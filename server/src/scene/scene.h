@@ -21,6 +21,7 @@
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/region.h"
 #include "sculpt/levelset/sculpture.h"
+#include "sculpt/skin/skin.h"
 #include "sculpt/v1/sculpt.pb.h"
 
 namespace sculpt::server {
@@ -123,6 +124,21 @@ class Scene {
   uint64_t RegionHash(const std::string& object, const levelset::VoxelBox& box);
   ReplicationStats& replication_stats() { return repl_stats_; }
 
+  /// Ball skins (issue 6, skins.cc). A ball edit (v1::SkinBallEdit, fields already checked by
+  /// ValidateSkinBallEdit) rebuilds at most two sections and sends contour subscribers of the
+  /// skin an update with only those; `done` gets the SkinAck (refusals carry the Error).
+  void EditSkin(v1::SkinBallEdit edit, std::function<void(v1::SkinAck)> done);
+  /// Sweeps a skin's outline into an object: logged (a SkinSweepRecord, replayed by recovery),
+  /// applied, replicated as leaf deltas; `done` once durable.
+  void SweepSkin(uint64_t client_id, v1::SkinSweep sweep, std::function<void(v1::SkinAck)> done);
+  /// A skin's contours (a snapshot now, then updates) or an object's slice (now and after each
+  /// edit of the object) to `sink`. NotFound / InvalidArgument naming the field.
+  void SubscribeContours(ReplicaSink sink, v1::ContourSubscribe request,
+                         std::function<void(Status)> done);
+  void UnsubscribeContours(uint64_t session_id);
+  /// A copy of a skin as the server holds it (tests, tools). NotFound for an unknown skin.
+  StatusOr<skin::Skin> SkinCopy(const std::string& name);
+
   /// What recovery found at start-up.
   const std::string& recovery_summary() const { return recovery_summary_; }
 
@@ -150,6 +166,11 @@ class Scene {
                  const std::vector<v1::EditRecord>& records, const std::string& source,
                  const levelset::ReplayState& before,
                  const levelset::EditFootprint& footprint, const levelset::EditResult& result);
+  // Ball skins and contour subscriptions (skins.cc), compute thread only.
+  struct SkinState;
+  Status OpenSkins();
+  void SendSlices(const std::string& object);
+  std::shared_ptr<SkinState> skins_;
   std::map<uint64_t, Sub> subs_;                              // compute thread only
   std::map<std::string, levelset::LeafVersions> versions_;    // compute thread only
   uint64_t versions_floor_ = 0;  // leaf versions are known only for edits after this sequence

@@ -1,0 +1,518 @@
+/// @brief The scene's ball skins (issue 6): ball edits that rebuild only the changed sections,
+/// contour subscribers (skins and slices of objects), and sweeps of a skin into a sculpture,
+/// logged so that recovery replays them. Everything on the Scene runs on the compute thread.
+#include "scene/skins.h"
+
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <future>
+
+#include "scene/scene.h"
+#include "sculpt/codec/frame.h"
+#include "sculpt/codec/stroke.h"
+#include "sculpt/core/check.h"
+#include "sculpt/levelset/slice.h"
+#include "sculpt/skin/contour_codec.h"
+#include "store/edit_log.h"
+
+namespace sculpt::server {
+namespace {
+
+// No serialised EditRecord starts with a zero byte (field number 0 is not a valid tag).
+constexpr char kSweepMarker = '\0';
+constexpr size_t kMaxNameBytes = 64;
+// Slices are quantised to an eighth of their sample spacing.
+constexpr double kSliceQuantumPerStep = 1.0 / 8;
+
+std::shared_ptr<const std::string> Frame(const v1::ServerMessage& m) {
+  auto f = std::make_shared<std::string>();
+  codec::AppendMessage(m, f.get());
+  return f;
+}
+
+Status CheckName(const std::string& field, const std::string& name) {
+  if (name.empty() || name.size() > kMaxNameBytes) {
+    return InvalidArgument(field + "=" + name + " outside names of 1.." +
+                           std::to_string(kMaxNameBytes) + " bytes");
+  }
+  return Status::Ok();
+}
+
+Vec3 V(const v1::Vec3f& v) { return {v.x(), v.y(), v.z()}; }
+
+v1::Error ErrorFrom(const Status& st, uint64_t client_seq) {
+  const codec::FieldError fe = codec::SplitFieldError(st);
+  v1::Error e;
+  e.set_code(st.code() == Status::Code::kNotFound ? v1::ERROR_CODE_NOT_FOUND
+             : st.code() == Status::Code::kInvalidArgument
+                 ? v1::ERROR_CODE_INVALID_ARGUMENT
+                 : v1::ERROR_CODE_INTERNAL);
+  e.set_field(fe.field);
+  e.set_value(fe.value);
+  e.set_allowed_range(fe.allowed_range);
+  e.set_message(fe.message);
+  e.set_client_seq(client_seq);
+  return e;
+}
+
+v1::SkinAck Refused(const Status& st, uint64_t client_seq) {
+  v1::SkinAck a;
+  a.set_client_seq(client_seq);
+  a.set_accepted(false);
+  *a.mutable_error() = ErrorFrom(st, client_seq);
+  return a;
+}
+
+std::vector<skin::Polyline2> ToPolylines(const std::vector<std::vector<levelset::PlanePoint>>& in) {
+  std::vector<skin::Polyline2> out;
+  out.reserve(in.size());
+  for (const auto& line : in) {
+    skin::Polyline2& p = out.emplace_back();
+    p.reserve(line.size());
+    for (const levelset::PlanePoint& q : line) p.push_back({q.x, q.y});
+  }
+  return out;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Checks off the wire
+
+Status ValidateSkinBallEdit(const v1::SkinBallEdit& e) {
+  SCULPT_RETURN_IF_ERROR(CheckName("SkinBallEdit.skin", e.skin()));
+  if (e.op() < v1::SKIN_BALL_OP_ADD || e.op() > v1::SKIN_BALL_OP_ORIENT) {
+    return InvalidArgument("SkinBallEdit.op=" + std::to_string(e.op()) +
+                           " outside {1 (ADD), 2 (MOVE), 3 (REMOVE), 4 (ORIENT)}");
+  }
+  if (e.index() >= kMaxSkinBalls) {
+    return InvalidArgument("SkinBallEdit.index=" + std::to_string(e.index()) + " outside [0, " +
+                           std::to_string(kMaxSkinBalls - 1) + "]");
+  }
+  const v1::SkinBall& b = e.ball();
+  const bool position = e.op() == v1::SKIN_BALL_OP_ADD || e.op() == v1::SKIN_BALL_OP_MOVE;
+  const bool theta = e.op() == v1::SKIN_BALL_OP_ADD || e.op() == v1::SKIN_BALL_OP_ORIENT;
+  if (position) {
+    SCULPT_RETURN_IF_ERROR(
+        CheckRange("SkinBallEdit.ball.x", b.x(), -kMaxSkinCoordinate, kMaxSkinCoordinate));
+    SCULPT_RETURN_IF_ERROR(
+        CheckRange("SkinBallEdit.ball.y", b.y(), -kMaxSkinCoordinate, kMaxSkinCoordinate));
+    SCULPT_RETURN_IF_ERROR(
+        CheckRange("SkinBallEdit.ball.r", b.r(), kMinSkinRadius, kMaxSkinCoordinate));
+  }
+  if (theta) {
+    SCULPT_RETURN_IF_ERROR(
+        CheckRange("SkinBallEdit.ball.theta", b.theta(), -kMaxSkinTheta, kMaxSkinTheta));
+  }
+  return Status::Ok();
+}
+
+Status ValidateSkinSweep(const v1::SkinSweep& s) {
+  SCULPT_RETURN_IF_ERROR(CheckName("SkinSweep.skin", s.skin()));
+  SCULPT_RETURN_IF_ERROR(CheckName("SkinSweep.object", s.object()));
+  if (s.mode() != v1::SKIN_SWEEP_MODE_EXTRUDE && s.mode() != v1::SKIN_SWEEP_MODE_REVOLVE) {
+    return InvalidArgument("SkinSweep.mode=" + std::to_string(s.mode()) +
+                           " outside {1 (EXTRUDE), 2 (REVOLVE)}");
+  }
+  if (s.kind() != v1::EDIT_KIND_ADD && s.kind() != v1::EDIT_KIND_SUBTRACT) {
+    return InvalidArgument("SkinSweep.kind=" + std::to_string(s.kind()) +
+                           " outside {2 (ADD), 3 (SUBTRACT)}");
+  }
+  if (s.mode() == v1::SKIN_SWEEP_MODE_EXTRUDE) {
+    SCULPT_RETURN_IF_ERROR(CheckRange("SkinSweep.depth", s.depth(), 0, kMaxSkinCoordinate));
+    if (!(s.depth() > 0)) {
+      return InvalidArgument("SkinSweep.depth=" + FormatNumber(s.depth()) + " outside (0, " +
+                             FormatNumber(kMaxSkinCoordinate) + "]");
+    }
+  } else {
+    SCULPT_RETURN_IF_ERROR(
+        CheckRange("SkinSweep.axis_x", s.axis_x(), -kMaxSkinCoordinate, kMaxSkinCoordinate));
+    SCULPT_RETURN_IF_ERROR(
+        CheckRange("SkinSweep.axis_y", s.axis_y(), -kMaxSkinCoordinate, kMaxSkinCoordinate));
+    SCULPT_RETURN_IF_ERROR(
+        CheckRange("SkinSweep.axis_angle", s.axis_angle(), -kMaxSkinTheta, kMaxSkinTheta));
+  }
+  return Status::Ok();
+}
+
+Status ValidateContourSubscribe(const v1::ContourSubscribe& c) {
+  if (!c.skin().empty()) return CheckName("ContourSubscribe.skin", c.skin());
+  if (!c.has_slice()) {
+    return InvalidArgument("ContourSubscribe.skin= outside names of 1..64 bytes (or set slice)");
+  }
+  const v1::ContourSlice& s = c.slice();
+  SCULPT_RETURN_IF_ERROR(CheckName("ContourSubscribe.slice.object", s.object()));
+  if (c.unsubscribe()) return Status::Ok();
+  const levelset::SweepPlane plane{V(s.origin()), V(s.u()), V(s.v())};
+  SCULPT_RETURN_IF_ERROR(levelset::ValidatePlane("ContourSubscribe.slice", plane));
+  SCULPT_RETURN_IF_ERROR(CheckRange("ContourSubscribe.slice.step", s.step(), 1e-3, 1e3));
+  SCULPT_RETURN_IF_ERROR(CheckRange("ContourSubscribe.slice.half_extent", s.half_extent(),
+                                    s.step(), 0.5 * (levelset::kMaxSliceSamples - 1) * s.step()));
+  return Status::Ok();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Sweeps in the edit log
+
+bool IsSweepPayload(const std::string& payload) {
+  return !payload.empty() && payload[0] == kSweepMarker;
+}
+
+std::string SweepPayload(const v1::SkinSweepRecord& r) {
+  std::string out(1, kSweepMarker);
+  r.AppendToString(&out);
+  return out;
+}
+
+namespace {
+StatusOr<v1::SkinSweepRecord> ParseSweep(uint64_t seq, const std::string& payload) {
+  v1::SkinSweepRecord r;
+  if (!IsSweepPayload(payload) || !r.ParseFromArray(payload.data() + 1,
+                                                     static_cast<int>(payload.size() - 1))) {
+    return DataLoss("edit log record " + std::to_string(seq) + " (a sweep) does not parse");
+  }
+  return r;
+}
+}  // namespace
+
+StatusOr<std::string> SweepPayloadObject(uint64_t seq, const std::string& payload) {
+  SCULPT_ASSIGN_OR_RETURN(v1::SkinSweepRecord r, ParseSweep(seq, payload));
+  return r.object();
+}
+
+StatusOr<levelset::SweepRequest> SweepFromRecord(const v1::SkinSweepRecord& r) {
+  levelset::SweepRequest q;
+  if (r.plane_size() != 9) {
+    return InvalidArgument("SkinSweepRecord.plane.size=" + std::to_string(r.plane_size()) +
+                           " outside {9}");
+  }
+  if (r.outline_size() % 2 != 0) {
+    return InvalidArgument("SkinSweepRecord.outline.size=" + std::to_string(r.outline_size()) +
+                           " outside even numbers");
+  }
+  auto p = [&r](int i) { return Vec3{r.plane(i), r.plane(i + 1), r.plane(i + 2)}; };
+  q.plane = {p(0), p(3), p(6)};
+  q.add = r.kind() == v1::EDIT_KIND_ADD;
+  q.mode = r.mode() == v1::SKIN_SWEEP_MODE_REVOLVE ? levelset::SweepRequest::Mode::kRevolve
+                                                   : levelset::SweepRequest::Mode::kExtrude;
+  q.depth = r.depth();
+  if (q.mode == levelset::SweepRequest::Mode::kRevolve) {
+    if (r.axis_size() != 4) {
+      return InvalidArgument("SkinSweepRecord.axis.size=" + std::to_string(r.axis_size()) +
+                             " outside {4}");
+    }
+    q.axis_point = {r.axis(0), r.axis(1)};
+    q.axis_dir = {r.axis(2), r.axis(3)};
+  }
+  q.outline.reserve(r.outline_size() / 2);
+  for (int i = 0; i + 1 < r.outline_size(); i += 2) q.outline.push_back({r.outline(i), r.outline(i + 1)});
+  return q;
+}
+
+Status ReplaySweepPayload(levelset::Sculpture& sculpture, uint64_t seq, const std::string& payload) {
+  SCULPT_ASSIGN_OR_RETURN(v1::SkinSweepRecord r, ParseSweep(seq, payload));
+  auto q = SweepFromRecord(r);
+  if (!q.ok()) {
+    spdlog::warn("sweep at seq {} not replayed: {}", seq, q.status().ToString());
+    return Status::Ok();
+  }
+  (void)levelset::ApplySweep(sculpture, *q);
+  return Status::Ok();
+}
+
+// ---------------------------------------------------------------------------------------------
+// The scene's skins
+
+struct Scene::SkinState {
+  struct Entry {
+    levelset::SweepPlane plane;
+    skin::Skin skin;
+    uint64_t version = 0;
+    std::map<uint64_t, ReplicaSink> subs;  // session -> sink
+  };
+  struct SliceSub {
+    ReplicaSink sink;
+    levelset::SliceRequest request;
+  };
+  std::map<std::string, Entry> skins;
+  std::map<std::string, std::map<uint64_t, SliceSub>> slices;  // object -> session -> sub
+};
+
+Status Scene::OpenSkins() {
+  skins_ = std::make_shared<SkinState>();
+  for (const SkinConfig& c : config_.scene.skins) {
+    std::vector<skin::OrientedBall> balls;
+    for (const auto& b : c.balls) balls.push_back({{b[0], b[1]}, b[2], b[3]});
+    skin::SkinOptions opt;
+    SCULPT_ASSIGN_OR_RETURN(opt.method, skin::ParseMethod(c.method));
+    opt.chord_tolerance = c.chord_tolerance;
+    auto built = skin::Skin::Build(std::move(balls), opt);
+    if (!built.ok()) {
+      return InvalidArgument("scene.skins " + c.name + ": " + built.status().message());
+    }
+    skins_->skins.emplace(
+        c.name, SkinState::Entry{{c.origin, c.u, c.v}, std::move(built).value(), 0, {}});
+  }
+  return Status::Ok();
+}
+
+void Scene::EditSkin(v1::SkinBallEdit e, std::function<void(v1::SkinAck)> done) {
+  auto cb = std::make_shared<std::function<void(v1::SkinAck)>>(std::move(done));
+  Post([this, e = std::move(e), cb] {
+    auto it = skins_->skins.find(e.skin());
+    if (it == skins_->skins.end()) {
+      return (*cb)(Refused(NotFound("SkinBallEdit.skin=" + e.skin() + " outside the scene's skins"),
+                           e.client_seq()));
+    }
+    SkinState::Entry& entry = it->second;
+    skin::Skin& sk = entry.skin;
+    const size_t n = sk.balls().size();
+    const size_t i = e.index();
+    const bool add = e.op() == v1::SKIN_BALL_OP_ADD;
+    if (add ? i > n : i >= n) {
+      return (*cb)(Refused(InvalidArgument("SkinBallEdit.index=" + std::to_string(i) +
+                                           " outside [0, " + std::to_string(add ? n : n - 1) + "]"),
+                           e.client_seq()));
+    }
+    if (add && n >= kMaxSkinBalls) {
+      return (*cb)(Refused(InvalidArgument("SkinBallEdit.op=ADD outside skins of at most " +
+                                           std::to_string(kMaxSkinBalls) + " balls"),
+                           e.client_seq()));
+    }
+    const v1::SkinBall& b = e.ball();
+    StatusOr<skin::SkinChange> change = skin::SkinChange{};
+    switch (e.op()) {
+      case v1::SKIN_BALL_OP_ADD:
+        change = sk.InsertBall(i, {{b.x(), b.y()}, b.r(), b.theta()});
+        break;
+      case v1::SKIN_BALL_OP_MOVE: {
+        skin::OrientedBall o = sk.balls()[i];
+        o.c = {b.x(), b.y()};
+        o.r = b.r();
+        change = sk.SetBall(i, o);
+        break;
+      }
+      case v1::SKIN_BALL_OP_ORIENT: {
+        skin::OrientedBall o = sk.balls()[i];
+        o.theta = b.theta();
+        change = sk.SetBall(i, o);
+        break;
+      }
+      default:
+        change = sk.RemoveBall(i);
+        break;
+    }
+    if (!change.ok()) {
+      // The skin names the inadmissible pair (digest Def 2.6); the wire error names the ball.
+      v1::SkinAck a = Refused(change.status(), e.client_seq());
+      v1::Error* err = a.mutable_error();
+      err->set_field("SkinBallEdit.ball");
+      err->set_value("(" + FormatNumber(b.x()) + ", " + FormatNumber(b.y()) + ", r " +
+                     FormatNumber(b.r()) + ", theta " + FormatNumber(b.theta()) + ") at index " +
+                     std::to_string(i));
+      err->set_allowed_range(
+          "balls admissible with their neighbours (no contact point inside a neighbour's disk; "
+          "no nested, concentric or coincident pair), at least 2 balls");
+      return (*cb)(a);
+    }
+    ++entry.version;
+    if (!entry.subs.empty()) {
+      auto bytes = skin::EncodeSkinUpdate(sk, *change);
+      if (!bytes.ok()) {
+        spdlog::error("skin {}: update not encoded: {}", e.skin(), bytes.status().ToString());
+      } else {
+        v1::ServerMessage m;
+        v1::ContourUpdate* u = m.mutable_contour();
+        u->set_skin(e.skin());
+        u->set_data(std::move(bytes).value());
+        u->set_sections(static_cast<uint32_t>(change->changed.size()));
+        u->set_skin_version(entry.version);
+        auto frame = Frame(m);
+        for (auto& [id, sink] : entry.subs) sink.send(frame);
+      }
+    }
+    v1::SkinAck a;
+    a.set_client_seq(e.client_seq());
+    a.set_accepted(true);
+    a.set_changed_sections(static_cast<uint32_t>(change->changed.size()));
+    a.set_balls(static_cast<uint32_t>(sk.balls().size()));
+    (*cb)(a);
+  });
+}
+
+void Scene::SweepSkin(uint64_t client_id, v1::SkinSweep s, std::function<void(v1::SkinAck)> done) {
+  auto cb = std::make_shared<std::function<void(v1::SkinAck)>>(std::move(done));
+  Post([this, client_id, s = std::move(s), cb] {
+    auto it = skins_->skins.find(s.skin());
+    if (it == skins_->skins.end()) {
+      return (*cb)(Refused(NotFound("SkinSweep.skin=" + s.skin() + " outside the scene's skins"),
+                           s.client_seq()));
+    }
+    auto obj = sculptures_.find(s.object());
+    if (obj == sculptures_.end()) {
+      return (*cb)(Refused(
+          NotFound("SkinSweep.object=" + s.object() + " outside the scene's objects"),
+          s.client_seq()));
+    }
+    levelset::Sculpture& sculpture = obj->second;
+    const SkinState::Entry& entry = it->second;
+    v1::SkinSweepRecord rec;
+    rec.set_client_id(client_id);
+    rec.set_client_seq(s.client_seq());
+    rec.set_object(s.object());
+    rec.set_mode(s.mode());
+    rec.set_kind(s.kind());
+    rec.set_depth(s.depth());
+    for (const Vec3& v : {entry.plane.origin, entry.plane.u, entry.plane.v}) {
+      rec.add_plane(v.x);
+      rec.add_plane(v.y);
+      rec.add_plane(v.z);
+    }
+    for (const skin::Vec2& p : entry.skin.Outline()) {
+      rec.add_outline(p.x);
+      rec.add_outline(p.y);
+    }
+    if (s.mode() == v1::SKIN_SWEEP_MODE_REVOLVE) {
+      for (double v : {s.axis_x(), s.axis_y(), std::cos(s.axis_angle()), std::sin(s.axis_angle())}) {
+        rec.add_axis(v);
+      }
+    }
+    // The request the kernel applies comes from the record, as recovery's does.
+    auto req = SweepFromRecord(rec);
+    Status valid = req.ok() ? levelset::ValidateSweep(sculpture, *req) : req.status();
+    if (!valid.ok()) return (*cb)(Refused(valid, s.client_seq()));
+    const uint64_t seq = next_seq_++;
+    rec.set_global_seq(seq);
+    if (const Status a = log_->Append(seq, SweepPayload(rec)); !a.ok()) {
+      spdlog::critical("edit log append failed at seq {}: {}", seq, a.ToString());
+      return (*cb)(Refused(a, s.client_seq()));
+    }
+    auto res = levelset::ApplySweep(sculpture, *req);
+    applied_seq_ = seq;
+    ++edits_since_snapshot_;
+    v1::SkinAck ack;
+    ack.set_client_seq(s.client_seq());
+    ack.set_global_seq(seq);
+    if (res.ok()) {
+      versions_[s.object()].Record(res->dirty_leaves, seq);
+      // Replicas get the sweep's leaves (replay mode has no sweep form).
+      for (auto& [id, sub] : subs_) {
+        if (sub.object == s.object()) SendRegion(sub, sculpture, seq - 1, /*replace=*/false);
+      }
+      ack.set_accepted(true);
+      ack.set_volume_after(res->volume_after);
+      ack.set_dirty_leaves(static_cast<uint32_t>(res->dirty_leaves.size()));
+    } else {
+      ack = Refused(res.status(), s.client_seq());
+      ack.set_global_seq(seq);
+    }
+    {
+      std::lock_guard<std::mutex> lock(info_mu_);
+      bounds_[s.object()] = sculpture.WorldBounds();
+      RefreshInfoLocked();
+    }
+    {
+      // Acknowledged once durable, in order with the strokes.
+      std::lock_guard<std::mutex> lock(pending_mu_);
+      pending_.push_back({seq, StrokeOutcome{}, [cb, ack](const StrokeOutcome&) { (*cb)(ack); }});
+    }
+    ReleaseDurable(log_->durable_seq());
+    MaybeSnapshot();
+    SendSlices(s.object());
+  });
+}
+
+void Scene::SubscribeContours(ReplicaSink sink, v1::ContourSubscribe req,
+                              std::function<void(Status)> done) {
+  auto cb = std::make_shared<std::function<void(Status)>>(std::move(done));
+  Post([this, sink = std::move(sink), req = std::move(req), cb]() mutable {
+    const uint64_t session = sink.session_id;
+    if (!req.skin().empty()) {
+      auto it = skins_->skins.find(req.skin());
+      if (it == skins_->skins.end()) {
+        return (*cb)(NotFound("ContourSubscribe.skin=" + req.skin() + " outside the scene's skins"));
+      }
+      if (req.unsubscribe()) {
+        it->second.subs.erase(session);
+        return (*cb)(Status::Ok());
+      }
+      auto bytes = skin::EncodeSkinSnapshot(it->second.skin);
+      if (!bytes.ok()) return (*cb)(bytes.status());
+      (*cb)(Status::Ok());
+      v1::ServerMessage m;
+      v1::ContourUpdate* u = m.mutable_contour();
+      u->set_skin(req.skin());
+      u->set_data(std::move(bytes).value());
+      u->set_sections(static_cast<uint32_t>(it->second.skin.sections().size()));
+      u->set_skin_version(it->second.version);
+      sink.send(Frame(m));
+      it->second.subs[session] = std::move(sink);
+      return;
+    }
+    const v1::ContourSlice& s = req.slice();
+    if (sculptures_.find(s.object()) == sculptures_.end()) {
+      return (*cb)(NotFound("ContourSubscribe.slice.object=" + s.object() +
+                            " outside the scene's objects"));
+    }
+    if (req.unsubscribe()) {
+      skins_->slices[s.object()].erase(session);
+      return (*cb)(Status::Ok());
+    }
+    SkinState::SliceSub sub;
+    sub.sink = std::move(sink);
+    sub.request.plane = {V(s.origin()), V(s.u()), V(s.v())};
+    sub.request.half_extent = s.half_extent();
+    sub.request.step = s.step();
+    auto lines = levelset::SliceContours(sculptures_.at(s.object()), sub.request);
+    if (!lines.ok()) return (*cb)(lines.status());
+    (*cb)(Status::Ok());
+    skins_->slices[s.object()][session] = std::move(sub);
+    SendSlices(s.object());
+  });
+}
+
+void Scene::SendSlices(const std::string& object) {
+  auto it = skins_->slices.find(object);
+  if (it == skins_->slices.end() || it->second.empty()) return;
+  const levelset::Sculpture& sculpture = sculptures_.at(object);
+  for (auto& [session, sub] : it->second) {
+    auto lines = levelset::SliceContours(sculpture, sub.request);
+    if (!lines.ok()) continue;
+    auto bytes =
+        skin::EncodeContours(ToPolylines(*lines), sub.request.step * kSliceQuantumPerStep);
+    if (!bytes.ok()) {
+      spdlog::warn("slice of {}: not encoded: {}", object, bytes.status().ToString());
+      continue;
+    }
+    v1::ServerMessage m;
+    v1::ContourUpdate* u = m.mutable_contour();
+    u->set_object(object);
+    u->set_data(std::move(bytes).value());
+    u->set_sections(static_cast<uint32_t>(lines->size()));
+    u->set_global_seq(applied_seq_.load());
+    sub.sink.send(Frame(m));
+  }
+}
+
+void Scene::UnsubscribeContours(uint64_t session_id) {
+  Post([this, session_id] {
+    for (auto& [name, entry] : skins_->skins) entry.subs.erase(session_id);
+    for (auto& [object, subs] : skins_->slices) subs.erase(session_id);
+  });
+}
+
+StatusOr<skin::Skin> Scene::SkinCopy(const std::string& name) {
+  std::promise<StatusOr<skin::Skin>> p;
+  Post([&] {
+    auto it = skins_->skins.find(name);
+    if (it == skins_->skins.end()) {
+      p.set_value(NotFound("skin=" + name + " outside the scene's skins"));
+    } else {
+      p.set_value(it->second.skin);
+    }
+  });
+  return p.get_future().get();
+}
+
+}  // namespace sculpt::server

@@ -1,0 +1,42 @@
+/// @brief Ball skins on the server (issue 6): checks of the skin messages off the wire, and the
+/// edit-log form of sweeps (a leading zero byte, then a v1::SkinSweepRecord) that recovery
+/// replays.
+#ifndef SCULPT_SERVER_SCENE_SKINS_H_
+#define SCULPT_SERVER_SCENE_SKINS_H_
+
+#include <cstdint>
+#include <string>
+
+#include "sculpt/core/status.h"
+#include "sculpt/levelset/sculpture.h"
+#include "sculpt/levelset/sweep.h"
+#include "sculpt/v1/sculpt.pb.h"
+
+namespace sculpt::server {
+
+/// Every field of a ball edit: client_seq, skin name, op, the ball fields the op uses (finite,
+/// within kMaxSkinCoordinate, r >= kMinSkinRadius, |theta| <= kMaxSkinTheta). InvalidArgument
+/// "SkinBallEdit.<field>=<value> outside <range>". The index and admissibility are checked
+/// against the skin by the scene.
+Status ValidateSkinBallEdit(const v1::SkinBallEdit& edit);
+/// Every field of a sweep request (mode, kind, depth or axis, names).
+Status ValidateSkinSweep(const v1::SkinSweep& sweep);
+/// A contour subscription: a skin name, or a slice (object, finite unit orthogonal axes, extent
+/// and step in range).
+Status ValidateContourSubscribe(const v1::ContourSubscribe& request);
+
+/// True for an edit-log payload holding a sweep.
+bool IsSweepPayload(const std::string& payload);
+/// The edit-log payload of a sweep record.
+std::string SweepPayload(const v1::SkinSweepRecord& record);
+/// The object a logged sweep edits; DataLoss when it does not parse.
+StatusOr<std::string> SweepPayloadObject(uint64_t seq, const std::string& payload);
+/// The kernel request a record describes; InvalidArgument for a malformed record.
+StatusOr<levelset::SweepRequest> SweepFromRecord(const v1::SkinSweepRecord& record);
+/// Recovery: applies a logged sweep as the live server did. DataLoss when it does not parse; a
+/// sweep the kernel refuses is refused identically (Ok, nothing applied), as live.
+Status ReplaySweepPayload(levelset::Sculpture& sculpture, uint64_t seq, const std::string& payload);
+
+}  // namespace sculpt::server
+
+#endif  // SCULPT_SERVER_SCENE_SKINS_H_
