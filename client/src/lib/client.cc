@@ -170,6 +170,8 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
       case v1::ServerMessage::kEdit:
       case v1::ServerMessage::kLeafDelta:
       case v1::ServerMessage::kMeshChunk:
+      case v1::ServerMessage::kContour:  // ball skins (SkinClient)
+      case v1::ServerMessage::kSkinAck:
         ++stats.replication_messages;
         if (replication_handler) replication_handler(std::move(m));
         return;

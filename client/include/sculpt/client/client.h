@@ -182,7 +182,8 @@ class Client {
   /// nullptr to return to the queue; returns only once no call of the old handler is running.
   void SetEventHandler(EventHandler handler);
 
-  /// Replication messages (EditBroadcast, LeafDelta, MeshChunk) go to `handler`, called on the
+  /// Replication messages (EditBroadcast, LeafDelta, MeshChunk; ContourUpdate and SkinAck for a
+  /// SkinClient) go to `handler`, called on the
   /// I/O thread under the client's lock: it must only queue the message (Replica does).
   void SetReplicationHandler(std::function<void(v1::ServerMessage&&)> handler);
   /// Queues any client message (Subscribe, SetInterest, DivergenceReport, ViewerSubscribe).
