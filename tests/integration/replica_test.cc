@@ -16,8 +16,10 @@
 #include "net/server.h"
 #include "scene/scene.h"
 #include "sculpt/client/client.h"
+#include "sculpt/client/mesh_view.h"
 #include "sculpt/client/replica.h"
 #include "sculpt/levelset/region.h"
+#include "sculpt/mesh/chunk_mesher.h"
 
 namespace sculpt::client {
 namespace {
@@ -268,6 +270,58 @@ TEST_F(ReplicaTest, BadSubscriptionsAreRefusedAndOthersKeepBeingServed) {
   ASSERT_TRUE(r.Start().ok());
   ASSERT_TRUE(r.WaitForSeq(scene_->global_seq(), seconds(20)));
   EXPECT_EQ(r.RegionHash(r.held()), scene_->RegionHash("clay", r.held()));
+}
+
+TEST_F(ReplicaTest, ViewerMeshChunksFollowTheEditsAndMatchTheWholeMesh) {
+  auto a = Joined(v1::ROLE_SCULPTOR, true);
+  // Effects only where asked: edits with no viewer mesh nothing.
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(a->SendStroke(Arc(3, i)).ok());
+  ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
+  std::this_thread::sleep_for(milliseconds(300));
+  EXPECT_EQ(scene_->mesh_stats().chunks_encoded.load(), 0u);
+
+  auto v = Joined(v1::ROLE_VIEWER, true);
+  MeshView view(*v, "clay", /*decode_on_receipt=*/true);
+  ASSERT_TRUE(view.Subscribe(30).ok());
+  auto whole_faces = [&] {
+    uint64_t n = 0;
+    scene_->Inspect("clay", [&](const levelset::Sculpture& s) { n = mesh::MeshWhole(s).face_count(); });
+    return n;
+  };
+  auto wait_equal = [&] {
+    const uint64_t want = whole_faces();
+    const auto end = std::chrono::steady_clock::now() + seconds(20);
+    while (std::chrono::steady_clock::now() < end && view.FaceCount() != want) {
+      std::this_thread::sleep_for(milliseconds(50));
+    }
+    return view.FaceCount() == want;
+  };
+  ASSERT_TRUE(wait_equal()) << view.FaceCount() << " faces in chunks";
+  const uint64_t initial_chunks = view.stats().chunks_received;
+  EXPECT_GT(initial_chunks, 10u);
+  // Edits: only the chunks they touch come again, at a newer version.
+  for (int i = 5; i < 15; ++i) ASSERT_TRUE(a->SendStroke(Arc(3, i)).ok());
+  ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
+  ASSERT_TRUE(wait_equal());
+  std::this_thread::sleep_for(milliseconds(200));
+  const MeshViewStats st = view.stats();
+  EXPECT_GT(st.chunks_received, initial_chunks);
+  EXPECT_LT(st.chunks_received - initial_chunks, initial_chunks);  // not everything again
+  EXPECT_EQ(st.max_version, scene_->global_seq());
+  EXPECT_FALSE(st.decode_ms.empty());
+  auto assembled = view.Assemble();
+  ASSERT_TRUE(assembled.ok()) << assembled.status();
+  EXPECT_EQ(assembled->face_count(), whole_faces());
+  // A bad rate is refused by field; the viewer stays connected.
+  auto w = Joined(v1::ROLE_VIEWER, true);
+  v1::ClientMessage m;
+  m.mutable_viewer_subscribe()->set_object("clay");
+  m.mutable_viewer_subscribe()->set_max_rate_hz(1e6f);
+  ASSERT_TRUE(w->SendMessage(m).ok());
+  auto e = w->NextEvent(seconds(5));
+  ASSERT_TRUE(e.has_value());
+  ASSERT_EQ(e->type, Event::Type::kError);
+  EXPECT_EQ(e->error.field(), "ViewerSubscribe.max_rate_hz");
 }
 
 }  // namespace

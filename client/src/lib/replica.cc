@@ -116,7 +116,22 @@ void Replica::Enqueue(v1::ServerMessage&& m) {
 void Replica::Run() {
   std::unique_lock<std::mutex> lock(mu_);
   for (;;) {
-    cv_.wait(lock, [&] { return stop_ || !queue_.empty(); });
+    const auto ready = [&] { return stop_ || !queue_.empty(); };
+    if (publish_pending_) {
+      // An edit is waiting to be published: without this the last edit of a burst would stay
+      // unseen by the haptic loop until some later message arrived.
+      if (!cv_.wait_until(lock, last_publish_ + options_.snapshot_interval, ready)) {
+        busy_ = true;
+        lock.unlock();
+        Publish(true);
+        lock.lock();
+        busy_ = false;
+        cv_.notify_all();
+        continue;
+      }
+    } else {
+      cv_.wait(lock, ready);
+    }
     if (stop_) return;
     v1::ServerMessage m = std::move(queue_.front());
     queue_.pop_front();
@@ -153,8 +168,12 @@ void Replica::ApplyBroadcast(const v1::EditBroadcast& b) {
   } else {
     // The compact form: decode the author's stroke as the server did, then round each edit
     // through its record exactly as the server's log and apply do.
-    auto decoded = codec::DecodeStroke(b.stroke(), codec::ReplicaLimits(voxel_size_));
-    if (decoded.ok()) {
+    v1::Stroke stroke = b.stroke();
+    stroke.set_object(b.object());  // the broadcast names the object once
+    auto decoded = codec::DecodeStroke(stroke, codec::ReplicaLimits(voxel_size_));
+    if (!decoded.ok()) {
+      spdlog::warn("replica: broadcast stroke does not decode: {}", decoded.status().ToString());
+    } else {
       for (const levelset::EditRequest& e : decoded->edits) {
         reqs.push_back(codec::EditFromRecord(codec::RecordFromEdit(e)));
       }
@@ -162,14 +181,25 @@ void Replica::ApplyBroadcast(const v1::EditBroadcast& b) {
   }
   uint64_t mismatch_seq = 0;
   uint64_t actual = 0;
+  bool undecodable = false;
   AppliedEdit applied;
   {
     std::lock_guard<std::mutex> lock(mu_);
     stats_.bytes += static_cast<uint64_t>(b.ByteSizeLong());
-    if (!sculpture_ || reqs.empty()) {
+    if (!sculpture_) {
       ++stats_.errors;
       return;
     }
+    undecodable = reqs.empty();
+  }
+  if (undecodable) {
+    // Cannot replay what does not decode: take the region anew instead.
+    std::lock_guard<std::mutex> lock(mu_);
+    ++stats_.errors;
+  }
+  if (undecodable) return RequestResync();
+  {
+    std::lock_guard<std::mutex> lock(mu_);
     const levelset::ReplayState state{b.volume(), b.reference_volume(), b.edits_since_reinit()};
     auto res = levelset::ReplayEdits(*sculpture_, reqs, settings_, state);
     const uint64_t last = b.global_seq_first() + static_cast<uint64_t>(reqs.size()) - 1;
@@ -261,14 +291,24 @@ void Replica::Publish(bool force) {
   if (options_.snapshot_interval.count() <= 0) return;
   const auto now = Clock::now();
   std::shared_ptr<const levelset::Sculpture> snap;
+  SnapshotHandler handler;
+  uint64_t seq = 0;
   {
     std::lock_guard<std::mutex> lock(mu_);
-    if (!sculpture_ || (!force && now - last_publish_ < options_.snapshot_interval)) return;
+    if (!sculpture_) return;
+    if (!force && now - last_publish_ < options_.snapshot_interval) {
+      publish_pending_ = true;
+      return;
+    }
+    publish_pending_ = false;
     last_publish_ = now;
     snap = std::make_shared<const levelset::Sculpture>(sculpture_->Clone());
     ++stats_.snapshots;
+    seq = stats_.seq;
+    handler = on_snapshot_;
   }
-  std::atomic_store(&snapshot_, std::move(snap));
+  std::atomic_store(&snapshot_, snap);
+  if (handler) handler(std::move(snap), seq);
 }
 
 bool Replica::WaitForSeq(uint64_t seq, std::chrono::milliseconds timeout) {
@@ -314,6 +354,11 @@ ReplicaStats Replica::stats() const {
 void Replica::SetAppliedHandler(AppliedHandler handler) {
   std::lock_guard<std::mutex> lock(mu_);
   on_applied_ = std::move(handler);
+}
+
+void Replica::SetSnapshotHandler(SnapshotHandler handler) {
+  std::lock_guard<std::mutex> lock(mu_);
+  on_snapshot_ = std::move(handler);
 }
 
 }  // namespace sculpt::client

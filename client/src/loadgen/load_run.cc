@@ -15,6 +15,7 @@
 
 #include "loadgen/surface_walk.h"
 #include "sculpt/client/client.h"
+#include "sculpt/client/mesh_view.h"
 #include "sculpt/client/replica.h"
 
 namespace sculpt::client {
@@ -71,6 +72,7 @@ struct SimClient {
   uint64_t send_failures = 0;
   uint64_t reconnect_failures = 0;
   std::unique_ptr<Replica> replica;  // replica clients only
+  std::unique_ptr<MeshView> view;    // viewers subscribed to meshes
   v1::ReplicaMode mode = v1::REPLICA_MODE_UNSPECIFIED;
 };
 
@@ -124,6 +126,9 @@ Status CheckOptions(const LoadOptions& o) {
   }
   if (!(o.depth >= 0 && o.depth < 64)) return bad("depth", o.depth, "[0, 64)");
   if (o.io_threads < 1 || o.io_threads > 64) return bad("io-threads", o.io_threads, "[1, 64]");
+  if (!(o.viewer_mesh_hz >= 0 && o.viewer_mesh_hz <= 120)) {
+    return bad("viewer-mesh-hz", o.viewer_mesh_hz, "[0, 120]");
+  }
   if (o.replay_replicas < 0 || o.replay_replicas > 64) {
     return bad("replay-replicas", o.replay_replicas, "[0, 64]");
   }
@@ -175,6 +180,12 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
       return Status(joined.status().code(), c.name + ": " + joined.status().message());
     }
     if (i == 0) info = joined->info;
+    if (!c.sculptor && o.viewer_mesh_hz > 0 && joined->info.objects_size() > 0) {
+      c.view = std::make_unique<MeshView>(
+          *c.client, o.object.empty() ? joined->info.objects(0).name() : o.object,
+          /*decode_on_receipt=*/index == 0);
+      SCULPT_RETURN_IF_ERROR(c.view->Subscribe(o.viewer_mesh_hz));
+    }
     for (const auto& [name, bytes] : joined->state) state_bytes_at_join += bytes.size();
   }
   const double setup_s = Seconds(Clock::now() - t_setup);
@@ -485,6 +496,27 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
   report["leafdelta_visible_p50_ms"] = Round3(Percentile(vis_delta, 0.50));
   report["leafdelta_visible_p99_ms"] = Round3(Percentile(vis_delta, 0.99));
   report["hash_mismatches"] = mismatches;
+  {
+    std::vector<double> enc, dec;
+    uint64_t chunks = 0, draco_bytes = 0;
+    for (SimClient& c : clients) {
+      if (!c.view) continue;
+      const MeshViewStats ms = c.view->stats();
+      chunks += ms.chunks_received;
+      draco_bytes += ms.bytes;
+      if (enc.empty()) enc = ms.encode_ms;
+      dec.insert(dec.end(), ms.decode_ms.begin(), ms.decode_ms.end());
+    }
+    std::sort(enc.begin(), enc.end());
+    std::sort(dec.begin(), dec.end());
+    report["viewer_mesh_hz"] = o.viewer_mesh_hz;
+    report["viewer_chunks_received"] = chunks;
+    report["viewer_draco_bytes"] = draco_bytes;
+    report["draco_chunk_encode_ms_p50"] = Round3(Percentile(enc, 0.50));
+    report["draco_chunk_encode_ms_p99"] = Round3(Percentile(enc, 0.99));
+    report["draco_chunk_decode_ms_p50"] = Round3(Percentile(dec, 0.50));
+    report["draco_chunk_decode_ms_p99"] = Round3(Percentile(dec, 0.99));
+  }
   report["replica_errors"] = replica_errors;
   report["replicas"] = replica_entries;
   report["config"]["replay_replicas"] = o.replay_replicas;
@@ -492,6 +524,7 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
 
   for (SimClient& c : replicas) c.replica.reset();
   for (SimClient& c : replicas) (void)c.client->Close("load run finished");
+  for (SimClient& c : clients) c.view.reset();
   for (SimClient& c : clients) (void)c.client->Close("load run finished");
   return report;
 }

@@ -33,6 +33,9 @@ struct LoadOptions {
   /// mode, so one run measures both on the same edits.
   int replay_replicas = 1;
   int leafdelta_replicas = 1;
+  /// Viewers subscribe to Draco mesh chunks at this rate (0: no mesh subscription); the first
+  /// viewer decodes every chunk it receives, to measure decode time.
+  double viewer_mesh_hz = 10;
 };
 
 /// Late join: one replica client subscribes to the whole object; bytes and time until its

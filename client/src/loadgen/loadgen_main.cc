@@ -52,6 +52,9 @@ int main(int argc, char** argv) {
   app.add_option("--leafdelta-replicas", o.leafdelta_replicas,
                  "Whole-object replica clients in leaf-delta mode (the same edits as leaves)")
       ->capture_default_str();
+  app.add_option("--viewer-mesh-hz", o.viewer_mesh_hz,
+                 "Viewers subscribe to Draco mesh chunks at this rate (0: none)")
+      ->capture_default_str();
   bool late_join = false;
   app.add_flag("--late-join", late_join,
                "Only measure a late join: one replica loads the whole object (bytes, ms)");

@@ -124,6 +124,10 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     Get(*s, "max_speed", &sc.max_speed);
     Get(*s, "max_amount", &sc.max_amount);
     Get(*s, "bounds_margin", &sc.bounds_margin);
+    Get(*s, "mesh_position_bits", &sc.mesh_position_bits);
+    Get(*s, "mesh_speed", &sc.mesh_speed);
+    Get(*s, "mesh_max_rate_hz", &sc.mesh_max_rate_hz);
+    Get(*s, "mesh_chunk_voxels", &sc.mesh_chunk_voxels);
     if (const toml::table* e = (*s)["effects"].as_table()) {
       Get(*e, "volume_preservation", &sc.effects.volume_preservation);
       Get(*e, "smoothing", &sc.effects.smoothing);
@@ -244,6 +248,14 @@ Status ValidateConfig(const ServerConfig& c) {
   SCULPT_RETURN_IF_ERROR(Range("scene.max_speed", s.max_speed, 0, 1e4 * s.voxel_size));
   SCULPT_RETURN_IF_ERROR(Range("scene.max_amount", s.max_amount, 0, 32 * s.voxel_size));
   SCULPT_RETURN_IF_ERROR(Range("scene.bounds_margin", s.bounds_margin, 0, 1e6));
+  SCULPT_RETURN_IF_ERROR(Range("scene.mesh_position_bits", s.mesh_position_bits, 8, 24));
+  SCULPT_RETURN_IF_ERROR(Range("scene.mesh_speed", s.mesh_speed, 0, 10));
+  SCULPT_RETURN_IF_ERROR(Range("scene.mesh_max_rate_hz", s.mesh_max_rate_hz, 0.1, 120));
+  SCULPT_RETURN_IF_ERROR(Range("scene.mesh_chunk_voxels", s.mesh_chunk_voxels, 8, 256));
+  if (s.mesh_chunk_voxels % 8 != 0) {
+    return InvalidArgument("scene.mesh_chunk_voxels=" + std::to_string(s.mesh_chunk_voxels) +
+                           " outside multiples of 8 in [8, 256]");
+  }
   SCULPT_RETURN_IF_ERROR(OneOf("scene.effects.volume_preservation", s.effects.volume_preservation,
                                {"none", "shell", "global"}));
   SCULPT_RETURN_IF_ERROR(OneOf("scene.effects.islands", s.effects.islands, {"keep", "remove_small"}));

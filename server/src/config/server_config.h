@@ -65,6 +65,11 @@ struct SceneConfig {
   double max_speed = 2000.0;    // world units per second
   double max_amount = 8.0;
   double bounds_margin = 16.0;  // poses must lie within the object bounds grown by this
+  // Viewers' Draco mesh chunks (issue 4).
+  int mesh_position_bits = 14;    // Draco position quantisation
+  int mesh_speed = 5;             // Draco encoder speed, 0 (smallest) .. 10 (fastest)
+  double mesh_max_rate_hz = 30;   // updates per second at most, whatever a viewer asks
+  int mesh_chunk_voxels = 32;     // chunk edge, a multiple of 8
 };
 
 struct LimitsConfig {

@@ -452,9 +452,26 @@ class Session : public std::enable_shared_from_this<Session> {
   }
 
   void OnViewerSubscribe(const v1::ViewerSubscribe& vs) {
-    (void)vs;
-    SendError(v1::ERROR_CODE_FAILED_PRECONDITION, "ViewerSubscribe", "mesh chunks",
-              "{}", "this server does not stream meshes yet", 0);
+    if (!joined_) {
+      SendError(v1::ERROR_CODE_FAILED_PRECONDITION, "ViewerSubscribe", "before JoinScene",
+                "after JoinScene", "join a scene first", 0);
+      return Violation();
+    }
+    if (viewing_) {
+      SendError(v1::ERROR_CODE_FAILED_PRECONDITION, "ViewerSubscribe", "repeated",
+                "once per connection", "already subscribed to meshes", 0);
+      return Violation();
+    }
+    viewing_ = true;
+    auto self = shared_from_this();
+    server_.scene().SubscribeViewer(Sink(), vs, [self](Status st) {
+      if (st.ok()) return;
+      asio::post(self->socket_.get_executor(), [self, st] {
+        self->viewing_ = false;
+        self->SendStatus(st);
+        self->Violation();
+      });
+    });
   }
 
   // Ball skins (issue 6). Ball edits and sweeps are strokes: joined sculptors only, the stroke
@@ -675,6 +692,7 @@ class Session : public std::enable_shared_from_this<Session> {
     close_timer_.cancel();
     if (subscribed_) server_.scene().Unsubscribe(id_);
     if (joined_) server_.scene().UnsubscribeContours(id_);
+    if (viewing_) server_.scene().UnsubscribeViewer(id_);
     server_.Unregister(this);
   }
 
@@ -691,6 +709,7 @@ class Session : public std::enable_shared_from_this<Session> {
   bool closing_ = false;
   bool joined_ = false;
   bool subscribed_ = false;
+  bool viewing_ = false;
   std::atomic<bool> joined_flag_{false};
   State state_ = State::kAwaitHello;
   v1::Role role_ = v1::ROLE_UNSPECIFIED;

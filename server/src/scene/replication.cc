@@ -13,12 +13,6 @@
 namespace sculpt::server {
 namespace {
 
-uint64_t UnixMicros() {
-  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::microseconds>(
-                                   std::chrono::system_clock::now().time_since_epoch())
-                                   .count());
-}
-
 std::shared_ptr<const std::string> Frame(const v1::ServerMessage& m) {
   auto f = std::make_shared<std::string>();
   codec::AppendMessage(m, f.get());
@@ -202,13 +196,13 @@ void Scene::Replicate(const std::string& object, const levelset::Sculpture& scul
         b->set_object(object);
         b->set_global_seq_first(records.front().global_seq());
         b->mutable_stroke()->ParseFromString(source);
+        b->mutable_stroke()->clear_object();  // the broadcast names it once
         b->set_client_id(records.front().client_id());
         b->set_volume(before.volume);
         b->set_reference_volume(before.reference_volume);
         b->set_edits_since_reinit(before.edits_since_reinit);
         b->set_leaves_hash(levelset::LeavesHash(sculpture, result.dirty_leaves));
         b->set_dirty_leaves(static_cast<uint32_t>(result.dirty_leaves.size()));
-        b->set_sent_unix_us(UnixMicros());
         broadcast = Frame(m);
         repl_stats_.broadcasts++;
         repl_stats_.broadcast_bytes += broadcast->size();

@@ -150,10 +150,18 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   Scene* raw = scene.get();
   scene->log_->OnDurable([raw](uint64_t d) { raw->ReleaseDurable(d); });
   scene->thread_ = std::thread([raw] { raw->Run(); });
+  scene->mesher_ = std::thread([raw] { raw->MesherLoop(); });
   return scene;
 }
 
 Scene::~Scene() {
+  {
+    // The mesher first: it waits on jobs of the compute thread.
+    std::lock_guard<std::mutex> lock(mesher_mu_);
+    mesher_stop_ = true;
+  }
+  mesher_cv_.notify_all();
+  if (mesher_.joinable()) mesher_.join();
   {
     // Serialisations for late joiners hold only copies, but they report through this scene.
     std::unique_lock<std::mutex> lock(join_mu_);
@@ -260,6 +268,7 @@ void Scene::ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, Stroke
     if (res.ok()) {
       // Leaf versions always (cheap), so a replica subscribing later resyncs by version.
       versions_[stroke.object].Record(res->dirty_leaves, next_seq_ - 1);
+      if (!viewers_.empty()) MarkDirtyChunks(stroke.object, res->dirty_leaves);
       if (!subs_.empty()) Replicate(stroke.object, sculpture, records, stroke.source, before, footprint, *res);
       out.last = std::move(res).value();
     }

@@ -11,6 +11,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -20,6 +21,8 @@
 #include "sculpt/core/status.h"
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/region.h"
+#include "sculpt/mesh/chunk_mesher.h"
+#include "sculpt/mesh/draco_chunk_codec.h"
 #include "sculpt/levelset/sculpture.h"
 #include "sculpt/skin/skin.h"
 #include "sculpt/v1/sculpt.pb.h"
@@ -124,6 +127,23 @@ class Scene {
   uint64_t RegionHash(const std::string& object, const levelset::VoxelBox& box);
   ReplicationStats& replication_stats() { return repl_stats_; }
 
+  /// Registers a viewer of one object's Draco mesh chunks (v1::ViewerSubscribe): it gets every
+  /// chunk holding surface, then the chunks edits change, re-meshed on the mesher thread at most
+  /// max_rate_hz times a second (capped by scene.mesh_max_rate_hz), several edits coalesced.
+  /// Nothing is meshed while no viewer is subscribed.
+  void SubscribeViewer(ReplicaSink sink, v1::ViewerSubscribe request,
+                       std::function<void(Status)> done);
+  void UnsubscribeViewer(uint64_t session_id);
+  /// Runs `fn` on the object between two edits (tests, tools); false for an unknown object.
+  bool Inspect(const std::string& object, const std::function<void(const levelset::Sculpture&)>& fn);
+  struct MeshStats {
+    std::atomic<uint64_t> chunks_encoded{0};
+    std::atomic<uint64_t> chunk_bytes{0};
+    std::atomic<uint64_t> updates{0};
+    std::atomic<uint64_t> snapshot_us{0};  // compute-thread time spent copying for the mesher
+  };
+  MeshStats& mesh_stats() { return mesh_stats_; }
+
   /// Ball skins (issue 6, skins.cc). A ball edit (v1::SkinBallEdit, fields already checked by
   /// ValidateSkinBallEdit) rebuilds at most two sections and sends contour subscribers of the
   /// skin an update with only those; `done` gets the SkinAck (refusals carry the Error).
@@ -175,6 +195,28 @@ class Scene {
   std::map<std::string, levelset::LeafVersions> versions_;    // compute thread only
   uint64_t versions_floor_ = 0;  // leaf versions are known only for edits after this sequence
   ReplicationStats repl_stats_;
+  // Viewers (viewers.cc). viewers_ and dirty_chunks_ on the compute thread; the cache of encoded
+  // chunks on the mesher thread only.
+  struct Viewer {
+    ReplicaSink sink;
+    std::string object;
+    double period_s = 0.1;
+    bool needs_full = true;
+  };
+  struct MeshWork;
+  void MesherLoop();
+  void MarkDirtyChunks(const std::string& object, const std::vector<levelset::Int3>& leaves);
+  std::map<uint64_t, Viewer> viewers_;
+  std::map<std::string, std::set<mesh::ChunkKey>> dirty_chunks_;
+  std::map<std::string, mesh::QuantizationFrame> mesh_frames_;
+  std::map<std::string, std::map<mesh::ChunkKey, std::shared_ptr<const std::string>>> mesh_cache_;
+  MeshStats mesh_stats_;
+  std::atomic<int> viewer_count_{0};
+  std::atomic<double> mesh_period_s_{0.1};
+  std::mutex mesher_mu_;
+  std::condition_variable mesher_cv_;
+  bool mesher_stop_ = false;
+  std::thread mesher_;
 
   ServerConfig config_;
   levelset::EditSettings settings_;

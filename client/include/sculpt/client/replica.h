@@ -28,7 +28,8 @@ struct ReplicaOptions {
   v1::ReplicaMode mode = v1::REPLICA_MODE_REPLAY;
   /// World box of interest; unset: the whole object.
   std::optional<levelset::Aabb> interest;
-  /// Publish an immutable copy for readers (the haptic loop) at most this often; 0: never.
+  /// Publish an immutable copy for readers (the haptic loop) at most this often; 0: never. An
+  /// edit applied within the interval of the last copy is published once the interval ends.
   std::chrono::milliseconds snapshot_interval{0};
 };
 
@@ -59,6 +60,9 @@ struct AppliedEdit {
 class Replica {
  public:
   using AppliedHandler = std::function<void(const AppliedEdit&)>;
+  /// A published copy and the highest global sequence it holds.
+  using SnapshotHandler =
+      std::function<void(std::shared_ptr<const levelset::Sculpture> snapshot, uint64_t seq)>;
   Replica(Client& client, ReplicaOptions options);
   ~Replica();
   Replica(const Replica&) = delete;
@@ -89,6 +93,10 @@ class Replica {
   std::shared_ptr<const levelset::Sculpture> Snapshot() const;
   ReplicaStats stats() const;
   void SetAppliedHandler(AppliedHandler handler);
+  /// Called on the replica's thread with each snapshot as it is published (the haptic loop's
+  /// feed takes it from here instead of polling Snapshot()). It must not call back into the
+  /// replica's blocking methods; it may keep the pointer. nullptr detaches it.
+  void SetSnapshotHandler(SnapshotHandler handler);
 
  private:
   void Enqueue(v1::ServerMessage&& m);
@@ -112,6 +120,8 @@ class Replica {
   bool busy_ = false;
   bool stop_ = false;
   AppliedHandler on_applied_;
+  SnapshotHandler on_snapshot_;
+  bool publish_pending_ = false;  // an edit was applied since the last copy
   std::chrono::steady_clock::time_point last_publish_{};
   std::shared_ptr<const levelset::Sculpture> snapshot_;  // atomic_load / atomic_store
   std::thread thread_;
