@@ -22,18 +22,22 @@ class SculptureSnapshot : public SdfSampler {
   explicit SculptureSnapshot(const levelset::Sculpture& sculpture);
   /// Adopts `sculpture`, which nobody else may hold.
   explicit SculptureSnapshot(levelset::Sculpture&& sculpture);
+  /// Shares an immutable copy made by someone else (the client's replica publishes one), with no
+  /// further copy. Whoever made it must never edit it again. A null pointer is refused by
+  /// dereference: callers check it first.
+  explicit SculptureSnapshot(std::shared_ptr<const levelset::Sculpture> sculpture);
   ~SculptureSnapshot() override;
 
   double Phi(const Vec3& p) const override;
   Vec3 Gradient(const Vec3& p) const override;
   double cell_size() const override { return voxel_size_; }
 
-  const levelset::Sculpture& sculpture() const { return sculpture_; }
+  const levelset::Sculpture& sculpture() const { return *sculpture_; }
   /// A process-unique id (never reused), distinct for every snapshot constructed.
   uint64_t id() const { return id_; }
 
  private:
-  levelset::Sculpture sculpture_;
+  std::shared_ptr<const levelset::Sculpture> sculpture_;
   double voxel_size_;
   uint64_t id_;
 };
