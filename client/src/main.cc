@@ -207,8 +207,9 @@ int main(int argc, char** argv) {
       "play", "Send a stroke script to a running sculptd as a sculptor; print a JSON summary");
   play_cmd->footer(sculpt::client::kPlayScriptHelp);
   play_cmd->add_option("--server", play.server, "sculptd address HOST:PORT")->required();
-  play_cmd->add_option("--script", play.script, "Stroke script (JSON; format below)")
-      ->required()
+  play_cmd
+      ->add_option("--script", play.script,
+                   "Stroke script (JSON; format below; optional with --haptics)")
       ->check(CLI::ExistingFile);
   play_cmd->add_option("--token", play.token, "Sculptor secret")->capture_default_str();
   play_cmd->add_option("--name", play.name, "Name shown to others")->capture_default_str();
@@ -219,6 +220,7 @@ int main(int argc, char** argv) {
   play_cmd->add_option("--speedup", play.speedup, "Play the script this many times faster")
       ->check(CLI::Range(0.001, 1e6))
       ->capture_default_str();
+  sculpt::client::AddPlayHapticsOptions(*play_cmd, play);
 
   CLI::App* thesis_cmd = app.add_subcommand(
       "thesis", "Rerun the thesis's 2D carve and compensation experiments; print JSON");

@@ -8,13 +8,22 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <thread>
 #include <vector>
 
+#include <CLI/CLI.hpp>
+
 #include "sculpt/client/client.h"
+#include "sculpt/client/replica.h"
+#include "sculpt/haptics/haptic_loop.h"
+#include "sculpt/haptics/monitored_device.h"
+#include "sculpt/haptics/sculpture_feed.h"
+#include "sculpt/haptics/sculpture_snapshot.h"
 
 namespace sculpt::client {
 
@@ -44,7 +53,16 @@ const char kPlayScriptHelp[] =
     "means [r, 0, 0]); stroke t_ms = ms after the start (when it is sent); pose t_ms = ms after "
     "the stroke's (default: previous + 8). A stroke may override object, kind, tool, size, "
     "speed and amount. Prints a JSON summary; exits 1 if a stroke is refused or un-acked, 2 "
-    "for a bad script.";
+    "for a bad script.\n\n"
+    "Haptics (--haptics): joins as a sculptor with a replica of the object (all of it, or a box "
+    "of half-size --interest-radius that follows the tool), runs the 1 kHz haptic loop on the "
+    "replica's snapshots with a simulated device, and sends strokes of the script's kind and "
+    "tool sampled from the device (--stroke-rate strokes/s, 4 poses each, only while the tool "
+    "touches the clay). The device follows the script's poses as a trajectory (times as sent), "
+    "or without --script a built-in path: approach the top of the object, press in, slide, "
+    "lift (--duration s). Prints force and loop statistics (--json: as JSON: haptic_rate_hz, "
+    "haptic_period_err_p99_us, haptic_ticks_over_2ms, haptic_snapshot_lag_p99_ms, "
+    "haptic_torn_ticks, force_max, ...).";
 
 namespace {
 
@@ -126,7 +144,8 @@ Status ReadStrokeFields(const json& j, const std::string& path, StrokeRequest* r
   return Status::Ok();
 }
 
-StatusOr<std::vector<ScriptStroke>> ParseScript(const json& script, std::string* scene) {
+StatusOr<std::vector<ScriptStroke>> ParseScript(const json& script, std::string* scene,
+                                                StrokeRequest* defaults_out = nullptr) {
   if (!script.is_object()) return Bad("script", script, "a JSON object");
   if (script.contains("scene")) {
     if (!script["scene"].is_string()) return Bad("scene", script["scene"], "strings");
@@ -134,6 +153,7 @@ StatusOr<std::vector<ScriptStroke>> ParseScript(const json& script, std::string*
   }
   StrokeRequest defaults;
   SCULPT_RETURN_IF_ERROR(ReadStrokeFields(script, "script", &defaults));
+  if (defaults_out) *defaults_out = defaults;
   if (!script.contains("strokes") || !script["strokes"].is_array()) {
     return Bad("strokes", script.value("strokes", json()), "an array of strokes");
   }
@@ -200,24 +220,395 @@ json ErrorJson(const v1::Error& e) {
 
 void Print(const json& j) { std::printf("%s\n", j.dump(2).c_str()); }
 
+double Smoothstep(double u) {
+  u = std::clamp(u, 0.0, 1.0);
+  return u * u * (3 - 2 * u);
+}
+
+Vec3 Lerp(const Vec3& a, const Vec3& b, double u) { return a + (b - a) * u; }
+
+/// The built-in device path over `duration` seconds: approach the surface point `top` from above,
+/// press half a tool radius in, hold, slide two radii along +x, lift back. Each leg eases in and
+/// out, so the device's velocity has no steps.
+std::function<Vec3(double)> ApproachAndPress(const Vec3& top, double tool_radius,
+                                             double duration) {
+  const Vec3 above = top + Vec3{0, 0, tool_radius + 2};
+  const Vec3 in = top - Vec3{0, 0, 0.5 * tool_radius};
+  const Vec3 slid = in + Vec3{2 * tool_radius, 0, 0};
+  const Vec3 lifted = slid + (above - in);
+  const double leg = duration / 4;
+  return [=](double t) {
+    if (t < leg) return Lerp(above, in, Smoothstep(t / leg));
+    if (t < 2 * leg) return in;
+    if (t < 3 * leg) return Lerp(in, slid, Smoothstep((t - 2 * leg) / leg));
+    return Lerp(slid, lifted, Smoothstep((t - 3 * leg) / leg));
+  };
+}
+
+/// The first point with phi <= 0 straight below `from`, stepping half a voxel, or nullopt.
+std::optional<Vec3> SurfaceBelow(const levelset::Sculpture& s, const Vec3& from, double depth) {
+  const double step = 0.5 * s.voxel_size();
+  for (double d = 0; d <= depth; d += step) {
+    const Vec3 p = from - Vec3{0, 0, d};
+    if (s.SampleWorld(p) <= 0) return p;
+  }
+  return std::nullopt;
+}
+
+levelset::Aabb BoxAround(const Vec3& p, double r) { return {p - Vec3{r, r, r}, p + Vec3{r, r, r}}; }
+
+Vec3 FromProto(const v1::Vec3f& v) { return {v.x(), v.y(), v.z()}; }
+
+json Vec3Json(const Vec3& v) { return json::array({Round3(v.x), Round3(v.y), Round3(v.z)}); }
+
+int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t port,
+               const std::string& scene, const StrokeRequest& stroke_template,
+               const std::vector<ScriptStroke>& script) {
+  const PlayHapticsOptions& ho = options.haptics;
+  haptics::HapticSettings hs;
+  auto model = haptics::ParseForceModel(ho.model);
+  if (!model.ok()) {
+    spdlog::error("--model: {}", model.status().message());
+    return 2;
+  }
+  hs.model = *model;
+  hs.stiffness = ho.stiffness;
+  hs.damping = ho.damping;
+  hs.max_force = ho.max_force;
+  hs.tool_radius = ho.tool_radius > 0 ? ho.tool_radius : stroke_template.tool_size.x;
+  hs.tool_samples = ho.tool_samples;
+  if (const Status s = haptics::ValidateHapticSettings(hs); !s.ok()) {
+    spdlog::error("play --haptics: {}", s.message());
+    return 2;
+  }
+
+  // The device's trajectory from the script: every pose at the time it would have been sent.
+  std::vector<haptics::RecordedDevice::Point> points;
+  for (const ScriptStroke& st : script) {
+    for (const codec::Pose& p : st.request.poses) {
+      const double t = (static_cast<double>(st.t_ms) + p.t_ms) / options.speedup / 1000.0;
+      if (points.empty() || t > points.back().t) points.push_back({t, p.position});
+    }
+  }
+
+  ClientOptions co;
+  co.timeout = std::chrono::milliseconds(static_cast<int64_t>(options.timeout_s * 1000));
+  co.skip_state = true;  // the replica loads its region through Subscribe
+  Client client(co);
+  const auto fail = [&](const std::string& stage, const Status& s) {
+    Print({{"server", options.server}, {"ok", false}, {"stage", stage}, {"error", s.message()}});
+    return 1;
+  };
+  if (Status s = client.Connect(host, port); !s.ok()) return fail("connect", s);
+  auto welcome = client.Hello(options.token, v1::ROLE_SCULPTOR, options.name, 0);
+  if (!welcome.ok()) return fail("hello", welcome.status());
+  auto joined = client.Join(scene);
+  if (!joined.ok()) return fail("join", joined.status());
+  const v1::ObjectInfo* object = nullptr;
+  for (const v1::ObjectInfo& o : joined->info.objects()) {
+    if (o.name() == stroke_template.object) object = &o;
+  }
+  if (!object) {
+    return fail("join", NotFound("object=" + stroke_template.object +
+                                 " outside the scene's objects"));
+  }
+  const Vec3 lo = FromProto(object->bounds_min()), hi = FromProto(object->bounds_max());
+  // The built-in path starts above the middle of the object's top.
+  const Vec3 above_top{0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), hi.z + hs.tool_radius + 2};
+  const Vec3 start = points.empty() ? above_top : points.front().position;
+
+  // Declared before the replica and the loop: both hold pointers into them.
+  haptics::SnapshotPublisher publisher;
+  haptics::SculptureFeed feed(&publisher, /*seal=*/true);
+  ReplicaOptions ro;
+  ro.object = stroke_template.object;
+  ro.snapshot_interval = std::chrono::milliseconds(ho.snapshot_ms);
+  if (ho.interest_radius > 0) ro.interest = BoxAround(start, ho.interest_radius);
+  Replica replica(client, ro);
+  replica.SetSnapshotHandler([&feed](std::shared_ptr<const levelset::Sculpture> s, uint64_t seq) {
+    feed.Publish(std::move(s), seq);
+  });
+  if (Status s = replica.Start(); !s.ok()) return fail("subscribe", s);
+  if (!replica.WaitLoaded(1, co.timeout) || !replica.WaitIdle(co.timeout)) {
+    return fail("subscribe", Status(Status::Code::kUnavailable, "the replica's region did not arrive in time"));
+  }
+  std::shared_ptr<const levelset::Sculpture> first = replica.Snapshot();
+  if (!first) return fail("subscribe", Status(Status::Code::kUnavailable, "the replica published no snapshot"));
+
+  std::unique_ptr<haptics::HapticDevice> device;
+  double duration_s = ho.duration_s;
+  if (points.empty()) {
+    auto top = SurfaceBelow(*first, above_top, hi.z - lo.z + hs.tool_radius + 2);
+    if (!top) {
+      return fail("path", NotFound("no surface below the top of object " + ro.object +
+                                   (ho.interest_radius > 0 ? " inside the interest box" : "")));
+    }
+    device = std::make_unique<haptics::ScriptedDevice>(
+        ApproachAndPress(*top, hs.tool_radius, duration_s));
+  } else {
+    duration_s = points.back().t + 0.25;
+    auto recorded = haptics::RecordedDevice::FromPoints(points);
+    if (!recorded.ok()) {
+      spdlog::error("--script={}: {}", options.script, recorded.status().message());
+      return 2;
+    }
+    device = std::make_unique<haptics::RecordedDevice>(std::move(recorded).value());
+  }
+  first.reset();
+  haptics::MonitoredDevice monitor(device.get(), &publisher);
+  auto loop = haptics::HapticLoop::Create(hs, &publisher, &monitor);
+  if (!loop.ok()) {
+    spdlog::error("play --haptics: {}", loop.status().message());
+    return 2;
+  }
+
+  std::mutex mu;
+  json errors = json::array();
+  client.SetEventHandler([&](const Event& e) {
+    std::lock_guard<std::mutex> lock(mu);
+    if (e.type == Event::Type::kError) {
+      errors.push_back(ErrorJson(e.error));
+    } else if (e.type == Event::Type::kDisconnected || e.type == Event::Type::kBye) {
+      errors.push_back({{"code", "DISCONNECTED"}, {"message", e.reason}});
+    }
+  });
+
+  // The stroke sender: samples the device pose through the loop's hook, 4 poses per stroke,
+  // keeping only poses taken while the loop reports contact.
+  constexpr size_t kPosesPerStroke = 4;
+  const auto pose_period = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(1.0 / (ho.stroke_rate * kPosesPerStroke)));
+  uint64_t poses_sent = 0, local_failures = 0, interest_moves = 0;
+  Vec3 interest_centre = start;
+  StrokeRequest stroke = stroke_template;
+  stroke.poses.clear();
+  const auto send = [&] {
+    if (stroke.poses.empty()) return;
+    auto seq = client.SendStroke(stroke);
+    if (seq.ok()) {
+      poses_sent += stroke.poses.size();
+    } else {
+      ++local_failures;
+      std::lock_guard<std::mutex> lock(mu);
+      errors.push_back({{"code", "CLIENT"}, {"message", seq.status().message()}});
+    }
+    stroke.poses.clear();
+  };
+  if (Status s = (*loop)->Start(); !s.ok()) return fail("haptics", s);
+  const auto start_time = Clock::now();
+  const auto end_time =
+      start_time + std::chrono::duration_cast<Clock::duration>(
+                       std::chrono::duration<double>(duration_s));
+  for (auto next = start_time + pose_period; next < end_time; next += pose_period) {
+    std::this_thread::sleep_until(next);
+    const haptics::DeviceSample pose = (*loop)->SamplePose();
+    const bool contact = (*loop)->stats().contact;
+    const uint64_t now_ms = static_cast<uint64_t>(
+        std::chrono::duration<double, std::milli>(Clock::now() - start_time).count());
+    if (contact && std::isfinite(pose.position.x)) {
+      if (stroke.poses.empty()) stroke.t0_ms = now_ms;
+      codec::Pose p;
+      p.position = pose.position;
+      p.t_ms = static_cast<uint32_t>(now_ms - stroke.t0_ms);
+      stroke.poses.push_back(p);
+      if (stroke.poses.size() == kPosesPerStroke) send();
+    } else {
+      send();
+    }
+    if (ho.interest_radius > 0 && std::isfinite(pose.position.x)) {
+      // Move the box once the tool has crossed half of its half-size: the server sends the
+      // new region while the tool is still well inside the old one.
+      const Vec3 d = pose.position - interest_centre;
+      if (std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)}) > 0.5 * ho.interest_radius) {
+        interest_centre = pose.position;
+        if (replica.MoveInterest(BoxAround(interest_centre, ho.interest_radius)).ok()) {
+          ++interest_moves;
+        }
+      }
+    }
+  }
+  send();
+  (*loop)->Stop();
+  const bool settled = client.WaitAllAcked(co.timeout);
+  client.SetEventHandler(nullptr);
+  replica.SetSnapshotHandler(nullptr);
+  feed.CheckHeld();
+  (void)client.Close("haptic session finished");
+
+  const haptics::HapticLoopStats ls = (*loop)->stats();
+  const haptics::MonitoredDevice::ForceStats fs = monitor.force_stats();
+  const haptics::SculptureFeed::Stats feed_stats = feed.stats();
+  const uint64_t torn_ticks = monitor.TicksOn(feed.changed_versions());
+  const ReplicaStats rs = replica.stats();
+  const ClientStats st = client.stats();
+  const uint64_t refused = st.refused + local_failures;
+  const uint64_t unacked = client.unacked();
+  const bool ok = settled && refused == 0 && unacked == 0 && ls.ticks > 0 && torn_ticks == 0;
+  std::lock_guard<std::mutex> lock(mu);
+  const json report = {
+      {"server", options.server},
+      {"scene", joined->info.scene()},
+      {"object", ro.object},
+      {"ok", ok},
+      {"model", haptics::ForceModelName(hs.model)},
+      {"stiffness", hs.stiffness},
+      {"tool_radius", hs.tool_radius},
+      {"trajectory", points.empty() ? "built-in" : "script"},
+      {"interest_radius", ho.interest_radius},
+      {"duration_s", Round3(duration_s)},
+      {"haptic_ticks", ls.ticks},
+      {"haptic_rate_hz", Round3(ls.rate_hz)},
+      {"haptic_tick_cost_p50_us", Round3(ls.tick_cost_p50_us)},
+      {"haptic_tick_cost_p99_us", Round3(ls.tick_cost_p99_us)},
+      {"haptic_tick_cost_max_us", Round3(ls.tick_cost_max_us)},
+      {"haptic_period_err_p50_us", Round3(ls.period_err_p50_us)},
+      {"haptic_period_err_p99_us", Round3(ls.period_err_p99_us)},
+      {"haptic_period_err_max_us", Round3(ls.period_err_max_us)},
+      {"haptic_overruns", ls.overruns},
+      {"haptic_missed_deadlines", ls.missed_deadlines},
+      {"haptic_ticks_over_2ms", ls.ticks_over_2ms},
+      {"haptic_nan_samples", ls.nan_samples},
+      {"haptic_snapshots_seen", ls.snapshots_seen},
+      {"haptic_snapshot_lag_p50_ms", Round3(ls.snapshot_lag_p50_ms)},
+      {"haptic_snapshot_lag_p99_ms", Round3(ls.snapshot_lag_p99_ms)},
+      {"haptic_snapshot_lag_max_ms", Round3(ls.snapshot_lag_max_ms)},
+      {"haptic_torn_ticks", torn_ticks},
+      {"snapshots_published", feed_stats.published},
+      {"snapshots_sealed_checked", feed_stats.checked},
+      {"snapshots_changed_after_publish", feed_stats.changed},
+      {"force_max", Round3(fs.max_force)},
+      {"force_mean_in_contact", Round3(fs.mean_contact_force)},
+      {"force_contact_ticks", fs.contact_ticks},
+      {"force_first_contact_s", Round3(fs.first_contact_s)},
+      {"force_last", Vec3Json(fs.last_force)},
+      {"replica_region_loads", rs.region_loads},
+      {"replica_broadcasts_applied", rs.broadcasts_applied},
+      {"replica_hash_mismatches", rs.hash_mismatches},
+      {"replica_seq", rs.seq},
+      {"interest_moves", interest_moves},
+      {"strokes_sent", st.strokes_sent},
+      {"poses_sent", poses_sent},
+      {"acked", st.acks},
+      {"refused", refused},
+      {"unacked", unacked},
+      {"errors", errors}};
+  if (ho.json) {
+    Print(report);
+  } else {
+    std::printf(
+        "haptics: %s model, stiffness %g, tool radius %g, %s trajectory, %.2f s\n"
+        "loop: %llu ticks at %.1f Hz; tick cost p50 %.1f us, p99 %.1f us, max %.1f us; period "
+        "error p99 %.1f us, max %.1f us; %llu missed deadlines, %llu periods over 2 ms\n"
+        "snapshots: %llu published, %llu seen by the loop, lag p99 %.3f ms; %llu torn ticks "
+        "(%llu of %llu seals changed)\n"
+        "force: max %.3f, mean in contact %.3f over %llu ticks, first contact at %.3f s\n"
+        "strokes: %llu sent (%llu poses), %llu acked, %llu refused, %llu unacked; replica at "
+        "seq %llu, %llu hash mismatches\n",
+        haptics::ForceModelName(hs.model), hs.stiffness, hs.tool_radius,
+        points.empty() ? "built-in" : "script", duration_s,
+        static_cast<unsigned long long>(ls.ticks), ls.rate_hz, ls.tick_cost_p50_us,
+        ls.tick_cost_p99_us, ls.tick_cost_max_us, ls.period_err_p99_us, ls.period_err_max_us,
+        static_cast<unsigned long long>(ls.missed_deadlines),
+        static_cast<unsigned long long>(ls.ticks_over_2ms),
+        static_cast<unsigned long long>(feed_stats.published),
+        static_cast<unsigned long long>(ls.snapshots_seen), ls.snapshot_lag_p99_ms,
+        static_cast<unsigned long long>(torn_ticks),
+        static_cast<unsigned long long>(feed_stats.changed),
+        static_cast<unsigned long long>(feed_stats.checked), fs.max_force,
+        fs.mean_contact_force, static_cast<unsigned long long>(fs.contact_ticks),
+        fs.first_contact_s, static_cast<unsigned long long>(st.strokes_sent),
+        static_cast<unsigned long long>(poses_sent), static_cast<unsigned long long>(st.acks),
+        static_cast<unsigned long long>(refused), static_cast<unsigned long long>(unacked),
+        static_cast<unsigned long long>(rs.seq),
+        static_cast<unsigned long long>(rs.hash_mismatches));
+    for (const json& e : errors) std::printf("error: %s\n", e.dump().c_str());
+  }
+  return ok ? 0 : 1;
+}
+
 }  // namespace
 
+void AddPlayHapticsOptions(CLI::App& play, PlayOptions& options) {
+  PlayHapticsOptions& h = options.haptics;
+  const std::string group = "Haptics";
+  play.add_flag("--haptics", h.enabled,
+                "Render forces at 1 kHz on a replica of the object with a simulated device and "
+                "send strokes sampled from it (--script optional: the device's trajectory)")
+      ->group(group);
+  play.add_option("--model", h.model, "Force model: penalty | proxy")
+      ->check(CLI::IsMember({"penalty", "proxy"}))
+      ->capture_default_str()
+      ->group(group);
+  play.add_option("--stiffness", h.stiffness,
+                  "Penalty kappa / proxy spring, force per world unit of penetration")
+      ->check(CLI::Range(1e-6, haptics::kMaxStiffness))
+      ->capture_default_str()
+      ->group(group);
+  play.add_option("--damping", h.damping,
+                  "Proxy damper, force per unit speed (at least stiffness / 2000 at 1 kHz)")
+      ->check(CLI::Range(0.0, haptics::kMaxStiffness))
+      ->capture_default_str()
+      ->group(group);
+  play.add_option("--max-force", h.max_force, "Force clamp")
+      ->check(CLI::Range(1e-6, haptics::kMaxHapticForce))
+      ->capture_default_str()
+      ->group(group);
+  play.add_option("--tool-radius", h.tool_radius,
+                  "Haptic tool radius, world units (0: the script's tool size, else 2.5)")
+      ->check(CLI::Range(0.0, haptics::kMaxToolRadius))
+      ->capture_default_str()
+      ->group(group);
+  play.add_option("--tool-samples", h.tool_samples, "Tool surface samples (penalty, contact)")
+      ->check(CLI::Range(1, haptics::kMaxToolSamples))
+      ->capture_default_str()
+      ->group(group);
+  play.add_option("--interest-radius", h.interest_radius,
+                  "Replicate only a box of this half-size around the tool, moved as it goes "
+                  "(0: the whole object)")
+      ->check(CLI::Range(0.0, 1e6))
+      ->capture_default_str()
+      ->group(group);
+  play.add_option("--stroke-rate", h.stroke_rate, "Strokes per second (4 device poses each)")
+      ->check(CLI::Range(1.0, 250.0))
+      ->capture_default_str()
+      ->group(group);
+  play.add_option("--duration", h.duration_s, "Length of the built-in path, seconds")
+      ->check(CLI::Range(0.1, 3600.0))
+      ->capture_default_str()
+      ->group(group);
+  play.add_option("--snapshot-ms", h.snapshot_ms, "Replica snapshots at most this often, ms")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str()
+      ->group(group);
+  play.add_flag("--json", h.json, "Print the haptic session's report as JSON")->group(group);
+}
+
+
 int RunPlay(const PlayOptions& options) {
-  std::ifstream in(options.script);
-  if (!in) {
-    spdlog::error("--script={}: cannot open", options.script);
-    return 2;
-  }
-  json script = json::parse(in, nullptr, /*allow_exceptions=*/false);
-  if (script.is_discarded()) {
-    spdlog::error("--script={}: not valid JSON", options.script);
-    return 2;
-  }
   std::string scene;
-  auto strokes = ParseScript(script, &scene);
-  if (!strokes.ok()) {
-    spdlog::error("--script={}: {}", options.script, strokes.status().message());
-    return 2;
+  StrokeRequest defaults;
+  StatusOr<std::vector<ScriptStroke>> strokes = std::vector<ScriptStroke>{};
+  if (options.script.empty()) {
+    if (!options.haptics.enabled) {
+      spdlog::error("play: --script is required (optional only with --haptics)");
+      return 2;
+    }
+  } else {
+    std::ifstream in(options.script);
+    if (!in) {
+      spdlog::error("--script={}: cannot open", options.script);
+      return 2;
+    }
+    json script = json::parse(in, nullptr, /*allow_exceptions=*/false);
+    if (script.is_discarded()) {
+      spdlog::error("--script={}: not valid JSON", options.script);
+      return 2;
+    }
+    strokes = ParseScript(script, &scene, &defaults);
+    if (!strokes.ok()) {
+      spdlog::error("--script={}: {}", options.script, strokes.status().message());
+      return 2;
+    }
   }
   if (!options.scene.empty()) scene = options.scene;
   std::string host;
@@ -229,6 +620,9 @@ int RunPlay(const PlayOptions& options) {
   if (!(options.speedup > 0)) {
     spdlog::error("--speedup={} outside (0, inf)", options.speedup);
     return 2;
+  }
+  if (options.haptics.enabled) {
+    return RunHaptics(options, host, port, scene, defaults, *strokes);
   }
 
   ClientOptions co;
