@@ -4,7 +4,7 @@ BUILD_DIR ?= build
 JOBS ?= $(shell nproc)
 DEMO_OUT ?= demo-output
 
-.PHONY: all deps configure build demo demo-local test soak bench bench-server clean
+.PHONY: all deps configure build demo demo-local test soak bench bench-server bench-replication clean
 
 all: build
 
@@ -40,6 +40,10 @@ bench: build
 # Server load runs (minutes): JSON per run in docs/server-bench/.
 bench-server: build
 	BIN=$(BUILD_DIR)/bin bash tests/bench/server_bench.sh docs/server-bench
+
+# Replication runs (about a minute): replay vs leaf-delta replicas, mesh viewers, late join.
+bench-replication: build
+	BIN=$(BUILD_DIR)/bin bash tests/bench/replication_bench.sh docs/replication-bench
 
 clean:
 	rm -rf $(BUILD_DIR)
