@@ -7,7 +7,11 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstring>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <memory>
 #include <string>
 #include <thread>
@@ -322,6 +326,36 @@ TEST_F(ReplicaTest, ViewerMeshChunksFollowTheEditsAndMatchTheWholeMesh) {
   ASSERT_TRUE(e.has_value());
   ASSERT_EQ(e->type, Event::Type::kError);
   EXPECT_EQ(e->error.field(), "ViewerSubscribe.max_rate_hz");
+}
+
+// `sculpt export --server --format glb`: the server's current state as a glTF binary whose
+// mesh is Draco-compressed (KHR_draco_mesh_compression), after edits.
+TEST_F(ReplicaTest, ExportFromTheServerAsGlbCarriesDracoCompression) {
+  auto a = Joined(v1::ROLE_SCULPTOR, true);
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(a->SendStroke(Arc(0, i)).ok());
+  ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
+  const fs::path out = dir_ / "state.glb";
+  const std::string cmd = std::string(SCULPT_BIN_DIR) + "/sculpt export --server 127.0.0.1:" +
+                          std::to_string(port_) + " --token sculpt-dev-viewer --format glb --out " +
+                          out.string() + " > " + (dir_ / "export.log").string() + " 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  std::ifstream in(out, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string bytes = ss.str();
+  ASSERT_GT(bytes.size(), 1000u);
+  EXPECT_EQ(bytes.substr(0, 4), "glTF");  // GLB magic
+  uint32_t version = 0, length = 0;
+  std::memcpy(&version, bytes.data() + 4, 4);
+  std::memcpy(&length, bytes.data() + 8, 4);
+  EXPECT_EQ(version, 2u);
+  EXPECT_EQ(length, bytes.size());
+  EXPECT_NE(bytes.find("KHR_draco_mesh_compression"), std::string::npos);
+  // A bad format is refused with a non-zero exit.
+  const std::string bad = std::string(SCULPT_BIN_DIR) + "/sculpt export --server 127.0.0.1:" +
+                          std::to_string(port_) + " --format gltfx --out " +
+                          (dir_ / "x.gltfx").string() + " > /dev/null 2>&1";
+  EXPECT_NE(std::system(bad.c_str()), 0);
 }
 
 }  // namespace
