@@ -488,6 +488,15 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
   const double delta_bps = per_s(static_cast<double>(mode_bytes[v1::REPLICA_MODE_LEAF_DELTA]),
                                  mode_count[v1::REPLICA_MODE_LEAF_DELTA]);
   report["replica_bytes_down_per_s"] = replay_bps;
+  {
+    // The replication payload alone (broadcasts), without presence and acks.
+    uint64_t payload = 0;
+    for (SimClient& c : replicas) {
+      if (c.mode == v1::REPLICA_MODE_REPLAY) payload += c.replica->stats().bytes;
+    }
+    report["replica_edit_payload_bytes_per_s"] =
+        per_s(static_cast<double>(payload), mode_count[v1::REPLICA_MODE_REPLAY]);
+  }
   report["leafdelta_bytes_down_per_s"] = delta_bps;
   report["leafdelta_over_replay_bytes"] = replay_bps > 0 ? Round3(delta_bps / replay_bps) : 0.0;
   report["edit_visible_p50_ms"] = Round3(Percentile(vis_replay, 0.50));
