@@ -396,6 +396,7 @@ void Scene::SweepSkin(uint64_t client_id, v1::SkinSweep s, std::function<void(v1
     ack.set_global_seq(seq);
     if (res.ok()) {
       versions_[s.object()].Record(res->dirty_leaves, seq);
+      if (!viewers_.empty()) MarkDirtyChunks(s.object(), res->dirty_leaves);
       // Replicas get the sweep's leaves (replay mode has no sweep form).
       for (auto& [id, sub] : subs_) {
         if (sub.object == s.object()) SendRegion(sub, sculpture, seq - 1, /*replace=*/false);
