@@ -323,7 +323,12 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
   ReplicaOptions ro;
   ro.object = stroke_template.object;
   ro.snapshot_interval = std::chrono::milliseconds(ho.snapshot_ms);
-  if (ho.interest_radius > 0) ro.interest = BoxAround(start, ho.interest_radius);
+  if (ho.interest_radius > 0) {
+    ro.interest = BoxAround(start, ho.interest_radius);
+    // The built-in path looks for the surface straight below its start, wherever earlier
+    // sculpting left it: the first region is the column down to the object's bottom.
+    if (points.empty()) ro.interest->min.z = lo.z;
+  }
   Replica replica(client, ro);
   replica.SetSnapshotHandler([&feed](std::shared_ptr<const levelset::Sculpture> s, uint64_t seq) {
     feed.Publish(std::move(s), seq);
@@ -476,6 +481,7 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
       {"snapshots_published", feed_stats.published},
       {"snapshots_sealed_checked", feed_stats.checked},
       {"snapshots_changed_after_publish", feed_stats.changed},
+      {"snapshots_seal_ms", Round3(feed_stats.seal_ms)},
       {"force_max", Round3(fs.max_force)},
       {"force_mean_in_contact", Round3(fs.mean_contact_force)},
       {"force_contact_ticks", fs.contact_ticks},
@@ -485,6 +491,7 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
       {"replica_broadcasts_applied", rs.broadcasts_applied},
       {"replica_hash_mismatches", rs.hash_mismatches},
       {"replica_seq", rs.seq},
+      {"replica_apply_ms", Round3(rs.apply_ms)},
       {"interest_moves", interest_moves},
       {"strokes_sent", st.strokes_sent},
       {"poses_sent", poses_sent},
