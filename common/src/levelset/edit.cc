@@ -180,6 +180,8 @@ Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& req
 // Writes the block's changed voxels into the grid, grows the cached bounds, and updates the
 // tracked volume from the changed voxels alone.
 void SpliceBack(Sculpture::Impl& impl, const Block& b, double base_volume, EditResult* res) {
+  // Before the SDF write-back: reads the block's before/after fields only (materials.h).
+  internal::CarryFractions(impl, b.before, b.phi, kStencilMargin);
   internal::WriteBackResult wb = internal::WriteBack(*impl.grid, b.before, b.phi, kStencilMargin);
   if (wb.changed_voxels > 0) {
     impl.bounds.expand(openvdb::CoordBBox(openvdb::Coord(b.box.min.x, b.box.min.y, b.box.min.z),

@@ -371,6 +371,7 @@ StatusOr<Sculpture> Sculpture::LoadVdb(const std::string& path) {
       if (auto m = grid->getMetadata<openvdb::DoubleMetadata>("reference_volume")) {
         s.set_reference_volume(m->value());
       }
+      SCULPT_RETURN_IF_ERROR(internal::AdoptMaterialGrids(s.impl(), *grids));
       SCULPT_RETURN_IF_ERROR(ValidateSculptureOptions(
           SculptureOptions{dx, s.half_width(), s.name()}));
       return s;
@@ -398,7 +399,9 @@ Status Sculpture::SaveVdb(const std::string& path) const {
     StampMetadata(*grid, *impl_);
     const std::string tmp = path + ".tmp";
     openvdb::io::File file(tmp);
-    file.write({grid});
+    openvdb::GridPtrVec grids{grid};
+    for (auto& m : internal::MaterialGridsForFile(*impl_)) grids.push_back(m);  // one per material
+    file.write(grids);
     file.close();
     std::filesystem::rename(tmp, path);
   } catch (const std::exception& e) {
@@ -473,6 +476,7 @@ StatusOr<MeshStats> Sculpture::ExportMesh(const std::string& path, double adapti
 Sculpture Sculpture::Clone() const {
   auto impl = std::make_unique<Impl>(*impl_);
   impl->grid = impl_->grid->deepCopy();
+  internal::DeepCopyMaterials(*impl);
   return Sculpture(std::move(impl));
 }
 

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "sculpt/levelset/dense_field.h"
+#include "sculpt/levelset/materials.h"
 #include "sculpt/levelset/sculpture.h"
 
 namespace sculpt::levelset {
@@ -24,6 +25,10 @@ struct Sculpture::Impl {
   /// Conservative index bounds of the active voxels: exact at creation and load, grown by each
   /// edit's block, so reading it never walks the tree.
   openvdb::CoordBBox bounds;
+  /// Declared materials and one fraction grid each (materials.h); both empty when the scene
+  /// declares none, so a sculpture without materials pays nothing.
+  std::vector<MaterialDecl> materials;
+  std::vector<openvdb::FloatGrid::Ptr> fractions;
 
   double dx() const { return grid->voxelSize()[0]; }
   float background() const { return grid->background(); }
@@ -62,6 +67,22 @@ struct WriteBackResult {
 /// uniform and inactive collapse into tiles, so equal states have equal trees.
 WriteBackResult WriteBack(openvdb::FloatGrid& grid, const DenseField& before,
                           const DenseField& after, int margin);
+
+/// Carries the material fractions through an SDF change over a block (materials.h; a no-op
+/// without materials): every voxel of the block interior (`margin` from its border) whose phi
+/// decreased from >= 0 to below two voxels takes a copy of the fractions of the material that
+/// moved there, the nearest voxel inside the old surface along -grad phi. Copies, never
+/// averages, so every vector stays in the simplex. Reads all sources before writing.
+void CarryFractions(Sculpture::Impl& impl, const DenseField& before, const DenseField& after,
+                    int margin);
+
+/// The fraction grids stamped for a .vdb file (name, class, material index and colour).
+openvdb::GridPtrVec MaterialGridsForFile(const Sculpture::Impl& impl);
+/// Adopts the fraction grids found among a .vdb file's grids (none: no materials). DataLoss
+/// naming the problem for missing indices, bad colours or a transform unlike the SDF's.
+Status AdoptMaterialGrids(Sculpture::Impl& impl, const openvdb::GridPtrVec& grids);
+/// Deep copies of the fraction grids (Clone).
+void DeepCopyMaterials(Sculpture::Impl& impl);
 
 }  // namespace internal
 }  // namespace sculpt::levelset
