@@ -123,6 +123,17 @@ elseif(MODE STREQUAL "hetero")
   require_number(material_sampling 0 us_per_inside_voxel)
   require_number(material_sampling 0 material_volume_error_rel_max)
   require_number(boundary_mesh_ms)
+  # Material fractions in the sculpture (issue 7).
+  foreach(field paint_p99_ms press_p99_ms_with_materials press_p99_ms_without_materials
+                bytes_per_active_voxel_with_materials bytes_per_active_voxel_without_materials)
+    require_number(${field})
+  endforeach()
+  require_number(voxelise_tyre 0 total_ms)
+  string(JSON same GET "${out}" sdf_identical_with_and_without_materials)
+  if(NOT same)
+    set(failures "${failures}\n  sdf_identical_with_and_without_materials=${same}: declaring "
+                 "materials changed the sculpting kernel's result")
+  endif()
   string(JSON valid GET "${out}" model_valid)
   if(NOT valid)
     set(failures "${failures}\n  model_valid=${valid}: the benchmark model failed its own check")
