@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <cmath>
 #include <limits>
 #include <set>
@@ -543,6 +544,157 @@ Status AdoptMaterialGrids(Sculpture::Impl& impl, const openvdb::GridPtrVec& grid
   impl.materials = std::move(decls);
   impl.fractions = std::move(fr);
   return Status::Ok();
+}
+
+void EncodeMaterialCells(const Sculpture::Impl& impl, const std::vector<Int3>& cells,
+                         std::string& out) {
+  const size_t n = impl.fractions.size();
+  out.push_back(static_cast<char>(n));
+  std::vector<float> values;
+  for (const Int3& c : cells) {
+    const Coord origin(c.x, c.y, c.z);
+    for (size_t m = 0; m < n; ++m) {
+      const FloatGrid& g = *impl.fractions[m];
+      if (const auto* leaf = g.tree().probeConstLeaf(origin)) {
+        out.push_back(1);
+        values.insert(values.end(), leaf->buffer().data(), leaf->buffer().data() + leaf->SIZE);
+      } else {
+        out.push_back(0);
+        const float v = g.tree().getValue(origin);
+        out.append(reinterpret_cast<const char*>(&v), 4);
+      }
+    }
+  }
+  const size_t base = out.size();
+  out.resize(base + values.size() * 4);
+  const auto* vb = reinterpret_cast<const uint8_t*>(values.data());
+  for (size_t plane = 0; plane < 4; ++plane) {
+    char* dst = out.data() + base + plane * values.size();
+    for (size_t i = 0; i < values.size(); ++i) dst[i] = static_cast<char>(vb[i * 4 + plane]);
+  }
+}
+
+StatusOr<MaterialCells> DecodeMaterialCells(const Sculpture::Impl& impl, std::string_view block,
+                                            size_t cells) {
+  MaterialCells mc;
+  if (block.empty()) return DataLoss("leaf records: materials block missing");
+  mc.n = static_cast<uint8_t>(block[0]);
+  block.remove_prefix(1);
+  if (mc.n != impl.fractions.size()) {
+    return DataLoss("leaf records: materials=" + std::to_string(mc.n) + " outside {" +
+                    std::to_string(impl.fractions.size()) + "} (the replica's declared materials)");
+  }
+  const size_t entries = cells * mc.n;
+  if (block.size() < entries) {
+    return DataLoss("leaf records: materials block size=" + std::to_string(block.size()) +
+                    " outside [" + std::to_string(entries) + ", ...)");
+  }
+  mc.type.resize(entries);
+  mc.uniform.assign(entries, 0.f);
+  mc.first.assign(entries, 0);
+  size_t leaves = 0;
+  for (size_t e = 0; e < entries; ++e) {
+    if (block.empty()) return DataLoss("leaf records: materials block truncated");
+    const uint8_t t = static_cast<uint8_t>(block[0]);
+    block.remove_prefix(1);
+    mc.type[e] = t;
+    if (t == 0) {
+      if (block.size() < 4) return DataLoss("leaf records: materials block truncated");
+      std::memcpy(&mc.uniform[e], block.data(), 4);
+      block.remove_prefix(4);
+    } else if (t == 1) {
+      mc.first[e] = leaves * 512;
+      ++leaves;
+    } else {
+      return DataLoss("leaf records: material type=" + std::to_string(t) + " outside {0, 1}");
+    }
+  }
+  if (block.size() != leaves * 512 * 4) {
+    return DataLoss("leaf records: material value bytes=" + std::to_string(block.size()) +
+                    " outside {" + std::to_string(leaves * 512 * 4) + "}");
+  }
+  const size_t total = leaves * 512;
+  mc.values.resize(total);
+  auto* vb = reinterpret_cast<uint8_t*>(mc.values.data());
+  for (size_t plane = 0; plane < 4; ++plane) {
+    const char* src = block.data() + plane * total;
+    for (size_t i = 0; i < total; ++i) vb[i * 4 + plane] = static_cast<uint8_t>(src[i]);
+  }
+  // Every voxel's vector must lie in the simplex (seed 001 (4.2)): what comes off the wire is
+  // checked before anything is written.
+  for (size_t c = 0; c < cells; ++c) {
+    for (int v = 0; v < 512; ++v) {
+      double sum = 0;
+      for (size_t m = 0; m < mc.n; ++m) {
+        const size_t e = c * mc.n + m;
+        const double x = mc.type[e] == 0 ? mc.uniform[e] : mc.values[mc.first[e] + v];
+        if (!std::isfinite(x) || x < -kFractionTolerance || x > 1 + kFractionTolerance) {
+          return DataLoss("leaf records: record " + std::to_string(c) + " voxel " +
+                          std::to_string(v) + " fraction[" + std::to_string(m) +
+                          "]=" + FormatNumber(x) + " outside [0, 1]");
+        }
+        sum += x;
+      }
+      if (std::abs(sum - 1.0) > kFractionTolerance) {
+        char buf[160];
+        std::snprintf(buf, sizeof buf,
+                      "leaf records: record %zu voxel %d fractions.sum=%.9g outside [%.9g, %.9g]",
+                      c, v, sum, 1.0 - kFractionTolerance, 1.0 + kFractionTolerance);
+        return DataLoss(buf);
+      }
+      if (v == 0) {
+        bool all_uniform = true;
+        for (size_t m = 0; m < mc.n; ++m) all_uniform = all_uniform && mc.type[c * mc.n + m] == 0;
+        if (all_uniform) break;  // one vector for the whole cell
+      }
+    }
+  }
+  return mc;
+}
+
+void ApplyMaterialCell(Sculpture::Impl& impl, const MaterialCells& mc, size_t record,
+                       const Int3& origin) {
+  const Coord o(origin.x, origin.y, origin.z);
+  for (size_t m = 0; m < mc.n; ++m) {
+    const size_t e = record * mc.n + m;
+    FloatGrid& g = *impl.fractions[m];
+    if (mc.type[e] == 0) {
+      g.tree().addTile(1, o, mc.uniform[e], false);
+    } else {
+      auto* leaf = g.tree().touchLeaf(o);
+      for (openvdb::Index i = 0; i < 512; ++i) leaf->setValueOn(i, mc.values[mc.first[e] + i]);
+    }
+  }
+}
+
+uint64_t MaterialCellsHash(const Sculpture::Impl& impl, const std::vector<Int3>& cells) {
+  if (impl.fractions.empty()) return 0;
+  XXH3_state_t* st = XXH3_createState();
+  XXH3_64bits_reset(st);
+  for (const auto& g : impl.fractions) {
+    FloatGrid::ConstAccessor acc = g->getConstAccessor();
+    for (const Int3& c : cells) {
+      const Coord o(c.x, c.y, c.z);
+      if (const auto* leaf = acc.probeConstLeaf(o)) {
+        XXH3_64bits_update(st, leaf->buffer().data(), leaf->SIZE * sizeof(float));
+      } else {
+        const float v = acc.getValue(o);
+        XXH3_64bits_update(st, &v, sizeof v);
+      }
+    }
+  }
+  const uint64_t h = XXH3_64bits_digest(st);
+  XXH3_freeState(st);
+  return h;
+}
+
+void ClearMaterialRegion(Sculpture::Impl& impl, const VoxelBox& box) {
+  if (box.Empty()) return;
+  for (auto& g : impl.fractions) {
+    g->tree().fill(openvdb::CoordBBox(Coord(box.min.x, box.min.y, box.min.z),
+                                      Coord(box.max.x, box.max.y, box.max.z)),
+                   g->background(), false);
+  }
 }
 
 void DeepCopyMaterials(Sculpture::Impl& impl) {

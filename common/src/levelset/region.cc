@@ -10,6 +10,7 @@
 #include <limits>
 #include <tuple>
 
+#include "materials_internal.h"
 #include "sculpture_impl.h"
 
 namespace sculpt::levelset {
@@ -19,6 +20,9 @@ using openvdb::Coord;
 using openvdb::FloatGrid;
 
 constexpr char kMagic[4] = {'S', 'L', 'R', '1'};
+// The same records followed by a materials block (materials_internal.h) when the sculpture
+// declares materials.
+constexpr char kMagicMaterials[4] = {'S', 'L', 'R', '2'};
 constexpr uint8_t kUniform = 0;
 constexpr uint8_t kLeaf = 1;
 constexpr int kLeafVoxels = kLeafDim * kLeafDim * kLeafDim;
@@ -230,6 +234,10 @@ std::string EncodeLeafRecords(const Sculpture& sculpture, const std::vector<Int3
     char* dst = raw.data() + base + plane * values.size();
     for (size_t i = 0; i < values.size(); ++i) dst[i] = static_cast<char>(vb[i * 4 + plane]);
   }
+  if (!sculpture.impl().fractions.empty()) {
+    std::memcpy(raw.data(), kMagicMaterials, 4);
+    internal::EncodeMaterialCells(sculpture.impl(), cells, raw);
+  }
   std::string out;
   const uint64_t raw_size = raw.size();
   out.resize(8 + ZSTD_compressBound(raw.size()));
@@ -264,8 +272,16 @@ StatusOr<LeafApplyResult> ApplyLeafRecords(Sculpture& sculpture, std::string_vie
                     (ZSTD_isError(got) ? ZSTD_getErrorName(got) : "short"));
   }
   std::string_view s(raw);
-  if (s.size() < 8 || std::memcmp(s.data(), kMagic, 4) != 0) {
-    return DataLoss("leaf records: magic outside {SLR1}");
+  if (s.size() < 8 || (std::memcmp(s.data(), kMagic, 4) != 0 &&
+                        std::memcmp(s.data(), kMagicMaterials, 4) != 0)) {
+    return DataLoss("leaf records: magic outside {SLR1, SLR2}");
+  }
+  const bool has_materials = std::memcmp(s.data(), kMagicMaterials, 4) == 0;
+  if (has_materials != !sculpture.impl().fractions.empty()) {
+    return DataLoss(std::string("leaf records: magic=") + (has_materials ? "SLR2" : "SLR1") +
+                    " outside {" + (has_materials ? "SLR1" : "SLR2") +
+                    "} (materials declared here: " +
+                    std::to_string(sculpture.impl().fractions.size()) + ")");
   }
   s.remove_prefix(4);
   uint32_t n = 0;
@@ -326,9 +342,20 @@ StatusOr<LeafApplyResult> ApplyLeafRecords(Sculpture& sculpture, std::string_vie
     }
     recs.push_back(r);
   }
+  std::string_view material_block;
+  if (has_materials && s.size() > total_values * 4) {
+    material_block = s.substr(total_values * 4);
+    s = s.substr(0, total_values * 4);
+  }
   if (s.size() != total_values * 4) {
     return DataLoss("leaf records: value bytes=" + std::to_string(s.size()) + " outside {" +
                     std::to_string(total_values * 4) + "}");
+  }
+  internal::MaterialCells materials;
+  if (has_materials) {
+    auto mc = internal::DecodeMaterialCells(sculpture.impl(), material_block, recs.size());
+    if (!mc.ok()) return mc.status();
+    materials = std::move(mc).value();
   }
   std::vector<float> values(total_values);
   auto* vb = reinterpret_cast<uint8_t*>(values.data());
@@ -346,10 +373,12 @@ StatusOr<LeafApplyResult> ApplyLeafRecords(Sculpture& sculpture, std::string_vie
   // Validated whole: now write.
   LeafApplyResult res;
   uint64_t next = 0;
-  for (const Rec& r : recs) {
+  for (size_t ri = 0; ri < recs.size(); ++ri) {
+    const Rec& r = recs[ri];
     const uint64_t first = next;
     next += r.count;
     if (!clip.Empty() && !CellInBox(r.o, clip)) continue;
+    if (has_materials) internal::ApplyMaterialCell(sculpture.impl(), materials, ri, r.o);
     const Coord origin(r.o.x, r.o.y, r.o.z);
     if (r.type == kUniform) {
       g.tree().addTile(1, origin, r.uniform, false);
@@ -395,6 +424,12 @@ uint64_t LeavesHash(const Sculpture& sculpture, const std::vector<Int3>& cells) 
       XXH3_64bits_update(st, &v, sizeof v);
     }
   }
+  // The fractions of the same cells, when the sculpture declares materials (replicas converge on
+  // them too); without materials the hash is what it always was.
+  if (!sculpture.impl().fractions.empty()) {
+    const uint64_t m = internal::MaterialCellsHash(sculpture.impl(), cells);
+    XXH3_64bits_update(st, &m, sizeof m);
+  }
   const uint64_t h = XXH3_64bits_digest(st);
   XXH3_freeState(st);
   return h;
@@ -423,6 +458,7 @@ void ClearRegion(Sculpture& sculpture, const VoxelBox& box) {
   g.tree().fill(openvdb::CoordBBox(Coord(box.min.x, box.min.y, box.min.z),
                                    Coord(box.max.x, box.max.y, box.max.z)),
                 g.background(), false);
+  internal::ClearMaterialRegion(sculpture.impl(), box);
 }
 
 }  // namespace sculpt::levelset
