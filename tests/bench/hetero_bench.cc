@@ -69,6 +69,10 @@ void MaterialsInSculpture(bool quick, Json& doc) {
     doc["materials_error"] = StatusText(declared);
     return;
   }
+  // Declared but not yet painted: every fraction grid is its background alone.
+  doc["bytes_per_active_voxel_with_materials_unpainted"] =
+      static_cast<double>(mat.MemoryBytes() + ls::MaterialMemoryBytes(mat)) /
+      static_cast<double>(mat.ActiveVoxelCount());
   std::mt19937_64 rng(20261122);
   const int edits = quick ? 10 : 300;
   std::vector<Vec3> dirs;
