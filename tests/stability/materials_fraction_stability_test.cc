@@ -135,10 +135,11 @@ TEST(MaterialsFractionStabilityTest, ThousandRandomPaintCarveSmoothEditsStayInTh
   EXPECT_GT(v[1], 1.0);
   EXPECT_GT(v[2], 1.0);
   EXPECT_TRUE(s.CheckLevelSet().ok());
-  std::printf("paint %d press %d smooth %d subtract %d; worst paint %.3g, compensated %.3g, "
-              "sum %.3g; simplex sum error %.3g over %llu vectors\n",
-              paints, presses, smooths, subtracts, worst_paint, worst_compensated, worst_sum,
-              rep.max_sum_error, static_cast<unsigned long long>(rep.vectors));
+  std::printf(
+      "paint %d press %d smooth %d subtract %d; worst paint %.3g, compensated %.3g, "
+      "sum %.3g; simplex sum error %.3g over %llu vectors\n",
+      paints, presses, smooths, subtracts, worst_paint, worst_compensated, worst_sum,
+      rep.max_sum_error, static_cast<unsigned long long>(rep.vectors));
 }
 
 TEST(MaterialsFractionStabilityTest, RandomBadFractionVectorsAreRefusedAndChangeNothing) {
@@ -156,9 +157,13 @@ TEST(MaterialsFractionStabilityTest, RandomBadFractionVectorsAreRefusedAndChange
   for (int t = 0; t < 300; ++t) {
     std::vector<double> a{u(rng), u(rng), u(rng)};
     switch (t % 4) {
-      case 0: a[t % 3] = -std::abs(a[t % 3]) - 1e-9; break;  // negative
-      case 1: a[t % 3] = t % 8 == 1 ? nan : inf; break;       // not finite
-      case 2: {                                                // on [0,1] but the sum is off
+      case 0:
+        a[t % 3] = -std::abs(a[t % 3]) - 1e-9;
+        break;  // negative
+      case 1:
+        a[t % 3] = t % 8 == 1 ? nan : inf;
+        break;   // not finite
+      case 2: {  // on [0,1] but the sum is off
         for (double& x : a) x = std::abs(x) / 3;
         const double s3 = a[0] + a[1] + a[2];
         for (double& x : a) x /= s3;
@@ -166,7 +171,9 @@ TEST(MaterialsFractionStabilityTest, RandomBadFractionVectorsAreRefusedAndChange
         if (a[0] < 0) a[0] += 4e-5;
         break;
       }
-      default: a.push_back(0); break;  // wrong size
+      default:
+        a.push_back(0);
+        break;  // wrong size
     }
     const auto r = FillMaterial(s, ToolShape::Sphere({0, 0, 0}, 4), a);
     ASSERT_FALSE(r.ok()) << t;

@@ -7,17 +7,17 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <cmath>
 #include <limits>
 #include <set>
 #include <tuple>
 
+#include "materials_internal.h"
 #include "sculpt/core/check.h"
 #include "sculpt/hetero/material.h"
 #include "sculpt/levelset/kernels.h"
-#include "materials_internal.h"
 #include "sculpture_impl.h"
 
 namespace sculpt::levelset {
@@ -83,8 +83,8 @@ MaterialEditResult EditInTool(Sculpture& sculpture, const ToolShape& tool, Op op
     for (int y = box.min.y; y <= box.max.y; ++y) {
       for (int x = box.min.x; x <= box.max.x; ++x) {
         const Vec3 p{x * dx, y * dx, z * dx};
-        const double t = sphere ? (p - tool.center).Length() - tool.size.x
-                                : ToolSignedDistance(tool, p);
+        const double t =
+            sphere ? (p - tool.center).Length() - tool.size.x : ToolSignedDistance(tool, p);
         if (t >= 0) continue;
         const Coord c(x, y, z);
         if (!(phi.getValue(c) < tau)) continue;
@@ -160,8 +160,7 @@ Status ValidateMaterialDecls(const std::vector<MaterialDecl>& materials) {
   return Status::Ok();
 }
 
-Status ValidateFractionVector(const std::string& field, std::span<const double> a,
-                              int materials) {
+Status ValidateFractionVector(const std::string& field, std::span<const double> a, int materials) {
   // Seed 001 (4.2), the hyperpatch library's rule and tolerance; the sum is reported with nine
   // digits, so an excess of 2e-6 is visible in the message.
   static_assert(kFractionTolerance == hetero::kSimplexSumTolerance);
@@ -188,8 +187,8 @@ Status SetMaterials(Sculpture& sculpture, const std::vector<MaterialDecl>& mater
                     std::span<const double> fill) {
   SCULPT_RETURN_IF_ERROR(ValidateMaterialDecls(materials));
   const int n = static_cast<int>(materials.size());
-  std::vector<double> f = fill.empty() ? hetero::PureMaterial(0, n)
-                                       : std::vector<double>(fill.begin(), fill.end());
+  std::vector<double> f =
+      fill.empty() ? hetero::PureMaterial(0, n) : std::vector<double>(fill.begin(), fill.end());
   SCULPT_RETURN_IF_ERROR(ValidateFractionVector("fill", f, n));
   std::vector<float> stored(static_cast<size_t>(n));
   internal::ToSimplexFloat(f, stored);
@@ -502,8 +501,8 @@ openvdb::GridPtrVec MaterialGridsForFile(const Sculpture::Impl& impl) {
     g->setGridClass(openvdb::GRID_UNKNOWN);
     g->insertMeta(kIndexMeta, openvdb::Int32Metadata(static_cast<int32_t>(m)));
     g->insertMeta(kNameMeta, openvdb::StringMetadata(decl.name));
-    g->insertMeta(kColourMeta, openvdb::Vec3DMetadata(openvdb::Vec3d(
-                                   decl.colour[0], decl.colour[1], decl.colour[2])));
+    g->insertMeta(kColourMeta, openvdb::Vec3DMetadata(
+                                   openvdb::Vec3d(decl.colour[0], decl.colour[1], decl.colour[2])));
     out.push_back(g);
   }
   return out;

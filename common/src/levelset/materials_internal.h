@@ -32,9 +32,9 @@ void EncodeMaterialCells(const Sculpture::Impl& impl, const std::vector<Int3>& c
 /// A decoded, validated block.
 struct MaterialCells {
   size_t n = 0;
-  std::vector<uint8_t> type;     // cells x n
-  std::vector<float> uniform;    // cells x n (used where type is uniform)
-  std::vector<size_t> first;     // cells x n: offset into values (leaves)
+  std::vector<uint8_t> type;   // cells x n
+  std::vector<float> uniform;  // cells x n (used where type is uniform)
+  std::vector<size_t> first;   // cells x n: offset into values (leaves)
   std::vector<float> values;
 };
 

@@ -1,8 +1,6 @@
 /// @brief VoxelizeModel: a composite hyperpatch model into the SDF (boundary mesh ->
 /// meshToLevelSet -> CSG union) and into the fraction grids (inverse map at voxel centres),
 /// seed 001 §10.3.
-#include "sculpt/levelset/voxelize_model.h"
-
 #include <openvdb/tools/MeshToVolume.h>
 #include <openvdb/tools/Prune.h>
 
@@ -19,6 +17,7 @@
 #include "sculpt/hetero/inverse_map.h"
 #include "sculpt/hetero/material.h"
 #include "sculpt/levelset/materials.h"
+#include "sculpt/levelset/voxelize_model.h"
 #include "sculpture_impl.h"
 
 namespace sculpt::levelset {
@@ -177,7 +176,7 @@ StatusOr<VoxelizeResult> VoxelizeModel(Sculpture& sculpture, const hetero::Compo
   // Voxels the map missed (outside the exact cells but inside the tessellation, or in the outer
   // band) copy a located 6-neighbour, in rounds, so a copy never comes from a voxel filled in
   // the same round (order independent); the first neighbour in a fixed order wins.
-  const Coord nb[6] = {Coord(-1, 0, 0), Coord(1, 0, 0), Coord(0, -1, 0),
+  const Coord nb[6] = {Coord(-1, 0, 0), Coord(1, 0, 0),  Coord(0, -1, 0),
                        Coord(0, 1, 0),  Coord(0, 0, -1), Coord(0, 0, 1)};
   std::vector<uint8_t> done(missing.size(), 0);
   const int rounds = static_cast<int>(std::lround(bg / dx)) + 4;
@@ -204,7 +203,8 @@ StatusOr<VoxelizeResult> VoxelizeModel(Sculpture& sculpture, const hetero::Compo
       for (size_t m = 0; m < nm; ++m) values[k * nm + m] = acc[m].getValue(copies[k].second);
     }
     for (size_t k = 0; k < copies.size(); ++k) {
-      for (size_t m = 0; m < nm; ++m) acc[m].setValueOn(missing[copies[k].first], values[k * nm + m]);
+      for (size_t m = 0; m < nm; ++m)
+        acc[m].setValueOn(missing[copies[k].first], values[k * nm + m]);
       done[copies[k].first] = 1;
       ++res.filled_voxels;
     }

@@ -1,8 +1,6 @@
 // Replication of material fractions (issue 7): leaf records carry the fraction grids' cells
 // (SLR2) when materials are declared, leaf hashes cover them, replicas converge, and records
 // with fractions off the simplex or for another material count are refused unapplied.
-#include "sculpt/levelset/materials.h"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -10,6 +8,7 @@
 
 #include "levelset/sculpture_impl.h"
 #include "sculpt/levelset/edit.h"
+#include "sculpt/levelset/materials.h"
 #include "sculpt/levelset/region.h"
 
 namespace sculpt::levelset {

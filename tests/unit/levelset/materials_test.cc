@@ -91,7 +91,8 @@ TEST_F(MaterialsTest, RejectsNegativeFraction) {
   EXPECT_NE(st.message().find("fill[0]=1.2 outside [0, 1]"), std::string::npos) << st.message();
   EXPECT_EQ(MaterialCount(s), 0);
   ASSERT_TRUE(SetMaterials(s, kThree).ok());
-  const auto r = FillMaterial(s, ToolShape::Sphere({0, 0, 0}, 3), std::vector<double>{0.5, 0.6, -0.1});
+  const auto r =
+      FillMaterial(s, ToolShape::Sphere({0, 0, 0}, 3), std::vector<double>{0.5, 0.6, -0.1});
   EXPECT_EQ(r.status().code(), Status::Code::kInvalidArgument);
   EXPECT_NE(r.status().message().find("fill.fractions[2]=-0.1"), std::string::npos)
       << r.status().message();
@@ -117,8 +118,8 @@ TEST_F(MaterialsTest, RejectsFractionsNotSummingToOne) {
             std::string::npos)
       << r.status().message();
   // Within the tolerance: accepted, stored on the simplex.
-  ASSERT_TRUE(FillMaterial(s, ToolShape::Sphere({0, 0, 0}, 3),
-                           std::vector<double>{0.5, 0.5, 5e-7}).ok());
+  ASSERT_TRUE(
+      FillMaterial(s, ToolShape::Sphere({0, 0, 0}, 3), std::vector<double>{0.5, 0.5, 5e-7}).ok());
   EXPECT_TRUE(CheckSimplex(s).Ok());
   // A vector of the wrong size.
   EXPECT_FALSE(FillMaterial(s, ToolShape::Sphere({0, 0, 0}, 3), std::vector<double>{1, 0}).ok());
@@ -211,8 +212,8 @@ TEST_F(MaterialsTest, EditsWithoutMaterialsGiveTheSameSdf) {
   Sculpture plain = Sphere();
   Sculpture mat = WithMaterials();
   ASSERT_TRUE(PaintMaterial(mat, ToolShape::Sphere({0, 12, 0}, 6), 2, 0.7).ok());
-  const EditKind kinds[] = {EditKind::kPress, EditKind::kSmooth, EditKind::kInflate,
-                            EditKind::kSubtract, EditKind::kAdd, EditKind::kDeflate};
+  const EditKind kinds[] = {EditKind::kPress,    EditKind::kSmooth, EditKind::kInflate,
+                            EditKind::kSubtract, EditKind::kAdd,    EditKind::kDeflate};
   int i = 0;
   for (EditKind k : kinds) {
     EditRequest req;
@@ -262,7 +263,8 @@ TEST_F(MaterialsTest, VdbRoundTripKeepsOneGridPerMaterial) {
   Sculpture s = WithMaterials();
   ASSERT_TRUE(PaintMaterial(s, ToolShape::Sphere({0, 0, 11}, 5), 2, 0.4).ok());
   const auto path = std::filesystem::temp_directory_path() /
-                    ("materials_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + ".vdb");
+                    ("materials_test_" +
+                     std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + ".vdb");
   ASSERT_TRUE(s.SaveVdb(path.string()).ok());
   auto back = Sculpture::LoadVdb(path.string());
   std::filesystem::remove(path);
@@ -285,7 +287,8 @@ TEST_F(MaterialsTest, VdbRoundTripKeepsOneGridPerMaterial) {
 
 TEST_F(MaterialsTest, ColourMixesDeclaredColours) {
   Sculpture s = WithMaterials();
-  ASSERT_TRUE(FillMaterial(s, ToolShape::Sphere({0, 0, 0}, 5), std::vector<double>{0.5, 0, 0.5}).ok());
+  ASSERT_TRUE(
+      FillMaterial(s, ToolShape::Sphere({0, 0, 0}, 5), std::vector<double>{0.5, 0, 0.5}).ok());
   const auto rgb = ColourAtWorld(s, {0, 0, 0});
   ASSERT_TRUE(rgb.ok());
   EXPECT_NEAR((*rgb)[0], 0.5 * 0.8 + 0.5 * 0.4, 1e-6);

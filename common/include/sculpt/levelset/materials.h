@@ -25,6 +25,11 @@ struct MaterialDecl {
   bool operator==(const MaterialDecl&) const = default;
 };
 
+// Edits carry fractions at their write-back (edit.cc's SpliceBack calls the carry rule on the
+// block's before/after fields): every EditKind, batches, replays and ReinitializeRegion. The one
+// exception is CompensationRegion::kGlobal, the thesis-reproduction mode that offsets the whole
+// grid after the write-back: voxels its sub-voxel offset moves inside keep what they held.
+
 /// Most materials a sculpture may declare (the hyperpatch library's bound, seed 001 §5).
 inline constexpr int kMaxSculptureMaterials = 16;
 /// How far a stored fraction vector's sum may stray from 1, and how negative an entry may be.
