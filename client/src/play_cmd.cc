@@ -3,6 +3,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -11,12 +12,10 @@
 #include <functional>
 #include <map>
 #include <mutex>
-#include <optional>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <thread>
 #include <vector>
-
-#include <CLI/CLI.hpp>
 
 #include "sculpt/client/client.h"
 #include "sculpt/client/replica.h"
@@ -62,7 +61,7 @@ const char kPlayScriptHelp[] =
     "or without --script a built-in path: approach the top of the object, press in, slide, "
     "lift (--duration s). Prints force and loop statistics (--json: as JSON: haptic_rate_hz, "
     "haptic_period_err_p99_us, haptic_ticks_over_2ms, haptic_snapshot_lag_p99_ms, "
-    "haptic_torn_ticks, force_max, ...).";
+    "haptic_torn_ticks with --verify-snapshots, force_max, ...).";
 
 namespace {
 
@@ -230,8 +229,7 @@ Vec3 Lerp(const Vec3& a, const Vec3& b, double u) { return a + (b - a) * u; }
 /// The built-in device path over `duration` seconds: approach the surface point `top` from above,
 /// press half a tool radius in, hold, slide two radii along +x, lift back. Each leg eases in and
 /// out, so the device's velocity has no steps.
-std::function<Vec3(double)> ApproachAndPress(const Vec3& top, double tool_radius,
-                                             double duration) {
+std::function<Vec3(double)> ApproachAndPress(const Vec3& top, double tool_radius, double duration) {
   const Vec3 above = top + Vec3{0, 0, tool_radius + 2};
   const Vec3 in = top - Vec3{0, 0, 0.5 * tool_radius};
   const Vec3 slid = in + Vec3{2 * tool_radius, 0, 0};
@@ -309,8 +307,8 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
     if (o.name() == stroke_template.object) object = &o;
   }
   if (!object) {
-    return fail("join", NotFound("object=" + stroke_template.object +
-                                 " outside the scene's objects"));
+    return fail("join",
+                NotFound("object=" + stroke_template.object + " outside the scene's objects"));
   }
   const Vec3 lo = FromProto(object->bounds_min()), hi = FromProto(object->bounds_max());
   // The built-in path starts above the middle of the object's top.
@@ -319,7 +317,7 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
 
   // Declared before the replica and the loop: both hold pointers into them.
   haptics::SnapshotPublisher publisher;
-  haptics::SculptureFeed feed(&publisher, /*seal=*/true);
+  haptics::SculptureFeed feed(&publisher, ho.verify_snapshots);
   ReplicaOptions ro;
   ro.object = stroke_template.object;
   ro.snapshot_interval = std::chrono::milliseconds(ho.snapshot_ms);
@@ -334,11 +332,18 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
     feed.Publish(std::move(s), seq);
   });
   if (Status s = replica.Start(); !s.ok()) return fail("subscribe", s);
-  if (!replica.WaitLoaded(1, co.timeout) || !replica.WaitIdle(co.timeout)) {
-    return fail("subscribe", Status(Status::Code::kUnavailable, "the replica's region did not arrive in time"));
+  // Not WaitIdle: under a steady stream of others' edits the queue need never be empty.
+  std::shared_ptr<const levelset::Sculpture> first;
+  const auto loaded_by = Clock::now() + co.timeout;
+  if (replica.WaitLoaded(1, co.timeout)) {
+    while (!(first = replica.Snapshot()) && Clock::now() < loaded_by) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
   }
-  std::shared_ptr<const levelset::Sculpture> first = replica.Snapshot();
-  if (!first) return fail("subscribe", Status(Status::Code::kUnavailable, "the replica published no snapshot"));
+  if (!first) {
+    return fail("subscribe",
+                Status(Status::Code::kUnavailable, "the replica published no snapshot in time"));
+  }
 
   std::unique_ptr<haptics::HapticDevice> device;
   double duration_s = ho.duration_s;
@@ -401,9 +406,8 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
   };
   if (Status s = (*loop)->Start(); !s.ok()) return fail("haptics", s);
   const auto start_time = Clock::now();
-  const auto end_time =
-      start_time + std::chrono::duration_cast<Clock::duration>(
-                       std::chrono::duration<double>(duration_s));
+  const auto end_time = start_time + std::chrono::duration_cast<Clock::duration>(
+                                         std::chrono::duration<double>(duration_s));
   for (auto next = start_time + pose_period; next < end_time; next += pose_period) {
     std::this_thread::sleep_until(next);
     const haptics::DeviceSample pose = (*loop)->SamplePose();
@@ -449,56 +453,56 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
   const uint64_t refused = st.refused + local_failures;
   const uint64_t unacked = client.unacked();
   const bool ok = settled && refused == 0 && unacked == 0 && ls.ticks > 0 && torn_ticks == 0;
+  const json torn = ho.verify_snapshots ? json(torn_ticks) : json(nullptr);
   std::lock_guard<std::mutex> lock(mu);
-  const json report = {
-      {"server", options.server},
-      {"scene", joined->info.scene()},
-      {"object", ro.object},
-      {"ok", ok},
-      {"model", haptics::ForceModelName(hs.model)},
-      {"stiffness", hs.stiffness},
-      {"tool_radius", hs.tool_radius},
-      {"trajectory", points.empty() ? "built-in" : "script"},
-      {"interest_radius", ho.interest_radius},
-      {"duration_s", Round3(duration_s)},
-      {"haptic_ticks", ls.ticks},
-      {"haptic_rate_hz", Round3(ls.rate_hz)},
-      {"haptic_tick_cost_p50_us", Round3(ls.tick_cost_p50_us)},
-      {"haptic_tick_cost_p99_us", Round3(ls.tick_cost_p99_us)},
-      {"haptic_tick_cost_max_us", Round3(ls.tick_cost_max_us)},
-      {"haptic_period_err_p50_us", Round3(ls.period_err_p50_us)},
-      {"haptic_period_err_p99_us", Round3(ls.period_err_p99_us)},
-      {"haptic_period_err_max_us", Round3(ls.period_err_max_us)},
-      {"haptic_overruns", ls.overruns},
-      {"haptic_missed_deadlines", ls.missed_deadlines},
-      {"haptic_ticks_over_2ms", ls.ticks_over_2ms},
-      {"haptic_nan_samples", ls.nan_samples},
-      {"haptic_snapshots_seen", ls.snapshots_seen},
-      {"haptic_snapshot_lag_p50_ms", Round3(ls.snapshot_lag_p50_ms)},
-      {"haptic_snapshot_lag_p99_ms", Round3(ls.snapshot_lag_p99_ms)},
-      {"haptic_snapshot_lag_max_ms", Round3(ls.snapshot_lag_max_ms)},
-      {"haptic_torn_ticks", torn_ticks},
-      {"snapshots_published", feed_stats.published},
-      {"snapshots_sealed_checked", feed_stats.checked},
-      {"snapshots_changed_after_publish", feed_stats.changed},
-      {"snapshots_seal_ms", Round3(feed_stats.seal_ms)},
-      {"force_max", Round3(fs.max_force)},
-      {"force_mean_in_contact", Round3(fs.mean_contact_force)},
-      {"force_contact_ticks", fs.contact_ticks},
-      {"force_first_contact_s", Round3(fs.first_contact_s)},
-      {"force_last", Vec3Json(fs.last_force)},
-      {"replica_region_loads", rs.region_loads},
-      {"replica_broadcasts_applied", rs.broadcasts_applied},
-      {"replica_hash_mismatches", rs.hash_mismatches},
-      {"replica_seq", rs.seq},
-      {"replica_apply_ms", Round3(rs.apply_ms)},
-      {"interest_moves", interest_moves},
-      {"strokes_sent", st.strokes_sent},
-      {"poses_sent", poses_sent},
-      {"acked", st.acks},
-      {"refused", refused},
-      {"unacked", unacked},
-      {"errors", errors}};
+  const json report = {{"server", options.server},
+                       {"scene", joined->info.scene()},
+                       {"object", ro.object},
+                       {"ok", ok},
+                       {"model", haptics::ForceModelName(hs.model)},
+                       {"stiffness", hs.stiffness},
+                       {"tool_radius", hs.tool_radius},
+                       {"trajectory", points.empty() ? "built-in" : "script"},
+                       {"interest_radius", ho.interest_radius},
+                       {"duration_s", Round3(duration_s)},
+                       {"haptic_ticks", ls.ticks},
+                       {"haptic_rate_hz", Round3(ls.rate_hz)},
+                       {"haptic_tick_cost_p50_us", Round3(ls.tick_cost_p50_us)},
+                       {"haptic_tick_cost_p99_us", Round3(ls.tick_cost_p99_us)},
+                       {"haptic_tick_cost_max_us", Round3(ls.tick_cost_max_us)},
+                       {"haptic_period_err_p50_us", Round3(ls.period_err_p50_us)},
+                       {"haptic_period_err_p99_us", Round3(ls.period_err_p99_us)},
+                       {"haptic_period_err_max_us", Round3(ls.period_err_max_us)},
+                       {"haptic_overruns", ls.overruns},
+                       {"haptic_missed_deadlines", ls.missed_deadlines},
+                       {"haptic_ticks_over_2ms", ls.ticks_over_2ms},
+                       {"haptic_nan_samples", ls.nan_samples},
+                       {"haptic_snapshots_seen", ls.snapshots_seen},
+                       {"haptic_snapshot_lag_p50_ms", Round3(ls.snapshot_lag_p50_ms)},
+                       {"haptic_snapshot_lag_p99_ms", Round3(ls.snapshot_lag_p99_ms)},
+                       {"haptic_snapshot_lag_max_ms", Round3(ls.snapshot_lag_max_ms)},
+                       {"haptic_torn_ticks", torn},
+                       {"snapshots_published", feed_stats.published},
+                       {"snapshots_sealed_checked", feed_stats.checked},
+                       {"snapshots_changed_after_publish", feed_stats.changed},
+                       {"snapshots_seal_ms", Round3(feed_stats.seal_ms)},
+                       {"force_max", Round3(fs.max_force)},
+                       {"force_mean_in_contact", Round3(fs.mean_contact_force)},
+                       {"force_contact_ticks", fs.contact_ticks},
+                       {"force_first_contact_s", Round3(fs.first_contact_s)},
+                       {"force_last", Vec3Json(fs.last_force)},
+                       {"replica_region_loads", rs.region_loads},
+                       {"replica_broadcasts_applied", rs.broadcasts_applied},
+                       {"replica_hash_mismatches", rs.hash_mismatches},
+                       {"replica_seq", rs.seq},
+                       {"replica_apply_ms", Round3(rs.apply_ms)},
+                       {"interest_moves", interest_moves},
+                       {"strokes_sent", st.strokes_sent},
+                       {"poses_sent", poses_sent},
+                       {"acked", st.acks},
+                       {"refused", refused},
+                       {"unacked", unacked},
+                       {"errors", errors}};
   if (ho.json) {
     Print(report);
   } else {
@@ -506,7 +510,7 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
         "haptics: %s model, stiffness %g, tool radius %g, %s trajectory, %.2f s\n"
         "loop: %llu ticks at %.1f Hz; tick cost p50 %.1f us, p99 %.1f us, max %.1f us; period "
         "error p99 %.1f us, max %.1f us; %llu missed deadlines, %llu periods over 2 ms\n"
-        "snapshots: %llu published, %llu seen by the loop, lag p99 %.3f ms; %llu torn ticks "
+        "snapshots: %llu published, %llu seen by the loop, lag p99 %.3f ms; %s torn ticks "
         "(%llu of %llu seals changed)\n"
         "force: max %.3f, mean in contact %.3f over %llu ticks, first contact at %.3f s\n"
         "strokes: %llu sent (%llu poses), %llu acked, %llu refused, %llu unacked; replica at "
@@ -519,11 +523,11 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
         static_cast<unsigned long long>(ls.ticks_over_2ms),
         static_cast<unsigned long long>(feed_stats.published),
         static_cast<unsigned long long>(ls.snapshots_seen), ls.snapshot_lag_p99_ms,
-        static_cast<unsigned long long>(torn_ticks),
+        ho.verify_snapshots ? std::to_string(torn_ticks).c_str() : "unchecked",
         static_cast<unsigned long long>(feed_stats.changed),
-        static_cast<unsigned long long>(feed_stats.checked), fs.max_force,
-        fs.mean_contact_force, static_cast<unsigned long long>(fs.contact_ticks),
-        fs.first_contact_s, static_cast<unsigned long long>(st.strokes_sent),
+        static_cast<unsigned long long>(feed_stats.checked), fs.max_force, fs.mean_contact_force,
+        static_cast<unsigned long long>(fs.contact_ticks), fs.first_contact_s,
+        static_cast<unsigned long long>(st.strokes_sent),
         static_cast<unsigned long long>(poses_sent), static_cast<unsigned long long>(st.acks),
         static_cast<unsigned long long>(refused), static_cast<unsigned long long>(unacked),
         static_cast<unsigned long long>(rs.seq),
@@ -587,9 +591,13 @@ void AddPlayHapticsOptions(CLI::App& play, PlayOptions& options) {
       ->check(CLI::Range(1, 1000))
       ->capture_default_str()
       ->group(group);
+  play.add_flag("--verify-snapshots", h.verify_snapshots,
+                "Seal each snapshot by its state hash and check it again when let go, counting "
+                "ticks that read a changed one (haptic_torn_ticks; costs two hashes of the "
+                "replica per snapshot on the replica's thread)")
+      ->group(group);
   play.add_flag("--json", h.json, "Print the haptic session's report as JSON")->group(group);
 }
-
 
 int RunPlay(const PlayOptions& options) {
   std::string scene;

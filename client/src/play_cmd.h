@@ -21,11 +21,12 @@ struct PlayHapticsOptions {
   double max_force = 20.0;
   double tool_radius = 0;  // 0: the script's tool size, else 2.0
   int tool_samples = 128;
-  double interest_radius = 0;  // 0: replicate the whole object
-  double stroke_rate = 30;     // strokes per second, 4 poses each sampled from the device
-  double duration_s = 3;       // the built-in path's length
-  int snapshot_ms = 5;         // replica snapshots at most this often
-  bool json = false;           // the end report as JSON (else text)
+  double interest_radius = 0;     // 0: replicate the whole object
+  double stroke_rate = 30;        // strokes per second, 4 poses each sampled from the device
+  double duration_s = 3;          // the built-in path's length
+  int snapshot_ms = 5;            // replica snapshots at most this often
+  bool verify_snapshots = false;  // seal each snapshot by state hash, count torn ticks
+  bool json = false;              // the end report as JSON (else text)
 };
 
 struct PlayOptions {

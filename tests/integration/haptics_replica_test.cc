@@ -86,8 +86,8 @@ class HapticsReplicaTest : public ::testing::Test {
   // Runs the `sculpt` binary; returns its exit code, stdout in `out`, stderr in `out`.err
   // (spdlog's default logger writes to stdout).
   int RunSculpt(const std::string& args, const fs::path& out) {
-    const std::string cmd = std::string(SCULPT_BIN_DIR) + "/sculpt " + args + " > " +
-                            out.string() + " 2> " + out.string() + ".err";
+    const std::string cmd = std::string(SCULPT_BIN_DIR) + "/sculpt " + args + " > " + out.string() +
+                            " 2> " + out.string() + ".err";
     const int status = std::system(cmd.c_str());
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   }
@@ -118,8 +118,9 @@ class HapticsReplicaTest : public ::testing::Test {
 
     // Down from 7 units above the top at 20 units/s to 1 unit inside, then held there.
     constexpr double kTop = 24, kDepth = 1;
-    haptics::ScriptedDevice device(
-        [&](double t) { return Vec3{0, 0, std::max(kTop - kDepth, kTop + 7 - 20 * t)}; });
+    haptics::ScriptedDevice device([&](double t) {
+      return Vec3{0, 0, std::max(kTop - kDepth, kTop + 7 - 20 * t)};
+    });
     haptics::MonitoredDevice monitor(&device, &publisher, /*trace_capacity=*/20000);
     haptics::HapticSettings hs;
     hs.model = model;
@@ -139,8 +140,8 @@ class HapticsReplicaTest : public ::testing::Test {
     const uint64_t cut_seq = scene_->global_seq();
     ASSERT_EQ(cut_seq, 1u);
     ASSERT_TRUE(replica.WaitForSeq(cut_seq, seconds(10)))
-        << "replica at seq " << replica.stats().seq << ", " << replica.stats().errors
-        << " errors, " << replica.stats().broadcasts_applied << " broadcasts";
+        << "replica at seq " << replica.stats().seq << ", " << replica.stats().errors << " errors, "
+        << replica.stats().broadcasts_applied << " broadcasts";
     const auto limit = std::chrono::steady_clock::now() + seconds(5);
     while (feed.stats().last_seq < cut_seq && std::chrono::steady_clock::now() < limit) {
       std::this_thread::sleep_for(milliseconds(1));
@@ -234,16 +235,19 @@ TEST_F(HapticsReplicaTest, PlayHapticsJsonPrintsLoopAndForceStatistics) {
   for (const std::string extra : {"--model proxy", "--model penalty --interest-radius 10"}) {
     const uint64_t seq_before = scene_->global_seq();
     const fs::path out = dir_ / "haptics.json";
-    ASSERT_EQ(RunSculpt("play " + server + " --haptics --json --duration 1.2 " + extra, out), 0)
+    ASSERT_EQ(
+        RunSculpt("play " + server + " --haptics --json --verify-snapshots --duration 1.2 " + extra,
+                  out),
+        0)
         << extra << ": " << std::ifstream(out.string() + ".err").rdbuf();
     const nlohmann::json r = nlohmann::json::parse(std::ifstream(out));
     EXPECT_TRUE(r["ok"].get<bool>()) << extra;
     EXPECT_GT(r["haptic_ticks"].get<int>(), 800) << extra;
     EXPECT_GT(r["haptic_rate_hz"].get<double>(), 700.0) << extra;
     EXPECT_LT(r["haptic_rate_hz"].get<double>(), 1010.0) << extra;
-    for (const char* key : {"haptic_period_err_p99_us", "haptic_ticks_over_2ms",
-                            "haptic_snapshot_lag_p99_ms", "haptic_missed_deadlines",
-                            "haptic_tick_cost_p99_us"}) {
+    for (const char* key :
+         {"haptic_period_err_p99_us", "haptic_ticks_over_2ms", "haptic_snapshot_lag_p99_ms",
+          "haptic_missed_deadlines", "haptic_tick_cost_p99_us"}) {
       EXPECT_TRUE(r.contains(key) && r[key].is_number()) << extra << " " << key;
     }
     EXPECT_EQ(r["haptic_torn_ticks"].get<int>(), 0) << extra;
@@ -261,11 +265,12 @@ TEST_F(HapticsReplicaTest, PlayHapticsJsonPrintsLoopAndForceStatistics) {
                       dir_ / "moved.json"),
             0);
   // A proxy damper below stiffness * T / 2 is refused before connecting, naming the field.
-  EXPECT_EQ(RunSculpt("play " + server + " --haptics --stiffness 100 --damping 0.001",
-                      dir_ / "bad.json"),
-            2);
+  EXPECT_EQ(
+      RunSculpt("play " + server + " --haptics --stiffness 100 --damping 0.001", dir_ / "bad.json"),
+      2);
   std::string text;
-  for (const std::string path : {(dir_ / "bad.json").string(), (dir_ / "bad.json").string() + ".err"}) {
+  for (const std::string path :
+       {(dir_ / "bad.json").string(), (dir_ / "bad.json").string() + ".err"}) {
     std::ifstream in(path);
     text.append(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
   }

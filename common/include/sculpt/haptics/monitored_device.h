@@ -29,7 +29,7 @@ class MonitoredDevice : public HapticDevice {
   };
   struct ForceStats {
     uint64_t ticks = 0;
-    uint64_t contact_ticks = 0;  // ticks with a non-zero force
+    uint64_t contact_ticks = 0;   // ticks with a non-zero force
     double first_contact_s = -1;  // loop time of the first, -1 if none
     double max_force = 0;
     double mean_contact_force = 0;
