@@ -327,5 +327,30 @@ TEST_F(MaterialsTest, VoxelizesTheTyreWithItsMaterialVolumes) {
   EXPECT_EQ(other.StateHash(), h);
 }
 
+// The second example of seed 001 ch. 10: a blended, subdivided arm between two rings and a hub
+// with a graded steel-to-bronze transition. Its walls are thin, so a fine voxel.
+TEST_F(MaterialsTest, VoxelizesTheMechanicalPart) {
+  auto part = hetero::BuildMechanicalPart();
+  ASSERT_TRUE(part.ok()) << part.status().ToString();
+  SculptureOptions o;
+  o.voxel_size = 0.125;
+  o.half_width = 4;
+  Sculpture s = MakeEmptySculpture(o).value();
+  auto r = VoxelizeModel(s, *part);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  ASSERT_EQ(MaterialCount(s), 3);
+  EXPECT_EQ(Materials(s)[1].name, part->material_info()[1].name);
+  EXPECT_EQ(r->unreached_voxels, 0u);
+  const hetero::MaterialVolumes exact = hetero::IntegrateVolumes(*part);
+  // Measured: +0.9% volume, every material within 0.3% of the total (4% and 1% at voxel 0.25).
+  EXPECT_NEAR(s.volume(), exact.total, 0.02 * exact.total);
+  const std::vector<double> vol = MaterialVolumes(s);
+  for (size_t m = 0; m < vol.size(); ++m) {
+    EXPECT_NEAR(vol[m], exact.per_material[m], 0.01 * exact.total) << m;
+  }
+  EXPECT_GT(vol[1], 0.05 * exact.total);  // the bronze of the transition is there
+  EXPECT_TRUE(CheckSimplex(s).Ok());
+}
+
 }  // namespace
 }  // namespace sculpt::levelset
