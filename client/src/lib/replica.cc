@@ -7,6 +7,7 @@
 
 #include "sculpt/codec/settings.h"
 #include "sculpt/codec/stroke.h"
+#include "sculpt/levelset/materials.h"
 
 namespace sculpt::client {
 namespace {
@@ -54,6 +55,24 @@ Status Replica::Start() {
   so.name = obj->name();
   auto empty = levelset::MakeEmptySculpture(so);
   if (!empty.ok()) return empty.status();
+  // A scene with materials sends leaf records with fractions (SLR2), which only a replica that
+  // declared the same materials accepts: declare them before the region arrives.
+  const v1::Effects& fx = info.effects();
+  if (fx.materials_size() > 0) {
+    std::vector<levelset::MaterialDecl> materials;
+    const bool coloured = fx.material_colours_size() == 3 * fx.materials_size();
+    for (int m = 0; m < fx.materials_size(); ++m) {
+      levelset::MaterialDecl d;
+      d.name = fx.materials(m);
+      if (coloured) {
+        for (int c = 0; c < 3; ++c) d.colour[c] = fx.material_colours(3 * m + c);
+      }
+      materials.push_back(std::move(d));
+    }
+    if (const Status st = levelset::SetMaterials(*empty, materials); !st.ok()) {
+      return InvalidArgument("SceneInfo.effects.materials: " + st.message());
+    }
+  }
   {
     std::lock_guard<std::mutex> lock(mu_);
     settings_ = *settings;

@@ -152,7 +152,27 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
         Get(*o, "minor_radius", &oc.minor_radius);
         GetVec(*o, "size", &oc.size);
         GetVec(*o, "end", &oc.end);
+        Get(*o, "model", &oc.model);
+        if (!oc.model.empty() && std::filesystem::path(oc.model).is_relative()) {
+          oc.model = (std::filesystem::path(path).parent_path() / oc.model).lexically_normal().string();
+        }
         sc.objects.push_back(oc);
+      }
+    }
+    if (const toml::array* materials = (*s)["materials"].as_array()) {
+      sc.materials.clear();
+      for (size_t i = 0; i < materials->size(); ++i) {
+        const toml::table* t = (*materials)[i].as_table();
+        const std::string k = "scene.materials[" + std::to_string(i) + "]";
+        if (!t) return InvalidArgument(k + " outside tables {name = \"...\", colour = [r, g, b]}");
+        levelset::MaterialDecl m;
+        Get(*t, "name", &m.name);
+        if (const toml::node* c = t->get("colour")) {
+          const toml::array* a = c->as_array();
+          if (!a || a->size() != 3) return InvalidArgument(k + ".colour outside arrays of 3 numbers");
+          for (size_t j = 0; j < 3; ++j) m.colour[j] = (*a)[j].value<double>().value_or(NAN);
+        }
+        sc.materials.push_back(m);
       }
     }
     if (const toml::array* skins = (*s)["skins"].as_array()) {
@@ -263,8 +283,12 @@ Status ValidateConfig(const ServerConfig& c) {
       Range("scene.effects.min_island_volume", s.effects.min_island_volume, 0, 1e30));
   if (!s.effects.materials.empty()) {
     return InvalidArgument(
-        "scene.effects.materials is not supported yet (heterogeneous materials are a later "
-        "issue); remove it");
+        "scene.effects.materials is replaced by [scene] materials = [{name = \"...\", colour = "
+        "[r, g, b]}, ...]; move the names there");
+  }
+  if (!s.materials.empty()) {
+    const Status m = levelset::ValidateMaterialDecls(s.materials);
+    if (!m.ok()) return InvalidArgument("scene.materials: " + m.message());
   }
   if (s.effects.contours) {
     return InvalidArgument("scene.effects.contours=true is not supported yet; set it to false");
@@ -277,7 +301,16 @@ Status ValidateConfig(const ServerConfig& c) {
     for (size_t j = 0; j < i; ++j) {
       if (s.objects[j].name == o.name) return InvalidArgument(k + ".name=" + o.name + " repeats");
     }
-    SCULPT_RETURN_IF_ERROR(OneOf(k + ".primitive", o.primitive, {"sphere", "box", "capsule", "torus"}));
+    SCULPT_RETURN_IF_ERROR(
+        OneOf(k + ".primitive", o.primitive, {"sphere", "box", "capsule", "torus", "model"}));
+    if (o.primitive == "model" && o.model.empty()) {
+      return InvalidArgument(k + ".model= outside paths of a hetero model JSON file (primitive "
+                             "\"model\" needs one)");
+    }
+    if (o.primitive == "model" && s.materials.empty()) {
+      return InvalidArgument(k + ".primitive=model needs scene.materials (the model's materials, "
+                             "same count, declared for every object)");
+    }
     if (!o.center.IsFinite()) return InvalidArgument(k + ".center is not finite");
   }
   for (size_t i = 0; i < s.skins.size(); ++i) {

@@ -11,13 +11,17 @@
 #include "sculpt/core/status.h"
 #include "sculpt/core/vec3.h"
 #include "sculpt/levelset/edit.h"
+#include "sculpt/levelset/materials.h"
 
 namespace sculpt::server {
 
-/// One object of the scene, built from a primitive at first start.
+/// One object of the scene, built from a primitive at first start, or (primitive "model") by
+/// voxelising a composite heterogeneous hyperpatch model file (issue 7).
 struct ObjectConfig {
   std::string name = "clay";
-  std::string primitive = "sphere";  // sphere | box | capsule | torus
+  std::string primitive = "sphere";  // sphere | box | capsule | torus | model
+  std::string model;                  // model: a hetero model JSON file (relative paths are
+                                      // taken from the config file's folder when loaded)
   Vec3 center{0, 0, 0};
   double radius = 24.0;               // sphere, capsule; torus major radius
   double minor_radius = 6.0;          // torus
@@ -49,7 +53,7 @@ struct EffectsConfig {
   bool smoothing = true;                      // smooth strokes allowed
   std::string islands = "remove_small";       // keep | remove_small
   double min_island_volume = 8.0;             // world units^3
-  std::vector<std::string> materials;         // not built yet: must be empty
+  std::vector<std::string> materials;         // use SceneConfig::materials: must be empty
   bool contours = false;                      // not built yet: must be false
 };
 
@@ -59,6 +63,10 @@ struct SceneConfig {
   int half_width = 6;
   std::vector<ObjectConfig> objects{ObjectConfig{}};
   std::vector<SkinConfig> skins;  // [[scene.skins]]
+  /// Declared materials (issue 7), `materials = [{name = "...", colour = [r, g, b]}, ...]`:
+  /// every object then carries fraction grids (1..16 materials, unique names, colours in
+  /// [0, 1]). Empty: no material grids.
+  std::vector<levelset::MaterialDecl> materials;
   EffectsConfig effects;
   double min_tool_size = 0.5;   // world units
   double max_tool_size = 16.0;

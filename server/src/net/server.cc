@@ -13,6 +13,7 @@
 #include "sculpt/codec/frame.h"
 #include "sculpt/codec/stroke.h"
 #include "sculpt/v1/sculpt.pb.h"
+#include "scene/paint.h"
 #include "scene/skins.h"
 
 namespace sculpt::server {
@@ -153,6 +154,7 @@ class Session : public std::enable_shared_from_this<Session> {
       case v1::ClientMessage::kSkinBallEdit: return OnSkinBallEdit(msg.skin_ball_edit());
       case v1::ClientMessage::kContourSubscribe: return OnContourSubscribe(msg.contour_subscribe());
       case v1::ClientMessage::kSkinSweep: return OnSkinSweep(msg.skin_sweep());
+      case v1::ClientMessage::kPaint: return OnPaint(msg.paint());
       case v1::ClientMessage::BODY_NOT_SET: break;
     }
     SendError(v1::ERROR_CODE_MALFORMED, "ClientMessage.body", "unknown or empty",
@@ -553,6 +555,57 @@ class Session : public std::enable_shared_from_this<Session> {
     if (!MaySkinEdit("SkinSweep", s.client_seq())) return;
     if (const Status st = ValidateSkinSweep(s); !st.ok()) return RefuseSkin(st, s.client_seq());
     server_.scene().SweepSkin(client_id_, s, PostSkinAck());
+  }
+
+  // Paints (issue 7) are strokes too: joined sculptors, the stroke token bucket, every field
+  // checked here against the object's limits before the scene sees it.
+  void SendPaintAck(const v1::PaintAck& a) {
+    if (closing_) return;
+    if (!a.accepted()) {
+      server_.stats().strokes_refused++;
+      const v1::Error& e = a.error();
+      // client_seq 0: a paint's sequence is not a stroke's, and must not settle one.
+      SendError(e.code(), e.field(), e.value(), e.allowed_range(), e.message(), 0);
+    } else if (!a.duplicate()) {
+      server_.stats().strokes_accepted++;
+    }
+    v1::ServerMessage m;
+    *m.mutable_paint_ack() = a;
+    Send(m);
+  }
+
+  void OnPaint(const v1::PaintEdit& p) {
+    if (!MaySkinEdit("PaintEdit", p.client_seq())) return;
+    auto refuse = [&](const Status& st, v1::ErrorCode code) {
+      const codec::FieldError fe = codec::SplitFieldError(st);
+      v1::PaintAck a;
+      a.set_client_seq(p.client_seq());
+      v1::Error* e = a.mutable_error();
+      e->set_code(code);
+      e->set_field(fe.field);
+      e->set_value(fe.value);
+      e->set_allowed_range(fe.allowed_range);
+      e->set_message(fe.message);
+      e->set_client_seq(p.client_seq());
+      SendPaintAck(a);
+      Violation();
+    };
+    auto limits = server_.scene().LimitsFor(p.object());
+    if (!limits.ok()) {
+      return refuse(NotFound("PaintEdit.object=" + p.object() + " outside the scene's objects"),
+                    v1::ERROR_CODE_NOT_FOUND);
+    }
+    const Status st =
+        ValidatePaintEdit(p, *limits, static_cast<int>(server_.config().scene.materials.size()));
+    if (!st.ok()) {
+      return refuse(st, st.code() == Status::Code::kFailedPrecondition
+                            ? v1::ERROR_CODE_FAILED_PRECONDITION
+                            : v1::ERROR_CODE_INVALID_ARGUMENT);
+    }
+    auto self = shared_from_this();
+    server_.scene().Paint(client_id_, p, [self](v1::PaintAck a) {
+      asio::post(self->socket_.get_executor(), [self, a = std::move(a)] { self->SendPaintAck(a); });
+    });
   }
 
   void OnContourSubscribe(const v1::ContourSubscribe& c) {

@@ -159,6 +159,13 @@ class Scene {
   /// A copy of a skin as the server holds it (tests, tools). NotFound for an unknown skin.
   StatusOr<skin::Skin> SkinCopy(const std::string& name);
 
+  /// Paints or fills material fractions (issue 7, paint.cc; v1::PaintEdit, fields already
+  /// checked by ValidatePaintEdit): logged (a PaintRecord, replayed by recovery), applied,
+  /// replicated as leaf deltas, marked for viewers; `done` gets the PaintAck once durable
+  /// (refusals carry the Error). A resend (client_seq not above the client's last paint) is
+  /// acknowledged as a duplicate and not applied again.
+  void Paint(uint64_t client_id, v1::PaintEdit edit, std::function<void(v1::PaintAck)> done);
+
   /// What recovery found at start-up.
   const std::string& recovery_summary() const { return recovery_summary_; }
 
@@ -191,6 +198,12 @@ class Scene {
   Status OpenSkins();
   void SendSlices(const std::string& object);
   std::shared_ptr<SkinState> skins_;
+  // Paints (paint.cc), compute thread only: the newest paint client_seq of each client, and the
+  // leaf deltas of an edit that has no replay form.
+  std::map<uint64_t, uint64_t> last_paint_seq_;
+  void ReplicateLeaves(const std::string& object, const levelset::Sculpture& sculpture,
+                       const std::vector<levelset::Int3>& dirty, uint64_t seq, uint64_t client_id,
+                       uint64_t client_seq);
   std::map<uint64_t, Sub> subs_;                              // compute thread only
   std::map<std::string, levelset::LeafVersions> versions_;    // compute thread only
   uint64_t versions_floor_ = 0;  // leaf versions are known only for edits after this sequence
