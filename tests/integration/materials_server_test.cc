@@ -11,7 +11,9 @@
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
 
@@ -23,6 +25,7 @@
 #include "sculpt/client/replica.h"
 #include "sculpt/levelset/materials.h"
 #include "sculpt/levelset/region.h"
+#include "sculpt/mesh/draco_chunk_codec.h"
 
 namespace sculpt::client {
 namespace {
@@ -380,6 +383,64 @@ TEST_F(MaterialsServerTest, TwoSculptorsPressAndPaintReplicasConvergeAndARestart
   ASSERT_TRUE(scene_->Inspect(
       "clay", [&](const levelset::Sculpture& s) { after_materials = levelset::MaterialStateHash(s); }));
   EXPECT_EQ(after_materials, before_materials);
+}
+
+TEST_F(MaterialsServerTest, ViewerChunksCarryColoursMixedFromTheFractions) {
+  auto viewer = Joined(v1::ROLE_VIEWER);
+  std::mutex mu;
+  std::map<std::array<int, 3>, v1::MeshChunk> chunks;  // the newest of each key
+  viewer->SetReplicationHandler([&](v1::ServerMessage&& m) {
+    if (!m.has_mesh_chunk()) return;
+    std::lock_guard<std::mutex> lock(mu);
+    const v1::MeshChunk& c = m.mesh_chunk();
+    chunks[{c.key(0), c.key(1), c.key(2)}] = c;
+  });
+  v1::ClientMessage sub;
+  sub.mutable_viewer_subscribe()->set_object("clay");
+  sub.mutable_viewer_subscribe()->set_max_rate_hz(30);
+  ASSERT_TRUE(viewer->SendMessage(sub).ok());
+  testing::RawClient raw(port_);
+  ASSERT_TRUE(raw.Enter("sculpt-dev-sculptor", v1::ROLE_SCULPTOR, 77));
+  // Jade with weight 1 on the +x pole, radius 3.
+  ASSERT_TRUE(raw.Send(Paint(1, 0, 0, 2, 1.0)));
+  auto ack = raw.ReadUntil(v1::ServerMessage::kPaintAck);
+  ASSERT_TRUE(ack && ack->paint_ack().accepted());
+  const uint64_t painted = ack->paint_ack().global_seq();
+  const Vec3 centre{24, 0, 0};
+  int jade = 0, clay = 0, checked = 0;
+  const auto end = std::chrono::steady_clock::now() + seconds(20);
+  while (std::chrono::steady_clock::now() < end && jade == 0) {
+    std::this_thread::sleep_for(milliseconds(100));
+    std::lock_guard<std::mutex> lock(mu);
+    jade = clay = checked = 0;
+    for (const auto& [key, c] : chunks) {
+      if (c.draco().empty()) continue;
+      auto d = mesh::DecodeChunk(c.draco());
+      ASSERT_TRUE(d.ok()) << d.status();
+      const mesh::TriangleMesh& m = d->mesh;
+      ASSERT_EQ(m.colours.size(), m.positions.size());  // every chunk of this scene is coloured
+      for (size_t v = 0; v < m.vertex_count(); ++v) {
+        const float* p = &m.positions[3 * v];
+        const float* col = &m.colours[3 * v];
+        for (int k = 0; k < 3; ++k) ASSERT_TRUE(col[k] >= 0.f && col[k] <= 1.f);
+        const double dist = std::hypot(p[0] - centre.x, p[1] - centre.y, p[2] - centre.z);
+        const auto& want = dist < 1.5 ? kMaterials[2].colour
+                           : dist > 5 ? kMaterials[0].colour
+                                      : std::array<double, 3>{-1, -1, -1};
+        if (want[0] < 0) continue;
+        if (dist < 1.5 && c.version() < painted) continue;  // an update not yet received
+        ++checked;
+        bool near = true;
+        for (int k = 0; k < 3; ++k) near = near && std::abs(col[k] - want[k]) < 0.02;
+        EXPECT_TRUE(near) << "vertex at distance " << dist << " colour " << col[0] << ", "
+                          << col[1] << ", " << col[2];
+        (dist < 1.5 ? jade : clay) += near ? 1 : 0;
+      }
+    }
+  }
+  EXPECT_GT(jade, 0);
+  EXPECT_GT(clay, 100);
+  viewer->SetReplicationHandler(nullptr);
 }
 
 }  // namespace

@@ -13,6 +13,7 @@
 #include "mesh/draco_mesh.h"
 #include "sculpt/core/check.h"
 #include "sculpt/mesh/chunk_mesher.h"
+#include "sculpt/mesh/vertex_colours.h"
 
 namespace sculpt::mesh {
 
@@ -29,10 +30,12 @@ StatusOr<levelset::MeshStats> WriteGlb(const levelset::Sculpture& sculpture,
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   // Draco's encoder picks GLB or .gltf + .bin from the extension; only GLB is one file.
   if (ext != ".glb") return InvalidArgument("GLB path extension=" + ext + " outside {.glb}");
-  const TriangleMesh mesh = MeshWhole(sculpture);
+  TriangleMesh mesh = MeshWhole(sculpture);
   if (mesh.empty()) {
     return InvalidArgument("sculpture '" + sculpture.name() + "' has no surface to write");
   }
+  // A sculpture with materials: COLOR_0 mixed from the fractions at each vertex.
+  SCULPT_RETURN_IF_ERROR(ColourVertices(sculpture, &mesh));
   auto dm = internal::ToDracoMesh(mesh);
   if (!dm.ok()) return dm.status();
   draco::DracoCompressionOptions compression;

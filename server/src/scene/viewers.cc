@@ -10,6 +10,7 @@
 #include "scene/scene.h"
 #include "sculpt/codec/frame.h"
 #include "sculpt/core/check.h"
+#include "sculpt/mesh/vertex_colours.h"
 
 namespace sculpt::server {
 namespace {
@@ -179,6 +180,10 @@ void Scene::MesherLoop() {
         c->set_version(w.version);
         c->set_chunk_voxels(static_cast<uint32_t>(mo.chunk_voxels));
         if (!m->mesh.empty()) {
+          // A scene with materials: each vertex's colour mixed from the fractions there.
+          if (const Status cs = mesh::ColourVertices(*w.copy, &m->mesh); !cs.ok()) {
+            spdlog::warn("chunk colours ({},{},{}): {}", key.x, key.y, key.z, cs.ToString());
+          }
           auto e = mesh::EncodeChunk(m->mesh, dopt);
           if (!e.ok()) {
             spdlog::warn("draco chunk ({},{},{}): {}", key.x, key.y, key.z, e.status().ToString());

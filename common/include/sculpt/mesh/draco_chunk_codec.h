@@ -53,14 +53,15 @@ struct EncodedChunk {
   double encode_ms = 0;
 };
 
-/// Encodes with draco::Encoder (edgebreaker, explicit quantisation on options.frame).
+/// Encodes with draco::Encoder (edgebreaker, explicit quantisation on options.frame); a mesh with
+/// colours gets a COLOR attribute of 8 bits a channel (normalised unsigned bytes).
 /// InvalidArgument for bad options, a mesh whose indices point past its vertices, or a vertex
 /// outside the frame (naming it); Internal if Draco fails.
 StatusOr<EncodedChunk> EncodeChunk(const TriangleMesh& mesh, const DracoChunkOptions& options);
 
 struct DecodedChunk {
-  /// Dequantised positions and faces as Draco decodes them (vertex order may differ from the
-  /// encoded mesh).
+  /// Dequantised positions, colours (when the chunk has a COLOR attribute, clamped to [0, 1]) and
+  /// faces as Draco decodes them (vertex order may differ from the encoded mesh).
   TriangleMesh mesh;
   double decode_ms = 0;
 };

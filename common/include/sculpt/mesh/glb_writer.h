@@ -21,7 +21,8 @@ struct GlbOptions {
 Status ValidateGlbOptions(const GlbOptions& options);
 
 /// Meshes the whole sculpture (MeshWhole) and writes it to `path` (which must end in .glb) as one
-/// Draco-compressed mesh. Returns the mesh's vertex and triangle counts. InvalidArgument for bad
+/// Draco-compressed mesh, with per-vertex COLOR_0 mixed from the material fractions when the
+/// sculpture declares materials (ColourVertices). Returns the mesh's vertex and triangle counts. InvalidArgument for bad
 /// options, another extension or an empty sculpture; Internal when Draco cannot write the file.
 StatusOr<levelset::MeshStats> WriteGlb(const levelset::Sculpture& sculpture,
                                        const std::string& path, const GlbOptions& options = {});

@@ -15,6 +15,9 @@ namespace sculpt::mesh {
 struct TriangleMesh {
   std::vector<float> positions;
   std::vector<uint32_t> indices;
+  /// Optional per-vertex colours, r, g, b in [0, 1] (3 per vertex), or empty: mixed from the
+  /// material fractions when the sculpture declares materials (vertex_colours.h).
+  std::vector<float> colours;
 
   size_t vertex_count() const { return positions.size() / 3; }
   size_t face_count() const { return indices.size() / 3; }
