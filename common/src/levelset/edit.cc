@@ -124,13 +124,33 @@ std::vector<float> ToolField(const Block& b, const ToolShape& tool,
   return f;
 }
 
-// One block around every tool of a batch; tool_sdf is the union of the tools (their minimum).
-Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& reqs,
-                double reach) {
-  Block b;
-  b.dx = impl.dx();
-  b.bg = impl.background();
-  b.eps = 1.5 * b.dx;
+// What a batch's block must hold beyond its tools: the compensation shell and the operators'
+// rim. One function for ApplyEdits and FootprintOf, which must agree exactly (a replica decides
+// from the footprint whether it can replay an edit).
+struct BlockPlan {
+  double scale = 0;  // largest tool scale of the batch
+  bool compensate = false;
+  double shell_outer = 0;
+  double reach = 0;
+};
+
+BlockPlan PlanBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& reqs,
+                    const EditSettings& s) {
+  BlockPlan p;
+  const double dx = impl.dx();
+  const EditKind kind = reqs.front().kind;
+  for (const EditRequest& r : reqs) p.scale = std::max(p.scale, ToolScale(r.tool));
+  p.compensate = (kind == EditKind::kPress || kind == EditKind::kSmooth) &&
+                 s.compensation != CompensationRegion::kNone;
+  p.shell_outer = std::max(3 * dx, s.shell_radii * p.scale) + 1.5 * dx;
+  p.reach = (p.compensate && s.compensation == CompensationRegion::kShell ? p.shell_outer : 0) +
+            2 * dx + (kind == EditKind::kAdd || kind == EditKind::kSubtract ? impl.background() : 0);
+  return p;
+}
+
+// The index box around every tool of a batch, grown by `reach` and the stencil pad.
+internal::IndexBox BlockBox(const Sculpture::Impl& impl, const std::vector<EditRequest>& reqs,
+                            double reach) {
   Aabb tb = ToolBounds(reqs.front().tool);
   for (const EditRequest& r : reqs) {
     const Aabb a = ToolBounds(r.tool);
@@ -140,7 +160,17 @@ Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& req
               std::max(tb.max.z, a.max.z)};
   }
   const Vec3 r{reach, reach, reach};
-  b.box = internal::WorldToIndexBox(tb.min - r, tb.max + r, b.dx, kBlockPad);
+  return internal::WorldToIndexBox(tb.min - r, tb.max + r, impl.dx(), kBlockPad);
+}
+
+// One block around every tool of a batch; tool_sdf is the union of the tools (their minimum).
+Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& reqs,
+                double reach) {
+  Block b;
+  b.dx = impl.dx();
+  b.bg = impl.background();
+  b.eps = 1.5 * b.dx;
+  b.box = BlockBox(impl, reqs, reach);
   b.before = internal::ExtractDense(*impl.grid, b.box);
   b.phi = b.before;
   bool equal_spheres = reqs.size() > 1;
@@ -658,30 +688,11 @@ EditFootprint FootprintOf(const Sculpture& sculpture, const std::vector<EditRequ
   EditFootprint f;
   if (reqs.empty()) return f;
   const Sculpture::Impl& impl = sculpture.impl();
-  const double dx = impl.dx();
-  const EditKind kind = reqs.front().kind;
-  double scale = 0;
-  for (const EditRequest& r : reqs) scale = std::max(scale, ToolScale(r.tool));
-  const bool compensate = (kind == EditKind::kPress || kind == EditKind::kSmooth) &&
-                          s.compensation != CompensationRegion::kNone;
-  // Must match ApplyEditsImpl's block (MakeBlock with the same reach).
-  const double shell_outer = std::max(3 * dx, s.shell_radii * scale) + 1.5 * dx;
-  const double reach =
-      (compensate && s.compensation == CompensationRegion::kShell ? shell_outer : 0) + 2 * dx +
-      (kind == EditKind::kAdd || kind == EditKind::kSubtract ? impl.background() : 0);
-  Aabb tb = ToolBounds(reqs.front().tool);
-  for (const EditRequest& r : reqs) {
-    const Aabb a = ToolBounds(r.tool);
-    tb.min = {std::min(tb.min.x, a.min.x), std::min(tb.min.y, a.min.y),
-              std::min(tb.min.z, a.min.z)};
-    tb.max = {std::max(tb.max.x, a.max.x), std::max(tb.max.y, a.max.y),
-              std::max(tb.max.z, a.max.z)};
-  }
-  const Vec3 r{reach, reach, reach};
-  const internal::IndexBox box = internal::WorldToIndexBox(tb.min - r, tb.max + r, dx, kBlockPad);
+  const BlockPlan plan = PlanBlock(impl, reqs, s);
+  const internal::IndexBox box = BlockBox(impl, reqs, plan.reach);
   f.min = box.min;
   f.max = box.max;
-  f.whole_object = compensate && s.compensation == CompensationRegion::kGlobal;
+  f.whole_object = plan.compensate && s.compensation == CompensationRegion::kGlobal;
   return f;
 }
 
@@ -716,14 +727,11 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   const double dx = impl.dx();
   const double dx3 = dx * dx * dx;
   const EditKind kind = reqs.front().kind;
-  double scale = 0;
-  for (const EditRequest& r : reqs) scale = std::max(scale, ToolScale(r.tool));
-  const bool compensate = (kind == EditKind::kPress || kind == EditKind::kSmooth) &&
-                          s.compensation != CompensationRegion::kNone;
-  const double shell_outer = std::max(3 * dx, s.shell_radii * scale) + 1.5 * dx;
-  const double reach =
-      (compensate && s.compensation == CompensationRegion::kShell ? shell_outer : 0) + 2 * dx +
-      (kind == EditKind::kAdd || kind == EditKind::kSubtract ? impl.background() : 0);
+  const BlockPlan plan = PlanBlock(impl, reqs, s);
+  const double scale = plan.scale;
+  const bool compensate = plan.compensate;
+  const double shell_outer = plan.shell_outer;
+  const double reach = plan.reach;
 
   // One block for the whole batch: each request's operator runs in turn inside it, then the
   // islands check, compensation and reinitialisation run once for all of them.
