@@ -392,6 +392,8 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
   Vec3 interest_centre = start;
   StrokeRequest stroke = stroke_template;
   stroke.poses.clear();
+  // Without a script the strokes carve with the tool the user feels.
+  if (options.script.empty()) stroke.tool_size = {hs.tool_radius, 0, 0};
   const auto send = [&] {
     if (stroke.poses.empty()) return;
     auto seq = client.SendStroke(stroke);
