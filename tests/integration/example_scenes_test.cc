@@ -84,10 +84,10 @@ class ExampleSceneTest : public ::testing::TestWithParam<Example> {
   }
 
   std::string Export(const std::string& format, const fs::path& out) {
-    const std::string cmd = std::string(SCULPT_BIN_DIR) + "/sculpt export --server 127.0.0.1:" +
-                            std::to_string(port_) + " --token " + config_.viewer_token +
-                            " --format " + format + " --out " + out.string() + " > " +
-                            (dir_ / "export.log").string() + " 2>&1";
+    const std::string cmd = std::string(SCULPT_BIN_DIR) +
+                            "/sculpt export --server 127.0.0.1:" + std::to_string(port_) +
+                            " --token " + config_.viewer_token + " --format " + format + " --out " +
+                            out.string() + " > " + (dir_ / "export.log").string() + " 2>&1";
     EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
     std::ifstream in(out, std::ios::binary);
     return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

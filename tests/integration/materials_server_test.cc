@@ -145,8 +145,8 @@ class MaterialsServerTest : public ::testing::Test {
     options.skip_state = true;
     auto c = std::make_unique<Client>(options);
     EXPECT_TRUE(c->Connect("127.0.0.1", port_).ok());
-    auto w = c->Hello(role == v1::ROLE_SCULPTOR ? "sculpt-dev-sculptor" : "sculpt-dev-viewer",
-                      role, "t", 0);
+    auto w = c->Hello(role == v1::ROLE_SCULPTOR ? "sculpt-dev-sculptor" : "sculpt-dev-viewer", role,
+                      "t", 0);
     EXPECT_TRUE(w.ok()) << w.status();
     auto j = c->Join();
     EXPECT_TRUE(j.ok()) << j.status();
@@ -155,7 +155,8 @@ class MaterialsServerTest : public ::testing::Test {
 
   uint64_t ServerFractionHash(const levelset::VoxelBox& box) {
     uint64_t h = 0;
-    EXPECT_TRUE(scene_->Inspect("clay", [&](const levelset::Sculpture& s) { h = FractionHash(s, box); }));
+    EXPECT_TRUE(
+        scene_->Inspect("clay", [&](const levelset::Sculpture& s) { h = FractionHash(s, box); }));
     return h;
   }
 
@@ -210,7 +211,8 @@ TEST_F(MaterialsServerTest, RejectsBadMaterialDeclarationsInTheConfig) {
       << st;
   c = config_;
   c.scene.materials.assign(17, {});
-  for (size_t i = 0; i < c.scene.materials.size(); ++i) c.scene.materials[i].name = "m" + std::to_string(i);
+  for (size_t i = 0; i < c.scene.materials.size(); ++i)
+    c.scene.materials[i].name = "m" + std::to_string(i);
   st = server::ValidateConfig(c);
   EXPECT_NE(st.message().find("materials.size=17 outside [1, 16]"), std::string::npos) << st;
   // The TOML form.
@@ -370,8 +372,9 @@ TEST_F(MaterialsServerTest, TwoSculptorsPressAndPaintReplicasConvergeAndARestart
   const uint64_t before_state = scene_->StateHash("clay");
   const uint64_t before_fractions = ServerFractionHash(band);
   uint64_t before_materials = 0;
-  ASSERT_TRUE(scene_->Inspect(
-      "clay", [&](const levelset::Sculpture& s) { before_materials = levelset::MaterialStateHash(s); }));
+  ASSERT_TRUE(scene_->Inspect("clay", [&](const levelset::Sculpture& s) {
+    before_materials = levelset::MaterialStateHash(s);
+  }));
   a.reset();
   b.reset();
   StopServer();
@@ -380,8 +383,9 @@ TEST_F(MaterialsServerTest, TwoSculptorsPressAndPaintReplicasConvergeAndARestart
   EXPECT_EQ(scene_->StateHash("clay"), before_state);
   EXPECT_EQ(ServerFractionHash(band), before_fractions);
   uint64_t after_materials = 0;
-  ASSERT_TRUE(scene_->Inspect(
-      "clay", [&](const levelset::Sculpture& s) { after_materials = levelset::MaterialStateHash(s); }));
+  ASSERT_TRUE(scene_->Inspect("clay", [&](const levelset::Sculpture& s) {
+    after_materials = levelset::MaterialStateHash(s);
+  }));
   EXPECT_EQ(after_materials, before_materials);
 }
 
@@ -432,8 +436,8 @@ TEST_F(MaterialsServerTest, ViewerChunksCarryColoursMixedFromTheFractions) {
         ++checked;
         bool near = true;
         for (int k = 0; k < 3; ++k) near = near && std::abs(col[k] - want[k]) < 0.02;
-        EXPECT_TRUE(near) << "vertex at distance " << dist << " colour " << col[0] << ", "
-                          << col[1] << ", " << col[2];
+        EXPECT_TRUE(near) << "vertex at distance " << dist << " colour " << col[0] << ", " << col[1]
+                          << ", " << col[2];
         (dist < 1.5 ? jade : clay) += near ? 1 : 0;
       }
     }

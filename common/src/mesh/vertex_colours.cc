@@ -17,7 +17,8 @@ Status ColourVertices(const levelset::Sculpture& sculpture, TriangleMesh* mesh) 
     auto rgb = levelset::ColourAtWorld(sculpture, p);
     if (!rgb.ok()) return rgb.status();
     // A convex combination of colours in [0, 1]; the clamp only removes float rounding.
-    for (int c = 0; c < 3; ++c) colours[3 * v + c] = std::clamp(static_cast<float>((*rgb)[c]), 0.f, 1.f);
+    for (int c = 0; c < 3; ++c)
+      colours[3 * v + c] = std::clamp(static_cast<float>((*rgb)[c]), 0.f, 1.f);
   }
   mesh->colours = std::move(colours);
   return Status::Ok();

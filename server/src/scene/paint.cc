@@ -29,11 +29,10 @@ v1::PaintAck Refused(const Status& st, uint64_t client_seq) {
   a.set_client_seq(client_seq);
   a.set_accepted(false);
   v1::Error* e = a.mutable_error();
-  e->set_code(st.code() == Status::Code::kNotFound ? v1::ERROR_CODE_NOT_FOUND
-              : st.code() == Status::Code::kInvalidArgument ? v1::ERROR_CODE_INVALID_ARGUMENT
-              : st.code() == Status::Code::kFailedPrecondition
-                  ? v1::ERROR_CODE_FAILED_PRECONDITION
-                  : v1::ERROR_CODE_INTERNAL);
+  e->set_code(st.code() == Status::Code::kNotFound             ? v1::ERROR_CODE_NOT_FOUND
+              : st.code() == Status::Code::kInvalidArgument    ? v1::ERROR_CODE_INVALID_ARGUMENT
+              : st.code() == Status::Code::kFailedPrecondition ? v1::ERROR_CODE_FAILED_PRECONDITION
+                                                               : v1::ERROR_CODE_INTERNAL);
   e->set_field(fe.field);
   e->set_value(fe.value);
   e->set_allowed_range(fe.allowed_range);
@@ -47,8 +46,7 @@ v1::PaintAck Refused(const Status& st, uint64_t client_seq) {
 // ---------------------------------------------------------------------------------------------
 // Checks off the wire
 
-Status ValidatePaintEdit(const v1::PaintEdit& e, const codec::StrokeLimits& limits,
-                         int materials) {
+Status ValidatePaintEdit(const v1::PaintEdit& e, const codec::StrokeLimits& limits, int materials) {
   if (e.object().empty() || e.object().size() > kMaxNameBytes) {
     return InvalidArgument("PaintEdit.object=" + e.object() + " outside names of 1..64 bytes");
   }
@@ -77,8 +75,8 @@ Status ValidatePaintEdit(const v1::PaintEdit& e, const codec::StrokeLimits& limi
   const double bh[3] = {limits.bounds.max.x, limits.bounds.max.y, limits.bounds.max.z};
   const char* axis[3] = {"x", "y", "z"};
   for (int a = 0; a < 3; ++a) {
-    SCULPT_RETURN_IF_ERROR(CheckRange(std::string("PaintEdit.position.") + axis[a], pc[a],
-                                      bl[a] - m, bh[a] + m));
+    SCULPT_RETURN_IF_ERROR(
+        CheckRange(std::string("PaintEdit.position.") + axis[a], pc[a], bl[a] - m, bh[a] + m));
   }
   if (e.fractions_size() > 0) {
     // A fill: the vector itself goes into the sculpture, so it must lie in the simplex (seed 001
@@ -98,9 +96,12 @@ levelset::ToolShape ToolFromPaint(const v1::PaintEdit& e) {
   const Vec3 c = V(e.position());
   const Vec3 s = V(e.tool_size());
   switch (e.tool()) {
-    case v1::TOOL_KIND_ELLIPSOID: return levelset::ToolShape::Ellipsoid(c, s);
-    case v1::TOOL_KIND_BOX: return levelset::ToolShape::Box(c, s);
-    default: return levelset::ToolShape::Sphere(c, s.x);
+    case v1::TOOL_KIND_ELLIPSOID:
+      return levelset::ToolShape::Ellipsoid(c, s);
+    case v1::TOOL_KIND_BOX:
+      return levelset::ToolShape::Box(c, s);
+    default:
+      return levelset::ToolShape::Sphere(c, s.x);
   }
 }
 
@@ -140,7 +141,8 @@ Status ReplayPaintPayload(levelset::Sculpture& sculpture, uint64_t seq,
                           const std::string& payload) {
   SCULPT_ASSIGN_OR_RETURN(v1::PaintRecord r, ParsePaintPayload(seq, payload));
   auto res = ApplyPaint(sculpture, r.edit());
-  if (!res.ok()) spdlog::warn("paint at seq {} refused on replay: {}", seq, res.status().ToString());
+  if (!res.ok())
+    spdlog::warn("paint at seq {} refused on replay: {}", seq, res.status().ToString());
   return Status::Ok();
 }
 
@@ -180,8 +182,9 @@ void Scene::ReplicateLeaves(const std::string& object, const levelset::Sculpture
     }
     std::vector<levelset::Int3> cells;
     for (const levelset::Int3& c : dirty) {
-      const levelset::VoxelBox cb{c, {c.x + levelset::kLeafDim - 1, c.y + levelset::kLeafDim - 1,
-                                      c.z + levelset::kLeafDim - 1}};
+      const levelset::VoxelBox cb{c,
+                                  {c.x + levelset::kLeafDim - 1, c.y + levelset::kLeafDim - 1,
+                                   c.z + levelset::kLeafDim - 1}};
       if (sub.held.Intersects(cb)) cells.push_back(c);
     }
     if (!cells.empty()) sub.sink.send(frame(cells));
@@ -193,9 +196,9 @@ void Scene::Paint(uint64_t client_id, v1::PaintEdit e, std::function<void(v1::Pa
   Post([this, client_id, e = std::move(e), cb] {
     auto obj = sculptures_.find(e.object());
     if (obj == sculptures_.end()) {
-      return (*cb)(Refused(
-          NotFound("PaintEdit.object=" + e.object() + " outside the scene's objects"),
-          e.client_seq()));
+      return (*cb)(
+          Refused(NotFound("PaintEdit.object=" + e.object() + " outside the scene's objects"),
+                  e.client_seq()));
     }
     levelset::Sculpture& sculpture = obj->second;
     uint64_t& last = last_paint_seq_[client_id];
@@ -232,8 +235,7 @@ void Scene::Paint(uint64_t client_id, v1::PaintEdit e, std::function<void(v1::Pa
         versions_[e.object()].Record(res->dirty_leaves, seq);
         if (!viewers_.empty()) MarkDirtyChunks(e.object(), res->dirty_leaves);
         if (!subs_.empty()) {
-          ReplicateLeaves(e.object(), sculpture, res->dirty_leaves, seq, client_id,
-                          e.client_seq());
+          ReplicateLeaves(e.object(), sculpture, res->dirty_leaves, seq, client_id, e.client_seq());
         }
         ack.set_accepted(true);
         ack.set_changed_voxels(static_cast<uint32_t>(res->changed_voxels));

@@ -39,8 +39,7 @@ std::string PaintPayload(const v1::PaintRecord& record);
 StatusOr<v1::PaintRecord> ParsePaintPayload(uint64_t seq, const std::string& payload);
 /// Recovery: applies a logged paint as the live server did. DataLoss when it does not parse; a
 /// paint the kernel refuses is refused identically (Ok, nothing applied), as live.
-Status ReplayPaintPayload(levelset::Sculpture& sculpture, uint64_t seq,
-                          const std::string& payload);
+Status ReplayPaintPayload(levelset::Sculpture& sculpture, uint64_t seq, const std::string& payload);
 
 }  // namespace sculpt::server
 

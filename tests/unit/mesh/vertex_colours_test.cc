@@ -26,7 +26,8 @@ constexpr double kPaintRadius = 6;
 levelset::Sculpture Painted() {
   levelset::Sculpture s = testing::Sphere(16);
   EXPECT_TRUE(levelset::SetMaterials(s, kMaterials).ok());
-  auto p = levelset::PaintMaterial(s, levelset::ToolShape::Sphere(kPaintCentre, kPaintRadius), 1, 1.0);
+  auto p =
+      levelset::PaintMaterial(s, levelset::ToolShape::Sphere(kPaintCentre, kPaintRadius), 1, 1.0);
   EXPECT_TRUE(p.ok()) << p.status();
   return s;
 }
