@@ -419,61 +419,47 @@ class Session : public std::enable_shared_from_this<Session> {
     return sink;
   }
 
-  void OnSubscribe(const v1::Subscribe& sub) {
+  // Starts a once-per-connection subscription: refuses one before JoinScene or a repeat, else
+  // sets `*flag`. The returned callback reports the scene's refusal (and clears the flag).
+  std::function<void(Status)> BeginSubscription(const char* what, bool* flag,
+                                                const char* repeat_hint) {
     if (!joined_) {
-      SendError(v1::ERROR_CODE_FAILED_PRECONDITION, "Subscribe", "before JoinScene",
-                "after JoinScene", "join a scene first", 0);
-      return Violation();
+      SendError(v1::ERROR_CODE_FAILED_PRECONDITION, what, "before JoinScene", "after JoinScene",
+                "join a scene first", 0);
+      Violation();
+      return nullptr;
     }
-    if (subscribed_) {
-      SendError(v1::ERROR_CODE_FAILED_PRECONDITION, "Subscribe", "repeated",
-                "once per connection", "use SetInterest to move the region", 0);
-      return Violation();
+    if (flag && *flag) {
+      SendError(v1::ERROR_CODE_FAILED_PRECONDITION, what, "repeated", "once per connection",
+                repeat_hint, 0);
+      Violation();
+      return nullptr;
     }
-    subscribed_ = true;
+    if (flag) *flag = true;
     auto self = shared_from_this();
-    server_.scene().Subscribe(Sink(), sub, [self](Status st) {
+    return [self, flag](Status st) {
       if (st.ok()) return;
-      asio::post(self->socket_.get_executor(), [self, st] {
-        self->subscribed_ = false;
+      asio::post(self->socket_.get_executor(), [self, flag, st] {
+        if (flag) *flag = false;
         self->SendStatus(st);
         self->Violation();
       });
-    });
+    };
+  }
+
+  void OnSubscribe(const v1::Subscribe& sub) {
+    auto done = BeginSubscription("Subscribe", &subscribed_, "use SetInterest to move the region");
+    if (done) server_.scene().Subscribe(Sink(), sub, std::move(done));
   }
 
   void OnSetInterest(const v1::SetInterest& si) {
-    auto self = shared_from_this();
-    server_.scene().SetInterest(id_, si, [self](Status st) {
-      if (st.ok()) return;
-      asio::post(self->socket_.get_executor(), [self, st] {
-        self->SendStatus(st);
-        self->Violation();
-      });
-    });
+    auto done = BeginSubscription("SetInterest", nullptr, "");
+    if (done) server_.scene().SetInterest(id_, si, std::move(done));
   }
 
   void OnViewerSubscribe(const v1::ViewerSubscribe& vs) {
-    if (!joined_) {
-      SendError(v1::ERROR_CODE_FAILED_PRECONDITION, "ViewerSubscribe", "before JoinScene",
-                "after JoinScene", "join a scene first", 0);
-      return Violation();
-    }
-    if (viewing_) {
-      SendError(v1::ERROR_CODE_FAILED_PRECONDITION, "ViewerSubscribe", "repeated",
-                "once per connection", "already subscribed to meshes", 0);
-      return Violation();
-    }
-    viewing_ = true;
-    auto self = shared_from_this();
-    server_.scene().SubscribeViewer(Sink(), vs, [self](Status st) {
-      if (st.ok()) return;
-      asio::post(self->socket_.get_executor(), [self, st] {
-        self->viewing_ = false;
-        self->SendStatus(st);
-        self->Violation();
-      });
-    });
+    auto done = BeginSubscription("ViewerSubscribe", &viewing_, "already subscribed to meshes");
+    if (done) server_.scene().SubscribeViewer(Sink(), vs, std::move(done));
   }
 
   // Ball skins (issue 6). Ball edits and sweeps are strokes: joined sculptors only, the stroke
