@@ -70,18 +70,19 @@ SculptureSnapshot::SculptureSnapshot(levelset::Sculpture&& sculpture)
 
 SculptureSnapshot::SculptureSnapshot(std::shared_ptr<const levelset::Sculpture> sculpture)
     : sculpture_(std::move(sculpture)),
+      grid_(sculpture_->impl().grid.get()),
       voxel_size_(sculpture_->voxel_size()),
       id_(g_next_id.fetch_add(1, std::memory_order_relaxed)) {}
 
 SculptureSnapshot::~SculptureSnapshot() = default;
 
 double SculptureSnapshot::Phi(const Vec3& p) const {
-  const auto& grid = *sculpture_->impl().grid;
+  const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
   return Trilinear(AccessorFor(id_, grid.tree()), grid.transform(), p);
 }
 
 Vec3 SculptureSnapshot::Gradient(const Vec3& p) const {
-  const auto& grid = *sculpture_->impl().grid;
+  const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
   Accessor& acc = AccessorFor(id_, grid.tree());
   const double h = voxel_size_;
   auto d = [&](const Vec3& e) {

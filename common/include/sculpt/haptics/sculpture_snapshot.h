@@ -38,6 +38,9 @@ class SculptureSnapshot : public SdfSampler {
 
  private:
   std::shared_ptr<const levelset::Sculpture> sculpture_;
+  // The sculpture's openvdb::FloatGrid (kept out of this header), looked up once: Phi runs
+  // thousands of times a tick, and the chain of pointers to the grid showed in its cost.
+  const void* grid_;
   double voxel_size_;
   uint64_t id_;
 };
