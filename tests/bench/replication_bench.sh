@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# @brief Replication benchmarks of issue 4: (1) 4 sculptors x 120 Hz + 8 mesh viewers with one
+# @brief Replication benchmarks of issue 4 (and the haptic client of issue 5): (1) 4 sculptors x 120 Hz + 8 mesh viewers with one
 # replay replica and one leaf-delta replica of the whole object, (2) a late join of a radius-128
 # voxel sphere. Each run starts a fresh sculptd on a fresh data directory and writes one JSON into
 # $OUT (default docs/replication-bench/). Usage: tests/bench/replication_bench.sh [OUT]
@@ -36,6 +36,14 @@ serve light
   --viewers 0 --replay-replicas 1 --leafdelta-replicas 1 --seconds "$SECS" \
   --json > "$OUT/light-2x60.json"
 stop light
+
+# Issue 5: the haptic loop of one client on its own replica while 4 sculptors edit at 120 Hz.
+echo "[replication-bench] 4 sculptors x 120 Hz with a haptic client, ${SECS}s" >&2
+serve haptic
+"$BIN/sculpt-loadgen" --server "127.0.0.1:$(cat "$WORK/haptic.port")" --sculptors 4 --rate 120 \
+  --viewers 0 --replay-replicas 0 --leafdelta-replicas 0 --haptic-client --seconds "$SECS" \
+  --json > "$OUT/haptic-4x120.json"
+stop haptic
 
 echo "[replication-bench] late join of a radius-128-voxel sphere" >&2
 serve late deploy/bench/sphere-r128.toml

@@ -17,6 +17,9 @@
 #include "sculpt/client/client.h"
 #include "sculpt/client/mesh_view.h"
 #include "sculpt/client/replica.h"
+#include "sculpt/haptics/haptic_device.h"
+#include "sculpt/haptics/haptic_loop.h"
+#include "sculpt/haptics/sculpture_feed.h"
 
 namespace sculpt::client {
 namespace {
@@ -259,6 +262,53 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
 
   const double stroke_period = o.poses_per_stroke / o.rate_hz;
   const double pose_dt = 1.0 / o.rate_hz;
+  // The haptic client (issue 5): a replica publishing snapshots every 2 ms into the loop's
+  // publisher, and a scripted device pressing 1.5 units in and out of the object's top at 1 Hz.
+  std::unique_ptr<haptics::SnapshotPublisher> publisher;
+  std::unique_ptr<haptics::SculptureFeed> feed;
+  std::unique_ptr<haptics::ScriptedDevice> device;
+  std::unique_ptr<Client> haptic_conn;
+  std::unique_ptr<Replica> haptic_replica;
+  std::unique_ptr<haptics::HapticLoop> loop;
+  if (o.haptic_client && object != nullptr) {
+    publisher = std::make_unique<haptics::SnapshotPublisher>();
+    feed = std::make_unique<haptics::SculptureFeed>(publisher.get(), /*seal=*/false);
+    ClientOptions co;
+    co.io = io[0];
+    co.skip_state = true;
+    haptic_conn = std::make_unique<Client>(co);
+    SCULPT_RETURN_IF_ERROR(haptic_conn->Connect(host, port));
+    auto w = haptic_conn->Hello(o.viewer_token, v1::ROLE_VIEWER, "loadgen-haptic", NewClientId());
+    if (!w.ok()) return w.status();
+    auto j = haptic_conn->Join(o.scene);
+    if (!j.ok()) return j.status();
+    ReplicaOptions ro;
+    ro.object = object->name();
+    ro.snapshot_interval = std::chrono::milliseconds(2);
+    haptic_replica = std::make_unique<Replica>(*haptic_conn, ro);
+    haptics::SculptureFeed* f = feed.get();
+    haptic_replica->SetSnapshotHandler(
+        [f](std::shared_ptr<const levelset::Sculpture> s, uint64_t seq) { f->Publish(std::move(s), seq); });
+    SCULPT_RETURN_IF_ERROR(haptic_replica->Start());
+    if (!haptic_replica->WaitLoaded(1, std::chrono::seconds(60))) {
+      return Status(Status::Code::kUnavailable, "haptic client: region not loaded within 60 s");
+    }
+    const Vec3 top = center + Vec3{0, 0, radius};
+    device = std::make_unique<haptics::ScriptedDevice>([top](double t) {
+      return top + Vec3{0, 0, 1.0 - 2.5 * (0.5 - 0.5 * std::cos(2 * M_PI * t))};
+    });
+    haptics::HapticSettings hs;
+    auto l = haptics::HapticLoop::Create(hs, publisher.get(), device.get());
+    if (!l.ok()) return l.status();
+    loop = std::move(l).value();
+    // Wait for a first snapshot so the loop renders from the start.
+    const auto until = Clock::now() + std::chrono::seconds(30);
+    while (!haptic_replica->Snapshot() && Clock::now() < until) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    SCULPT_RETURN_IF_ERROR(loop->Start());
+  }
+
   const auto t_start = Clock::now();
   for (SimClient& c : replicas) c.at_start = c.client->stats();  // after the region loads
   for (size_t i = 0; i < clients.size(); ++i) {
@@ -531,6 +581,24 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
   report["config"]["replay_replicas"] = o.replay_replicas;
   report["config"]["leafdelta_replicas"] = o.leafdelta_replicas;
 
+  if (loop) {
+    loop->Stop();
+    const haptics::HapticLoopStats hst = loop->stats();
+    report["haptic_rate_hz"] = Round3(hst.rate_hz);
+    report["haptic_period_err_p99_us"] = Round3(hst.period_err_p99_us);
+    report["haptic_period_err_max_us"] = Round3(hst.period_err_max_us);
+    report["haptic_ticks_over_2ms"] = hst.ticks_over_2ms;
+    report["haptic_missed_deadlines"] = hst.missed_deadlines;
+    report["haptic_overruns"] = hst.overruns;
+    report["haptic_tick_cost_p99_us"] = Round3(hst.tick_cost_p99_us);
+    report["haptic_snapshot_lag_p50_ms"] = Round3(hst.snapshot_lag_p50_ms);
+    report["haptic_snapshot_lag_p99_ms"] = Round3(hst.snapshot_lag_p99_ms);
+    report["haptic_snapshots_seen"] = hst.snapshots_seen;
+    report["haptic_ticks"] = hst.ticks;
+    haptic_replica->SetSnapshotHandler(nullptr);
+    haptic_replica.reset();
+    (void)haptic_conn->Close("load run finished");
+  }
   for (SimClient& c : replicas) c.replica.reset();
   for (SimClient& c : replicas) (void)c.client->Close("load run finished");
   for (SimClient& c : clients) c.view.reset();

@@ -36,6 +36,9 @@ struct LoadOptions {
   /// Viewers subscribe to Draco mesh chunks at this rate (0: no mesh subscription); the first
   /// viewer decodes every chunk it receives, to measure decode time.
   double viewer_mesh_hz = 10;
+  /// One extra client runs the 1 kHz haptic loop (proxy model) on its own replica's snapshots,
+  /// its simulated device pressing in and out of the object's top during the run (issue 5).
+  bool haptic_client = false;
 };
 
 /// Late join: one replica client subscribes to the whole object; bytes and time until its

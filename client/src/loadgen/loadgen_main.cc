@@ -55,6 +55,8 @@ int main(int argc, char** argv) {
   app.add_option("--viewer-mesh-hz", o.viewer_mesh_hz,
                  "Viewers subscribe to Draco mesh chunks at this rate (0: none)")
       ->capture_default_str();
+  app.add_flag("--haptic-client", o.haptic_client,
+               "One more client runs the 1 kHz haptic loop on its replica; report its timing");
   bool late_join = false;
   app.add_flag("--late-join", late_join,
                "Only measure a late join: one replica loads the whole object (bytes, ms)");
