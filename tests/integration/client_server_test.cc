@@ -18,9 +18,7 @@
 #include <thread>
 #include <vector>
 
-#include "config/server_config.h"
-#include "net/server.h"
-#include "scene/scene.h"
+#include "integration/in_process_server.h"
 #include "sculpt/client/client.h"
 #include "sculpt/levelset/sculpture.h"
 
@@ -31,29 +29,11 @@ namespace fs = std::filesystem;
 using std::chrono::milliseconds;
 using std::chrono::seconds;
 
-constexpr char kSculptorToken[] = "sculpt-dev-sculptor";
 constexpr char kViewerToken[] = "sculpt-dev-viewer";
 constexpr int kPosesPerStroke = 4;
 
-/// A press stroke along a horizontal circle at height z, 1 world unit inside the default
-/// sphere (radius 24), poses 0.5 apart; stroke `i` continues where stroke i - 1 ended.
 StrokeRequest Arc(double z, int i, int poses = kPosesPerStroke) {
-  StrokeRequest s;
-  s.object = "clay";
-  s.kind = v1::EDIT_KIND_PRESS;
-  s.tool = v1::TOOL_KIND_SPHERE;
-  s.tool_size = {2.5, 0, 0};
-  s.speed = 60;
-  s.t0_ms = static_cast<uint64_t>(i) * 33;
-  const double r = std::sqrt(23.0 * 23.0 - z * z);
-  for (int k = 0; k < poses; ++k) {
-    const double a = (i * poses + k) * 0.5 / r;
-    codec::Pose p;
-    p.position = {r * std::cos(a), r * std::sin(a), z};
-    p.t_ms = static_cast<uint32_t>(k * 8);
-    s.poses.push_back(p);
-  }
-  return s;
+  return testing_support::PressArc(z, i, poses);
 }
 
 /// The acks among `events`, in arrival order.
@@ -68,52 +48,22 @@ std::vector<v1::Ack> Acks(const std::vector<Event>& events) {
 class ClientServerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("sculpt_client_server_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    config_.data_dir = (dir_ / "data").string();
-    config_.listen = "127.0.0.1:0";
-    auto scene = server::Scene::Open(config_);
-    ASSERT_TRUE(scene.ok()) << scene.status();
-    scene_ = std::move(scene).value();
-    server_ = std::make_unique<server::Server>(io_, config_, *scene_);
-    auto port = server_->Start();
-    ASSERT_TRUE(port.ok()) << port.status();
-    port_ = *port;
-    io_thread_ = std::thread([this] { io_.run(); });
-  }
-
-  void TearDown() override {
-    if (server_) server_->Stop();
-    io_.stop();
-    if (io_thread_.joinable()) io_thread_.join();
-    server_.reset();
-    scene_.reset();
-    fs::remove_all(dir_);
+    config_ = &srv_.config();
+    dir_ = srv_.dir();
+    ASSERT_TRUE(srv_.Start());
+    scene_ = &srv_.scene();
+    port_ = srv_.port();
   }
 
   /// A client that has said Hello and joined the default scene.
   std::unique_ptr<Client> Joined(v1::Role role, const std::string& name, uint64_t client_id = 0) {
-    ClientOptions options;
-    options.timeout = seconds(10);
-    auto c = std::make_unique<Client>(options);
-    EXPECT_TRUE(c->Connect("127.0.0.1", port_).ok());
-    auto welcome =
-        c->Hello(role == v1::ROLE_SCULPTOR ? kSculptorToken : kViewerToken, role, name, client_id);
-    EXPECT_TRUE(welcome.ok()) << welcome.status();
-    auto joined = c->Join();
-    EXPECT_TRUE(joined.ok()) << joined.status();
-    return c;
+    return srv_.Joined(role, /*skip_state=*/false, name, client_id);
   }
 
+  testing_support::InProcessServer srv_{"client_server"};
+  server::ServerConfig* config_ = nullptr;
   fs::path dir_;
-  server::ServerConfig config_;
-  server::asio::io_context io_;
-  std::unique_ptr<server::Scene> scene_;
-  std::unique_ptr<server::Server> server_;
-  std::thread io_thread_;
+  server::Scene* scene_ = nullptr;
   uint16_t port_ = 0;
 };
 
@@ -163,8 +113,8 @@ TEST_F(ClientServerTest, ConcurrentSculptorsAckedInOrderAndReplayMatches) {
   scene_->Flush();
   const uint64_t live = scene_->StateHash("clay");
   const fs::path copy = dir_ / "copy";
-  fs::copy(config_.data_dir, copy, fs::copy_options::recursive);
-  server::ServerConfig replay_config = config_;
+  fs::copy(config_->data_dir, copy, fs::copy_options::recursive);
+  server::ServerConfig replay_config = *config_;
   replay_config.data_dir = copy.string();
   auto replayed = server::Scene::Open(replay_config);
   ASSERT_TRUE(replayed.ok()) << replayed.status();

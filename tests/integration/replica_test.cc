@@ -16,9 +16,7 @@
 #include <string>
 #include <thread>
 
-#include "config/server_config.h"
-#include "net/server.h"
-#include "scene/scene.h"
+#include "integration/in_process_server.h"
 #include "sculpt/client/client.h"
 #include "sculpt/client/mesh_view.h"
 #include "sculpt/client/replica.h"
@@ -32,67 +30,14 @@ namespace fs = std::filesystem;
 using std::chrono::milliseconds;
 using std::chrono::seconds;
 
-// A press stroke on a horizontal circle at height z, one unit inside the default sphere (radius
-// 24); stroke i continues where stroke i - 1 ended.
-StrokeRequest Arc(double z, int i, int poses = 4) {
-  StrokeRequest s;
-  s.object = "clay";
-  s.tool_size = {2.5, 0, 0};
-  s.speed = 60;
-  s.t0_ms = static_cast<uint64_t>(i) * 33;
-  const double r = std::sqrt(23.0 * 23.0 - z * z);
-  for (int k = 0; k < poses; ++k) {
-    const double a = (i * poses + k) * 0.5 / r;
-    codec::Pose p;
-    p.position = {r * std::cos(a), r * std::sin(a), z};
-    p.t_ms = static_cast<uint32_t>(k * 8);
-    s.poses.push_back(p);
-  }
-  return s;
-}
+using testing_support::PressArc;
 
 class ReplicaTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("sculpt_replica_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    config_.data_dir = (dir_ / "data").string();
-    config_.listen = "127.0.0.1:0";
-    auto scene = server::Scene::Open(config_);
-    ASSERT_TRUE(scene.ok()) << scene.status();
-    scene_ = std::move(scene).value();
-    server_ = std::make_unique<server::Server>(io_, config_, *scene_);
-    auto port = server_->Start();
-    ASSERT_TRUE(port.ok()) << port.status();
-    port_ = *port;
-    io_thread_ = std::thread([this] { io_.run(); });
-  }
-
-  void TearDown() override {
-    if (server_) server_->Stop();
-    io_.stop();
-    if (io2_) io2_->stop();
-    if (io_thread_.joinable()) io_thread_.join();
-    server_.reset();
-    scene_.reset();
-    fs::remove_all(dir_);
-  }
+  void SetUp() override { ASSERT_TRUE(srv_.Start()); }
 
   std::unique_ptr<Client> Joined(v1::Role role, bool skip_state) {
-    ClientOptions options;
-    options.timeout = seconds(10);
-    options.skip_state = skip_state;
-    auto c = std::make_unique<Client>(options);
-    EXPECT_TRUE(c->Connect("127.0.0.1", port_).ok());
-    auto w = c->Hello(role == v1::ROLE_SCULPTOR ? "sculpt-dev-sculptor" : "sculpt-dev-viewer",
-                      role, "t", 0);
-    EXPECT_TRUE(w.ok()) << w.status();
-    auto j = c->Join();
-    EXPECT_TRUE(j.ok()) << j.status();
-    return c;
+    return srv_.Joined(role, skip_state);
   }
 
   // True once the replica's voxels over `box` equal the server's (polled: a partial replica
@@ -100,29 +45,21 @@ class ReplicaTest : public ::testing::Test {
   bool Converges(const Replica& r, const levelset::VoxelBox& box, seconds limit = seconds(20)) {
     const auto end = std::chrono::steady_clock::now() + limit;
     while (std::chrono::steady_clock::now() < end) {
-      if (r.RegionHash(box) == scene_->RegionHash("clay", box)) return true;
+      if (r.RegionHash(box) == srv_.scene().RegionHash("clay", box)) return true;
       std::this_thread::sleep_for(milliseconds(50));
     }
     return false;
   }
 
-  levelset::VoxelBox Box(const levelset::Aabb& world) const {
-    const double dx = config_.scene.voxel_size;
+  levelset::VoxelBox Box(const levelset::Aabb& world) {
+    const double dx = srv_.config().scene.voxel_size;
     return {{int(std::floor(world.min.x / dx)), int(std::floor(world.min.y / dx)),
              int(std::floor(world.min.z / dx))},
             {int(std::ceil(world.max.x / dx)), int(std::ceil(world.max.y / dx)),
              int(std::ceil(world.max.z / dx))}};
   }
 
-  fs::path dir_;
-  server::ServerConfig config_;
-  server::asio::io_context io_;
-  std::unique_ptr<server::asio::io_context> io2_;  // a restarted server's (handlers of the
-                                                   // first server stay queued in io_)
-  std::unique_ptr<server::Scene> scene_;
-  std::unique_ptr<server::Server> server_;
-  std::thread io_thread_;
-  uint16_t port_ = 0;
+  testing_support::InProcessServer srv_{"replica"};
 };
 
 TEST_F(ReplicaTest, ConcurrentSculptorsAndEveryReplicaKindConverge) {
@@ -146,7 +83,7 @@ TEST_F(ReplicaTest, ConcurrentSculptorsAndEveryReplicaKindConverge) {
 
   // Overlapping arcs (z = 2 and z = -2 with a 2.5 tool) at the same time.
   auto send = [](Client* cl, double z) {
-    for (int i = 0; i < kStrokes; ++i) EXPECT_TRUE(cl->SendStroke(Arc(z, i)).ok());
+    for (int i = 0; i < kStrokes; ++i) EXPECT_TRUE(cl->SendStroke(PressArc(z, i)).ok());
   };
   std::thread ta(send, a.get(), 2.0);
   std::thread tb(send, b.get(), -2.0);
@@ -154,13 +91,13 @@ TEST_F(ReplicaTest, ConcurrentSculptorsAndEveryReplicaKindConverge) {
   tb.join();
   ASSERT_TRUE(a->WaitAllAcked(seconds(30)));
   ASSERT_TRUE(b->WaitAllAcked(seconds(30)));
-  const uint64_t seq = scene_->global_seq();
+  const uint64_t seq = srv_.scene().global_seq();
   ASSERT_EQ(seq, 2u * kStrokes * 4);
   for (Replica* r : {&ra, &rb, &rc}) {
     ASSERT_TRUE(r->WaitForSeq(seq, seconds(30)));
     const levelset::VoxelBox held = r->held();
     ASSERT_FALSE(held.Empty());
-    EXPECT_EQ(r->RegionHash(held), scene_->RegionHash("clay", held));
+    EXPECT_EQ(r->RegionHash(held), srv_.scene().RegionHash("clay", held));
     EXPECT_EQ(r->stats().hash_mismatches, 0u);
     EXPECT_EQ(r->stats().errors, 0u);
   }
@@ -171,7 +108,7 @@ TEST_F(ReplicaTest, ConcurrentSculptorsAndEveryReplicaKindConverge) {
   EXPECT_TRUE(Converges(rd, Box(*part.interest)));
   EXPECT_LT(rd.stats().broadcasts_applied + rd.stats().deltas_applied, 2u * kStrokes);
   EXPECT_GT(rd.stats().broadcasts_applied + rd.stats().deltas_applied, 0u);
-  EXPECT_EQ(scene_->replication_stats().divergences.load(), 0u);
+  EXPECT_EQ(srv_.scene().replication_stats().divergences.load(), 0u);
   // Replay moves far fewer bytes than leaf deltas for the same edits.
   EXPECT_LT(ra.stats().bytes * 5, rc.stats().bytes);
 }
@@ -182,27 +119,27 @@ TEST_F(ReplicaTest, DroppedConnectionResyncsToTheServerState) {
   Replica rc(*c, {});
   ASSERT_TRUE(rc.Start().ok());
   ASSERT_TRUE(rc.WaitLoaded(1, seconds(20)));
-  for (int i = 0; i < 10; ++i) ASSERT_TRUE(a->SendStroke(Arc(5, i)).ok());
+  for (int i = 0; i < 10; ++i) ASSERT_TRUE(a->SendStroke(PressArc(5, i)).ok());
   ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
-  ASSERT_TRUE(rc.WaitForSeq(scene_->global_seq(), seconds(20)));
+  ASSERT_TRUE(rc.WaitForSeq(srv_.scene().global_seq(), seconds(20)));
   const uint64_t before = rc.stats().seq;
   // Mid-stream: the replica's connection drops while the sculptor goes on.
   c->DropConnection();
-  for (int i = 10; i < 30; ++i) ASSERT_TRUE(a->SendStroke(Arc(5, i)).ok());
+  for (int i = 10; i < 30; ++i) ASSERT_TRUE(a->SendStroke(PressArc(5, i)).ok());
   ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
   EXPECT_EQ(rc.stats().seq, before);
   ASSERT_TRUE(c->Reconnect().ok());
   ASSERT_TRUE(rc.Resubscribe().ok());
-  ASSERT_TRUE(rc.WaitForSeq(scene_->global_seq(), seconds(20)));
+  ASSERT_TRUE(rc.WaitForSeq(srv_.scene().global_seq(), seconds(20)));
   const levelset::VoxelBox held = rc.held();
-  EXPECT_EQ(rc.RegionHash(held), scene_->RegionHash("clay", held));
+  EXPECT_EQ(rc.RegionHash(held), srv_.scene().RegionHash("clay", held));
   EXPECT_EQ(rc.stats().region_loads, 1u);  // the resync sent leaves by version, not the region
   EXPECT_EQ(rc.stats().hash_mismatches, 0u);
   // And it keeps replaying afterwards.
-  for (int i = 30; i < 35; ++i) ASSERT_TRUE(a->SendStroke(Arc(5, i)).ok());
+  for (int i = 30; i < 35; ++i) ASSERT_TRUE(a->SendStroke(PressArc(5, i)).ok());
   ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
-  ASSERT_TRUE(rc.WaitForSeq(scene_->global_seq(), seconds(20)));
-  EXPECT_EQ(rc.RegionHash(held), scene_->RegionHash("clay", held));
+  ASSERT_TRUE(rc.WaitForSeq(srv_.scene().global_seq(), seconds(20)));
+  EXPECT_EQ(rc.RegionHash(held), srv_.scene().RegionHash("clay", held));
 }
 
 TEST_F(ReplicaTest, InterestMovingAcrossTheObjectWhileOthersEditEndsEqual) {
@@ -218,9 +155,9 @@ TEST_F(ReplicaTest, InterestMovingAcrossTheObjectWhileOthersEditEndsEqual) {
                                   {{-10, -25, -15}, {10, -10, -5}}};
   int stroke = 0;
   for (const levelset::Aabb& next : boxes) {
-    for (int i = 0; i < 12; ++i) ASSERT_TRUE(a->SendStroke(Arc(-10, stroke++)).ok());
+    for (int i = 0; i < 12; ++i) ASSERT_TRUE(a->SendStroke(PressArc(-10, stroke++)).ok());
     ASSERT_TRUE(rc.MoveInterest(next).ok());
-    for (int i = 0; i < 12; ++i) ASSERT_TRUE(a->SendStroke(Arc(-10, stroke++)).ok());
+    for (int i = 0; i < 12; ++i) ASSERT_TRUE(a->SendStroke(PressArc(-10, stroke++)).ok());
     ASSERT_TRUE(a->WaitAllAcked(seconds(30)));
     EXPECT_TRUE(Converges(rc, Box(next))) << "interest " << next.min.x << "," << next.min.y;
   }
@@ -270,29 +207,29 @@ TEST_F(ReplicaTest, BadSubscriptionsAreRefusedAndOthersKeepBeingServed) {
   si.mutable_set_interest()->set_object("clay");
   refuse(si, "SetInterest.object");
   // Garbage divergence reports are only logged; the sculptor is still served.
-  ASSERT_TRUE(a->SendStroke(Arc(0, 0)).ok());
+  ASSERT_TRUE(a->SendStroke(PressArc(0, 0)).ok());
   ASSERT_TRUE(a->WaitAllAcked(seconds(10)));
   // A replica whose have_seq predates what the server knows loads its region anew.
   Replica r(*c, {});
   ASSERT_TRUE(r.Start().ok());
-  ASSERT_TRUE(r.WaitForSeq(scene_->global_seq(), seconds(20)));
-  EXPECT_EQ(r.RegionHash(r.held()), scene_->RegionHash("clay", r.held()));
+  ASSERT_TRUE(r.WaitForSeq(srv_.scene().global_seq(), seconds(20)));
+  EXPECT_EQ(r.RegionHash(r.held()), srv_.scene().RegionHash("clay", r.held()));
 }
 
 TEST_F(ReplicaTest, ViewerMeshChunksFollowTheEditsAndMatchTheWholeMesh) {
   auto a = Joined(v1::ROLE_SCULPTOR, true);
   // Effects only where asked: edits with no viewer mesh nothing.
-  for (int i = 0; i < 5; ++i) ASSERT_TRUE(a->SendStroke(Arc(3, i)).ok());
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(a->SendStroke(PressArc(3, i)).ok());
   ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
   std::this_thread::sleep_for(milliseconds(300));
-  EXPECT_EQ(scene_->mesh_stats().chunks_encoded.load(), 0u);
+  EXPECT_EQ(srv_.scene().mesh_stats().chunks_encoded.load(), 0u);
 
   auto v = Joined(v1::ROLE_VIEWER, true);
   MeshView view(*v, "clay", /*decode_on_receipt=*/true);
   ASSERT_TRUE(view.Subscribe(30).ok());
   auto whole_faces = [&] {
     uint64_t n = 0;
-    scene_->Inspect("clay", [&](const levelset::Sculpture& s) { n = mesh::MeshWhole(s).face_count(); });
+    srv_.scene().Inspect("clay", [&](const levelset::Sculpture& s) { n = mesh::MeshWhole(s).face_count(); });
     return n;
   };
   auto wait_equal = [&] {
@@ -307,14 +244,14 @@ TEST_F(ReplicaTest, ViewerMeshChunksFollowTheEditsAndMatchTheWholeMesh) {
   const uint64_t initial_chunks = view.stats().chunks_received;
   EXPECT_GT(initial_chunks, 10u);
   // Edits: only the chunks they touch come again, at a newer version.
-  for (int i = 5; i < 15; ++i) ASSERT_TRUE(a->SendStroke(Arc(3, i)).ok());
+  for (int i = 5; i < 15; ++i) ASSERT_TRUE(a->SendStroke(PressArc(3, i)).ok());
   ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
   ASSERT_TRUE(wait_equal());
   std::this_thread::sleep_for(milliseconds(200));
   const MeshViewStats st = view.stats();
   EXPECT_GT(st.chunks_received, initial_chunks);
   EXPECT_LT(st.chunks_received - initial_chunks, initial_chunks);  // not everything again
-  EXPECT_EQ(st.max_version, scene_->global_seq());
+  EXPECT_EQ(st.max_version, srv_.scene().global_seq());
   EXPECT_FALSE(st.decode_ms.empty());
   auto assembled = view.Assemble();
   ASSERT_TRUE(assembled.ok()) << assembled.status();
@@ -339,55 +276,43 @@ TEST_F(ReplicaTest, StaleSequenceAfterAServerRestartLoadsTheRegionAnew) {
   Replica rc(*c, {});
   ASSERT_TRUE(rc.Start().ok());
   ASSERT_TRUE(rc.WaitLoaded(1, seconds(20)));
-  for (int i = 0; i < 5; ++i) ASSERT_TRUE(a->SendStroke(Arc(4, i)).ok());
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(a->SendStroke(PressArc(4, i)).ok());
   ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
-  ASSERT_TRUE(rc.WaitForSeq(scene_->global_seq(), seconds(20)));
+  ASSERT_TRUE(rc.WaitForSeq(srv_.scene().global_seq(), seconds(20)));
   c->DropConnection();
-  for (int i = 5; i < 12; ++i) ASSERT_TRUE(a->SendStroke(Arc(4, i)).ok());
+  for (int i = 5; i < 12; ++i) ASSERT_TRUE(a->SendStroke(PressArc(4, i)).ok());
   ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
   a.reset();
   // Restart: a new scene recovers from the same data directory (log replay) on a new port.
-  server_->Stop();
-  io_.stop();
-  io_thread_.join();
-  server_.reset();
-  scene_.reset();
-  io2_ = std::make_unique<server::asio::io_context>();
-  auto scene = server::Scene::Open(config_);
-  ASSERT_TRUE(scene.ok()) << scene.status();
-  scene_ = std::move(scene).value();
-  server_ = std::make_unique<server::Server>(*io2_, config_, *scene_);
-  auto port = server_->Start();
-  ASSERT_TRUE(port.ok());
-  port_ = *port;
-  io_thread_ = std::thread([this] { io2_->run(); });
-  ASSERT_EQ(scene_->global_seq(), 12u * 4);
-  ASSERT_TRUE(c->Connect("127.0.0.1", port_).ok());
+  srv_.Stop();
+  ASSERT_TRUE(srv_.Start());
+  ASSERT_EQ(srv_.scene().global_seq(), 12u * 4);
+  ASSERT_TRUE(c->Connect("127.0.0.1", srv_.port()).ok());
   ASSERT_TRUE(c->Hello("sculpt-dev-viewer", v1::ROLE_VIEWER, "t", c->client_id()).ok());
   ASSERT_TRUE(c->Join().ok());
   ASSERT_TRUE(rc.Resubscribe().ok());  // have_seq 20: older than what the new process vouches for
   ASSERT_TRUE(rc.WaitLoaded(2, seconds(20)));
   ASSERT_TRUE(rc.WaitIdle(seconds(20)));
   const levelset::VoxelBox held = rc.held();
-  EXPECT_EQ(rc.RegionHash(held), scene_->RegionHash("clay", held));
+  EXPECT_EQ(rc.RegionHash(held), srv_.scene().RegionHash("clay", held));
   EXPECT_EQ(rc.stats().hash_mismatches, 0u);
   // A box far outside the object is a valid interest: an empty region, equal to the server's.
   ASSERT_TRUE(rc.MoveInterest(levelset::Aabb{{900, 900, 900}, {910, 910, 910}}).ok());
   ASSERT_TRUE(rc.WaitLoaded(3, seconds(20)));
   ASSERT_TRUE(rc.WaitIdle(seconds(20)));
-  EXPECT_EQ(rc.RegionHash(rc.held()), scene_->RegionHash("clay", rc.held()));
+  EXPECT_EQ(rc.RegionHash(rc.held()), srv_.scene().RegionHash("clay", rc.held()));
 }
 
 // `sculpt export --server --format glb`: the server's current state as a glTF binary whose
 // mesh is Draco-compressed (KHR_draco_mesh_compression), after edits.
 TEST_F(ReplicaTest, ExportFromTheServerAsGlbCarriesDracoCompression) {
   auto a = Joined(v1::ROLE_SCULPTOR, true);
-  for (int i = 0; i < 5; ++i) ASSERT_TRUE(a->SendStroke(Arc(0, i)).ok());
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(a->SendStroke(PressArc(0, i)).ok());
   ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
-  const fs::path out = dir_ / "state.glb";
+  const fs::path out = srv_.dir() / "state.glb";
   const std::string cmd = std::string(SCULPT_BIN_DIR) + "/sculpt export --server 127.0.0.1:" +
-                          std::to_string(port_) + " --token sculpt-dev-viewer --format glb --out " +
-                          out.string() + " > " + (dir_ / "export.log").string() + " 2>&1";
+                          std::to_string(srv_.port()) + " --token sculpt-dev-viewer --format glb --out " +
+                          out.string() + " > " + (srv_.dir() / "export.log").string() + " 2>&1";
   ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
   std::ifstream in(out, std::ios::binary);
   std::stringstream ss;
@@ -403,8 +328,8 @@ TEST_F(ReplicaTest, ExportFromTheServerAsGlbCarriesDracoCompression) {
   EXPECT_NE(bytes.find("KHR_draco_mesh_compression"), std::string::npos);
   // A bad format is refused with a non-zero exit.
   const std::string bad = std::string(SCULPT_BIN_DIR) + "/sculpt export --server 127.0.0.1:" +
-                          std::to_string(port_) + " --format gltfx --out " +
-                          (dir_ / "x.gltfx").string() + " > /dev/null 2>&1";
+                          std::to_string(srv_.port()) + " --format gltfx --out " +
+                          (srv_.dir() / "x.gltfx").string() + " > /dev/null 2>&1";
   EXPECT_NE(std::system(bad.c_str()), 0);
 }
 
