@@ -371,6 +371,15 @@ StatusOr<Sculpture> Sculpture::LoadVdb(const std::string& path) {
       if (auto m = grid->getMetadata<openvdb::DoubleMetadata>("reference_volume")) {
         s.set_reference_volume(m->value());
       }
+      // The incrementally tracked volume, not a recomputation: compensation aims at reference
+      // minus this, so recovery from a snapshot plus the log tail (and a replica loaded from
+      // the file) must start from the very value the live server held.
+      if (auto m = grid->getMetadata<openvdb::DoubleMetadata>("tracked_volume")) {
+        s.impl().volume = m->value();
+      }
+      if (auto m = grid->getMetadata<openvdb::Int64Metadata>("edits_since_reinit")) {
+        s.impl().edits_since_reinit = static_cast<uint64_t>(std::max<int64_t>(0, m->value()));
+      }
       SCULPT_RETURN_IF_ERROR(internal::AdoptMaterialGrids(s.impl(), *grids));
       SCULPT_RETURN_IF_ERROR(ValidateSculptureOptions(
           SculptureOptions{dx, s.half_width(), s.name()}));
@@ -390,6 +399,9 @@ void StampMetadata(openvdb::FloatGrid& grid, const Sculpture::Impl& impl) {
   grid.insertMeta("half_width", openvdb::Int32Metadata(impl.half_width));
   grid.insertMeta("scene_name", openvdb::StringMetadata(impl.name));
   grid.insertMeta("reference_volume", openvdb::DoubleMetadata(impl.reference_volume));
+  grid.insertMeta("tracked_volume", openvdb::DoubleMetadata(impl.volume));
+  grid.insertMeta("edits_since_reinit",
+                  openvdb::Int64Metadata(static_cast<int64_t>(impl.edits_since_reinit)));
 }
 }  // namespace
 
