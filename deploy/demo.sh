@@ -35,6 +35,7 @@ echo "demo: $SCULPTORS simulated sculptors and $VIEWERS viewer(s) for $RUN_SECON
 
 "$BIN/sculpt" export --server "$SERVER" --out "$OUT/sculpture.vdb" > /dev/null
 "$BIN/sculpt" export --server "$SERVER" --out "$OUT/sculpture.ply" > /dev/null
+"$BIN/sculpt" export --server "$SERVER" --format glb --out "$OUT/sculpture.glb" > /dev/null
 "$BIN/sculpt" info --server "$SERVER" > "$OUT/scene.json"
 "$BIN/sculpt" info "$OUT/sculpture.vdb" > "$OUT/summary.json"
 
@@ -47,5 +48,5 @@ field() { grep -o "\"$1\": *[^,}]*" "$OUT/loadgen.json" | head -1 | sed 's/.*: *
 echo "demo: strokes sent $(field strokes_sent), acknowledged $(field strokes_acked), refused $(field strokes_refused)"
 echo "demo: stroke->ack p50 $(field stroke_ack_p50_ms) ms, p99 $(field stroke_ack_p99_ms) ms"
 echo "demo: result: $(cat "$OUT/summary.json")"
-echo "demo: results in $OUT/: sculpture.vdb, sculpture.ply, summary.json, scene.json, loadgen.json, sculptd.log"
+echo "demo: results in $OUT/: sculpture.vdb, sculpture.ply, sculpture.glb, summary.json, scene.json, loadgen.json, sculptd.log"
 echo "demo: the scene persists in $DATA/ (edit log and snapshots); run again to keep sculpting it"
