@@ -13,6 +13,7 @@
 #include "sculpt/codec/frame.h"
 #include "sculpt/codec/stroke.h"
 #include "sculpt/v1/sculpt.pb.h"
+#include "scene/models.h"
 #include "scene/paint.h"
 #include "scene/skins.h"
 
@@ -155,6 +156,7 @@ class Session : public std::enable_shared_from_this<Session> {
       case v1::ClientMessage::kContourSubscribe: return OnContourSubscribe(msg.contour_subscribe());
       case v1::ClientMessage::kSkinSweep: return OnSkinSweep(msg.skin_sweep());
       case v1::ClientMessage::kPaint: return OnPaint(msg.paint());
+      case v1::ClientMessage::kModelIntent: return OnModelIntent(msg.model_intent());
       case v1::ClientMessage::BODY_NOT_SET: break;
     }
     SendError(v1::ERROR_CODE_MALFORMED, "ClientMessage.body", "unknown or empty",
@@ -591,6 +593,47 @@ class Session : public std::enable_shared_from_this<Session> {
     auto self = shared_from_this();
     server_.scene().Paint(client_id_, p, [self](v1::PaintAck a) {
       asio::post(self->socket_.get_executor(), [self, a = std::move(a)] { self->SendPaintAck(a); });
+    });
+  }
+
+  // Hyperpatch model intents (issue 7) are strokes too: joined sculptors, the stroke token
+  // bucket, the fields that need no model checked here; the scene checks the rest.
+  void SendModelAck(const v1::ModelAck& a) {
+    if (closing_) return;
+    if (!a.accepted()) {
+      server_.stats().strokes_refused++;
+      if (a.has_error()) {
+        const v1::Error& e = a.error();
+        SendError(e.code(), e.field(), e.value(), e.allowed_range(), e.message(), 0);
+      }
+    } else if (!a.duplicate()) {
+      server_.stats().strokes_accepted++;
+    }
+    v1::ServerMessage m;
+    *m.mutable_model_ack() = a;
+    Send(m);
+  }
+
+  void OnModelIntent(const v1::ModelIntent& mi) {
+    if (!MaySkinEdit("ModelIntent", mi.client_seq())) return;
+    if (const Status st = ValidateModelIntent(mi); !st.ok()) {
+      const codec::FieldError fe = codec::SplitFieldError(st);
+      v1::ModelAck a;
+      a.set_client_seq(mi.client_seq());
+      v1::Error* e = a.mutable_error();
+      e->set_code(v1::ERROR_CODE_INVALID_ARGUMENT);
+      e->set_field(fe.field);
+      e->set_value(fe.value);
+      e->set_allowed_range(fe.allowed_range);
+      e->set_message(fe.message);
+      e->set_client_seq(mi.client_seq());
+      SendModelAck(a);
+      Violation();
+      return;
+    }
+    auto self = shared_from_this();
+    server_.scene().EditModel(client_id_, mi, [self](v1::ModelAck a) {
+      asio::post(self->socket_.get_executor(), [self, a = std::move(a)] { self->SendModelAck(a); });
     });
   }
 

@@ -10,6 +10,7 @@
 #include "sculpt/codec/frame.h"
 #include "sculpt/codec/settings.h"
 #include "sculpt/core/check.h"
+#include "scene/models.h"
 #include "scene/paint.h"
 #include "scene/skins.h"
 #include "sculpt/hetero/model_io.h"
@@ -120,6 +121,10 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
       SCULPT_ASSIGN_OR_RETURN(v1::PaintRecord p, ParsePaintPayload(rec.seq, rec.payload));
       return p.edit().object();
     }
+    if (IsModelPayload(rec.payload)) {
+      SCULPT_ASSIGN_OR_RETURN(v1::ModelRecord m, ParseModelPayload(rec.seq, rec.payload));
+      return m.intent().object();
+    }
     v1::EditRecord r;
     if (!r.ParseFromString(rec.payload)) {
       return DataLoss("edit log record " + std::to_string(rec.seq) + " does not parse");
@@ -140,6 +145,10 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
     if (IsPaintPayload(rec.payload)) {
       batch.clear();
       return ReplayPaintPayload(s, rec.seq, rec.payload);
+    }
+    if (IsModelPayload(rec.payload)) {
+      batch.clear();
+      return Status::Ok();  // the model's, not the sculpture's (Scene::OpenModels replays it)
     }
     v1::EditRecord r;
     if (!r.ParseFromString(rec.payload)) {
@@ -170,6 +179,7 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   scene->versions_floor_ = rec.last_seq;
   // Resends after a restart are recognised by the newest client sequence of each client.
   Status s = scene->log_->ForEachFrom(0, [&](const store::LogRecord& lr) {
+    if (IsModelPayload(lr.payload)) return Status::Ok();  // OpenModels
     if (IsPaintPayload(lr.payload)) {
       auto p = ParsePaintPayload(lr.seq, lr.payload);
       if (p.ok()) {
@@ -210,6 +220,7 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
            : std::string()) +
       ") in " + std::to_string(NowSeconds() - t0) + " s";
   SCULPT_RETURN_IF_ERROR(scene->OpenSkins());
+  SCULPT_RETURN_IF_ERROR(scene->OpenModels());
   scene->last_snapshot_time_ = NowSeconds();
   {
     std::lock_guard<std::mutex> lock(scene->info_mu_);
@@ -393,6 +404,7 @@ void Scene::MaybeSnapshot(bool force) {
       }
     });
   }
+  SaveModels(seq);
   log_->Roll();
   edits_since_snapshot_ = 0;
   last_snapshot_time_ = NowSeconds();

@@ -34,6 +34,15 @@ class EditLog;
 class SnapshotStore;
 }  // namespace store
 
+/// A scene object's hyperpatch model as the scene holds it (issue 7, models.cc).
+struct ModelSummary {
+  uint64_t version = 0;  // intents accepted since the scene first loaded the model
+  uint64_t hash = 0;     // ModelHash (models.h)
+  size_t cells = 0;
+  size_t coefficients = 0;
+  std::string json;      // hetero::ModelToJson
+};
+
 /// What became of one stroke.
 struct StrokeOutcome {
   Status status;  // not ok: the stroke was refused before anything was logged
@@ -166,6 +175,17 @@ class Scene {
   /// acknowledged as a duplicate and not applied again.
   void Paint(uint64_t client_id, v1::PaintEdit edit, std::function<void(v1::PaintAck)> done);
 
+  /// Edits an object's hyperpatch model (issue 7, models.cc; v1::ModelIntent, fields already
+  /// checked by ValidateModelIntent): corner and cell checked against the model, the intent
+  /// expanded by the library and validity checked after ordering. Refused (reason code, cell,
+  /// direction, span) → `done` at once, nothing logged or changed; accepted → logged (a
+  /// ModelRecord after 0x02, replayed by recovery), applied, `done` once durable. The voxelised
+  /// sculpture is not re-voxelised. A resend is acknowledged as a duplicate.
+  void EditModel(uint64_t client_id, v1::ModelIntent intent,
+                 std::function<void(v1::ModelAck)> done);
+  /// The model of a `model` object (tests, tools). NotFound for an object without one.
+  StatusOr<ModelSummary> ModelInfo(const std::string& object);
+
   /// What recovery found at start-up.
   const std::string& recovery_summary() const { return recovery_summary_; }
 
@@ -201,6 +221,13 @@ class Scene {
   // Paints (paint.cc), compute thread only: the newest paint client_seq of each client, and the
   // leaf deltas of an edit that has no replay form.
   std::map<uint64_t, uint64_t> last_paint_seq_;
+  // Hyperpatch models of `model` objects (models.cc), compute thread only; saved under
+  // data_dir/models at each snapshot, the log replayed past them at start.
+  struct ModelState;
+  std::map<std::string, std::shared_ptr<ModelState>> models_;
+  std::map<uint64_t, uint64_t> last_model_seq_;
+  Status OpenModels();
+  void SaveModels(uint64_t seq);
   void ReplicateLeaves(const std::string& object, const levelset::Sculpture& sculpture,
                        const std::vector<levelset::Int3>& dirty, uint64_t seq, uint64_t client_id,
                        uint64_t client_seq);

@@ -1,0 +1,384 @@
+/// @brief Hyperpatch models as scene objects (issue 7, seed 001 §10.4-10.5): checks off the wire,
+/// the edit-log form recovery replays, the content hash, model files beside snapshots, and the
+/// scene's model path (expand deterministically, check validity after ordering, log, apply, ack
+/// once durable). The Scene's part runs on the compute thread.
+#include "scene/models.h"
+
+#include <fcntl.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <sstream>
+
+#include "scene/scene.h"
+#include "sculpt/codec/stroke.h"
+#include "sculpt/core/check.h"
+#include "sculpt/hetero/model_io.h"
+#include "sculpt/hetero/validity.h"
+#include "store/edit_log.h"
+
+namespace sculpt::server {
+namespace {
+
+// Sweeps take 0x00 (skins.cc), paints 0x01 (paint.cc); no serialised EditRecord starts with
+// any of them (field number 0 is not a valid tag).
+constexpr char kModelMarker = '\x02';
+constexpr size_t kMaxNameBytes = 64;
+constexpr const char* kModelFileHeader = "sculpt-model-state";
+
+Status CheckComponent(const std::string& field, double v) {
+  if (!std::isfinite(v) || std::fabs(v) > hetero::kMaxDisplacement) {
+    return InvalidArgument(field + "=" + FormatNumber(v) + " outside finite [" +
+                           FormatNumber(-hetero::kMaxDisplacement) + ", " +
+                           FormatNumber(hetero::kMaxDisplacement) + "]");
+  }
+  return Status::Ok();
+}
+
+// The library names fields "intent.*"; on the wire they are the message's.
+Status Rename(const Status& s) {
+  std::string m = s.message();
+  if (m.rfind("intent.", 0) == 0) m = "ModelIntent." + m.substr(7);
+  return Status(s.code(), m);
+}
+
+v1::ModelAck Refused(const Status& st, uint64_t client_seq) {
+  const codec::FieldError fe = codec::SplitFieldError(st);
+  v1::ModelAck a;
+  a.set_client_seq(client_seq);
+  a.set_accepted(false);
+  v1::Error* e = a.mutable_error();
+  e->set_code(st.code() == Status::Code::kNotFound             ? v1::ERROR_CODE_NOT_FOUND
+              : st.code() == Status::Code::kInvalidArgument    ? v1::ERROR_CODE_INVALID_ARGUMENT
+              : st.code() == Status::Code::kFailedPrecondition ? v1::ERROR_CODE_FAILED_PRECONDITION
+                                                               : v1::ERROR_CODE_INTERNAL);
+  e->set_field(fe.field);
+  e->set_value(fe.value);
+  e->set_allowed_range(fe.allowed_range);
+  e->set_message(fe.message);
+  e->set_client_seq(client_seq);
+  return a;
+}
+
+template <typename T>
+void Mix(uint64_t* h, const T& v) {
+  unsigned char b[sizeof(T)];
+  std::memcpy(b, &v, sizeof(T));
+  for (unsigned char c : b) {
+    *h ^= c;
+    *h *= 1099511628211ull;
+  }
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Checks off the wire
+
+Status ValidateModelIntent(const v1::ModelIntent& m) {
+  if (m.object().empty() || m.object().size() > kMaxNameBytes) {
+    return InvalidArgument("ModelIntent.object=" + m.object() + " outside names of 1..64 bytes");
+  }
+  if (m.offset_size() != 3) {
+    return InvalidArgument("ModelIntent.offset size=" + std::to_string(m.offset_size()) +
+                           " outside {3}");
+  }
+  for (int a = 0; a < 3; ++a) {
+    if (m.offset(a) < -1 || m.offset(a) > 1) {
+      return InvalidArgument("ModelIntent.offset[" + std::to_string(a) + "]=" +
+                             std::to_string(m.offset(a)) + " outside [-1, 1]");
+    }
+  }
+  SCULPT_RETURN_IF_ERROR(CheckComponent("ModelIntent.displacement_x", m.displacement_x()));
+  SCULPT_RETURN_IF_ERROR(CheckComponent("ModelIntent.displacement_y", m.displacement_y()));
+  SCULPT_RETURN_IF_ERROR(CheckComponent("ModelIntent.displacement_z", m.displacement_z()));
+  if (m.cell() < -1) {
+    return InvalidArgument("ModelIntent.cell=" + std::to_string(m.cell()) +
+                           " outside -1 (none) or a cell index >= 0");
+  }
+  return Status::Ok();
+}
+
+hetero::EditIntent IntentFromMessage(const v1::ModelIntent& m) {
+  hetero::EditIntent i;
+  i.corner = m.corner();
+  for (int a = 0; a < 3 && a < m.offset_size(); ++a) i.offset[static_cast<size_t>(a)] = m.offset(a);
+  i.displacement = {m.displacement_x(), m.displacement_y(), m.displacement_z()};
+  i.cell = m.cell();
+  if (m.set_flags()) i.set_flags = hetero::CornerFlags{m.geometry_c1(), m.material_c1()};
+  return i;
+}
+
+uint64_t ModelHash(const hetero::CompositeModel& model) {
+  uint64_t h = 14695981039346656037ull;
+  Mix(&h, static_cast<int64_t>(model.materials()));
+  Mix(&h, static_cast<uint64_t>(model.coefficient_count()));
+  for (uint32_t c = 0; c < model.coefficient_count(); ++c) {
+    const Vec3& p = model.position(c);
+    Mix(&h, p.x);
+    Mix(&h, p.y);
+    Mix(&h, p.z);
+    for (double a : model.fractions(c)) Mix(&h, a);
+  }
+  Mix(&h, static_cast<uint64_t>(model.cell_count()));
+  for (size_t i = 0; i < model.cell_count(); ++i) {
+    for (uint32_t q : model.cell(static_cast<int>(i)).coef) Mix(&h, q);
+  }
+  for (const auto& [corner, f] : model.all_corner_flags()) {
+    Mix(&h, corner);
+    Mix(&h, static_cast<uint8_t>((f.geometry_c1 ? 1 : 0) | (f.material_c1 ? 2 : 0)));
+  }
+  return h;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Model intents in the edit log; model files beside the snapshots
+
+bool IsModelPayload(const std::string& payload) {
+  return !payload.empty() && payload[0] == kModelMarker;
+}
+
+std::string ModelPayload(const v1::ModelRecord& r) {
+  std::string out(1, kModelMarker);
+  r.AppendToString(&out);
+  return out;
+}
+
+StatusOr<v1::ModelRecord> ParseModelPayload(uint64_t seq, const std::string& payload) {
+  v1::ModelRecord r;
+  if (!IsModelPayload(payload) ||
+      !r.ParseFromArray(payload.data() + 1, static_cast<int>(payload.size() - 1))) {
+    return DataLoss("edit log record " + std::to_string(seq) + " (a model intent) does not parse");
+  }
+  return r;
+}
+
+Status SaveModelFile(const std::string& path, uint64_t seq, uint64_t version,
+                     const hetero::CompositeModel& model) {
+  const std::string text = std::string(kModelFileHeader) + " " + std::to_string(seq) + " " +
+                           std::to_string(version) + "\n" + hetero::ModelToJson(model);
+  const std::string tmp = path + ".tmp";
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return Internal("open " + tmp + ": " + std::strerror(errno));
+  size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      const std::string why = std::strerror(errno);
+      ::close(fd);
+      return Internal("write " + tmp + ": " + why);
+    }
+    done += static_cast<size_t>(n);
+  }
+  if (::fdatasync(fd) != 0 || ::close(fd) != 0) {
+    return Internal("sync " + tmp + ": " + std::strerror(errno));
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) return Internal("rename " + tmp + ": " + ec.message());
+  return Status::Ok();
+}
+
+StatusOr<SavedModel> LoadModelFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return NotFound("model file " + path);
+  std::string header;
+  std::getline(in, header);
+  std::istringstream hs(header);
+  std::string tag;
+  SavedModel out;
+  if (!(hs >> tag >> out.seq >> out.version) || tag != kModelFileHeader) {
+    return DataLoss("model file " + path + ": bad header '" + header + "'");
+  }
+  const std::string body((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  auto m = hetero::ModelFromJson(body);
+  if (!m.ok()) return DataLoss("model file " + path + ": " + m.status().message());
+  out.model = std::move(m).value();
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The scene's model path
+
+struct Scene::ModelState {
+  hetero::CompositeModel model;
+  hetero::ValidityChecker checker;
+  uint64_t version = 0;
+};
+
+namespace {
+std::string ModelFilePath(const std::string& data_dir, const std::string& object) {
+  return (std::filesystem::path(data_dir) / "models" / (object + ".json")).string();
+}
+}  // namespace
+
+Status Scene::OpenModels() {
+  std::map<std::string, uint64_t> from;  // per object: log records after this seq are replayed
+  for (const ObjectConfig& o : config_.scene.objects) {
+    if (o.primitive != "model") continue;
+    auto st = std::make_shared<ModelState>();
+    auto saved = LoadModelFile(ModelFilePath(config_.data_dir, o.name));
+    if (saved.ok()) {
+      st->model = std::move(saved->model);
+      st->version = saved->version;
+      from[o.name] = saved->seq;
+    } else if (saved.status().code() == Status::Code::kNotFound) {
+      auto m = hetero::LoadModel(o.model);
+      if (!m.ok()) {
+        return Status(m.status().code(), "scene.objects " + o.name + ".model=" + o.model + ": " +
+                                             m.status().message());
+      }
+      st->model = std::move(m).value();
+      from[o.name] = 0;
+    } else {
+      return saved.status();
+    }
+    models_[o.name] = std::move(st);
+  }
+  if (models_.empty()) return Status::Ok();
+  // Replay the logged intents the model files do not hold, as the live server applied them.
+  return log_->ForEachFrom(0, [&](const store::LogRecord& lr) -> Status {
+    if (!IsModelPayload(lr.payload)) return Status::Ok();
+    SCULPT_ASSIGN_OR_RETURN(v1::ModelRecord r, ParseModelPayload(lr.seq, lr.payload));
+    uint64_t& last = last_model_seq_[r.client_id()];
+    last = std::max(last, r.intent().client_seq());
+    auto it = models_.find(r.intent().object());
+    if (it == models_.end() || lr.seq <= from[it->first]) return Status::Ok();
+    ModelState& st = *it->second;
+    auto out = hetero::ApplyIntent(&st.model, &st.checker, IntentFromMessage(r.intent()));
+    if (!out.ok() || !out->applied) {
+      spdlog::warn("model intent at seq {} refused on replay: {}", lr.seq,
+                   out.ok() ? out->rejection.ToString() : out.status().ToString());
+      return Status::Ok();
+    }
+    st.version = r.model_version();
+    return Status::Ok();
+  });
+}
+
+void Scene::SaveModels(uint64_t seq) {
+  if (models_.empty()) return;
+  std::error_code ec;
+  std::filesystem::create_directories(std::filesystem::path(config_.data_dir) / "models", ec);
+  for (auto& [name, st] : models_) {
+    // Written before the log rolls, so the segments a snapshot lets go are already covered.
+    if (const Status s = SaveModelFile(ModelFilePath(config_.data_dir, name), seq, st->version,
+                                       st->model);
+        !s.ok()) {
+      spdlog::error("model {} at seq {} not saved: {}", name, seq, s.ToString());
+    }
+  }
+}
+
+StatusOr<ModelSummary> Scene::ModelInfo(const std::string& object) {
+  std::promise<StatusOr<ModelSummary>> p;
+  Post([&] {
+    auto it = models_.find(object);
+    if (it == models_.end()) {
+      p.set_value(NotFound("object " + object + " holds no hyperpatch model"));
+      return;
+    }
+    const ModelState& st = *it->second;
+    ModelSummary s;
+    s.version = st.version;
+    s.hash = ModelHash(st.model);
+    s.cells = st.model.cell_count();
+    s.coefficients = st.model.coefficient_count();
+    s.json = hetero::ModelToJson(st.model);
+    p.set_value(s);
+  });
+  return p.get_future().get();
+}
+
+void Scene::EditModel(uint64_t client_id, v1::ModelIntent m,
+                      std::function<void(v1::ModelAck)> done) {
+  auto cb = std::make_shared<std::function<void(v1::ModelAck)>>(std::move(done));
+  Post([this, client_id, m = std::move(m), cb] {
+    auto it = models_.find(m.object());
+    if (it == models_.end()) {
+      return (*cb)(Refused(NotFound("ModelIntent.object=" + m.object() +
+                                    " outside the scene's model objects"),
+                           m.client_seq()));
+    }
+    ModelState& st = *it->second;
+    uint64_t& last = last_model_seq_[client_id];
+    v1::ModelAck ack;
+    ack.set_client_seq(m.client_seq());
+    uint64_t seq = next_seq_ - 1;
+    if (m.client_seq() <= last) {
+      // Already applied: acknowledged once everything logged so far is durable.
+      ack.set_accepted(true);
+      ack.set_duplicate(true);
+    } else {
+      const hetero::CompositeModel& model = st.model;
+      if (m.corner() >= model.coefficient_count()) {
+        return (*cb)(Refused(InvalidArgument("ModelIntent.corner=" + std::to_string(m.corner()) +
+                                             " outside [0, " +
+                                             std::to_string(model.coefficient_count() - 1) + "]"),
+                             m.client_seq()));
+      }
+      if (m.cell() >= static_cast<int64_t>(model.cell_count())) {
+        return (*cb)(Refused(InvalidArgument("ModelIntent.cell=" + std::to_string(m.cell()) +
+                                             " outside [-1, " +
+                                             std::to_string(model.cell_count() - 1) + "]"),
+                             m.client_seq()));
+      }
+      // Kept to undo an edit the log cannot take (the checker's cache then goes too: the
+      // restored cells' versions would be reissued to other geometry).
+      hetero::CompositeModel before = st.model;
+      // Expanded deterministically and validated after ordering, on the compute thread.
+      auto out = hetero::ApplyIntent(&st.model, &st.checker, IntentFromMessage(m));
+      if (!out.ok()) return (*cb)(Refused(Rename(out.status()), m.client_seq()));
+      if (!out->applied) {
+        const hetero::Rejection& r = out->rejection;
+        ack.set_accepted(false);
+        ack.set_model_version(st.version);
+        ack.set_model_hash(ModelHash(st.model));
+        ack.set_reason(hetero::ReasonName(r.reason));
+        ack.set_cell(r.cell);
+        ack.set_direction(r.direction);
+        ack.set_span(r.span);
+        ack.set_detail(r.ToString());
+        return (*cb)(ack);  // nothing logged, nothing changed
+      }
+      seq = next_seq_++;
+      v1::ModelRecord rec;
+      rec.set_global_seq(seq);
+      rec.set_client_id(client_id);
+      *rec.mutable_intent() = m;
+      rec.set_model_version(st.version + 1);
+      if (const Status a = log_->Append(seq, ModelPayload(rec)); !a.ok()) {
+        spdlog::critical("edit log append failed at seq {}: {}", seq, a.ToString());
+        st.model = std::move(before);
+        st.checker.Clear();
+        return (*cb)(Refused(a, m.client_seq()));
+      }
+      st.version = rec.model_version();
+      applied_seq_ = seq;
+      ++edits_since_snapshot_;
+      last = m.client_seq();
+      ack.set_accepted(true);
+      ack.set_global_seq(seq);
+      ack.set_moved_coefficients(static_cast<uint32_t>(out->moves.size()));
+      std::lock_guard<std::mutex> lock(info_mu_);
+      RefreshInfoLocked();
+    }
+    ack.set_model_version(st.version);
+    ack.set_model_hash(ModelHash(st.model));
+    {
+      // Acknowledged once durable, in order with the strokes.
+      std::lock_guard<std::mutex> lock(pending_mu_);
+      pending_.push_back({seq, StrokeOutcome{}, [cb, ack](const StrokeOutcome&) { (*cb)(ack); }});
+    }
+    ReleaseDurable(log_->durable_seq());
+    MaybeSnapshot();
+  });
+}
+
+}  // namespace sculpt::server

@@ -1,0 +1,53 @@
+/// @brief Hyperpatch models as scene objects (issue 7, seed 001 §8.1, §10.4-10.5): the checks of a
+/// ModelIntent off the wire, its edit-log form (a leading 0x02 byte, then a v1::ModelRecord) that
+/// recovery replays, a content hash, and the model files written beside snapshots. The scene's
+/// model path (Scene::EditModel) lives in models.cc.
+#ifndef SCULPT_SERVER_SCENE_MODELS_H_
+#define SCULPT_SERVER_SCENE_MODELS_H_
+
+#include <cstdint>
+#include <string>
+
+#include "sculpt/core/status.h"
+#include "sculpt/hetero/composite_model.h"
+#include "sculpt/hetero/grid_editor.h"
+#include "sculpt/v1/sculpt.pb.h"
+
+namespace sculpt::server {
+
+/// The fields a ModelIntent carries that need no model: object name 1..64 bytes, exactly 3
+/// offsets each in {-1, 0, 1}, a finite displacement with every component within
+/// ±hetero::kMaxDisplacement, cell >= -1. InvalidArgument "ModelIntent.<field>=<value> outside
+/// <range>". Indices against the model (corner, cell) are checked where the model lives.
+Status ValidateModelIntent(const v1::ModelIntent& intent);
+
+/// The library's intent of a (validated) message.
+hetero::EditIntent IntentFromMessage(const v1::ModelIntent& intent);
+
+/// FNV-1a over the model's content (materials, coefficient positions and fractions bit for bit,
+/// cells' pool indices, corner flags); cell versions are not content and are left out.
+uint64_t ModelHash(const hetero::CompositeModel& model);
+
+/// True for an edit-log payload holding a model intent.
+bool IsModelPayload(const std::string& payload);
+/// The edit-log payload of a model record.
+std::string ModelPayload(const v1::ModelRecord& record);
+/// A logged model intent; DataLoss naming the sequence when it does not parse.
+StatusOr<v1::ModelRecord> ParseModelPayload(uint64_t seq, const std::string& payload);
+
+/// A model as saved beside the snapshots: the edit-log sequence it includes, its version and
+/// the model itself (model_io's JSON).
+struct SavedModel {
+  uint64_t seq = 0;
+  uint64_t version = 0;
+  hetero::CompositeModel model;
+};
+/// Writes `path` atomically (temporary file, fsync, rename). Internal on I/O errors.
+Status SaveModelFile(const std::string& path, uint64_t seq, uint64_t version,
+                     const hetero::CompositeModel& model);
+/// Reads what SaveModelFile wrote; NotFound when absent, DataLoss when it does not parse.
+StatusOr<SavedModel> LoadModelFile(const std::string& path);
+
+}  // namespace sculpt::server
+
+#endif  // SCULPT_SERVER_SCENE_MODELS_H_
