@@ -303,6 +303,32 @@ TEST_F(ReplicaTest, StaleSequenceAfterAServerRestartLoadsTheRegionAnew) {
   EXPECT_EQ(rc.RegionHash(rc.held()), srv_.scene().RegionHash("clay", rc.held()));
 }
 
+// In a scene with materials, a viewer's assembled mesh carries one colour per vertex, each in
+// [0, 1], and the unpainted clay shows material 0's colour.
+TEST(ReplicaColoursTest, AssembledViewerMeshCarriesTheMaterialColours) {
+  testing_support::InProcessServer srv("replica_colours");
+  srv.config().scene.materials = {{"clay", {0.8, 0.5, 0.3}}, {"gold", {1.0, 0.85, 0.1}}};
+  ASSERT_TRUE(srv.Start());
+  auto v = srv.Joined(v1::ROLE_VIEWER, true);
+  MeshView view(*v, "clay");
+  ASSERT_TRUE(view.Subscribe(30).ok());
+  const auto end = std::chrono::steady_clock::now() + seconds(20);
+  while (std::chrono::steady_clock::now() < end && view.ChunkCount() < 10) {
+    std::this_thread::sleep_for(milliseconds(50));
+  }
+  std::this_thread::sleep_for(milliseconds(300));
+  auto m = view.Assemble();
+  ASSERT_TRUE(m.ok()) << m.status();
+  ASSERT_GT(m->vertex_count(), 100u);
+  ASSERT_EQ(m->colours.size(), m->positions.size());
+  for (size_t i = 0; i < m->colours.size(); i += 3) {
+    EXPECT_NEAR(m->colours[i], 0.8f, 0.01f);
+    EXPECT_NEAR(m->colours[i + 1], 0.5f, 0.01f);
+    EXPECT_NEAR(m->colours[i + 2], 0.3f, 0.01f);
+    if (::testing::Test::HasFailure()) break;
+  }
+}
+
 // `sculpt export --server --format glb`: the server's current state as a glTF binary whose
 // mesh is Draco-compressed (KHR_draco_mesh_compression), after edits.
 TEST_F(ReplicaTest, ExportFromTheServerAsGlbCarriesDracoCompression) {

@@ -47,12 +47,20 @@ void MeshView::OnMessage(v1::ServerMessage&& m) {
 StatusOr<mesh::TriangleMesh> MeshView::Assemble() const {
   std::lock_guard<std::mutex> lock(mu_);
   mesh::TriangleMesh out;
+  std::vector<mesh::TriangleMesh> parts;
+  bool coloured = !chunks_.empty();
   for (const auto& [key, c] : chunks_) {
     auto d = mesh::DecodeChunk(c.draco);
     if (!d.ok()) return d.status();
+    coloured = coloured && d->mesh.colours.size() == d->mesh.positions.size();
+    parts.push_back(std::move(d->mesh));
+  }
+  // Colours only when every chunk has them (a scene with materials): one attribute or none.
+  for (const mesh::TriangleMesh& m : parts) {
     const uint32_t base = static_cast<uint32_t>(out.vertex_count());
-    out.positions.insert(out.positions.end(), d->mesh.positions.begin(), d->mesh.positions.end());
-    for (uint32_t i : d->mesh.indices) out.indices.push_back(base + i);
+    out.positions.insert(out.positions.end(), m.positions.begin(), m.positions.end());
+    if (coloured) out.colours.insert(out.colours.end(), m.colours.begin(), m.colours.end());
+    for (uint32_t i : m.indices) out.indices.push_back(base + i);
   }
   return out;
 }

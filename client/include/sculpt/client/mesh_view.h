@@ -33,7 +33,8 @@ class MeshView {
   MeshView& operator=(const MeshView&) = delete;
 
   Status Subscribe(double max_rate_hz = 0);
-  /// Every chunk decoded and concatenated (vertices not welded across chunks).
+  /// Every chunk decoded and concatenated (vertices not welded across chunks), with per-vertex
+  /// colours when every chunk carries them.
   StatusOr<mesh::TriangleMesh> Assemble() const;
   /// Faces over all chunks, from the chunk headers (no decode).
   uint64_t FaceCount() const;
