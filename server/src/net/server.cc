@@ -536,7 +536,7 @@ class Session : public std::enable_shared_from_this<Session> {
   void OnSkinBallEdit(const v1::SkinBallEdit& e) {
     if (!MaySkinEdit("SkinBallEdit", e.client_seq())) return;
     if (const Status st = ValidateSkinBallEdit(e); !st.ok()) return RefuseSkin(st, e.client_seq());
-    server_.scene().EditSkin(e, PostSkinAck());
+    server_.scene().EditSkin(client_id_, e, PostSkinAck());
   }
 
   void OnSkinSweep(const v1::SkinSweep& s) {

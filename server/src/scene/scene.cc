@@ -115,8 +115,16 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
     }
     return NotFound("object " + name);
   };
-  auto route = [](const store::LogRecord& rec) -> StatusOr<std::string> {
+  auto route = [&sc](const store::LogRecord& rec) -> StatusOr<std::string> {
     if (IsSweepPayload(rec.payload)) return SweepPayloadObject(rec.seq, rec.payload);
+    if (IsSkinEditPayload(rec.payload)) {
+      // A ball edit changes no object (Scene::OpenSkins replays it); any object lets it pass.
+      if (sc.objects.empty()) {
+        return FailedPrecondition("edit log record seq " + std::to_string(rec.seq) +
+                                  " (a ball edit) in a scene without objects");
+      }
+      return sc.objects.front().name;
+    }
     if (IsPaintPayload(rec.payload)) {
       SCULPT_ASSIGN_OR_RETURN(v1::PaintRecord p, ParsePaintPayload(rec.seq, rec.payload));
       return p.edit().object();
@@ -150,6 +158,10 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
       batch.clear();
       return Status::Ok();  // the model's, not the sculpture's (Scene::OpenModels replays it)
     }
+    if (IsSkinEditPayload(rec.payload)) {
+      batch.clear();
+      return Status::Ok();  // the skin's, not the sculpture's (Scene::OpenSkins replays it)
+    }
     v1::EditRecord r;
     if (!r.ParseFromString(rec.payload)) {
       return DataLoss("edit log record " + std::to_string(rec.seq) + " does not parse");
@@ -180,6 +192,7 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   // Resends after a restart are recognised by the newest client sequence of each client.
   Status s = scene->log_->ForEachFrom(0, [&](const store::LogRecord& lr) {
     if (IsModelPayload(lr.payload)) return Status::Ok();  // OpenModels
+    if (IsSkinEditPayload(lr.payload) || IsSweepPayload(lr.payload)) return Status::Ok();  // OpenSkins
     if (IsPaintPayload(lr.payload)) {
       auto p = ParsePaintPayload(lr.seq, lr.payload);
       if (p.ok()) {
@@ -405,6 +418,7 @@ void Scene::MaybeSnapshot(bool force) {
     });
   }
   SaveModels(seq);
+  SaveSkins(seq);
   log_->Roll();
   edits_since_snapshot_ = 0;
   last_snapshot_time_ = NowSeconds();

@@ -155,10 +155,14 @@ class Scene {
 
   /// Ball skins (issue 6, skins.cc). A ball edit (v1::SkinBallEdit, fields already checked by
   /// ValidateSkinBallEdit) rebuilds at most two sections and sends contour subscribers of the
-  /// skin an update with only those; `done` gets the SkinAck (refusals carry the Error).
-  void EditSkin(v1::SkinBallEdit edit, std::function<void(v1::SkinAck)> done);
+  /// skin an update with only those; logged (a SkinEditRecord after 0x03, replayed by
+  /// recovery); `done` gets the SkinAck once durable (refusals carry the Error, at once). A
+  /// resend (client_seq not above the client's last ball edit) is acknowledged as a duplicate
+  /// and not applied again.
+  void EditSkin(uint64_t client_id, v1::SkinBallEdit edit, std::function<void(v1::SkinAck)> done);
   /// Sweeps a skin's outline into an object: logged (a SkinSweepRecord, replayed by recovery),
-  /// applied, replicated as leaf deltas; `done` once durable.
+  /// applied, replicated as leaf deltas; `done` once durable. A resend (client_seq not above
+  /// the client's last sweep) is acknowledged as a duplicate and not applied again.
   void SweepSkin(uint64_t client_id, v1::SkinSweep sweep, std::function<void(v1::SkinAck)> done);
   /// A skin's contours (a snapshot now, then updates) or an object's slice (now and after each
   /// edit of the object) to `sink`. NotFound / InvalidArgument naming the field.
@@ -213,9 +217,14 @@ class Scene {
                  const std::vector<v1::EditRecord>& records, const std::string& source,
                  const levelset::ReplayState& before,
                  const levelset::EditFootprint& footprint, const levelset::EditResult& result);
-  // Ball skins and contour subscriptions (skins.cc), compute thread only.
+  // Ball skins and contour subscriptions (skins.cc), compute thread only; saved under
+  // data_dir/skins at each snapshot, the logged ball edits replayed past them at start. The
+  // newest ball-edit and sweep client_seq of each client tell resends apart.
   struct SkinState;
   Status OpenSkins();
+  void SaveSkins(uint64_t seq);
+  std::map<uint64_t, uint64_t> last_skin_seq_;
+  std::map<uint64_t, uint64_t> last_sweep_seq_;
   void SendSlices(const std::string& object);
   std::shared_ptr<SkinState> skins_;
   // Paints (paint.cc), compute thread only: the newest paint client_seq of each client, and the

@@ -1,12 +1,21 @@
 /// @brief The scene's ball skins (issue 6): ball edits that rebuild only the changed sections,
-/// contour subscribers (skins and slices of objects), and sweeps of a skin into a sculpture,
-/// logged so that recovery replays them. Everything on the Scene runs on the compute thread.
+/// contour subscribers (skins and slices of objects), and sweeps of a skin into a sculpture.
+/// Ball edits and sweeps are logged so that recovery replays them; skins are saved beside each
+/// snapshot so that the log segments it lets go are not needed. Everything on the Scene runs on
+/// the compute thread.
 #include "scene/skins.h"
 
+#include <fcntl.h>
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <future>
+#include <iterator>
 
 #include "scene/scene.h"
 #include "sculpt/codec/frame.h"
@@ -19,8 +28,10 @@
 namespace sculpt::server {
 namespace {
 
-// No serialised EditRecord starts with a zero byte (field number 0 is not a valid tag).
+// No serialised EditRecord starts with a zero byte (field number 0 is not a valid tag); paints
+// take 0x01 (paint.cc), model intents 0x02 (models.cc), ball edits 0x03.
 constexpr char kSweepMarker = '\0';
+constexpr char kSkinEditMarker = '\x03';
 constexpr size_t kMaxNameBytes = 64;
 // Slices are quantised to an eighth of their sample spacing.
 constexpr double kSliceQuantumPerStep = 1.0 / 8;
@@ -73,6 +84,50 @@ std::vector<skin::Polyline2> ToPolylines(const std::vector<std::vector<levelset:
     for (const levelset::PlanePoint& q : line) p.push_back({q.x, q.y});
   }
   return out;
+}
+
+// The scene's check of a ball edit's index against the skin it edits (the live path and
+// recovery alike).
+Status CheckBallIndex(const skin::Skin& sk, const v1::SkinBallEdit& e) {
+  const size_t n = sk.balls().size();
+  const size_t i = e.index();
+  const bool add = e.op() == v1::SKIN_BALL_OP_ADD;
+  if (add ? i > n : i >= n) {
+    return InvalidArgument("SkinBallEdit.index=" + std::to_string(i) + " outside [0, " +
+                           std::to_string(add ? n : n - 1) + "]");
+  }
+  if (add && n >= kMaxSkinBalls) {
+    return InvalidArgument("SkinBallEdit.op=ADD outside skins of at most " +
+                           std::to_string(kMaxSkinBalls) + " balls");
+  }
+  return Status::Ok();
+}
+
+// Applies a ball edit whose index passed CheckBallIndex; the skin names an inadmissible pair.
+StatusOr<skin::SkinChange> ApplyBallEdit(skin::Skin& sk, const v1::SkinBallEdit& e) {
+  const size_t i = e.index();
+  const v1::SkinBall& b = e.ball();
+  switch (e.op()) {
+    case v1::SKIN_BALL_OP_ADD:
+      return sk.InsertBall(i, {{b.x(), b.y()}, b.r(), b.theta()});
+    case v1::SKIN_BALL_OP_MOVE: {
+      skin::OrientedBall o = sk.balls()[i];
+      o.c = {b.x(), b.y()};
+      o.r = b.r();
+      return sk.SetBall(i, o);
+    }
+    case v1::SKIN_BALL_OP_ORIENT: {
+      skin::OrientedBall o = sk.balls()[i];
+      o.theta = b.theta();
+      return sk.SetBall(i, o);
+    }
+    default:
+      return sk.RemoveBall(i);
+  }
+}
+
+std::string SkinFilePath(const std::string& data_dir, const std::string& name) {
+  return (std::filesystem::path(data_dir) / "skins" / (name + ".pb")).string();
 }
 
 }  // namespace
@@ -222,6 +277,65 @@ Status ReplaySweepPayload(levelset::Sculpture& sculpture, uint64_t seq, const st
 }
 
 // ---------------------------------------------------------------------------------------------
+// Ball edits in the edit log; skin files beside the snapshots
+
+bool IsSkinEditPayload(const std::string& payload) {
+  return !payload.empty() && payload[0] == kSkinEditMarker;
+}
+
+std::string SkinEditPayload(const v1::SkinEditRecord& r) {
+  std::string out(1, kSkinEditMarker);
+  r.AppendToString(&out);
+  return out;
+}
+
+StatusOr<v1::SkinEditRecord> ParseSkinEditPayload(uint64_t seq, const std::string& payload) {
+  v1::SkinEditRecord r;
+  if (!IsSkinEditPayload(payload) ||
+      !r.ParseFromArray(payload.data() + 1, static_cast<int>(payload.size() - 1))) {
+    return DataLoss("edit log record " + std::to_string(seq) + " (a ball edit) does not parse");
+  }
+  return r;
+}
+
+Status SaveSkinFile(const std::string& path, const v1::SavedSkin& saved) {
+  const std::string bytes = saved.SerializeAsString();
+  const std::string tmp = path + ".tmp";
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return Internal("open " + tmp + ": " + std::strerror(errno));
+  size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      const std::string why = std::strerror(errno);
+      ::close(fd);
+      return Internal("write " + tmp + ": " + why);
+    }
+    done += static_cast<size_t>(n);
+  }
+  if (::fdatasync(fd) != 0) {
+    const std::string why = std::strerror(errno);
+    ::close(fd);
+    return Internal("sync " + tmp + ": " + why);
+  }
+  if (::close(fd) != 0) return Internal("close " + tmp + ": " + std::strerror(errno));
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) return Internal("rename " + tmp + ": " + ec.message());
+  return Status::Ok();
+}
+
+StatusOr<v1::SavedSkin> LoadSkinFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return NotFound("skin file " + path);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  v1::SavedSkin saved;
+  if (!saved.ParseFromString(bytes)) return DataLoss("skin file " + path + " does not parse");
+  return saved;
+}
+
+// ---------------------------------------------------------------------------------------------
 // The scene's skins
 
 struct Scene::SkinState {
@@ -241,9 +355,21 @@ struct Scene::SkinState {
 
 Status Scene::OpenSkins() {
   skins_ = std::make_shared<SkinState>();
+  std::map<std::string, uint64_t> from;  // per skin: log records after this seq are replayed
   for (const SkinConfig& c : config_.scene.skins) {
     std::vector<skin::OrientedBall> balls;
-    for (const auto& b : c.balls) balls.push_back({{b[0], b[1]}, b[2], b[3]});
+    uint64_t version = 0;
+    auto saved = LoadSkinFile(SkinFilePath(config_.data_dir, c.name));
+    if (saved.ok()) {
+      for (const v1::SkinBall& b : saved->balls()) balls.push_back({{b.x(), b.y()}, b.r(), b.theta()});
+      version = saved->version();
+      from[c.name] = saved->seq();
+    } else if (saved.status().code() == Status::Code::kNotFound) {
+      for (const auto& b : c.balls) balls.push_back({{b[0], b[1]}, b[2], b[3]});
+      from[c.name] = 0;
+    } else {
+      return saved.status();
+    }
     skin::SkinOptions opt;
     SCULPT_ASSIGN_OR_RETURN(opt.method, skin::ParseMethod(c.method));
     opt.chord_tolerance = c.chord_tolerance;
@@ -252,14 +378,66 @@ Status Scene::OpenSkins() {
       return InvalidArgument("scene.skins " + c.name + ": " + built.status().message());
     }
     skins_->skins.emplace(
-        c.name, SkinState::Entry{{c.origin, c.u, c.v}, std::move(built).value(), 0, {}});
+        c.name, SkinState::Entry{{c.origin, c.u, c.v}, std::move(built).value(), version, {}});
   }
-  return Status::Ok();
+  // Replay the logged ball edits the skin files do not hold, as the live server applied them,
+  // and learn each client's newest ball edit and sweep so that resends are recognised.
+  return log_->ForEachFrom(0, [&](const store::LogRecord& lr) -> Status {
+    if (IsSweepPayload(lr.payload)) {
+      SCULPT_ASSIGN_OR_RETURN(v1::SkinSweepRecord r, ParseSweep(lr.seq, lr.payload));
+      uint64_t& last = last_sweep_seq_[r.client_id()];
+      last = std::max(last, r.client_seq());
+      return Status::Ok();
+    }
+    if (!IsSkinEditPayload(lr.payload)) return Status::Ok();
+    SCULPT_ASSIGN_OR_RETURN(v1::SkinEditRecord r, ParseSkinEditPayload(lr.seq, lr.payload));
+    uint64_t& last = last_skin_seq_[r.client_id()];
+    last = std::max(last, r.edit().client_seq());
+    auto it = skins_->skins.find(r.edit().skin());
+    if (it == skins_->skins.end()) {
+      spdlog::warn("ball edit at seq {} names skin {}, which the scene does not define", lr.seq,
+                   r.edit().skin());
+      return Status::Ok();
+    }
+    if (lr.seq <= from[it->first]) return Status::Ok();
+    SkinState::Entry& entry = it->second;
+    Status st = CheckBallIndex(entry.skin, r.edit());
+    if (st.ok()) st = ApplyBallEdit(entry.skin, r.edit()).status();
+    if (!st.ok()) {
+      spdlog::warn("ball edit at seq {} refused on replay: {}", lr.seq, st.ToString());
+      return Status::Ok();
+    }
+    entry.version = r.skin_version();
+    return Status::Ok();
+  });
 }
 
-void Scene::EditSkin(v1::SkinBallEdit e, std::function<void(v1::SkinAck)> done) {
+void Scene::SaveSkins(uint64_t seq) {
+  if (skins_ == nullptr || skins_->skins.empty()) return;
+  std::error_code ec;
+  std::filesystem::create_directories(std::filesystem::path(config_.data_dir) / "skins", ec);
+  for (const auto& [name, entry] : skins_->skins) {
+    v1::SavedSkin saved;
+    saved.set_seq(seq);
+    saved.set_version(entry.version);
+    for (const skin::OrientedBall& o : entry.skin.balls()) {
+      v1::SkinBall* b = saved.add_balls();
+      b->set_x(o.c.x);
+      b->set_y(o.c.y);
+      b->set_r(o.r);
+      b->set_theta(o.theta);
+    }
+    // Written before the log rolls, so the segments a snapshot lets go are already covered.
+    if (const Status s = SaveSkinFile(SkinFilePath(config_.data_dir, name), saved); !s.ok()) {
+      spdlog::error("skin {} at seq {} not saved: {}", name, seq, s.ToString());
+    }
+  }
+}
+
+void Scene::EditSkin(uint64_t client_id, v1::SkinBallEdit e,
+                     std::function<void(v1::SkinAck)> done) {
   auto cb = std::make_shared<std::function<void(v1::SkinAck)>>(std::move(done));
-  Post([this, e = std::move(e), cb] {
+  Post([this, client_id, e = std::move(e), cb] {
     auto it = skins_->skins.find(e.skin());
     if (it == skins_->skins.end()) {
       return (*cb)(Refused(NotFound("SkinBallEdit.skin=" + e.skin() + " outside the scene's skins"),
@@ -267,42 +445,27 @@ void Scene::EditSkin(v1::SkinBallEdit e, std::function<void(v1::SkinAck)> done) 
     }
     SkinState::Entry& entry = it->second;
     skin::Skin& sk = entry.skin;
-    const size_t n = sk.balls().size();
+    uint64_t& last = last_skin_seq_[client_id];
+    if (e.client_seq() <= last) {
+      // Already applied: acknowledged once everything logged so far is durable, never re-applied.
+      v1::SkinAck a;
+      a.set_client_seq(e.client_seq());
+      a.set_accepted(true);
+      a.set_duplicate(true);
+      a.set_balls(static_cast<uint32_t>(sk.balls().size()));
+      {
+        std::lock_guard<std::mutex> lock(pending_mu_);
+        pending_.push_back({next_seq_ - 1, StrokeOutcome{}, [cb, a](const StrokeOutcome&) { (*cb)(a); }});
+      }
+      ReleaseDurable(log_->durable_seq());
+      return;
+    }
+    if (const Status st = CheckBallIndex(sk, e); !st.ok()) return (*cb)(Refused(st, e.client_seq()));
     const size_t i = e.index();
-    const bool add = e.op() == v1::SKIN_BALL_OP_ADD;
-    if (add ? i > n : i >= n) {
-      return (*cb)(Refused(InvalidArgument("SkinBallEdit.index=" + std::to_string(i) +
-                                           " outside [0, " + std::to_string(add ? n : n - 1) + "]"),
-                           e.client_seq()));
-    }
-    if (add && n >= kMaxSkinBalls) {
-      return (*cb)(Refused(InvalidArgument("SkinBallEdit.op=ADD outside skins of at most " +
-                                           std::to_string(kMaxSkinBalls) + " balls"),
-                           e.client_seq()));
-    }
     const v1::SkinBall& b = e.ball();
-    StatusOr<skin::SkinChange> change = skin::SkinChange{};
-    switch (e.op()) {
-      case v1::SKIN_BALL_OP_ADD:
-        change = sk.InsertBall(i, {{b.x(), b.y()}, b.r(), b.theta()});
-        break;
-      case v1::SKIN_BALL_OP_MOVE: {
-        skin::OrientedBall o = sk.balls()[i];
-        o.c = {b.x(), b.y()};
-        o.r = b.r();
-        change = sk.SetBall(i, o);
-        break;
-      }
-      case v1::SKIN_BALL_OP_ORIENT: {
-        skin::OrientedBall o = sk.balls()[i];
-        o.theta = b.theta();
-        change = sk.SetBall(i, o);
-        break;
-      }
-      default:
-        change = sk.RemoveBall(i);
-        break;
-    }
+    // Kept to undo an edit the log cannot take.
+    skin::Skin before = sk;
+    StatusOr<skin::SkinChange> change = ApplyBallEdit(sk, e);
     if (!change.ok()) {
       // The skin names the inadmissible pair (digest Def 2.6); the wire error names the ball.
       v1::SkinAck a = Refused(change.status(), e.client_seq());
@@ -316,7 +479,21 @@ void Scene::EditSkin(v1::SkinBallEdit e, std::function<void(v1::SkinAck)> done) 
           "no nested, concentric or coincident pair), at least 2 balls");
       return (*cb)(a);
     }
-    ++entry.version;
+    const uint64_t seq = next_seq_++;
+    v1::SkinEditRecord rec;
+    rec.set_global_seq(seq);
+    rec.set_client_id(client_id);
+    *rec.mutable_edit() = e;
+    rec.set_skin_version(entry.version + 1);
+    if (const Status a = log_->Append(seq, SkinEditPayload(rec)); !a.ok()) {
+      spdlog::critical("edit log append failed at seq {}: {}", seq, a.ToString());
+      sk = std::move(before);
+      return (*cb)(Refused(a, e.client_seq()));
+    }
+    entry.version = rec.skin_version();
+    applied_seq_ = seq;
+    ++edits_since_snapshot_;
+    last = e.client_seq();
     if (!entry.subs.empty()) {
       auto bytes = skin::EncodeSkinUpdate(sk, *change);
       if (!bytes.ok()) {
@@ -337,7 +514,18 @@ void Scene::EditSkin(v1::SkinBallEdit e, std::function<void(v1::SkinAck)> done) 
     a.set_accepted(true);
     a.set_changed_sections(static_cast<uint32_t>(change->changed.size()));
     a.set_balls(static_cast<uint32_t>(sk.balls().size()));
-    (*cb)(a);
+    a.set_global_seq(seq);
+    {
+      std::lock_guard<std::mutex> lock(info_mu_);
+      RefreshInfoLocked();
+    }
+    {
+      // Acknowledged once durable, in order with the strokes.
+      std::lock_guard<std::mutex> lock(pending_mu_);
+      pending_.push_back({seq, StrokeOutcome{}, [cb, a](const StrokeOutcome&) { (*cb)(a); }});
+    }
+    ReleaseDurable(log_->durable_seq());
+    MaybeSnapshot();
   });
 }
 
@@ -354,6 +542,21 @@ void Scene::SweepSkin(uint64_t client_id, v1::SkinSweep s, std::function<void(v1
       return (*cb)(Refused(
           NotFound("SkinSweep.object=" + s.object() + " outside the scene's objects"),
           s.client_seq()));
+    }
+    uint64_t& last = last_sweep_seq_[client_id];
+    if (s.client_seq() <= last) {
+      // Already logged and applied: acknowledged once everything logged so far is durable.
+      v1::SkinAck ack;
+      ack.set_client_seq(s.client_seq());
+      ack.set_accepted(true);
+      ack.set_duplicate(true);
+      {
+        std::lock_guard<std::mutex> lock(pending_mu_);
+        pending_.push_back(
+            {next_seq_ - 1, StrokeOutcome{}, [cb, ack](const StrokeOutcome&) { (*cb)(ack); }});
+      }
+      ReleaseDurable(log_->durable_seq());
+      return;
     }
     levelset::Sculpture& sculpture = obj->second;
     const SkinState::Entry& entry = it->second;
@@ -388,6 +591,7 @@ void Scene::SweepSkin(uint64_t client_id, v1::SkinSweep s, std::function<void(v1
       spdlog::critical("edit log append failed at seq {}: {}", seq, a.ToString());
       return (*cb)(Refused(a, s.client_seq()));
     }
+    last = s.client_seq();
     auto res = levelset::ApplySweep(sculpture, *req);
     applied_seq_ = seq;
     ++edits_since_snapshot_;

@@ -1,6 +1,7 @@
-/// @brief Ball skins on the server (issue 6): checks of the skin messages off the wire, and the
-/// edit-log form of sweeps (a leading zero byte, then a v1::SkinSweepRecord) that recovery
-/// replays.
+/// @brief Ball skins on the server (issue 6): checks of the skin messages off the wire, the
+/// edit-log forms of sweeps (a leading zero byte, then a v1::SkinSweepRecord) and of ball edits
+/// (a leading 0x03 byte, then a v1::SkinEditRecord) that recovery replays, and the skin files
+/// written beside snapshots.
 #ifndef SCULPT_SERVER_SCENE_SKINS_H_
 #define SCULPT_SERVER_SCENE_SKINS_H_
 
@@ -36,6 +37,19 @@ StatusOr<levelset::SweepRequest> SweepFromRecord(const v1::SkinSweepRecord& reco
 /// Recovery: applies a logged sweep as the live server did. DataLoss when it does not parse; a
 /// sweep the kernel refuses is refused identically (Ok, nothing applied), as live.
 Status ReplaySweepPayload(levelset::Sculpture& sculpture, uint64_t seq, const std::string& payload);
+
+/// True for an edit-log payload holding a ball edit.
+bool IsSkinEditPayload(const std::string& payload);
+/// The edit-log payload of a ball-edit record (a leading 0x03 byte, then the record).
+std::string SkinEditPayload(const v1::SkinEditRecord& record);
+/// A logged ball edit; DataLoss naming the sequence when it does not parse.
+StatusOr<v1::SkinEditRecord> ParseSkinEditPayload(uint64_t seq, const std::string& payload);
+
+/// Writes a skin's state to `path` atomically (temporary file, fsync, rename). Internal on I/O
+/// errors.
+Status SaveSkinFile(const std::string& path, const v1::SavedSkin& saved);
+/// Reads what SaveSkinFile wrote; NotFound when absent, DataLoss when it does not parse.
+StatusOr<v1::SavedSkin> LoadSkinFile(const std::string& path);
 
 }  // namespace sculpt::server
 
