@@ -436,6 +436,20 @@ TEST_F(SkinServerTest, BallEditsSurviveRestartsAndResendsApplyOnce) {
     // Rebuilt from the saved balls: the same geometry (section ids are the rebuild's own).
     ExpectSameContours(f2.View(kSkin), saved_view, /*ids=*/false);
     ExpectViewMatches(f2.View(kSkin));
+    // B's resend is still recognised with no log record left to show it: the file keeps it.
+    ClientOptions options;
+    options.timeout = seconds(10);
+    Client again(options);
+    ASSERT_TRUE(again.Connect("127.0.0.1", port_).ok());
+    ASSERT_TRUE(again.Hello("sculpt-dev-sculptor", v1::ROLE_SCULPTOR, "t", b_id).ok());
+    ASSERT_TRUE(again.Join().ok());
+    SkinClient sagain(again);
+    ASSERT_TRUE(again.SendMessage(resend).ok());
+    auto dup3 = sagain.WaitAck(*add_seq, seconds(10));
+    ASSERT_TRUE(dup3.ok()) << dup3.status();
+    EXPECT_TRUE(dup3->duplicate());
+    EXPECT_EQ(scene_->SkinCopy(kSkin)->balls().size(), 5u);
+    again.Close();
     v2->Close();
   }
 }

@@ -364,6 +364,12 @@ Status Scene::OpenSkins() {
       for (const v1::SkinBall& b : saved->balls()) balls.push_back({{b.x(), b.y()}, b.r(), b.theta()});
       version = saved->version();
       from[c.name] = saved->seq();
+      for (const auto& [id, seq] : saved->last_edit_seq()) {
+        last_skin_seq_[id] = std::max(last_skin_seq_[id], seq);
+      }
+      for (const auto& [id, seq] : saved->last_sweep_seq()) {
+        last_sweep_seq_[id] = std::max(last_sweep_seq_[id], seq);
+      }
     } else if (saved.status().code() == Status::Code::kNotFound) {
       for (const auto& b : c.balls) balls.push_back({{b[0], b[1]}, b[2], b[3]});
       from[c.name] = 0;
@@ -420,6 +426,12 @@ void Scene::SaveSkins(uint64_t seq) {
     v1::SavedSkin saved;
     saved.set_seq(seq);
     saved.set_version(entry.version);
+    for (const auto& [id, last] : last_skin_seq_) {
+      if (last > 0) (*saved.mutable_last_edit_seq())[id] = last;
+    }
+    for (const auto& [id, last] : last_sweep_seq_) {
+      if (last > 0) (*saved.mutable_last_sweep_seq())[id] = last;
+    }
     for (const skin::OrientedBall& o : entry.skin.balls()) {
       v1::SkinBall* b = saved.add_balls();
       b->set_x(o.c.x);
