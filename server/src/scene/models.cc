@@ -15,6 +15,7 @@
 #include <future>
 #include <sstream>
 
+#include "scene/log_payload.h"
 #include "scene/scene.h"
 #include "sculpt/codec/stroke.h"
 #include "sculpt/core/check.h"
@@ -27,7 +28,6 @@ namespace {
 
 // Sweeps take 0x00 (skins.cc), paints 0x01 (paint.cc); no serialised EditRecord starts with
 // any of them (field number 0 is not a valid tag).
-constexpr char kModelMarker = '\x02';
 constexpr size_t kMaxNameBytes = 64;
 constexpr const char* kModelFileHeader = "sculpt-model-state";
 
@@ -139,23 +139,12 @@ uint64_t ModelHash(const hetero::CompositeModel& model) {
 // ---------------------------------------------------------------------------------------------
 // Model intents in the edit log; model files beside the snapshots
 
-bool IsModelPayload(const std::string& payload) {
-  return !payload.empty() && payload[0] == kModelMarker;
-}
+bool IsModelPayload(const std::string& payload) { return HasLogTag(payload, LogTag::kModel); }
 
-std::string ModelPayload(const v1::ModelRecord& r) {
-  std::string out(1, kModelMarker);
-  r.AppendToString(&out);
-  return out;
-}
+std::string ModelPayload(const v1::ModelRecord& r) { return TaggedPayload(LogTag::kModel, r); }
 
 StatusOr<v1::ModelRecord> ParseModelPayload(uint64_t seq, const std::string& payload) {
-  v1::ModelRecord r;
-  if (!IsModelPayload(payload) ||
-      !r.ParseFromArray(payload.data() + 1, static_cast<int>(payload.size() - 1))) {
-    return DataLoss("edit log record " + std::to_string(seq) + " (a model intent) does not parse");
-  }
-  return r;
+  return ParseTaggedPayload<v1::ModelRecord>(LogTag::kModel, seq, payload, "a model intent");
 }
 
 Status SaveModelFile(const std::string& path, uint64_t seq, uint64_t version,

@@ -7,6 +7,7 @@
 
 #include <cmath>
 
+#include "scene/log_payload.h"
 #include "scene/scene.h"
 #include "sculpt/codec/frame.h"
 #include "sculpt/core/check.h"
@@ -18,7 +19,6 @@ namespace {
 
 // A serialised EditRecord never starts with 0x00 or 0x01 (field number 0 is not a valid tag);
 // sweeps take 0x00 (skins.cc).
-constexpr char kPaintMarker = '\x01';
 constexpr size_t kMaxNameBytes = 64;
 
 Vec3 V(const v1::Vec3f& v) { return {v.x(), v.y(), v.z()}; }
@@ -118,23 +118,12 @@ StatusOr<levelset::MaterialEditResult> ApplyPaint(levelset::Sculpture& sculpture
 // ---------------------------------------------------------------------------------------------
 // Paints in the edit log
 
-bool IsPaintPayload(const std::string& payload) {
-  return !payload.empty() && payload[0] == kPaintMarker;
-}
+bool IsPaintPayload(const std::string& payload) { return HasLogTag(payload, LogTag::kPaint); }
 
-std::string PaintPayload(const v1::PaintRecord& r) {
-  std::string out(1, kPaintMarker);
-  r.AppendToString(&out);
-  return out;
-}
+std::string PaintPayload(const v1::PaintRecord& r) { return TaggedPayload(LogTag::kPaint, r); }
 
 StatusOr<v1::PaintRecord> ParsePaintPayload(uint64_t seq, const std::string& payload) {
-  v1::PaintRecord r;
-  if (!IsPaintPayload(payload) ||
-      !r.ParseFromArray(payload.data() + 1, static_cast<int>(payload.size() - 1))) {
-    return DataLoss("edit log record " + std::to_string(seq) + " (a paint) does not parse");
-  }
-  return r;
+  return ParseTaggedPayload<v1::PaintRecord>(LogTag::kPaint, seq, payload, "a paint");
 }
 
 Status ReplayPaintPayload(levelset::Sculpture& sculpture, uint64_t seq,

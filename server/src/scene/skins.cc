@@ -17,6 +17,7 @@
 #include <future>
 #include <iterator>
 
+#include "scene/log_payload.h"
 #include "scene/scene.h"
 #include "sculpt/codec/frame.h"
 #include "sculpt/codec/stroke.h"
@@ -30,8 +31,6 @@ namespace {
 
 // No serialised EditRecord starts with a zero byte (field number 0 is not a valid tag); paints
 // take 0x01 (paint.cc), model intents 0x02 (models.cc), ball edits 0x03.
-constexpr char kSweepMarker = '\0';
-constexpr char kSkinEditMarker = '\x03';
 constexpr size_t kMaxNameBytes = 64;
 // Slices are quantised to an eighth of their sample spacing.
 constexpr double kSliceQuantumPerStep = 1.0 / 8;
@@ -210,24 +209,13 @@ Status ValidateContourSubscribe(const v1::ContourSubscribe& c) {
 // ---------------------------------------------------------------------------------------------
 // Sweeps in the edit log
 
-bool IsSweepPayload(const std::string& payload) {
-  return !payload.empty() && payload[0] == kSweepMarker;
-}
+bool IsSweepPayload(const std::string& payload) { return HasLogTag(payload, LogTag::kSweep); }
 
-std::string SweepPayload(const v1::SkinSweepRecord& r) {
-  std::string out(1, kSweepMarker);
-  r.AppendToString(&out);
-  return out;
-}
+std::string SweepPayload(const v1::SkinSweepRecord& r) { return TaggedPayload(LogTag::kSweep, r); }
 
 namespace {
 StatusOr<v1::SkinSweepRecord> ParseSweep(uint64_t seq, const std::string& payload) {
-  v1::SkinSweepRecord r;
-  if (!IsSweepPayload(payload) || !r.ParseFromArray(payload.data() + 1,
-                                                     static_cast<int>(payload.size() - 1))) {
-    return DataLoss("edit log record " + std::to_string(seq) + " (a sweep) does not parse");
-  }
-  return r;
+  return ParseTaggedPayload<v1::SkinSweepRecord>(LogTag::kSweep, seq, payload, "a sweep");
 }
 }  // namespace
 
@@ -280,22 +268,15 @@ Status ReplaySweepPayload(levelset::Sculpture& sculpture, uint64_t seq, const st
 // Ball edits in the edit log; skin files beside the snapshots
 
 bool IsSkinEditPayload(const std::string& payload) {
-  return !payload.empty() && payload[0] == kSkinEditMarker;
+  return HasLogTag(payload, LogTag::kSkinEdit);
 }
 
 std::string SkinEditPayload(const v1::SkinEditRecord& r) {
-  std::string out(1, kSkinEditMarker);
-  r.AppendToString(&out);
-  return out;
+  return TaggedPayload(LogTag::kSkinEdit, r);
 }
 
 StatusOr<v1::SkinEditRecord> ParseSkinEditPayload(uint64_t seq, const std::string& payload) {
-  v1::SkinEditRecord r;
-  if (!IsSkinEditPayload(payload) ||
-      !r.ParseFromArray(payload.data() + 1, static_cast<int>(payload.size() - 1))) {
-    return DataLoss("edit log record " + std::to_string(seq) + " (a ball edit) does not parse");
-  }
-  return r;
+  return ParseTaggedPayload<v1::SkinEditRecord>(LogTag::kSkinEdit, seq, payload, "a ball edit");
 }
 
 Status SaveSkinFile(const std::string& path, const v1::SavedSkin& saved) {
