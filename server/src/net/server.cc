@@ -43,6 +43,23 @@ uint32_t ColorFor(uint64_t id) {
 
 }  // namespace
 
+namespace {
+
+// A refusal as a wire Error: the Status's field, value, allowed range and message.
+v1::Error ErrorOf(const Status& st, v1::ErrorCode code, uint64_t client_seq) {
+  const codec::FieldError fe = codec::SplitFieldError(st);
+  v1::Error e;
+  e.set_code(code);
+  e.set_field(fe.field);
+  e.set_value(fe.value);
+  e.set_allowed_range(fe.allowed_range);
+  e.set_message(fe.message);
+  e.set_client_seq(client_seq);
+  return e;
+}
+
+}  // namespace
+
 /// One client connection. Every member is touched only on the socket's strand, except the
 /// presence fields (presence_mu_).
 class Session : public std::enable_shared_from_this<Session> {
@@ -512,16 +529,9 @@ class Session : public std::enable_shared_from_this<Session> {
   }
 
   void RefuseSkin(const Status& st, uint64_t seq) {
-    const codec::FieldError fe = codec::SplitFieldError(st);
     v1::SkinAck a;
     a.set_client_seq(seq);
-    v1::Error* e = a.mutable_error();
-    e->set_code(v1::ERROR_CODE_INVALID_ARGUMENT);
-    e->set_field(fe.field);
-    e->set_value(fe.value);
-    e->set_allowed_range(fe.allowed_range);
-    e->set_message(fe.message);
-    e->set_client_seq(seq);
+    *a.mutable_error() = ErrorOf(st, v1::ERROR_CODE_INVALID_ARGUMENT, seq);
     SendSkinAck(a);
     Violation();
   }
@@ -565,16 +575,9 @@ class Session : public std::enable_shared_from_this<Session> {
   void OnPaint(const v1::PaintEdit& p) {
     if (!MaySkinEdit("PaintEdit", p.client_seq())) return;
     auto refuse = [&](const Status& st, v1::ErrorCode code) {
-      const codec::FieldError fe = codec::SplitFieldError(st);
       v1::PaintAck a;
       a.set_client_seq(p.client_seq());
-      v1::Error* e = a.mutable_error();
-      e->set_code(code);
-      e->set_field(fe.field);
-      e->set_value(fe.value);
-      e->set_allowed_range(fe.allowed_range);
-      e->set_message(fe.message);
-      e->set_client_seq(p.client_seq());
+      *a.mutable_error() = ErrorOf(st, code, p.client_seq());
       SendPaintAck(a);
       Violation();
     };
@@ -617,16 +620,9 @@ class Session : public std::enable_shared_from_this<Session> {
   void OnModelIntent(const v1::ModelIntent& mi) {
     if (!MaySkinEdit("ModelIntent", mi.client_seq())) return;
     if (const Status st = ValidateModelIntent(mi); !st.ok()) {
-      const codec::FieldError fe = codec::SplitFieldError(st);
       v1::ModelAck a;
       a.set_client_seq(mi.client_seq());
-      v1::Error* e = a.mutable_error();
-      e->set_code(v1::ERROR_CODE_INVALID_ARGUMENT);
-      e->set_field(fe.field);
-      e->set_value(fe.value);
-      e->set_allowed_range(fe.allowed_range);
-      e->set_message(fe.message);
-      e->set_client_seq(mi.client_seq());
+      *a.mutable_error() = ErrorOf(st, v1::ERROR_CODE_INVALID_ARGUMENT, mi.client_seq());
       SendModelAck(a);
       Violation();
       return;
