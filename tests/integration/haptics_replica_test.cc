@@ -21,9 +21,7 @@
 #include <utility>
 #include <vector>
 
-#include "config/server_config.h"
-#include "net/server.h"
-#include "scene/scene.h"
+#include "integration/in_process_server.h"
 #include "sculpt/client/client.h"
 #include "sculpt/client/replica.h"
 #include "sculpt/haptics/haptic_loop.h"
@@ -41,46 +39,17 @@ using std::chrono::seconds;
 class HapticsReplicaTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("sculpt_haptics_replica_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    config_.data_dir = (dir_ / "data").string();
-    config_.listen = "127.0.0.1:0";
     // Without compensation a cut leaves the surface exactly where the tool put it, so "no
     // material under the tool" is a fact of geometry rather than of how far the shell moved.
-    config_.scene.effects.volume_preservation = "none";
-    auto scene = server::Scene::Open(config_);
-    ASSERT_TRUE(scene.ok()) << scene.status();
-    scene_ = std::move(scene).value();
-    server_ = std::make_unique<server::Server>(io_, config_, *scene_);
-    auto port = server_->Start();
-    ASSERT_TRUE(port.ok()) << port.status();
-    port_ = *port;
-    io_thread_ = std::thread([this] { io_.run(); });
-  }
-
-  void TearDown() override {
-    if (server_) server_->Stop();
-    io_.stop();
-    if (io_thread_.joinable()) io_thread_.join();
-    server_.reset();
-    scene_.reset();
-    fs::remove_all(dir_);
+    srv_.config().scene.effects.volume_preservation = "none";
+    ASSERT_TRUE(srv_.Start());
+    scene_ = &srv_.scene();
+    port_ = srv_.port();
+    dir_ = srv_.dir();
   }
 
   std::unique_ptr<Client> Joined(bool skip_state) {
-    ClientOptions options;
-    options.timeout = seconds(10);
-    options.skip_state = skip_state;
-    auto c = std::make_unique<Client>(options);
-    EXPECT_TRUE(c->Connect("127.0.0.1", port_).ok());
-    auto w = c->Hello("sculpt-dev-sculptor", v1::ROLE_SCULPTOR, "t", 0);
-    EXPECT_TRUE(w.ok()) << w.status();
-    auto j = c->Join();
-    EXPECT_TRUE(j.ok()) << j.status();
-    return c;
+    return srv_.Joined(v1::ROLE_SCULPTOR, skip_state);
   }
 
   // Runs the `sculpt` binary; returns its exit code, stdout in `out`, stderr in `out`.err
@@ -213,13 +182,10 @@ class HapticsReplicaTest : public ::testing::Test {
     EXPECT_EQ(replica.stats().hash_mismatches, 0u);
   }
 
-  fs::path dir_;
-  server::ServerConfig config_;
-  server::asio::io_context io_;
-  std::unique_ptr<server::Scene> scene_;
-  std::unique_ptr<server::Server> server_;
-  std::thread io_thread_;
+  testing_support::InProcessServer srv_{"haptics_replica"};
+  server::Scene* scene_ = nullptr;
   uint16_t port_ = 0;
+  fs::path dir_;
 };
 
 TEST_F(HapticsReplicaTest, ProxyForceDecaysWithoutSpikeWhenAnotherClientCutsTheMaterialAway) {
@@ -269,7 +235,7 @@ TEST_F(HapticsReplicaTest, PlayHapticsJsonPrintsLoopAndForceStatistics) {
       RunSculpt("play " + server + " --haptics --stiffness 100 --damping 0.001", dir_ / "bad.json"),
       2);
   std::string text;
-  for (const std::string path :
+  for (const std::string& path :
        {(dir_ / "bad.json").string(), (dir_ / "bad.json").string() + ".err"}) {
     std::ifstream in(path);
     text.append(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
