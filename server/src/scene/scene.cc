@@ -380,7 +380,7 @@ void Scene::ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, Stroke
   }
   ReleaseDurable(log_->durable_seq());
   MaybeSnapshot();
-  if (out.edits > 0) SendSlices(stroke.object);
+  if (out.edits > 0) SendSlices(stroke.object, out.last.dirty_leaves);
 }
 
 void Scene::ReleaseDurable(uint64_t durable_seq) {

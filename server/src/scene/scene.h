@@ -225,7 +225,8 @@ class Scene {
   void SaveSkins(uint64_t seq);
   std::map<uint64_t, uint64_t> last_skin_seq_;
   std::map<uint64_t, uint64_t> last_sweep_seq_;
-  void SendSlices(const std::string& object);
+  // Re-sends the object's slices whose plane crosses the leaves an edit changed.
+  void SendSlices(const std::string& object, const std::vector<levelset::Int3>& changed);
   std::shared_ptr<SkinState> skins_;
   // Paints (paint.cc), compute thread only: the newest paint client_seq of each client, and the
   // leaf deltas of an edit that has no replay form.

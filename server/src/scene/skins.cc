@@ -617,9 +617,52 @@ void Scene::SweepSkin(uint64_t client_id, v1::SkinSweep s, std::function<void(v1
     }
     ReleaseDurable(log_->durable_seq());
     MaybeSnapshot();
-    SendSlices(s.object());
+    if (res.ok()) SendSlices(s.object(), res->dirty_leaves);
   });
 }
+
+namespace {
+
+// Sends one subscriber its slice, from contours already computed.
+void SendSlice(const std::string& object, const ReplicaSink& sink, double step,
+               const std::vector<std::vector<levelset::PlanePoint>>& lines, uint64_t seq) {
+  auto bytes = skin::EncodeContours(ToPolylines(lines), step * kSliceQuantumPerStep);
+  if (!bytes.ok()) {
+    spdlog::warn("slice of {}: not encoded: {}", object, bytes.status().ToString());
+    return;
+  }
+  v1::ServerMessage m;
+  v1::ContourUpdate* u = m.mutable_contour();
+  u->set_object(object);
+  u->set_data(std::move(bytes).value());
+  u->set_sections(static_cast<uint32_t>(lines.size()));
+  u->set_global_seq(seq);
+  sink.send(Frame(m));
+}
+
+// True when the slice's plane passes through the world box of the changed leaves (the slice
+// cannot have changed otherwise).
+bool PlaneCrosses(const levelset::SweepPlane& plane, const std::vector<levelset::Int3>& leaves,
+                  double dx) {
+  if (leaves.empty()) return false;
+  Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  for (const levelset::Int3& l : leaves) {
+    lo = {std::min(lo.x, l.x * dx), std::min(lo.y, l.y * dx), std::min(lo.z, l.z * dx)};
+    hi = {std::max(hi.x, (l.x + 8) * dx), std::max(hi.y, (l.y + 8) * dx),
+          std::max(hi.z, (l.z + 8) * dx)};
+  }
+  const Vec3 n = plane.u.Cross(plane.v);
+  bool below = false, above = false;
+  for (int c = 0; c < 8; ++c) {
+    const Vec3 p{(c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z};
+    const double d = n.Dot(p - plane.origin);
+    below = below || d <= 0;
+    above = above || d >= 0;
+  }
+  return below && above;
+}
+
+}  // namespace
 
 void Scene::SubscribeContours(ReplicaSink sink, v1::ContourSubscribe req,
                               std::function<void(Status)> done) {
@@ -665,31 +708,19 @@ void Scene::SubscribeContours(ReplicaSink sink, v1::ContourSubscribe req,
     auto lines = levelset::SliceContours(sculptures_.at(s.object()), sub.request);
     if (!lines.ok()) return (*cb)(lines.status());
     (*cb)(Status::Ok());
+    SendSlice(s.object(), sub.sink, sub.request.step, *lines, applied_seq_.load());
     skins_->slices[s.object()][session] = std::move(sub);
-    SendSlices(s.object());
   });
 }
 
-void Scene::SendSlices(const std::string& object) {
+void Scene::SendSlices(const std::string& object, const std::vector<levelset::Int3>& changed) {
   auto it = skins_->slices.find(object);
   if (it == skins_->slices.end() || it->second.empty()) return;
   const levelset::Sculpture& sculpture = sculptures_.at(object);
   for (auto& [session, sub] : it->second) {
+    if (!PlaneCrosses(sub.request.plane, changed, sculpture.voxel_size())) continue;
     auto lines = levelset::SliceContours(sculpture, sub.request);
-    if (!lines.ok()) continue;
-    auto bytes =
-        skin::EncodeContours(ToPolylines(*lines), sub.request.step * kSliceQuantumPerStep);
-    if (!bytes.ok()) {
-      spdlog::warn("slice of {}: not encoded: {}", object, bytes.status().ToString());
-      continue;
-    }
-    v1::ServerMessage m;
-    v1::ContourUpdate* u = m.mutable_contour();
-    u->set_object(object);
-    u->set_data(std::move(bytes).value());
-    u->set_sections(static_cast<uint32_t>(lines->size()));
-    u->set_global_seq(applied_seq_.load());
-    sub.sink.send(Frame(m));
+    if (lines.ok()) SendSlice(object, sub.sink, sub.request.step, *lines, applied_seq_.load());
   }
 }
 
