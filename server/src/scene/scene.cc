@@ -202,7 +202,9 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
       return Status::Ok();
     }
     v1::EditRecord r;
-    if (r.ParseFromString(lr.payload)) {
+    // Only a complete stroke makes a resend a duplicate (logs written before strokes were
+    // grouped may end in part of one).
+    if (r.ParseFromString(lr.payload) && r.pose_index() + 1 >= r.pose_count()) {
       uint64_t& last = scene->last_client_seq_[r.client_id()];
       last = std::max(last, r.client_seq());
     }
@@ -333,25 +335,26 @@ void Scene::ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, Stroke
       }
     }
     out.global_seq_first = next_seq_;
-    std::string payload;
+    std::vector<std::string> payloads(records.size());
     std::vector<levelset::EditRequest> batch;
     batch.reserve(records.size());
-    for (v1::EditRecord& r : records) {
-      const uint64_t seq = next_seq_++;
-      r.set_global_seq(seq);
+    for (size_t i = 0; i < records.size(); ++i) {
+      v1::EditRecord& r = records[i];
+      r.set_global_seq(next_seq_ + i);
       r.set_pose_count(static_cast<uint32_t>(records.size()));
-      payload.clear();
-      r.SerializeToString(&payload);
-      const Status a = log_->Append(seq, payload);
-      if (!a.ok()) {
-        // The log is poisoned (I/O error): nothing more can be acknowledged honestly.
-        spdlog::critical("edit log append failed at seq {}: {}", seq, a.ToString());
-        out.status = a;
-        done(out);
-        return;
-      }
+      r.SerializeToString(&payloads[i]);
       batch.push_back(codec::EditFromRecord(r));
     }
+    // The poses go to the log as one group: recovery sees the whole stroke or none of it, so
+    // a crash between two poses cannot leave part of a stroke applied and its resend refused.
+    const Status a = log_->AppendGroup(next_seq_, payloads);
+    if (!a.ok()) {
+      spdlog::critical("edit log append failed at seq {}: {}", next_seq_, a.ToString());
+      out.status = a;
+      done(out);
+      return;
+    }
+    next_seq_ += records.size();
     // The stroke's poses as one batch: one block, one compensation, one reinitialisation.
     const levelset::ReplayState before = levelset::CaptureReplayState(sculpture);
     const levelset::EditFootprint footprint = levelset::FootprintOf(sculpture, batch, settings_);

@@ -4,6 +4,7 @@
 #include <fcntl.h>
 #include <spdlog/spdlog.h>
 #include <sys/stat.h>
+#include <limits.h>
 #include <sys/uio.h>
 #include <unistd.h>
 
@@ -99,7 +100,7 @@ std::string CorruptMessage(const std::string& path, uint64_t offset, const std::
 
 Status WriteFully(int fd, iovec* iov, int count, const std::string& path) {
   while (count > 0) {
-    const ssize_t n = ::writev(fd, iov, count);
+    const ssize_t n = ::writev(fd, iov, std::min(count, IOV_MAX));
     if (n < 0) {
       if (errno == EINTR) continue;
       return Errno("writing", path);
@@ -278,7 +279,41 @@ Status EditLog::Scan(RecoveryReport* report) {
                                          std::to_string(prev) + " (a segment is missing)"));
     }
 
+    // What the file holds up to the end of the last complete group: a tear inside a group
+    // cuts back to here, so recovery never sees part of a group.
+    struct Committed {
+      uint64_t offset = kSegmentHeaderBytes;
+      uint64_t prev = 0;
+      uint64_t records = 0;
+      uint64_t first_seq = 0;
+      uint64_t seg_last = 0;
+    } committed{kSegmentHeaderBytes, prev, report->records, report->first_seq, 0};
+    bool group_open = false;
     uint64_t offset = kSegmentHeaderBytes;
+    // Cuts the file back to the last complete group (only the last segment can be torn).
+    auto cut = [&](const std::string& reason) -> Status {
+      const uint64_t dropped = size - committed.offset;
+      spdlog::warn(
+          "edit log {}: dropping {} bytes at offset {} after seq {}: {} (a write cut short by a "
+          "crash; it was never acknowledged)",
+          path, dropped, committed.offset, committed.prev, reason);
+      report->dropped_tail_bytes += dropped;
+      report->dropped_tail_file = path;
+      report->dropped_tail_reason = reason;
+      prev = committed.prev;
+      report->records = committed.records;
+      report->first_seq = committed.first_seq;
+      seg.last_seq = committed.seg_last;
+      offset = committed.offset;
+      // Cut the torn bytes off before anything is appended: new records written after them
+      // would turn a harmless torn tail into corruption in the middle of the log.
+      const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
+      if (fd < 0) return Errno("opening", path);
+      const bool ok = ::ftruncate(fd, static_cast<off_t>(offset)) == 0 && ::fsync(fd) == 0;
+      Status s = ok ? Status::Ok() : Errno("truncating", path);
+      ::close(fd);
+      return s;
+    };
     while (offset < size) {
       const uint64_t remaining = size - offset;
       std::string torn;  // the record runs past the end of the file
@@ -286,11 +321,14 @@ Status EditLog::Scan(RecoveryReport* report) {
       bool crc_mismatch = false;
       uint64_t seq = 0;
       uint32_t len = 0;
+      bool continues = false;
       if (remaining < kRecordHeaderBytes) {
         torn = "truncated record header (" + std::to_string(remaining) + " of " +
                std::to_string(kRecordHeaderBytes) + " bytes)";
       } else {
-        len = GetU32(data + offset);
+        const uint32_t field = GetU32(data + offset);
+        continues = (field & kGroupContinues) != 0;
+        len = field & ~kGroupContinues;
         seq = GetU64(data + offset + 8);
         if (len > kMaxRecordPayload) {
           bad = "bad length " + std::to_string(len) + " (max " + std::to_string(kMaxRecordPayload) +
@@ -320,21 +358,8 @@ Status EditLog::Scan(RecoveryReport* report) {
         const std::string reason = !torn.empty() ? torn
                                    : ends_file   ? bad + " in the final record"
                                                  : "zero-filled tail (blocks never written)";
-        spdlog::warn(
-            "edit log {}: dropping {} bytes at offset {} after seq {}: {} (a write cut "
-            "short by a crash; it was never acknowledged)",
-            path, remaining, offset, prev, reason);
-        report->dropped_tail_bytes += remaining;
-        report->dropped_tail_file = path;
-        report->dropped_tail_reason = reason;
-        // Cut the torn bytes off before anything is appended: new records written after them
-        // would turn a harmless torn tail into corruption in the middle of the log.
-        const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
-        if (fd < 0) return Errno("opening", path);
-        const bool ok = ::ftruncate(fd, static_cast<off_t>(offset)) == 0 && ::fsync(fd) == 0;
-        Status s = ok ? Status::Ok() : Errno("truncating", path);
-        ::close(fd);
-        SCULPT_RETURN_IF_ERROR(s);
+        SCULPT_RETURN_IF_ERROR(cut(reason));
+        group_open = false;
         break;
       }
       if (seq <= prev) {
@@ -354,6 +379,20 @@ Status EditLog::Scan(RecoveryReport* report) {
       if (report->first_seq == 0) report->first_seq = seq;
       ++report->records;
       offset += kRecordHeaderBytes + len;
+      group_open = continues;
+      if (!group_open) committed = {offset, prev, report->records, report->first_seq, seq};
+    }
+    if (group_open) {
+      // Every record is whole but the group's last one is missing: a crash between two of
+      // its records. A group never spans segments, so elsewhere this is damage.
+      if (!last) {
+        return DataLoss(CorruptMessage(path, committed.offset, "group after seq " +
+                                           std::to_string(committed.prev),
+                                       "the segment ends inside a group of records"));
+      }
+      SCULPT_RETURN_IF_ERROR(cut("incomplete group of records (seq " +
+                                             std::to_string(committed.prev + 1) + ".." +
+                                             std::to_string(prev) + " of a larger edit)"));
     }
     seg.bytes = offset;
 
@@ -519,36 +558,60 @@ Status EditLog::StartSegment(uint64_t first_seq) {
 }
 
 Status EditLog::Append(uint64_t seq, std::string_view payload) {
+  return AppendRecords(seq, &payload, 1);
+}
+
+Status EditLog::AppendGroup(uint64_t first_seq, const std::vector<std::string>& payloads) {
+  if (payloads.empty()) {
+    return InvalidArgument("edit log group at seq=" + std::to_string(first_seq) +
+                           " holds no records (allowed [1, ...])");
+  }
+  std::vector<std::string_view> views(payloads.begin(), payloads.end());
+  return AppendRecords(first_seq, views.data(), views.size());
+}
+
+Status EditLog::AppendRecords(uint64_t first_seq, const std::string_view* payloads,
+                              size_t count) {
   if (is_poisoned_.load()) {
     std::lock_guard<std::mutex> lock(file_mu_);
     return poisoned_;
   }
   const uint64_t last = written_seq_.load();
-  if (seq <= last) {
-    return FailedPrecondition("edit log append seq=" + std::to_string(seq) +
+  if (first_seq <= last) {
+    return FailedPrecondition("edit log append seq=" + std::to_string(first_seq) +
                               " must exceed the last seq " + std::to_string(last));
   }
-  if (payload.size() > kMaxRecordPayload) {
-    return InvalidArgument("edit log payload size=" + std::to_string(payload.size()) +
-                           " outside [0, " + std::to_string(kMaxRecordPayload) + "] bytes");
+  uint64_t group_bytes = 0;
+  for (size_t i = 0; i < count; ++i) {
+    if (payloads[i].size() > kMaxRecordPayload) {
+      return InvalidArgument("edit log payload size=" + std::to_string(payloads[i].size()) +
+                             " outside [0, " + std::to_string(kMaxRecordPayload) + "] bytes");
+    }
+    group_bytes += kRecordHeaderBytes + payloads[i].size();
   }
-  const uint64_t record_bytes = kRecordHeaderBytes + payload.size();
+  // A group stays in one segment, so a torn group is always at the end of the last one.
   if (fd_ < 0 || (active_last_seq_ != 0 &&
-                  (roll_requested_ || active_bytes_ + record_bytes > options_.segment_bytes))) {
-    SCULPT_RETURN_IF_ERROR(StartSegment(seq));
+                  (roll_requested_ || active_bytes_ + group_bytes > options_.segment_bytes))) {
+    SCULPT_RETURN_IF_ERROR(StartSegment(first_seq));
   }
 
-  std::array<uint8_t, kRecordHeaderBytes> header;
-  PutU32(header.data(), static_cast<uint32_t>(payload.size()));
-  PutU64(header.data() + 8, seq);
-  PutU32(header.data() + 4, RecordCrc(header.data() + 8, payload.data(), payload.size()));
-  // Header and payload leave in one writev: no copy of the payload, and a crash tears at most
-  // this one record, which the scan at Open recognises as a torn tail.
-  iovec iov[2] = {{header.data(), header.size()},
-                  {const_cast<char*>(payload.data()), payload.size()}};
-  Status s = WriteFully(fd_, iov, 2, active_path_);
+  std::vector<std::array<uint8_t, kRecordHeaderBytes>> headers(count);
+  std::vector<iovec> iov;
+  iov.reserve(2 * count);
+  for (size_t i = 0; i < count; ++i) {
+    uint8_t* h = headers[i].data();
+    const uint32_t flags = i + 1 < count ? kGroupContinues : 0;
+    PutU32(h, static_cast<uint32_t>(payloads[i].size()) | flags);
+    PutU64(h + 8, first_seq + i);
+    PutU32(h + 4, RecordCrc(h + 8, payloads[i].data(), payloads[i].size()));
+    iov.push_back({h, kRecordHeaderBytes});
+    iov.push_back({const_cast<char*>(payloads[i].data()), payloads[i].size()});
+  }
+  // Headers and payloads leave in one writev (several past IOV_MAX): no copy of the payloads,
+  // and a crash tears at most this group, which the scan at Open cuts off whole.
+  Status s = WriteFully(fd_, iov.data(), static_cast<int>(iov.size()), active_path_);
   if (!s.ok()) {
-    // Remove a partial record (e.g. ENOSPC mid-write) so the next record does not follow
+    // Remove a partial group (e.g. ENOSPC mid-write) so the next record does not follow
     // garbage; if even that fails the file can no longer be trusted.
     if (::ftruncate(fd_, static_cast<off_t>(active_bytes_)) != 0) {
       std::lock_guard<std::mutex> lock(file_mu_);
@@ -556,9 +619,10 @@ Status EditLog::Append(uint64_t seq, std::string_view payload) {
     }
     return s;
   }
-  active_bytes_ += record_bytes;
-  active_last_seq_ = seq;
-  written_seq_.store(seq);
+  const uint64_t last_seq = first_seq + count - 1;
+  active_bytes_ += group_bytes;
+  active_last_seq_ = last_seq;
+  written_seq_.store(last_seq);
 
   if (options_.fsync.mode == FsyncPolicy::Mode::kAlways) return Sync();
   if (!wake_pending_.exchange(true)) {
@@ -670,7 +734,8 @@ Status EditLog::ForEachFrom(uint64_t after_seq,
     while (offset < seg.bytes) {
       // Verified at Open; checked again because the file is read again.
       const uint64_t remaining = seg.bytes - offset;
-      const uint32_t len = remaining >= kRecordHeaderBytes ? GetU32(data + offset) : 0;
+      const uint32_t len =
+          remaining >= kRecordHeaderBytes ? GetU32(data + offset) & ~kGroupContinues : 0;
       const uint64_t seq = remaining >= kRecordHeaderBytes ? GetU64(data + offset + 8) : 0;
       if (remaining < kRecordHeaderBytes || len > remaining - kRecordHeaderBytes ||
           GetU32(data + offset + 4) !=

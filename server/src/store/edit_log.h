@@ -58,6 +58,9 @@ inline constexpr uint32_t kMaxRecordPayload = 16u << 20;
 /// Sizes of the segment header and of the header before each record's payload.
 inline constexpr uint64_t kSegmentHeaderBytes = 32;
 inline constexpr uint64_t kRecordHeaderBytes = 16;
+/// Set in a record's length field when the next record belongs to the same group (an edit
+/// logged as several records, e.g. a stroke's poses): recovery sees a group whole or not at all.
+inline constexpr uint32_t kGroupContinues = 1u << 31;
 
 struct EditLogOptions {
   FsyncPolicy fsync;
@@ -103,6 +106,8 @@ struct LogRecord {
 ///                             u64 base seq | u32 reserved (0) | u32 CRC32C of the 28 bytes before
 ///   then records:             u32 payload length | u32 CRC32C(u64 seq bytes + payload) | u64 seq |
 ///                             payload
+/// The length's top bit (kGroupContinues) says the next record belongs to the same group; the
+/// CRC covers seq and payload only. A group never spans two segments.
 /// `base seq` is the last seq written before the segment began: the segments chain (each base
 /// equals the previous segment's last seq), so a missing segment is detected, and the first
 /// segment's base says from where on the log is complete.
@@ -138,6 +143,11 @@ class EditLog {
   /// FailedPrecondition if seq <= last_seq(); InvalidArgument for a payload over
   /// kMaxRecordPayload; Internal for an I/O error, after which every call fails (see Sync).
   Status Append(uint64_t seq, std::string_view payload);
+
+  /// Appends payloads[i] at seq first_seq + i as one group, in one write() call: start-up
+  /// recovers all of the group or none of it (a group cut short by a crash is a torn tail and is
+  /// cut off whole). Durability and errors as Append; InvalidArgument for an empty group.
+  Status AppendGroup(uint64_t first_seq, const std::vector<std::string>& payloads);
 
   /// fdatasyncs now and advances durable_seq() to every record written so far. A failed
   /// fdatasync poisons the log: the kernel may have dropped the unwritten pages, so neither a
@@ -193,6 +203,7 @@ class EditLog {
   EditLog(std::string dir, const EditLogOptions& options);
   Status Scan(RecoveryReport* report);
   Status StartSegment(uint64_t first_seq);
+  Status AppendRecords(uint64_t first_seq, const std::string_view* payloads, size_t count);
   /// fdatasync of the active file; caller holds file_mu_. Returns the seq now durable.
   StatusOr<uint64_t> SyncLocked();
   Status Poison(Status status);

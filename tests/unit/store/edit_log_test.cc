@@ -186,6 +186,74 @@ TEST_F(EditLogTest, OnDiskFormatMatchesTheDocumentation) {
   EXPECT_EQ(check.checksum(), 0xE3069283u);
 }
 
+TEST_F(EditLogTest, GroupRoundTripsWithTheContinuationFlag) {
+  {
+    auto log = OpenOrDie(Always());
+    ASSERT_TRUE(log->Append(1, "a").ok());
+    ASSERT_TRUE(log->AppendGroup(2, {"b", "cc", "ddd"}).ok());
+    EXPECT_EQ(log->last_seq(), 4u);
+    EXPECT_EQ(log->durable_seq(), 4u);
+    EXPECT_EQ(log->AppendGroup(4, {"x"}).code(), Status::Code::kFailedPrecondition);
+    EXPECT_EQ(log->AppendGroup(5, {}).code(), Status::Code::kInvalidArgument);
+  }
+  const std::string bytes = ReadFile(OnlySegment());
+  const uint64_t second = kSegmentHeaderBytes + kRecordHeaderBytes + 1;
+  EXPECT_EQ(LoadU32(bytes, second), 1u | kGroupContinues);
+  RecoveryReport report;
+  auto log = OpenOrDie(Group(), &report);
+  EXPECT_EQ(report.records, 4u);
+  EXPECT_EQ(report.dropped_tail_bytes, 0u);
+  auto records = log->ReadFrom(0);
+  ASSERT_TRUE(records.ok()) << records.status();
+  ASSERT_EQ(records->size(), 4u);
+  EXPECT_EQ((*records)[3].seq, 4u);
+  EXPECT_EQ((*records)[3].payload, "ddd");
+}
+
+TEST_F(EditLogTest, DropsAGroupCutBetweenTwoOfItsRecords) {
+  {
+    auto log = OpenOrDie(Always());
+    for (uint64_t seq = 1; seq <= 3; ++seq) ASSERT_TRUE(log->Append(seq, Payload(seq)).ok());
+    ASSERT_TRUE(log->AppendGroup(4, {Payload(4), Payload(5), Payload(6), Payload(7)}).ok());
+  }
+  const std::string path = OnlySegment();
+  for (uint64_t cut : {OffsetOf(6), OffsetOf(6) + 5, OffsetOf(7) + 3}) {
+    const std::string whole = ReadFile(path);
+    fs::resize_file(path, cut);
+    RecoveryReport report;
+    {
+      auto log = OpenOrDie(Group(), &report);
+      ASSERT_NE(log, nullptr);
+      EXPECT_EQ(report.records, 3u) << "cut at " << cut;
+      EXPECT_EQ(report.last_seq, 3u);
+      EXPECT_EQ(log->last_seq(), 3u);
+      EXPECT_EQ(report.dropped_tail_bytes, cut - OffsetOf(4));
+      EXPECT_EQ(fs::file_size(path), OffsetOf(4)) << "the whole group is cut off";
+      auto records = log->ReadFrom(0);
+      ASSERT_TRUE(records.ok());
+      EXPECT_EQ(records->size(), 3u);
+    }
+    WriteFile(path, whole);
+  }
+}
+
+TEST_F(EditLogTest, RefusesASegmentEndingInsideAGroupBeforeAnotherSegment) {
+  {
+    auto log = OpenOrDie(Always());
+    ASSERT_TRUE(log->AppendGroup(1, {"a", "b", "c"}).ok());
+    log->Roll();
+    ASSERT_TRUE(log->Append(4, "d").ok());
+  }
+  const auto names = SegmentFiles();
+  ASSERT_EQ(names.size(), 2u);
+  const fs::path first = fs::path(dir_) / names[0];
+  fs::resize_file(first, kSegmentHeaderBytes + 2 * (kRecordHeaderBytes + 1));
+  auto log = EditLog::Open(dir_, Group(), nullptr);
+  ASSERT_FALSE(log.ok());
+  EXPECT_EQ(log.status().code(), Status::Code::kDataLoss);
+  EXPECT_NE(log.status().message().find(first.string()), std::string::npos) << log.status();
+}
+
 TEST_F(EditLogTest, DropsTruncatedTailRecord) {
   WriteRecords(20);
   const std::string path = OnlySegment();
