@@ -4,6 +4,7 @@
 
 #include <fcntl.h>
 #include <spdlog/spdlog.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -11,6 +12,7 @@
 #include <cinttypes>
 #include <cstdio>
 #include <cstring>
+#include <boost/crc.hpp>
 #include <filesystem>
 #include <utility>
 
@@ -23,6 +25,41 @@ constexpr size_t kSeqDigits = 20;
 constexpr size_t kMaxObjectName = 64;
 constexpr int kMaxKeep = 1000;
 constexpr const char* kPartialSuffix = ".writing";
+
+// The container around the OpenVDB bytes (all integers little-endian):
+//   "SCLPSNAP" | u32 version (1) | u32 header size (40) | u64 seq | u64 payload bytes |
+//   u32 CRC32C(payload) | u32 CRC32C(the 36 header bytes before it) | payload (.vdb bytes)
+// Nothing parses the payload before both checksums match, so a damaged file is reported and
+// skipped instead of reaching OpenVDB's reader (which trusts sizes it reads).
+constexpr char kSnapMagic[8] = {'S', 'C', 'L', 'P', 'S', 'N', 'A', 'P'};
+constexpr uint32_t kSnapVersion = 1;
+constexpr uint64_t kSnapHeaderBytes = 40;
+// OpenVDB's file magic (int64 0x56444220): snapshots written before the container.
+constexpr unsigned char kVdbMagic[8] = {0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0};
+
+using Crc32c = boost::crc_optimal<32, 0x1EDC6F41, 0xFFFFFFFF, 0xFFFFFFFF, true, true>;
+
+uint32_t Crc(const void* data, size_t size) {
+  Crc32c crc;
+  crc.process_bytes(data, size);
+  return crc.checksum();
+}
+void PutU32(char* p, uint32_t v) {
+  for (int i = 0; i < 4; ++i) p[i] = static_cast<char>(v >> (8 * i));
+}
+void PutU64(char* p, uint64_t v) {
+  for (int i = 0; i < 8; ++i) p[i] = static_cast<char>(v >> (8 * i));
+}
+uint32_t GetU32(const char* p) {
+  uint32_t v = 0;
+  for (int i = 0; i < 4; ++i) v |= static_cast<uint32_t>(static_cast<unsigned char>(p[i])) << (8 * i);
+  return v;
+}
+uint64_t GetU64(const char* p) {
+  uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v |= static_cast<uint64_t>(static_cast<unsigned char>(p[i])) << (8 * i);
+  return v;
+}
 
 std::string SnapshotFileName(uint64_t seq, const std::string& object) {
   char seq_text[32];
@@ -70,7 +107,116 @@ bool EndsWith(const std::string& s, const std::string& suffix) {
          s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
+Status WriteAll(int fd, const char* data, size_t size, const std::string& path) {
+  while (size > 0) {
+    const ssize_t n = ::write(fd, data, size);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      return Errno("writing", path);
+    }
+    data += n;
+    size -= static_cast<size_t>(n);
+  }
+  return Status::Ok();
+}
+
+// Reads up to `size` bytes at `offset`; DataLoss when the file is shorter.
+Status ReadAt(int fd, uint64_t offset, size_t size, char* out, const std::string& path) {
+  size_t done = 0;
+  while (done < size) {
+    const ssize_t n = ::pread(fd, out + done, size - done, static_cast<off_t>(offset + done));
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) return Errno("reading", path);
+    if (n == 0) return DataLoss("snapshot " + path + " shrank while read");
+    done += static_cast<size_t>(n);
+  }
+  return Status::Ok();
+}
+
+// Writes the container to `path` and fsyncs it.
+Status WriteContainer(const std::string& path, uint64_t seq, const std::string& vdb) {
+  char header[kSnapHeaderBytes];
+  std::memcpy(header, kSnapMagic, sizeof(kSnapMagic));
+  PutU32(header + 8, kSnapVersion);
+  PutU32(header + 12, static_cast<uint32_t>(kSnapHeaderBytes));
+  PutU64(header + 16, seq);
+  PutU64(header + 24, vdb.size());
+  PutU32(header + 32, Crc(vdb.data(), vdb.size()));
+  PutU32(header + 36, Crc(header, 36));
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return Errno("creating", path);
+  Status s = WriteAll(fd, header, sizeof(header), path);
+  if (s.ok()) s = WriteAll(fd, vdb.data(), vdb.size(), path);
+  if (s.ok() && ::fsync(fd) != 0) s = Errno("fsync of", path);
+  if (::close(fd) != 0 && s.ok()) s = Errno("closing", path);
+  return s;
+}
+
 }  // namespace
+
+StatusOr<levelset::Sculpture> LoadSnapshotFile(const std::string& path, uint64_t expected_seq,
+                                               uint64_t max_bytes) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return Errno("opening", path);
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat st;
+  if (::fstat(fd, &st) != 0) return Errno("stat of", path);
+  const uint64_t size = static_cast<uint64_t>(st.st_size);
+  char header[kSnapHeaderBytes] = {};
+  if (size < sizeof(kSnapMagic)) {
+    return DataLoss("snapshot " + path + " is " + std::to_string(size) + " bytes, shorter than " +
+                    "its header");
+  }
+  SCULPT_RETURN_IF_ERROR(ReadAt(fd, 0, sizeof(kSnapMagic), header, path));
+  if (std::memcmp(header, kVdbMagic, sizeof(kVdbMagic)) == 0) {
+    // Written by a sculptd without checksums; OpenVDB's own checks are all it gets.
+    spdlog::warn("snapshot {} has no checksum (an older format); loading it unverified", path);
+    return levelset::Sculpture::LoadVdb(path);
+  }
+  if (std::memcmp(header, kSnapMagic, sizeof(kSnapMagic)) != 0) {
+    return DataLoss("snapshot " + path + ": bad magic (not a Sculpt snapshot)");
+  }
+  if (size < kSnapHeaderBytes) {
+    return DataLoss("snapshot " + path + " is " + std::to_string(size) + " bytes, shorter than " +
+                    "its " + std::to_string(kSnapHeaderBytes) + "-byte header");
+  }
+  SCULPT_RETURN_IF_ERROR(ReadAt(fd, 0, kSnapHeaderBytes, header, path));
+  if (GetU32(header + 36) != Crc(header, 36)) {
+    return DataLoss("snapshot " + path + ": header checksum mismatch");
+  }
+  if (GetU32(header + 8) != kSnapVersion || GetU32(header + 12) != kSnapHeaderBytes) {
+    return FailedPrecondition("snapshot " + path + " has format version " +
+                              std::to_string(GetU32(header + 8)) + "; this build reads version " +
+                              std::to_string(kSnapVersion));
+  }
+  const uint64_t seq = GetU64(header + 16);
+  if (seq != expected_seq) {
+    return DataLoss("snapshot " + path + " holds seq " + std::to_string(seq) +
+                    " but its name says " + std::to_string(expected_seq));
+  }
+  // The payload size is checked against the file and a cap before anything is allocated.
+  const uint64_t payload = GetU64(header + 24);
+  if (payload != size - kSnapHeaderBytes || payload > max_bytes) {
+    return DataLoss("snapshot " + path + ": payload size=" + std::to_string(payload) +
+                    " but the file holds " + std::to_string(size - kSnapHeaderBytes) +
+                    " bytes after the header (at most " + std::to_string(max_bytes) + ")");
+  }
+  std::string vdb(payload, '\0');
+  SCULPT_RETURN_IF_ERROR(ReadAt(fd, kSnapHeaderBytes, vdb.size(), vdb.data(), path));
+  if (Crc(vdb.data(), vdb.size()) != GetU32(header + 32)) {
+    return DataLoss("snapshot " + path + ": checksum mismatch in its " + std::to_string(payload) +
+                    " bytes of grid data");
+  }
+  auto sculpture = levelset::Sculpture::DeserializeVdb(vdb);
+  if (!sculpture.ok()) {
+    return DataLoss("snapshot " + path + " (checksum good) does not load: " +
+                    sculpture.status().ToString());
+  }
+  return sculpture;
+}
 
 Status ValidateObjectName(const std::string& object) {
   if (object.empty() || object.size() > kMaxObjectName) {
@@ -138,11 +284,10 @@ Status SnapshotStore::Write(uint64_t seq, const std::string& object,
   const std::string path = (fs::path(dir_) / SnapshotFileName(seq, object)).string();
   const std::string partial = path + kPartialSuffix;
   std::lock_guard<std::mutex> io(io_mu_);
-  // SaveVdb's own .tmp + rename makes the name atomic but not durable: after a power loss the
-  // renamed file could be empty. So the file is synced under a name nobody reads, and only then
-  // renamed to its final name, which therefore never points at unsynced data.
-  SCULPT_RETURN_IF_ERROR(sculpture.SaveVdb(partial));
-  Status s = FsyncPath(partial, false);
+  // The file is synced under a name nobody reads, and only then renamed to its final name,
+  // which therefore never points at unsynced data.
+  SCULPT_ASSIGN_OR_RETURN(std::string vdb, sculpture.SerializeVdb());
+  Status s = WriteContainer(partial, seq, vdb);
   if (s.ok() && std::rename(partial.c_str(), path.c_str()) != 0) s = Errno("renaming", partial);
   if (!s.ok()) {
     ::unlink(partial.c_str());
@@ -285,7 +430,8 @@ StatusOr<std::vector<Snapshot>> SnapshotStore::LoadNewest(std::vector<std::strin
     std::string reasons;
     bool loaded = false;
     for (size_t i = end; i-- > begin;) {
-      StatusOr<levelset::Sculpture> s = levelset::Sculpture::LoadVdb(files[i].path);
+      StatusOr<levelset::Sculpture> s =
+          LoadSnapshotFile(files[i].path, files[i].seq, options_.max_bytes);
       if (s.ok()) {
         out.push_back(Snapshot{files[i].object, files[i].seq, std::move(s).value()});
         loaded = true;

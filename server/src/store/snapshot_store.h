@@ -33,16 +33,31 @@ struct SnapshotFile {
   std::string path;
 };
 
+/// Largest snapshot payload a reader believes by default (a size read from disk is checked
+/// against this and against the file's size before anything is allocated).
+inline constexpr uint64_t kDefaultMaxSnapshotBytes = 16ull << 30;
+
 struct SnapshotStoreOptions {
   /// Snapshots kept per object (the newest ones), in [1, 1000].
   int keep = 3;
+  /// Largest snapshot payload LoadNewest reads.
+  uint64_t max_bytes = kDefaultMaxSnapshotBytes;
 };
+
+/// Reads one snapshot file: checks the header checksum, the seq against `expected_seq` (from the
+/// file name), the payload size against the file and `max_bytes`, and the payload checksum, and
+/// only then parses the grids. DataLoss naming the file and what is wrong for a damaged file;
+/// FailedPrecondition for another format version; Internal for I/O errors. A file written before
+/// snapshots had checksums (a bare .vdb) is loaded with a warning.
+StatusOr<levelset::Sculpture> LoadSnapshotFile(const std::string& path, uint64_t expected_seq,
+                                               uint64_t max_bytes = kDefaultMaxSnapshotBytes);
 
 /// Object names become part of file names: 1 to 64 characters from [A-Za-z0-9_.-], not
 /// starting with '.'. InvalidArgument naming the value otherwise.
 Status ValidateObjectName(const std::string& object);
 
-/// `snap-<seq, 20 digits>-<object>.vdb` files in one directory.
+/// `snap-<seq, 20 digits>-<object>.vdb` files in one directory. Each holds a checksummed header
+/// (magic "SCLPSNAP", seq, payload size and CRC32C) followed by the OpenVDB file bytes.
 ///
 /// A snapshot is written to `<name>.writing` (SaveVdb itself goes through `.tmp`), fsynced,
 /// renamed to its final name and the directory fsynced: a final name always holds a complete,

@@ -6,6 +6,8 @@
 
 #include <condition_variable>
 #include <filesystem>
+#include <boost/crc.hpp>
+#include <cstring>
 #include <fstream>
 #include <mutex>
 #include <string>
@@ -209,6 +211,72 @@ TEST_F(SnapshotStoreTest, RefusesWhenNoSnapshotOfAnObjectLoads) {
   ASSERT_FALSE(loaded.ok());
   EXPECT_EQ(loaded.status().code(), Status::Code::kDataLoss);
   EXPECT_NE(loaded.status().message().find("ball"), std::string::npos) << loaded.status();
+}
+
+TEST_F(SnapshotStoreTest, FileStartsWithAChecksummedHeader) {
+  auto store = OpenOrDie();
+  ASSERT_TRUE(store->Write(20, "ball", Sphere(5)).ok());
+  std::ifstream in(fs::path(dir_) / "snap-00000000000000000020-ball.vdb", std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_GT(bytes.size(), 40u);
+  EXPECT_EQ(bytes.substr(0, 8), "SCLPSNAP");
+  uint64_t seq = 0;
+  uint64_t payload = 0;
+  std::memcpy(&seq, bytes.data() + 16, 8);
+  std::memcpy(&payload, bytes.data() + 24, 8);
+  EXPECT_EQ(seq, 20u);
+  EXPECT_EQ(payload, bytes.size() - 40);
+}
+
+// A forged header (checksum recomputed) claiming a payload far larger than the file: refused
+// before anything is allocated.
+TEST_F(SnapshotStoreTest, RejectsAPayloadSizeThatTheFileDoesNotHold) {
+  auto store = OpenOrDie();
+  ASSERT_TRUE(store->Write(20, "ball", Sphere(5)).ok());
+  const fs::path path = fs::path(dir_) / "snap-00000000000000000020-ball.vdb";
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  const uint64_t huge = 1ull << 44;
+  std::memcpy(bytes.data() + 24, &huge, 8);
+  boost::crc_optimal<32, 0x1EDC6F41, 0xFFFFFFFF, 0xFFFFFFFF, true, true> crc;
+  crc.process_bytes(bytes.data(), 36);
+  const uint32_t header_crc = crc.checksum();
+  std::memcpy(bytes.data() + 36, &header_crc, 4);
+  {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out << bytes;
+  }
+  auto loaded = LoadSnapshotFile(path.string(), 20);
+  ASSERT_FALSE(loaded.ok());
+  EXPECT_EQ(loaded.status().code(), Status::Code::kDataLoss);
+  EXPECT_NE(loaded.status().message().find("payload size=17592186044416"), std::string::npos)
+      << loaded.status();
+  // A cap below the real size refuses an undamaged file too.
+  auto capped = LoadSnapshotFile(path.string(), 20, 16);
+  EXPECT_EQ(capped.status().code(), Status::Code::kDataLoss);
+}
+
+TEST_F(SnapshotStoreTest, RejectsASnapshotWhoseNameAndHeaderDisagree) {
+  auto store = OpenOrDie();
+  ASSERT_TRUE(store->Write(20, "ball", Sphere(5)).ok());
+  fs::rename(fs::path(dir_) / "snap-00000000000000000020-ball.vdb",
+             fs::path(dir_) / "snap-00000000000000000030-ball.vdb");
+  auto loaded = LoadSnapshotFile((fs::path(dir_) / "snap-00000000000000000030-ball.vdb").string(), 30);
+  EXPECT_EQ(loaded.status().code(), Status::Code::kDataLoss);
+}
+
+TEST_F(SnapshotStoreTest, LoadsABareVdbWrittenBeforeChecksums) {
+  const Sculpture s = Sphere(5);
+  fs::create_directories(dir_);
+  ASSERT_TRUE(s.SaveVdb((fs::path(dir_) / "snap-00000000000000000020-ball.vdb").string()).ok());
+  auto store = OpenOrDie();
+  auto loaded = store->LoadNewest();
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  ASSERT_EQ(loaded->size(), 1u);
+  EXPECT_EQ((*loaded)[0].sculpture.StateHash(), s.StateHash());
 }
 
 TEST_F(SnapshotStoreTest, RejectsBadObjectName) {
