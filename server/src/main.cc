@@ -1,14 +1,17 @@
-/// @brief sculptd: the authoritative Sculpt server. `sculptd serve [--config scene.toml] ...`.
+/// @brief sculptd: the authoritative Sculpt server. `sculptd serve [--config scene.toml] ...`,
+/// `sculptd repair --data DIR [--dry-run]`.
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <filesystem>
 #include <thread>
 #include <vector>
 
 #include "config/server_config.h"
 #include "net/server.h"
 #include "scene/scene.h"
+#include "store/edit_log.h"
 
 int main(int argc, char** argv) {
   using sculpt::server::ServerConfig;
@@ -39,7 +42,32 @@ int main(int argc, char** argv) {
   serve->add_option("--viewer-token", viewer_token, "Secret a viewer presents");
   serve->add_option("--port-file", port_file, "Write the bound port to this file once listening");
 
+  CLI::App* repair = app.add_subcommand(
+      "repair", "Make a damaged edit log start again, saying exactly which edits it gives up");
+  std::string repair_dir;
+  bool dry_run = false;
+  repair->add_option("--data", repair_dir, "Data directory (its log/ is repaired)")->required();
+  repair->add_flag("--dry-run", dry_run, "Only say what would be discarded");
+
   CLI11_PARSE(app, argc, argv);
+
+  if (repair->parsed()) {
+    const std::string log_dir = (std::filesystem::path(repair_dir) / "log").string();
+    auto report = sculpt::server::store::EditLog::Repair(log_dir, dry_run);
+    if (!report.ok()) {
+      spdlog::error("repair of {}: {}", log_dir, report.status().ToString());
+      return 1;
+    }
+    if (report->clean) {
+      std::printf("%s: nothing to repair\n", log_dir.c_str());
+      return 0;
+    }
+    std::printf("%s %s:\n", dry_run ? "a repair would" : "repaired", log_dir.c_str());
+    for (const std::string& a : report->actions) std::printf("  %s\n", a.c_str());
+    std::printf("%s:\n", dry_run ? "acknowledged edits it would discard" : "discarded");
+    for (const std::string& d : report->discarded) std::printf("  %s\n", d.c_str());
+    return 0;
+  }
 
   ServerConfig config;
   if (!config_path.empty()) {

@@ -91,11 +91,12 @@ Status Errno(const std::string& what, const std::string& path) {
 }
 
 std::string CorruptMessage(const std::string& path, uint64_t offset, const std::string& where,
-                           const std::string& reason) {
+                           const std::string& reason, const std::string& stake = "") {
+  const std::string data_dir = fs::path(path).parent_path().parent_path().string();
   return "edit log " + path + " corrupt at offset " + std::to_string(offset) + " (" + where +
-         "): " + reason +
-         "; refusing to start — move the file away to start from the last snapshot (and any "
-         "later segments: the log must stay contiguous)";
+         "): " + reason + (stake.empty() ? "" : "; at stake: " + stake) +
+         "; refusing to start — `sculptd repair --data " + data_dir +
+         " --dry-run` says exactly what a repair would discard (the log must stay contiguous)";
 }
 
 Status WriteFully(int fd, iovec* iov, int count, const std::string& path) {
@@ -155,11 +156,6 @@ Status FsyncDir(const std::string& dir) {
   Status s = rc == 0 ? Status::Ok() : Errno("fsync of directory", dir);
   ::close(fd);
   return s;
-}
-
-bool AllZero(const std::string& buf, uint64_t from) {
-  return std::all_of(buf.begin() + static_cast<std::ptrdiff_t>(from), buf.end(),
-                     [](char c) { return c == 0; });
 }
 
 }  // namespace
@@ -228,12 +224,33 @@ Status EditLog::Scan(RecoveryReport* report) {
 
   uint64_t prev = 0;  // last seq seen; the first segment's base before any record
   std::string buf;
+  // The acknowledged edits a damage in file i after seq `after` puts at stake: up to the base of
+  // the next segment whose header reads, else everything after `after`.
+  auto Stake = [&](size_t i, uint64_t after) -> std::string {
+    for (size_t j = i + 1; j < files.size(); ++j) {
+      std::string head;
+      if (!ReadWholeFile(files[j].second, kSegmentHeaderBytes, &head).ok() ||
+          head.size() < kSegmentHeaderBytes) {
+        continue;
+      }
+      const auto* h = reinterpret_cast<const uint8_t*>(head.data());
+      if (std::memcmp(h, kMagic, sizeof(kMagic)) != 0 || GetU32(h + 28) != HeaderCrc(h)) continue;
+      const uint64_t base = GetU64(h + 16);
+      return "seq " + std::to_string(after + 1) + ".." + std::to_string(base) + " (" +
+             std::to_string(base > after ? base - after : 0) + " records; " +
+             std::to_string(files.size() - j) + " later segment(s) follow)";
+    }
+    return "every record after seq " + std::to_string(after) + " in this file";
+  };
+  uint64_t removed_empty_first = 0;  // first seq of an empty last segment removed below
   for (size_t i = 0; i < files.size(); ++i) {
     const bool last = i + 1 == files.size();
     const std::string& path = files[i].second;
     SCULPT_RETURN_IF_ERROR(ReadWholeFile(path, UINT64_MAX, &buf));
     const auto* data = reinterpret_cast<const uint8_t*>(buf.data());
     const uint64_t size = buf.size();
+    uint64_t nonzero_end = size;  // one past the file's last non-zero byte
+    while (nonzero_end > 0 && data[nonzero_end - 1] == 0) --nonzero_end;
 
     if (size < kSegmentHeaderBytes) {
       if (!last) {
@@ -322,15 +339,24 @@ Status EditLog::Scan(RecoveryReport* report) {
       uint64_t seq = 0;
       uint32_t len = 0;
       bool continues = false;
+      bool end_marker = false;
       if (remaining < kRecordHeaderBytes) {
         torn = "truncated record header (" + std::to_string(remaining) + " of " +
                std::to_string(kRecordHeaderBytes) + " bytes)";
       } else {
         const uint32_t field = GetU32(data + offset);
         continues = (field & kGroupContinues) != 0;
-        len = field & ~kGroupContinues;
+        // Exactly the flag: a marker has no payload (other bits there are a bad length).
+        end_marker = field == kSegmentEnd;
+        len = end_marker ? 0 : field & ~kGroupContinues;
         seq = GetU64(data + offset + 8);
-        if (len > kMaxRecordPayload) {
+        if (end_marker) {
+          if (group_open || remaining != kRecordHeaderBytes ||
+              GetU32(data + offset + 4) != RecordCrc(data + offset + 8, nullptr, 0) ||
+              seq <= prev) {
+            bad = "bad segment end marker";
+          }
+        } else if (len > kMaxRecordPayload) {
           bad = "bad length " + std::to_string(len) + " (max " + std::to_string(kMaxRecordPayload) +
                 ")";
         } else if (remaining - kRecordHeaderBytes < len) {
@@ -350,16 +376,29 @@ Status EditLog::Scan(RecoveryReport* report) {
         // before the group fdatasync) leaves a short record, a record whose blocks never
         // reached the disk (checksum mismatch with nothing after it), or zero-filled blocks.
         // None of them was acknowledged. Anything else is damage to acknowledged edits.
-        const bool ends_file =
-            !torn.empty() || (crc_mismatch && offset + kRecordHeaderBytes + len == size);
-        if (!last || !(ends_file || AllZero(buf, offset))) {
-          return DataLoss(CorruptMessage(path, offset, where, torn.empty() ? bad : torn));
+        // Zero-filled blocks may start anywhere, also inside the record's header or payload:
+        // the tail is torn when every byte from somewhere inside this record on is zero.
+        const uint64_t record_end =
+            offset + kRecordHeaderBytes + (crc_mismatch ? static_cast<uint64_t>(len) : 0);
+        const bool zero_tail = last && nonzero_end < record_end;
+        if (!last || !(!torn.empty() || zero_tail)) {
+          // A whole record with other bytes than written is damage, not a crash (kill -9 leaves
+          // the page cache intact; a power loss leaves zeros or a shorter file): stop.
+          return DataLoss(CorruptMessage(path, offset, where, torn.empty() ? bad : torn,
+                                         Stake(i, prev)));
         }
-        const std::string reason = !torn.empty() ? torn
-                                   : ends_file   ? bad + " in the final record"
-                                                 : "zero-filled tail (blocks never written)";
+        const std::string reason =
+            !torn.empty() ? torn
+                          : "zero-filled tail from offset " + std::to_string(nonzero_end) +
+                                " (blocks never written)";
         SCULPT_RETURN_IF_ERROR(cut(reason));
         group_open = false;
+        break;
+      }
+      if (end_marker) {
+        seg.next_first = seq;
+        offset += kRecordHeaderBytes;
+        committed.offset = offset;
         break;
       }
       if (seq <= prev) {
@@ -396,17 +435,39 @@ Status EditLog::Scan(RecoveryReport* report) {
     }
     seg.bytes = offset;
 
+    if (!segments_.empty() && segments_.back().next_first != 0 &&
+        segments_.back().next_first != seg.first_seq) {
+      return DataLoss(CorruptMessage(
+          path, 0, "segment header",
+          "the segment before it says the next segment begins at seq " +
+              std::to_string(segments_.back().next_first) + " (a segment is missing)",
+          Stake(i - 1, segments_.back().last_seq)));
+    }
     if (seg.last_seq == 0) {
       // A segment without records: the first Append after it was cut off. Remove it so the
       // next Append creates its segment under its own seq; keep its base in `prev`.
-      if (last) {
+      if (last && seg.next_first == 0) {
         if (::unlink(path.c_str()) != 0) return Errno("removing", path);
         SCULPT_RETURN_IF_ERROR(FsyncDir(dir_));
+        removed_empty_first = seg.first_seq;
         continue;
       }
       seg.last_seq = seg.base_seq;
     }
     segments_.push_back(std::move(seg));
+  }
+  if (!segments_.empty() && segments_.back().next_first != 0 &&
+      segments_.back().next_first != removed_empty_first) {
+    // The newest segment ended in a marker naming a successor that is not there: the edits
+    // written to it (all of them acknowledged, possibly) are gone.
+    const Segment& closed = segments_.back();
+    return DataLoss(
+        "edit log " + closed.path + " was closed and continued in " +
+        SegmentFileName(closed.next_first) + " from seq " + std::to_string(closed.next_first) +
+        ", which is missing: every edit from seq " + std::to_string(closed.next_first) +
+        " on is at stake; restore the file, or run `sculptd repair --data " +
+        fs::path(dir_).parent_path().string() + " --dry-run` to see what starting without it " +
+        "means");
   }
 
   if (segments_.empty()) report->log_base_seq = prev;
@@ -416,7 +477,9 @@ Status EditLog::Scan(RecoveryReport* report) {
   durable_seq_.store(prev);
   notified_seq_ = prev;
 
-  if (!segments_.empty()) {
+  if (!segments_.empty() && segments_.back().next_first == 0) {
+    // The last segment continues; a closed one (its successor was created empty and removed
+    // above) stays closed and the next Append starts a segment.
     Segment& active = segments_.back();
     fd_ = ::open(active.path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
     if (fd_ < 0) return Errno("opening", active.path);
@@ -436,6 +499,211 @@ Status EditLog::Scan(RecoveryReport* report) {
                report->segments, report->records, report->first_seq, report->last_seq,
                report->log_base_seq);
   return Status::Ok();
+}
+
+StatusOr<RepairReport> EditLog::Repair(const std::string& dir, bool dry_run) {
+  RepairReport out;
+  std::vector<std::pair<uint64_t, std::string>> files;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    uint64_t first = 0;
+    if (entry.is_regular_file() && ParseSegmentFileName(entry.path().filename().string(), &first)) {
+      files.emplace_back(first, entry.path().string());
+    }
+  }
+  if (ec) return Internal("edit log: listing " + dir + ": " + ec.message());
+  std::sort(files.begin(), files.end());
+
+  // The first problem: cut file `cut_file` at `cut_offset` and set aside every later file.
+  size_t cut_file = files.size();
+  uint64_t cut_offset = 0;
+  uint64_t cut_size = 0;
+  uint64_t last_good = 0;  // last seq kept
+  std::string why;
+  uint64_t prev = 0;
+  uint64_t pending_next = 0;  // the end marker of the previous segment
+  bool last_has_marker = false;
+  uint64_t last_marker_next = 0;
+  std::string buf;
+  for (size_t i = 0; i < files.size() && cut_file == files.size(); ++i) {
+    const std::string& path = files[i].second;
+    SCULPT_RETURN_IF_ERROR(ReadWholeFile(path, UINT64_MAX, &buf));
+    const auto* data = reinterpret_cast<const uint8_t*>(buf.data());
+    const uint64_t size = buf.size();
+    auto stop = [&](uint64_t offset, std::string reason) {
+      cut_file = i;
+      cut_offset = offset;
+      cut_size = size;
+      last_good = prev;
+      why = std::move(reason);
+    };
+    if (size < kSegmentHeaderBytes || std::memcmp(data, kMagic, sizeof(kMagic)) != 0 ||
+        GetU32(data + 8) != kFormatVersion || GetU32(data + 12) != kSegmentHeaderBytes ||
+        GetU32(data + 28) != HeaderCrc(data)) {
+      stop(0, "bad or truncated segment header");
+      break;
+    }
+    const uint64_t base = GetU64(data + 16);
+    if (i > 0 && (base != prev || (pending_next != 0 && pending_next != files[i].first))) {
+      stop(0, "segment begins after seq " + std::to_string(base) + " but the log before it ends " +
+                  "at seq " + std::to_string(prev) + " (a segment is missing)");
+      break;
+    }
+    if (i == 0) prev = base;
+    uint64_t offset = kSegmentHeaderBytes;
+    uint64_t committed = offset;
+    uint64_t committed_prev = prev;
+    bool group_open = false;
+    pending_next = 0;
+    while (offset < size) {
+      const uint64_t remaining = size - offset;
+      if (remaining < kRecordHeaderBytes) {
+        stop(committed, "truncated record header");
+        break;
+      }
+      const uint32_t field = GetU32(data + offset);
+      const uint64_t seq = GetU64(data + offset + 8);
+      if (field == kSegmentEnd && !group_open && remaining == kRecordHeaderBytes &&
+          GetU32(data + offset + 4) == RecordCrc(data + offset + 8, nullptr, 0) && seq > prev) {
+        pending_next = seq;
+        offset += kRecordHeaderBytes;
+        committed = offset;
+        break;
+      }
+      const uint32_t len = field & ~kGroupContinues;
+      if (len > kMaxRecordPayload || remaining - kRecordHeaderBytes < len ||
+          GetU32(data + offset + 4) !=
+              RecordCrc(data + offset + 8, data + offset + kRecordHeaderBytes, len) ||
+          seq <= prev) {
+        prev = committed_prev;
+        stop(committed, "damaged record at offset " + std::to_string(offset));
+        break;
+      }
+      prev = seq;
+      offset += kRecordHeaderBytes + len;
+      group_open = (field & kGroupContinues) != 0;
+      if (!group_open) {
+        committed = offset;
+        committed_prev = prev;
+      }
+    }
+    if (cut_file == files.size() && group_open) {
+      prev = committed_prev;
+      stop(committed, "incomplete group of records");
+    }
+    last_has_marker = pending_next != 0;
+    last_marker_next = pending_next;
+  }
+
+  auto describe_rest = [&](size_t from) {
+    // The seqs held by the files set aside, as far as their headers and records read.
+    for (size_t j = from; j < files.size(); ++j) {
+      std::string b;
+      if (!ReadWholeFile(files[j].second, UINT64_MAX, &b).ok()) continue;
+      const auto* d = reinterpret_cast<const uint8_t*>(b.data());
+      uint64_t first = 0, last = 0, n = 0;
+      for (uint64_t off = kSegmentHeaderBytes; off + kRecordHeaderBytes <= b.size();) {
+        const uint32_t f = GetU32(d + off);
+        const uint32_t len = f & ~kGroupContinues;
+        if (f == kSegmentEnd || len > kMaxRecordPayload || b.size() - off - kRecordHeaderBytes < len) {
+          break;
+        }
+        const uint64_t sq = GetU64(d + off + 8);
+        if (first == 0) first = sq;
+        last = sq;
+        ++n;
+        off += kRecordHeaderBytes + len;
+      }
+      out.actions.push_back("set aside " + files[j].second + " as " + files[j].second +
+                            ".discarded (" + std::to_string(n) + " readable records" +
+                            (n > 0 ? ", seq " + std::to_string(first) + ".." +
+                                         std::to_string(last)
+                                   : std::string()) +
+                            ")");
+      if (n > 0) {
+        out.discarded.push_back("seq " + std::to_string(first) + ".." + std::to_string(last) +
+                                " (" + std::to_string(n) + " records in " + files[j].second + ")");
+      }
+    }
+  };
+
+  if (cut_file < files.size()) {
+    out.clean = false;
+    const std::string& path = files[cut_file].second;
+    // The damaged file's seqs after the cut end where the next readable segment begins.
+    std::string upto = "the end of the file";
+    for (size_t j = cut_file + 1; j < files.size(); ++j) {
+      std::string head;
+      if (ReadWholeFile(files[j].second, kSegmentHeaderBytes, &head).ok() &&
+          head.size() == kSegmentHeaderBytes &&
+          GetU32(reinterpret_cast<const uint8_t*>(head.data()) + 28) ==
+              HeaderCrc(reinterpret_cast<const uint8_t*>(head.data()))) {
+        upto = "seq " + std::to_string(GetU64(reinterpret_cast<const uint8_t*>(head.data()) + 16));
+        break;
+      }
+    }
+    if (cut_offset < kSegmentHeaderBytes) {
+      out.actions.push_back("set aside " + path + " as " + path + ".discarded (" + why + ")");
+    } else {
+      out.actions.push_back("cut " + path + " at offset " + std::to_string(cut_offset) + " (" +
+                            why + "): " + std::to_string(cut_size - cut_offset) + " bytes");
+    }
+    out.discarded.push_back("every record after seq " + std::to_string(last_good) + " in " +
+                            path + " (up to " + upto + ")");
+    describe_rest(cut_file + 1);
+    if (!dry_run) {
+      if (cut_offset < kSegmentHeaderBytes) {
+        if (std::rename(path.c_str(), (path + ".discarded").c_str()) != 0) {
+          return Errno("renaming", path);
+        }
+      } else {
+        const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
+        if (fd < 0) return Errno("opening", path);
+        const bool ok = ::ftruncate(fd, static_cast<off_t>(cut_offset)) == 0 && ::fsync(fd) == 0;
+        ::close(fd);
+        if (!ok) return Errno("truncating", path);
+      }
+      if (cut_offset < kSegmentHeaderBytes && cut_file > 0 && last_has_marker) {
+        // The segment before names the one set aside as its successor; drop that marker.
+        const std::string& before = files[cut_file - 1].second;
+        const uint64_t size = fs::file_size(before, ec);
+        if (ec) return Internal("edit log: size of " + before + ": " + ec.message());
+        const int fd = ::open(before.c_str(), O_WRONLY | O_CLOEXEC);
+        if (fd < 0) return Errno("opening", before);
+        const bool ok = ::ftruncate(fd, static_cast<off_t>(size - kRecordHeaderBytes)) == 0 &&
+                        ::fsync(fd) == 0;
+        ::close(fd);
+        if (!ok) return Errno("truncating", before);
+      }
+      for (size_t j = cut_file + 1; j < files.size(); ++j) {
+        if (std::rename(files[j].second.c_str(), (files[j].second + ".discarded").c_str()) != 0) {
+          return Errno("renaming", files[j].second);
+        }
+      }
+      SCULPT_RETURN_IF_ERROR(FsyncDir(dir));
+    }
+    return out;
+  }
+  if (last_has_marker) {
+    out.clean = false;
+    const std::string& path = files.back().second;
+    out.actions.push_back("remove the end marker of " + path + " (the last 16 bytes), which names " +
+                          SegmentFileName(last_marker_next) + ", a newer segment that is missing");
+    out.discarded.push_back("every record from seq " + std::to_string(last_marker_next) +
+                            " on that was in the missing " + SegmentFileName(last_marker_next) +
+                            " (how many is unknown)");
+    if (!dry_run) {
+      const uint64_t size = fs::file_size(path, ec);
+      if (ec) return Internal("edit log: size of " + path + ": " + ec.message());
+      const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
+      if (fd < 0) return Errno("opening", path);
+      const bool ok =
+          ::ftruncate(fd, static_cast<off_t>(size - kRecordHeaderBytes)) == 0 && ::fsync(fd) == 0;
+      ::close(fd);
+      if (!ok) return Errno("truncating", path);
+    }
+  }
+  return out;
 }
 
 EditLog::~EditLog() {
@@ -514,11 +782,10 @@ Status EditLog::StartSegment(uint64_t first_seq) {
       // loss could keep a later segment while an earlier one loses its tail, a hole in the log.
       durable = SyncLocked();
       if (!durable.ok()) return durable.status();
-      ::close(fd_);
-      fd_ = -1;
       segments_.back().bytes = active_bytes_;
       segments_.back().last_seq = active_last_seq_;
     }
+    const int old_fd = fd_;
     const std::string path = (fs::path(dir_) / SegmentFileName(first_seq)).string();
     const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_APPEND | O_CLOEXEC, 0644);
     if (fd < 0) return Errno("creating", path);
@@ -540,6 +807,25 @@ Status EditLog::StartSegment(uint64_t first_seq) {
       ::close(fd);
       ::unlink(path.c_str());
       return s;
+    }
+    if (old_fd >= 0) {
+      // Only now that the new segment is durable does the old one say it has a successor, so
+      // a last segment ending in a marker always means a lost newer one.
+      std::array<uint8_t, kRecordHeaderBytes> marker;
+      PutU32(marker.data(), kSegmentEnd);
+      PutU64(marker.data() + 8, first_seq);
+      PutU32(marker.data() + 4, RecordCrc(marker.data() + 8, nullptr, 0));
+      iovec miov{marker.data(), marker.size()};
+      Status m = WriteFully(old_fd, &miov, 1, segments_.back().path);
+      if (m.ok() && ::fdatasync(old_fd) != 0) m = Errno("fdatasync of", segments_.back().path);
+      ::close(old_fd);
+      fd_ = -1;
+      if (!m.ok()) {
+        ::close(fd);
+        return Poison(m);
+      }
+      segments_.back().bytes += kRecordHeaderBytes;
+      segments_.back().next_first = first_seq;
     }
     fd_ = fd;
     active_path_ = path;
@@ -734,8 +1020,8 @@ Status EditLog::ForEachFrom(uint64_t after_seq,
     while (offset < seg.bytes) {
       // Verified at Open; checked again because the file is read again.
       const uint64_t remaining = seg.bytes - offset;
-      const uint32_t len =
-          remaining >= kRecordHeaderBytes ? GetU32(data + offset) & ~kGroupContinues : 0;
+      const uint32_t field = remaining >= kRecordHeaderBytes ? GetU32(data + offset) : 0;
+      const uint32_t len = field == kSegmentEnd ? 0 : field & ~kGroupContinues;
       const uint64_t seq = remaining >= kRecordHeaderBytes ? GetU64(data + offset + 8) : 0;
       if (remaining < kRecordHeaderBytes || len > remaining - kRecordHeaderBytes ||
           GetU32(data + offset + 4) !=
@@ -743,6 +1029,7 @@ Status EditLog::ForEachFrom(uint64_t after_seq,
         return DataLoss(CorruptMessage(seg.path, offset, "record seq " + std::to_string(seq),
                                        "changed on disk after start-up"));
       }
+      if (field == kSegmentEnd) break;  // the segment's end marker
       if (seq > after_seq) {
         record.seq = seq;
         record.payload.assign(buf, offset + kRecordHeaderBytes, len);

@@ -61,6 +61,10 @@ inline constexpr uint64_t kRecordHeaderBytes = 16;
 /// Set in a record's length field when the next record belongs to the same group (an edit
 /// logged as several records, e.g. a stroke's poses): recovery sees a group whole or not at all.
 inline constexpr uint32_t kGroupContinues = 1u << 31;
+/// Set in the length field of a segment's end marker: a record without payload whose seq is the
+/// first seq of the segment that follows, written once that segment exists. A last segment that
+/// ends in a marker means a newer segment was lost.
+inline constexpr uint32_t kSegmentEnd = 1u << 30;
 
 struct EditLogOptions {
   FsyncPolicy fsync;
@@ -92,6 +96,16 @@ struct RecoveryReport {
   std::vector<std::string> warnings;
 };
 
+/// What EditLog::Repair found and did (or, with dry_run, would do).
+struct RepairReport {
+  /// One line per change: the file, the offset or the whole file, and the seqs it held.
+  std::vector<std::string> actions;
+  /// Every acknowledged edit the repair gives up, as seq ranges ("seq 11..40 (30 records)").
+  std::vector<std::string> discarded;
+  /// True when the log needed no change.
+  bool clean = true;
+};
+
 /// One record: the caller's global sequence number and its opaque payload (sculptd stores a
 /// serialized protobuf; the log never looks inside).
 struct LogRecord {
@@ -107,7 +121,8 @@ struct LogRecord {
 ///   then records:             u32 payload length | u32 CRC32C(u64 seq bytes + payload) | u64 seq |
 ///                             payload
 /// The length's top bit (kGroupContinues) says the next record belongs to the same group; the
-/// CRC covers seq and payload only. A group never spans two segments.
+/// CRC covers seq and payload only. A group never spans two segments. A closed segment ends in
+/// an end marker (kSegmentEnd, no payload, seq = the next segment's first seq).
 /// `base seq` is the last seq written before the segment began: the segments chain (each base
 /// equals the previous segment's last seq), so a missing segment is detected, and the first
 /// segment's base says from where on the log is complete.
@@ -132,6 +147,13 @@ class EditLog {
   static StatusOr<std::unique_ptr<EditLog>> Open(const std::string& dir,
                                                  const EditLogOptions& options,
                                                  RecoveryReport* report);
+
+  /// Makes the log in `dir` (not open elsewhere) one that Open accepts by giving up the least:
+  /// a damaged record, a gap between segments or a torn group cuts its segment at the last
+  /// complete group before it, and every later segment is renamed to `<name>.discarded` (the log
+  /// must stay contiguous); an end marker naming a lost newer segment is removed. With dry_run
+  /// nothing changes. Internal for I/O errors.
+  static StatusOr<RepairReport> Repair(const std::string& dir, bool dry_run);
 
   /// Stops the sync thread, makes every written record durable and closes the file.
   ~EditLog();
@@ -198,6 +220,7 @@ class EditLog {
     uint64_t first_seq = 0;  // from the file name
     uint64_t last_seq = 0;   // 0 while it holds no records
     uint64_t bytes = 0;      // valid bytes (header + whole records)
+    uint64_t next_first = 0; // the end marker's seq; 0 while the segment is open
   };
 
   EditLog(std::string dir, const EditLogOptions& options);

@@ -300,18 +300,84 @@ TEST_F(EditLogTest, DropsTruncatedTailRecordHeader) {
   EXPECT_NE(report.dropped_tail_reason.find("truncated record header"), std::string::npos);
 }
 
-TEST_F(EditLogTest, DropsFinalRecordWithChecksumMismatch) {
+// A whole final record with other bytes than written is damage (a kill -9 leaves the page
+// cache intact; a power loss leaves zeros or a shorter file), and it may have been
+// acknowledged: start-up stops and names the file, the offset and the seq at stake.
+TEST_F(EditLogTest, RefusesAFlippedFinalRecord) {
   WriteRecords(20);
   const std::string path = OnlySegment();
   std::string bytes = ReadFile(path);
-  bytes[bytes.size() - 1] ^= 0x40;  // a final record whose last block never reached the disk
+  bytes[bytes.size() - 1] ^= 0x40;
   WriteFile(path, bytes);
+  auto log = EditLog::Open(dir_, Group(), nullptr);
+  ASSERT_FALSE(log.ok());
+  EXPECT_EQ(log.status().code(), Status::Code::kDataLoss);
+  const std::string& m = log.status().message();
+  EXPECT_NE(m.find(path), std::string::npos) << m;
+  EXPECT_NE(m.find("offset " + std::to_string(OffsetOf(20))), std::string::npos) << m;
+  EXPECT_NE(m.find("record seq 20"), std::string::npos) << m;
+  EXPECT_NE(m.find("sculptd repair"), std::string::npos) << m;
+}
+
+TEST_F(EditLogTest, DropsAFinalRecordWhoseLastBlocksAreZero) {
+  WriteRecords(20);
+  const std::string path = OnlySegment();
+  std::string bytes = ReadFile(path);
+  const uint64_t mid = OffsetOf(20) + kRecordHeaderBytes + 2;  // zeros start inside the payload
+  ASSERT_LT(mid, bytes.size());
+  std::fill(bytes.begin() + static_cast<std::ptrdiff_t>(mid), bytes.end(), '\0');
+  WriteFile(path, bytes + std::string(1000, '\0'));
   RecoveryReport report;
   auto log = OpenOrDie(Group(), &report);
   ASSERT_NE(log, nullptr);
   EXPECT_EQ(report.last_seq, 19u);
-  EXPECT_EQ(report.dropped_tail_bytes, kRecordHeaderBytes + Payload(20).size());
-  EXPECT_NE(report.dropped_tail_reason.find("checksum mismatch"), std::string::npos);
+  EXPECT_EQ(fs::file_size(path), OffsetOf(20));
+  EXPECT_NE(report.dropped_tail_reason.find("zero-filled"), std::string::npos)
+      << report.dropped_tail_reason;
+}
+
+TEST_F(EditLogTest, RefusesAMissingNewestSegment) {
+  {
+    auto log = OpenOrDie(Always());
+    ASSERT_TRUE(log->Append(1, "a").ok());
+    ASSERT_TRUE(log->Append(2, "b").ok());
+    log->Roll();
+    ASSERT_TRUE(log->Append(3, "c").ok());
+  }
+  auto names = SegmentFiles();
+  ASSERT_EQ(names.size(), 2u);
+  fs::remove(fs::path(dir_) / names[1]);
+  auto log = EditLog::Open(dir_, Group(), nullptr);
+  ASSERT_FALSE(log.ok());
+  EXPECT_EQ(log.status().code(), Status::Code::kDataLoss);
+  EXPECT_NE(log.status().message().find(names[1]), std::string::npos) << log.status();
+  EXPECT_NE(log.status().message().find("from seq 3"), std::string::npos) << log.status();
+}
+
+TEST_F(EditLogTest, ContinuesAfterACrashRightAfterARoll) {
+  {
+    auto log = OpenOrDie(Always());
+    ASSERT_TRUE(log->Append(1, "a").ok());
+    log->Roll();
+    ASSERT_TRUE(log->Append(2, "b").ok());
+  }
+  auto names = SegmentFiles();
+  ASSERT_EQ(names.size(), 2u);
+  // The new segment got its header but the crash came before its first record reached it.
+  fs::resize_file(fs::path(dir_) / names[1], kSegmentHeaderBytes);
+  {
+    RecoveryReport report;
+    auto log = OpenOrDie(Group(), &report);
+    ASSERT_NE(log, nullptr);
+    EXPECT_EQ(log->last_seq(), 1u);
+    ASSERT_TRUE(log->Append(2, "b again").ok());
+  }
+  auto log = OpenOrDie(Group());
+  ASSERT_NE(log, nullptr);
+  auto records = log->ReadFrom(0);
+  ASSERT_TRUE(records.ok()) << records.status();
+  ASSERT_EQ(records->size(), 2u);
+  EXPECT_EQ((*records)[1].payload, "b again");
 }
 
 TEST_F(EditLogTest, DropsZeroFilledTail) {
@@ -640,6 +706,62 @@ TEST_F(EditLogTest, IgnoresFilesThatAreNotSegments) {
   RecoveryReport report;
   auto log = OpenOrDie(Group(), &report);
   EXPECT_EQ(report.records, 3u);
+}
+
+TEST_F(EditLogTest, RepairSaysWhatItDiscardsAndThenTheLogOpens) {
+  {
+    EditLogOptions options;
+    options.fsync = Always();
+    auto log = OpenOrDie(options);
+    for (uint64_t seq = 1; seq <= 10; ++seq) ASSERT_TRUE(log->Append(seq, Payload(seq)).ok());
+    log->Roll();
+    for (uint64_t seq = 11; seq <= 20; ++seq) ASSERT_TRUE(log->Append(seq, Payload(seq)).ok());
+  }
+  auto names = SegmentFiles();
+  ASSERT_EQ(names.size(), 2u);
+  const std::string first = (fs::path(dir_) / names[0]).string();
+  std::string bytes = ReadFile(first);
+  bytes[OffsetOf(6) + kRecordHeaderBytes] ^= 0x01;  // record 6 damaged in the middle
+  WriteFile(first, bytes);
+  ASSERT_EQ(EditLog::Open(dir_, Group(), nullptr).status().code(), Status::Code::kDataLoss);
+
+  auto plan = EditLog::Repair(dir_, /*dry_run=*/true);
+  ASSERT_TRUE(plan.ok()) << plan.status();
+  EXPECT_FALSE(plan->clean);
+  ASSERT_EQ(plan->discarded.size(), 2u);
+  EXPECT_NE(plan->discarded[0].find("after seq 5"), std::string::npos) << plan->discarded[0];
+  EXPECT_NE(plan->discarded[0].find("up to seq 10"), std::string::npos) << plan->discarded[0];
+  EXPECT_NE(plan->discarded[1].find("seq 11..20 (10 records"), std::string::npos)
+      << plan->discarded[1];
+  EXPECT_EQ(ReadFile(first), bytes) << "a dry run changes nothing";
+
+  auto done = EditLog::Repair(dir_, /*dry_run=*/false);
+  ASSERT_TRUE(done.ok()) << done.status();
+  EXPECT_TRUE(fs::exists(fs::path(dir_) / (names[1] + ".discarded")));
+  RecoveryReport report;
+  auto log = OpenOrDie(Group(), &report);
+  ASSERT_NE(log, nullptr);
+  EXPECT_EQ(log->last_seq(), 5u);
+  EXPECT_TRUE(EditLog::Repair(dir_, true)->clean);
+}
+
+TEST_F(EditLogTest, RepairAcceptsTheLossOfAMissingNewestSegment) {
+  {
+    auto log = OpenOrDie(Always());
+    ASSERT_TRUE(log->Append(1, "a").ok());
+    log->Roll();
+    ASSERT_TRUE(log->Append(2, "b").ok());
+  }
+  auto names = SegmentFiles();
+  fs::remove(fs::path(dir_) / names[1]);
+  auto done = EditLog::Repair(dir_, false);
+  ASSERT_TRUE(done.ok()) << done.status();
+  ASSERT_EQ(done->discarded.size(), 1u);
+  EXPECT_NE(done->discarded[0].find("from seq 2"), std::string::npos) << done->discarded[0];
+  auto log = OpenOrDie(Group());
+  ASSERT_NE(log, nullptr);
+  EXPECT_EQ(log->last_seq(), 1u);
+  EXPECT_TRUE(log->Append(2, "b again").ok());
 }
 
 }  // namespace
