@@ -22,6 +22,7 @@
 #include "sculpt/hetero/model_io.h"
 #include "sculpt/hetero/validity.h"
 #include "store/edit_log.h"
+#include "store/resend_table.h"
 
 namespace sculpt::server {
 namespace {
@@ -171,7 +172,8 @@ Status SaveModelFile(const std::string& path, uint64_t seq, uint64_t version,
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
   if (ec) return Internal("rename " + tmp + ": " + ec.message());
-  return Status::Ok();
+  // The log before this file's seq may be dropped once it is saved: make the rename durable.
+  return store::FsyncDirectory(std::filesystem::path(path).parent_path().string());
 }
 
 StatusOr<SavedModel> LoadModelFile(const std::string& path) {
@@ -251,8 +253,9 @@ Status Scene::OpenModels() {
   });
 }
 
-void Scene::SaveModels(uint64_t seq) {
-  if (models_.empty()) return;
+bool Scene::SaveModels(uint64_t seq) {
+  if (models_.empty()) return true;
+  bool saved_all = true;
   std::error_code ec;
   std::filesystem::create_directories(std::filesystem::path(config_.data_dir) / "models", ec);
   for (auto& [name, st] : models_) {
@@ -261,8 +264,10 @@ void Scene::SaveModels(uint64_t seq) {
                                        st->model);
         !s.ok()) {
       spdlog::error("model {} at seq {} not saved: {}", name, seq, s.ToString());
+      saved_all = false;
     }
   }
+  return saved_all;
 }
 
 StatusOr<ModelSummary> Scene::ModelInfo(const std::string& object) {

@@ -19,10 +19,19 @@
 #include "sculpt/levelset/voxelize_model.h"
 #include "store/edit_log.h"
 #include "store/recovery.h"
+#include "store/resend_table.h"
 #include "store/snapshot_store.h"
 
 namespace sculpt::server {
 namespace {
+
+// Streams of the resend table (store::ResendTable): one per edit kind with its own client_seq.
+enum ResendStream : uint8_t { kStrokes = 0, kPaints = 1, kModels = 2, kBallEdits = 3, kSweeps = 4 };
+
+// A recovery that replayed half of min(this, snapshot_every_edits) records, or took this long,
+// snapshots at once (in the background), so repeated crashes cannot stack up replay time.
+constexpr uint64_t kPromptSnapshotAfterReplay = 1000;
+constexpr double kPromptSnapshotAfterSeconds = 0.25;
 
 double NowSeconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
@@ -236,6 +245,36 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
       ") in " + std::to_string(NowSeconds() - t0) + " s";
   SCULPT_RETURN_IF_ERROR(scene->OpenSkins());
   SCULPT_RETURN_IF_ERROR(scene->OpenModels());
+  // Resends of edits whose records were dropped with the log before the last snapshot.
+  const std::string table_path =
+      (std::filesystem::path(config.data_dir) / store::kResendTableFile).string();
+  if (auto table = store::LoadResendTable(table_path); table.ok()) {
+    for (const auto& [key, client_seq] : table->last) {
+      std::map<uint64_t, uint64_t>* m = nullptr;
+      switch (key.first) {
+        case kStrokes: m = &scene->last_client_seq_; break;
+        case kPaints: m = &scene->last_paint_seq_; break;
+        case kModels: m = &scene->last_model_seq_; break;
+        case kBallEdits: m = &scene->last_skin_seq_; break;
+        case kSweeps: m = &scene->last_sweep_seq_; break;
+        default: continue;
+      }
+      uint64_t& last = (*m)[key.second];
+      last = std::max(last, client_seq);
+    }
+  } else if (table.status().code() != Status::Code::kNotFound) {
+    spdlog::error("{}; resends of edits before seq {} may be applied again", table.status().ToString(),
+                  scene->log_->base_seq());
+  } else if (scene->log_->base_seq() > 0) {
+    spdlog::warn("{} is missing but the log starts after seq {}: resends of edits before it may "
+                 "be applied again", table_path, scene->log_->base_seq());
+  }
+  {
+    // Snapshots that loaded are a complete round: the next complete round trims up to it.
+    uint64_t oldest = UINT64_MAX;
+    for (const auto& [object, seq] : rec.snapshot_seq) oldest = std::min(oldest, seq);
+    scene->last_round_seq_ = oldest == UINT64_MAX ? 0 : oldest;
+  }
   scene->last_snapshot_time_ = NowSeconds();
   {
     std::lock_guard<std::mutex> lock(scene->info_mu_);
@@ -244,6 +283,17 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   Scene* raw = scene.get();
   scene->log_->OnDurable([raw](uint64_t d) { raw->ReleaseDurable(d); });
   scene->thread_ = std::thread([raw] { raw->Run(); });
+  // Replayed edits count towards the next snapshot, and a long replay snapshots right away (the
+  // clone on the compute thread, the write in the background): otherwise a server killed more
+  // often than it reaches snapshot_every_edits replays an ever longer tail at each start.
+  raw->edits_since_snapshot_ = rec.report.replayed_records;
+  const uint64_t every = config.snapshot_every_edits > 0 ? config.snapshot_every_edits
+                                                         : kPromptSnapshotAfterReplay;
+  if (rec.report.replayed_records > 0 &&
+      (rec.report.replayed_records >= std::min(every, kPromptSnapshotAfterReplay) / 2 ||
+       NowSeconds() - t0 >= kPromptSnapshotAfterSeconds)) {
+    raw->Post([raw] { raw->MaybeSnapshot(/*force=*/true); });
+  }
   scene->mesher_ = std::thread([raw] { raw->MesherLoop(); });
   return scene;
 }
@@ -411,20 +461,66 @@ void Scene::MaybeSnapshot(bool force) {
     spdlog::error("edit log sync before snapshot failed: {}", s.ToString());
     return;
   }
+  // The resend table, skins and models at `seq` are durable before the round can let the log
+  // go; a round with any failure trims nothing.
+  const bool side_files_saved = SaveResendTable(seq) & SaveModels(seq) & SaveSkins(seq);
+  struct Round {
+    std::atomic<size_t> remaining;
+    std::atomic<bool> failed;
+  };
+  auto round = std::make_shared<Round>();
+  round->remaining = sculptures_.size();
+  round->failed = !side_files_saved;
   for (auto& [name, sculpture] : sculptures_) {
     // The clone is the only work on the compute thread; the write happens in the background.
-    snapshots_->WriteAsync(seq, name, sculpture.Clone(), [seq, name](Status s) {
+    snapshots_->WriteAsync(seq, name, sculpture.Clone(), [this, seq, name, round](Status s) {
       // kUnavailable: superseded by a newer snapshot before it was written, which is fine.
       if (!s.ok() && s.code() != Status::Code::kUnavailable) {
         spdlog::warn("snapshot of {} at seq {} failed: {}", name, seq, s.ToString());
       }
+      if (!s.ok()) round->failed = true;
+      if (--round->remaining == 0 && !round->failed) OnSnapshotRoundDurable(seq);
     });
   }
-  SaveModels(seq);
-  SaveSkins(seq);
   log_->Roll();
   edits_since_snapshot_ = 0;
   last_snapshot_time_ = NowSeconds();
+}
+
+bool Scene::SaveResendTable(uint64_t seq) {
+  store::ResendTable table;
+  table.seq = seq;
+  const std::pair<ResendStream, const std::map<uint64_t, uint64_t>*> streams[] = {
+      {kStrokes, &last_client_seq_}, {kPaints, &last_paint_seq_},   {kModels, &last_model_seq_},
+      {kBallEdits, &last_skin_seq_}, {kSweeps, &last_sweep_seq_}};
+  for (const auto& [stream, m] : streams) {
+    for (const auto& [client, client_seq] : *m) {
+      if (client_seq > 0) table.last[{stream, client}] = client_seq;
+    }
+  }
+  const std::string path =
+      (std::filesystem::path(config_.data_dir) / store::kResendTableFile).string();
+  if (const Status s = store::SaveResendTable(path, table); !s.ok()) {
+    spdlog::error("resend table at seq {} not saved (the log is kept): {}", seq, s.ToString());
+    return false;
+  }
+  return true;
+}
+
+void Scene::OnSnapshotRoundDurable(uint64_t seq) {
+  // Runs on the snapshot writer thread.
+  uint64_t drop_to = 0;
+  {
+    std::lock_guard<std::mutex> lock(trim_mu_);
+    if (seq <= last_round_seq_) return;
+    drop_to = last_round_seq_;
+    last_round_seq_ = seq;
+  }
+  if (drop_to == 0) return;
+  if (const Status s = log_->DropSegmentsBefore(drop_to); !s.ok()) {
+    spdlog::warn("edit log trim up to seq {} failed (retried at the next snapshot): {}", drop_to,
+                 s.ToString());
+  }
 }
 
 void Scene::RefreshInfoLocked() {

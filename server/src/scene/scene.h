@@ -222,7 +222,7 @@ class Scene {
   // newest ball-edit and sweep client_seq of each client tell resends apart.
   struct SkinState;
   Status OpenSkins();
-  void SaveSkins(uint64_t seq);
+  bool SaveSkins(uint64_t seq);  // false if a skin file was not saved
   std::map<uint64_t, uint64_t> last_skin_seq_;
   std::map<uint64_t, uint64_t> last_sweep_seq_;
   // Re-sends the object's slices whose plane crosses the leaves an edit changed.
@@ -237,7 +237,7 @@ class Scene {
   std::map<std::string, std::shared_ptr<ModelState>> models_;
   std::map<uint64_t, uint64_t> last_model_seq_;
   Status OpenModels();
-  void SaveModels(uint64_t seq);
+  bool SaveModels(uint64_t seq);  // false if a model file was not saved
   void ReplicateLeaves(const std::string& object, const levelset::Sculpture& sculpture,
                        const std::vector<levelset::Int3>& dirty, uint64_t seq, uint64_t client_id,
                        uint64_t client_seq);
@@ -277,6 +277,13 @@ class Scene {
   uint64_t next_seq_ = 1;                          // compute thread only
   uint64_t edits_since_snapshot_ = 0;
   double last_snapshot_time_ = 0;
+  // Bounded log: once every object's snapshot of a round is durable (with the resend table,
+  // skins and models saved at its seq), the log is dropped up to the previous complete round,
+  // so a damaged newest snapshot can still fall back to the previous one plus the longer tail.
+  bool SaveResendTable(uint64_t seq);
+  void OnSnapshotRoundDurable(uint64_t seq);
+  std::mutex trim_mu_;
+  uint64_t last_round_seq_ = 0;  // guarded by trim_mu_
   std::atomic<uint64_t> applied_seq_{0};
   std::string recovery_summary_;
 

@@ -25,6 +25,7 @@
 #include "sculpt/levelset/slice.h"
 #include "sculpt/skin/contour_codec.h"
 #include "store/edit_log.h"
+#include "store/resend_table.h"
 
 namespace sculpt::server {
 namespace {
@@ -304,7 +305,8 @@ Status SaveSkinFile(const std::string& path, const v1::SavedSkin& saved) {
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
   if (ec) return Internal("rename " + tmp + ": " + ec.message());
-  return Status::Ok();
+  // The log before this file's seq may be dropped once it is saved: make the rename durable.
+  return store::FsyncDirectory(std::filesystem::path(path).parent_path().string());
 }
 
 StatusOr<v1::SavedSkin> LoadSkinFile(const std::string& path) {
@@ -399,8 +401,9 @@ Status Scene::OpenSkins() {
   });
 }
 
-void Scene::SaveSkins(uint64_t seq) {
-  if (skins_ == nullptr || skins_->skins.empty()) return;
+bool Scene::SaveSkins(uint64_t seq) {
+  if (skins_ == nullptr || skins_->skins.empty()) return true;
+  bool saved_all = true;
   std::error_code ec;
   std::filesystem::create_directories(std::filesystem::path(config_.data_dir) / "skins", ec);
   for (const auto& [name, entry] : skins_->skins) {
@@ -423,8 +426,10 @@ void Scene::SaveSkins(uint64_t seq) {
     // Written before the log rolls, so the segments a snapshot lets go are already covered.
     if (const Status s = SaveSkinFile(SkinFilePath(config_.data_dir, name), saved); !s.ok()) {
       spdlog::error("skin {} at seq {} not saved: {}", name, seq, s.ToString());
+      saved_all = false;
     }
   }
+  return saved_all;
 }
 
 void Scene::EditSkin(uint64_t client_id, v1::SkinBallEdit e,
