@@ -4,10 +4,12 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/mount.h>
 #include <sys/wait.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -236,6 +238,67 @@ TEST(CrashTest, TrimmedLogRestartsToTheSameStateAndRecognisesOldResends) {
     check(put_back == dropped ? "crash between snapshot and trim" : "crash during the trim");
   }
   fs::remove_all(root);
+}
+
+// A full disk (a 2 MiB tmpfs, so root only; skipped otherwise): the stroke is refused with
+// RESOURCE_EXHAUSTED naming the directory and the free bytes, nothing of it is applied, and the
+// same stroke succeeds once space is freed, without a restart.
+TEST(CrashTest, FullDiskRefusesNamedAndResumesWhenSpaceReturns) {
+  const fs::path mnt = fs::temp_directory_path() / ("sculptd_full_" + std::to_string(getpid()));
+  fs::create_directories(mnt);
+  if (::mount("tmpfs", mnt.c_str(), "tmpfs", 0, "size=2m") != 0) {
+    fs::remove(mnt);
+    GTEST_SKIP() << "cannot mount a small tmpfs here (" << std::strerror(errno) << ")";
+  }
+  struct Unmount {
+    fs::path at;
+    ~Unmount() {
+      ::umount2(at.c_str(), MNT_DETACH);
+      std::error_code ec;
+      fs::remove_all(at, ec);
+    }
+  } unmount{mnt};
+  ServerConfig config;
+  config.data_dir = (mnt / "data").string();
+  config.snapshot_every_edits = 0;
+  config.snapshot_every_seconds = 0;
+  auto scene = Scene::Open(config);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  constexpr uint64_t kClient = 5;
+  ASSERT_EQ(SubmitAndWait(**scene, kClient, RawClient::PressStroke(1, {0, 0, 13.3})).edits, 4u);
+  {
+    // Fill the disk.
+    std::ofstream filler(mnt / "filler", std::ios::binary);
+    const std::string block(4096, 'x');
+    while (filler.write(block.data(), block.size())) {
+    }
+  }
+  uint64_t seq = 2;
+  StrokeOutcome refused;
+  for (; seq < 200; ++seq) {
+    refused = SubmitAndWait(**scene, kClient, RawClient::PressStroke(seq, {0, 0.1 * seq, 13.3}));
+    if (!refused.status.ok()) break;
+  }
+  ASSERT_LT(seq, 200u) << "the disk never filled";
+  EXPECT_EQ(refused.status.code(), Status::Code::kResourceExhausted) << refused.status;
+  const codec::FieldError fe = codec::SplitFieldError(refused.status);
+  EXPECT_EQ(fe.field, "edit_log.free_bytes");
+  EXPECT_FALSE(fe.value.empty());
+  EXPECT_NE(refused.status.message().find((mnt / "data" / "log").string()), std::string::npos)
+      << refused.status;
+  const uint64_t hash_refused = (*scene)->StateHash("clay");
+  fs::remove(mnt / "filler");
+  const StrokeOutcome retried =
+      SubmitAndWait(**scene, kClient, RawClient::PressStroke(seq, {0, 0.1 * seq, 13.3}));
+  ASSERT_TRUE(retried.status.ok()) << retried.status;
+  EXPECT_FALSE(retried.duplicate);
+  EXPECT_EQ(retried.edits, 4u);
+  EXPECT_NE((*scene)->StateHash("clay"), hash_refused);
+  const uint64_t live = (*scene)->StateHash("clay");
+  scene->reset();
+  auto again = Scene::Open(config);
+  ASSERT_TRUE(again.ok()) << again.status();
+  EXPECT_EQ((*again)->StateHash("clay"), live);
 }
 
 TEST(CrashTest, KillNineTwentyTimesLosesNoAcknowledgedEdit) {

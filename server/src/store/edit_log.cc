@@ -4,6 +4,7 @@
 #include <fcntl.h>
 #include <spdlog/spdlog.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <limits.h>
 #include <sys/uio.h>
 #include <unistd.h>
@@ -99,14 +100,34 @@ std::string CorruptMessage(const std::string& path, uint64_t offset, const std::
          " --dry-run` says exactly what a repair would discard (the log must stay contiguous)";
 }
 
-Status WriteFully(int fd, iovec* iov, int count, const std::string& path) {
+// A full disk is the operator's to fix and passes: the error names the directory and the free
+// space, and the log stays usable.
+Status DiskFull(const std::string& path, uint64_t need, int err) {
+  const std::string dir = fs::path(path).parent_path().string();
+  struct statvfs vfs;
+  const uint64_t free_bytes =
+      ::statvfs(dir.c_str(), &vfs) == 0 ? static_cast<uint64_t>(vfs.f_bavail) * vfs.f_frsize : 0;
+  return ResourceExhausted("edit_log.free_bytes=" + std::to_string(free_bytes) + " outside [" +
+                           std::to_string(need) + ", ...) in " + dir + " (writing " + path + ": " +
+                           std::strerror(err) + "); edits resume once space is freed");
+}
+
+using WritevFn = std::function<ssize_t(int, const iovec*, int)>;
+
+Status WriteFully(int fd, iovec* iov, int count, const std::string& path,
+                  const WritevFn& writev_fn = nullptr) {
+  uint64_t left_total = 0;
+  for (int i = 0; i < count; ++i) left_total += iov[i].iov_len;
   while (count > 0) {
-    const ssize_t n = ::writev(fd, iov, std::min(count, IOV_MAX));
+    const int n_iov = std::min(count, IOV_MAX);
+    const ssize_t n = writev_fn ? writev_fn(fd, iov, n_iov) : ::writev(fd, iov, n_iov);
     if (n < 0) {
       if (errno == EINTR) continue;
+      if (errno == ENOSPC || errno == EDQUOT) return DiskFull(path, left_total, errno);
       return Errno("writing", path);
     }
     size_t left = static_cast<size_t>(n);
+    left_total -= left;
     while (count > 0 && left >= iov->iov_len) {
       left -= iov->iov_len;
       ++iov;
@@ -798,7 +819,7 @@ Status EditLog::StartSegment(uint64_t first_seq) {
     PutU32(header.data() + 24, 0);
     PutU32(header.data() + 28, HeaderCrc(header.data()));
     iovec iov{header.data(), header.size()};
-    Status s = WriteFully(fd, &iov, 1, path);
+    Status s = WriteFully(fd, &iov, 1, path, options_.writev_for_testing);
     // The header and the directory entry are synced once here, so a record's own fdatasync
     // is enough to make it reachable after a power loss.
     if (s.ok() && ::fdatasync(fd) != 0) s = Errno("fdatasync of", path);
@@ -816,16 +837,23 @@ Status EditLog::StartSegment(uint64_t first_seq) {
       PutU64(marker.data() + 8, first_seq);
       PutU32(marker.data() + 4, RecordCrc(marker.data() + 8, nullptr, 0));
       iovec miov{marker.data(), marker.size()};
-      Status m = WriteFully(old_fd, &miov, 1, segments_.back().path);
-      if (m.ok() && ::fdatasync(old_fd) != 0) m = Errno("fdatasync of", segments_.back().path);
+      Status m = WriteFully(old_fd, &miov, 1, segments_.back().path, options_.writev_for_testing);
+      if (!m.ok() && ::ftruncate(old_fd, static_cast<off_t>(segments_.back().bytes)) == 0) {
+        // Without its marker the old segment is as after a crash right here: still valid.
+        spdlog::warn("edit log {}: no end marker written: {}", segments_.back().path,
+                     m.ToString());
+      } else if (!m.ok() || ::fdatasync(old_fd) != 0) {
+        const Status why = m.ok() ? Errno("fdatasync of", segments_.back().path) : m;
+        ::close(old_fd);
+        fd_ = -1;
+        ::close(fd);
+        return Poison(why);
+      } else {
+        segments_.back().bytes += kRecordHeaderBytes;
+        segments_.back().next_first = first_seq;
+      }
       ::close(old_fd);
       fd_ = -1;
-      if (!m.ok()) {
-        ::close(fd);
-        return Poison(m);
-      }
-      segments_.back().bytes += kRecordHeaderBytes;
-      segments_.back().next_first = first_seq;
     }
     fd_ = fd;
     active_path_ = path;
@@ -895,7 +923,8 @@ Status EditLog::AppendRecords(uint64_t first_seq, const std::string_view* payloa
   }
   // Headers and payloads leave in one writev (several past IOV_MAX): no copy of the payloads,
   // and a crash tears at most this group, which the scan at Open cuts off whole.
-  Status s = WriteFully(fd_, iov.data(), static_cast<int>(iov.size()), active_path_);
+  Status s = WriteFully(fd_, iov.data(), static_cast<int>(iov.size()), active_path_,
+                        options_.writev_for_testing);
   if (!s.ok()) {
     // Remove a partial group (e.g. ENOSPC mid-write) so the next record does not follow
     // garbage; if even that fails the file can no longer be trusted.

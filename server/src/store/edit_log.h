@@ -3,6 +3,9 @@
 #ifndef SCULPT_SERVER_STORE_EDIT_LOG_H_
 #define SCULPT_SERVER_STORE_EDIT_LOG_H_
 
+#include <sys/types.h>
+#include <sys/uio.h>
+
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
@@ -72,6 +75,8 @@ struct EditLogOptions {
   /// size (a record larger than this gets a segment of its own). At least
   /// kSegmentHeaderBytes + kRecordHeaderBytes.
   uint64_t segment_bytes = kDefaultSegmentBytes;
+  /// Tests only: replaces ::writev for every write of the log (inject ENOSPC and the like).
+  std::function<ssize_t(int fd, const iovec* iov, int count)> writev_for_testing;
 };
 
 /// What start-up found. EditLog::Open fills the log fields; Recover() adds the snapshot fields.
@@ -163,7 +168,9 @@ class EditLog {
   /// Appends one record with one write() call. kAlways: returns after fdatasync (durable).
   /// kGroup: returns after the write; the record is durable once durable_seq() >= seq.
   /// FailedPrecondition if seq <= last_seq(); InvalidArgument for a payload over
-  /// kMaxRecordPayload; Internal for an I/O error, after which every call fails (see Sync).
+  /// kMaxRecordPayload; ResourceExhausted for a full disk (field edit_log.free_bytes, the free
+  /// bytes, the directory): nothing of the record stays and a later Append succeeds once space
+  /// is freed; Internal for another I/O error, after which every call fails (see Sync).
   Status Append(uint64_t seq, std::string_view payload);
 
   /// Appends payloads[i] at seq first_seq + i as one group, in one write() call: start-up

@@ -2,11 +2,13 @@
 #include "store/edit_log.h"
 
 #include <gtest/gtest.h>
+#include <sys/uio.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <boost/crc.hpp>
+#include <cerrno>
 #include <chrono>
 #include <cstring>
 #include <filesystem>
@@ -762,6 +764,49 @@ TEST_F(EditLogTest, RepairAcceptsTheLossOfAMissingNewestSegment) {
   ASSERT_NE(log, nullptr);
   EXPECT_EQ(log->last_seq(), 1u);
   EXPECT_TRUE(log->Append(2, "b again").ok());
+}
+
+// A full disk: Append fails with ResourceExhausted naming the directory and the free bytes,
+// nothing of the record stays, and appends succeed by themselves once space returns.
+TEST_F(EditLogTest, FullDiskIsNamedAndPassesWhenSpaceReturns) {
+  std::atomic<bool> full{false};
+  EditLogOptions options;
+  options.fsync = Always();
+  options.writev_for_testing = [&full](int fd, const struct iovec* iov, int count) -> ssize_t {
+    if (full.load()) {
+      // Half of the first buffer gets out, then the disk is full (a partial record).
+      if (iov[0].iov_len > 1) {
+        struct iovec half = {iov[0].iov_base, iov[0].iov_len / 2};
+        const ssize_t n = ::writev(fd, &half, 1);
+        if (n > 0) return n;
+      }
+      errno = ENOSPC;
+      return -1;
+    }
+    return ::writev(fd, iov, count);
+  };
+  {
+    auto log = OpenOrDie(options);
+    ASSERT_TRUE(log->Append(1, Payload(1)).ok());
+    full = true;
+    const Status s = log->AppendGroup(2, {Payload(2), Payload(3)});
+    EXPECT_EQ(s.code(), Status::Code::kResourceExhausted) << s;
+    EXPECT_NE(s.message().find("edit_log.free_bytes="), std::string::npos) << s;
+    EXPECT_NE(s.message().find(dir_), std::string::npos) << s;
+    EXPECT_EQ(log->last_seq(), 1u);
+    EXPECT_EQ(log->Append(2, Payload(2)).code(), Status::Code::kResourceExhausted);
+    full = false;
+    ASSERT_TRUE(log->AppendGroup(2, {Payload(2), Payload(3)}).ok()) << "resumes by itself";
+    ASSERT_TRUE(log->Append(4, Payload(4)).ok());
+  }
+  RecoveryReport report;
+  auto log = OpenOrDie(Group(), &report);
+  ASSERT_NE(log, nullptr);
+  EXPECT_EQ(report.dropped_tail_bytes, 0u) << "no partial record was left behind";
+  auto records = log->ReadFrom(0);
+  ASSERT_TRUE(records.ok()) << records.status();
+  ASSERT_EQ(records->size(), 4u);
+  for (uint64_t seq = 1; seq <= 4; ++seq) EXPECT_EQ((*records)[seq - 1].payload, Payload(seq));
 }
 
 }  // namespace
