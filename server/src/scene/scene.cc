@@ -242,6 +242,15 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
       (rec.report.dropped_tail_bytes
            ? ", dropped a torn tail of " + std::to_string(rec.report.dropped_tail_bytes) + " bytes"
            : std::string()) +
+      (rec.report.skipped_snapshots.empty()
+           ? std::string()
+           : ", skipped damaged snapshot(s) " + [&] {
+               std::string all;
+               for (const std::string& s : rec.report.skipped_snapshots) {
+                 all += (all.empty() ? "" : "; ") + s;
+               }
+               return all;
+             }()) +
       ") in " + std::to_string(NowSeconds() - t0) + " s";
   SCULPT_RETURN_IF_ERROR(scene->OpenSkins());
   SCULPT_RETURN_IF_ERROR(scene->OpenModels());
