@@ -32,6 +32,9 @@ enum ResendStream : uint8_t { kStrokes = 0, kPaints = 1, kModels = 2, kBallEdits
 // snapshots at once (in the background), so repeated crashes cannot stack up replay time.
 constexpr uint64_t kPromptSnapshotAfterReplay = 1000;
 constexpr double kPromptSnapshotAfterSeconds = 0.25;
+// Stroke apply time since the last snapshot after which one is taken, however few the edits:
+// start-up after a crash replays at most about this long (plus loading the snapshots).
+constexpr double kMaxTailApplySeconds = 1.0;
 
 double NowSeconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
@@ -296,9 +299,11 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   // clone on the compute thread, the write in the background): otherwise a server killed more
   // often than it reaches snapshot_every_edits replays an ever longer tail at each start.
   raw->edits_since_snapshot_ = rec.report.replayed_records;
+  raw->tail_apply_s_ = NowSeconds() - t0;
   const uint64_t every = config.snapshot_every_edits > 0 ? config.snapshot_every_edits
                                                          : kPromptSnapshotAfterReplay;
-  if (rec.report.replayed_records > 0 &&
+  const bool snapshots_on = config.snapshot_every_edits > 0 || config.snapshot_every_seconds > 0;
+  if (snapshots_on && rec.report.replayed_records > 0 &&
       (rec.report.replayed_records >= std::min(every, kPromptSnapshotAfterReplay) / 2 ||
        NowSeconds() - t0 >= kPromptSnapshotAfterSeconds)) {
     raw->Post([raw] { raw->MaybeSnapshot(/*force=*/true); });
@@ -417,8 +422,10 @@ void Scene::ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, Stroke
     // The stroke's poses as one batch: one block, one compensation, one reinitialisation.
     const levelset::ReplayState before = levelset::CaptureReplayState(sculpture);
     const levelset::EditFootprint footprint = levelset::FootprintOf(sculpture, batch, settings_);
+    const double apply_t0 = NowSeconds();
     auto res = records.size() == 1 ? levelset::ApplyEdit(sculpture, batch.front(), settings_)
                                     : levelset::ApplyEdits(sculpture, batch, settings_);
+    tail_apply_s_ += NowSeconds() - apply_t0;
     if (res.ok()) {
       // Leaf versions always (cheap), so a replica subscribing later resyncs by version.
       versions_[stroke.object].Record(res->dirty_leaves, next_seq_ - 1);
@@ -463,7 +470,11 @@ void Scene::MaybeSnapshot(bool force) {
                          edits_since_snapshot_ >= config_.snapshot_every_edits);
   const bool by_time = config_.snapshot_every_seconds > 0 && edits_since_snapshot_ > 0 &&
                        NowSeconds() - last_snapshot_time_ >= config_.snapshot_every_seconds;
-  if (!by_count && !by_time) return;
+  // Replay repeats the live apply, so the apply time since the snapshot bounds start-up after a
+  // crash: past kMaxTailApplySeconds a snapshot is due whatever the edit count says.
+  const bool by_cost = (config_.snapshot_every_edits > 0 || config_.snapshot_every_seconds > 0) &&
+                       edits_since_snapshot_ > 0 && tail_apply_s_ >= kMaxTailApplySeconds;
+  if (!by_count && !by_time && !by_cost) return;
   const uint64_t seq = next_seq_ - 1;
   // A snapshot must never hold an edit the log could still lose (group commit): sync first.
   if (const Status s = log_->Sync(); !s.ok()) {
@@ -493,6 +504,7 @@ void Scene::MaybeSnapshot(bool force) {
   }
   log_->Roll();
   edits_since_snapshot_ = 0;
+  tail_apply_s_ = 0;
   last_snapshot_time_ = NowSeconds();
 }
 

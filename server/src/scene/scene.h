@@ -276,6 +276,7 @@ class Scene {
   std::map<uint64_t, uint64_t> last_client_seq_;  // compute thread only
   uint64_t next_seq_ = 1;                          // compute thread only
   uint64_t edits_since_snapshot_ = 0;
+  double tail_apply_s_ = 0;  // stroke apply time since the last snapshot (compute thread)
   double last_snapshot_time_ = 0;
   // Bounded log: once every object's snapshot of a round is durable (with the resend table,
   // skins and models saved at its seq), the log is dropped up to the previous complete round,

@@ -16,13 +16,17 @@
 
 namespace sculpt::server::store {
 
-// How sculptd is meant to drive the store (the compute thread owns the log and the objects):
-//   start-up:  Recover() -> sculptures, last_seq, the open log and snapshot store.
-//   each edit: log->Append(seq, payload), apply, fan out; acknowledge from log->OnDurable.
-//   snapshot:  log->Sync() (so the snapshot holds only durable edits), then per object
-//              snapshots->WriteAsync(seq, name, sculpture.Clone(), done), then log->Roll();
-//              when every object's snapshot at or after some seq S reported Ok in `done`,
-//              log->DropSegmentsBefore(S) (S = the smallest such seq over the objects).
+// How sculptd drives the store (the compute thread owns the log and the objects):
+//   start-up:  Recover() -> sculptures, last_seq, the open log and snapshot store; then the
+//              resend table (resend_table.h) is merged into the resend filter.
+//   each edit: log->Append(seq, payload) (a multi-record edit: log->AppendGroup, recovered whole
+//              or not at all), apply, fan out; acknowledge from log->OnDurable.
+//   snapshot:  log->Sync() (so the snapshot holds only durable edits), SaveResendTable and the
+//              side files at seq, then per object snapshots->WriteAsync(seq, name,
+//              sculpture.Clone(), done), then log->Roll(); when every object's snapshot of the
+//              round at seq S reported Ok, log->DropSegmentsBefore(S') where S' is the previous
+//              complete round, so a damaged newest snapshot still has the previous one plus
+//              the longer tail to fall back to.
 
 /// The parts of a data directory.
 inline constexpr char kLogSubdir[] = "log";
