@@ -85,7 +85,8 @@ StrokeOutcome SubmitAndWait(Scene& scene, uint64_t client_id, const v1::ClientMe
   auto stroke = codec::DecodeStroke(m.stroke(), *limits);
   EXPECT_TRUE(stroke.ok()) << stroke.status();
   std::promise<StrokeOutcome> p;
-  scene.Submit(client_id, std::move(stroke).value(), [&p](const StrokeOutcome& o) { p.set_value(o); });
+  scene.Submit(client_id, std::move(stroke).value(),
+               [&p](const StrokeOutcome& o) { p.set_value(o); });
   return p.get_future().get();
 }
 
@@ -184,7 +185,8 @@ TEST(CrashTest, TrimmedLogRestartsToTheSameStateAndRecognisesOldResends) {
   auto stroke = [](int i) {
     const double a = 0.4 * i;
     return RawClient::PressStroke(static_cast<uint64_t>(i),
-                                  {12.5 * std::cos(a), 12.5 * std::sin(a), 3.0 * std::sin(2 * a)}, 4);
+                                  {12.5 * std::cos(a), 12.5 * std::sin(a), 3.0 * std::sin(2 * a)},
+                                  4);
   };
   uint64_t hash = 0;
   {

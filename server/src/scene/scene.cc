@@ -275,8 +275,8 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
       last = std::max(last, client_seq);
     }
   } else if (table.status().code() != Status::Code::kNotFound) {
-    spdlog::error("{}; resends of edits before seq {} may be applied again", table.status().ToString(),
-                  scene->log_->base_seq());
+    spdlog::error("{}; resends of edits before seq {} may be applied again",
+                  table.status().ToString(), scene->log_->base_seq());
   } else if (scene->log_->base_seq() > 0) {
     spdlog::warn("{} is missing but the log starts after seq {}: resends of edits before it may "
                  "be applied again", table_path, scene->log_->base_seq());
@@ -294,12 +294,12 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   }
   Scene* raw = scene.get();
   scene->log_->OnDurable([raw](uint64_t d) { raw->ReleaseDurable(d); });
-  scene->thread_ = std::thread([raw] { raw->Run(); });
   // Replayed edits count towards the next snapshot, and a long replay snapshots right away (the
   // clone on the compute thread, the write in the background): otherwise a server killed more
   // often than it reaches snapshot_every_edits replays an ever longer tail at each start.
-  raw->edits_since_snapshot_ = rec.report.replayed_records;
-  raw->tail_apply_s_ = NowSeconds() - t0;
+  scene->edits_since_snapshot_ = rec.report.replayed_records;
+  scene->tail_apply_s_ = NowSeconds() - t0;
+  scene->thread_ = std::thread([raw] { raw->Run(); });
   const uint64_t every = config.snapshot_every_edits > 0 ? config.snapshot_every_edits
                                                          : kPromptSnapshotAfterReplay;
   const bool snapshots_on = config.snapshot_every_edits > 0 || config.snapshot_every_seconds > 0;

@@ -626,7 +626,8 @@ StatusOr<RepairReport> EditLog::Repair(const std::string& dir, bool dry_run) {
       for (uint64_t off = kSegmentHeaderBytes; off + kRecordHeaderBytes <= b.size();) {
         const uint32_t f = GetU32(d + off);
         const uint32_t len = f & ~kGroupContinues;
-        if (f == kSegmentEnd || len > kMaxRecordPayload || b.size() - off - kRecordHeaderBytes < len) {
+        if (f == kSegmentEnd || len > kMaxRecordPayload ||
+            b.size() - off - kRecordHeaderBytes < len) {
           break;
         }
         const uint64_t sq = GetU64(d + off + 8);
@@ -708,8 +709,9 @@ StatusOr<RepairReport> EditLog::Repair(const std::string& dir, bool dry_run) {
   if (last_has_marker) {
     out.clean = false;
     const std::string& path = files.back().second;
-    out.actions.push_back("remove the end marker of " + path + " (the last 16 bytes), which names " +
-                          SegmentFileName(last_marker_next) + ", a newer segment that is missing");
+    out.actions.push_back("remove the end marker of " + path +
+                          " (the last 16 bytes), which names " + SegmentFileName(last_marker_next) +
+                          ", a newer segment that is missing");
     out.discarded.push_back("every record from seq " + std::to_string(last_marker_next) +
                             " on that was in the missing " + SegmentFileName(last_marker_next) +
                             " (how many is unknown)");

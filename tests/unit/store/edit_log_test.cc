@@ -838,7 +838,8 @@ TEST_F(EditLogTest, SeededDamageNeverCrashesAndNeverInventsRecords) {
       case 1: {
         const size_t at = rng() % bytes.size();
         std::fill(bytes.begin() + static_cast<std::ptrdiff_t>(at),
-                  bytes.begin() + static_cast<std::ptrdiff_t>(std::min(bytes.size(), at + 1 + rng() % 64)),
+                  bytes.begin() +
+                      static_cast<std::ptrdiff_t>(std::min(bytes.size(), at + 1 + rng() % 64)),
                   '\0');
         break;
       }

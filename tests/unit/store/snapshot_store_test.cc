@@ -264,7 +264,8 @@ TEST_F(SnapshotStoreTest, RejectsASnapshotWhoseNameAndHeaderDisagree) {
   ASSERT_TRUE(store->Write(20, "ball", Sphere(5)).ok());
   fs::rename(fs::path(dir_) / "snap-00000000000000000020-ball.vdb",
              fs::path(dir_) / "snap-00000000000000000030-ball.vdb");
-  auto loaded = LoadSnapshotFile((fs::path(dir_) / "snap-00000000000000000030-ball.vdb").string(), 30);
+  auto loaded =
+      LoadSnapshotFile((fs::path(dir_) / "snap-00000000000000000030-ball.vdb").string(), 30);
   EXPECT_EQ(loaded.status().code(), Status::Code::kDataLoss);
 }
 
