@@ -323,6 +323,74 @@ TEST(CrashTest, FullDiskRefusesNamedAndResumesWhenSpaceReturns) {
   EXPECT_EQ((*again)->StateHash("clay"), live);
 }
 
+// Damage in the middle of the log stops start-up with the file, the offset and the seqs at
+// stake; `sculptd repair --dry-run` lists what a repair gives up without changing anything;
+// `sculptd repair` then lets the scene start from the edits before the damage.
+TEST(CrashTest, DamagedLogStopsStartUpAndRepairSaysWhatItDiscards) {
+  const fs::path data =
+      fs::temp_directory_path() / ("sculptd_repair_" + std::to_string(getpid()));
+  fs::remove_all(data);
+  ServerConfig config;
+  config.data_dir = data.string();
+  uint64_t after_first = 0;
+  {
+    auto scene = Scene::Open(config);
+    ASSERT_TRUE(scene.ok()) << scene.status();
+    for (uint64_t i = 1; i <= 3; ++i) {
+      ASSERT_EQ(SubmitAndWait(**scene, 3, RawClient::PressStroke(i, {0, 0.5 * i, 13.3}, 4)).edits,
+                4u);
+      if (i == 1) after_first = (*scene)->StateHash("clay");
+    }
+  }
+  const std::vector<fs::path> segments = Segments(data / "log");
+  ASSERT_EQ(segments.size(), 1u);
+  const std::vector<uint64_t> offsets = RecordOffsets(segments[0]);
+  ASSERT_EQ(offsets.size(), 12u);
+  {
+    std::fstream f(segments[0], std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(static_cast<std::streamoff>(offsets[5] + store::kRecordHeaderBytes));
+    const char c = static_cast<char>(f.get());
+    f.seekp(static_cast<std::streamoff>(offsets[5] + store::kRecordHeaderBytes));
+    f.put(static_cast<char>(c ^ 0x10));  // a pose of the second stroke
+  }
+  auto refused = Scene::Open(config);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), Status::Code::kDataLoss);
+  EXPECT_NE(refused.status().message().find(segments[0].string()), std::string::npos);
+  EXPECT_NE(refused.status().message().find("offset " + std::to_string(offsets[5])),
+            std::string::npos)
+      << refused.status();
+  EXPECT_NE(refused.status().message().find("sculptd repair"), std::string::npos);
+
+  auto run = [](const std::string& args) {
+    const std::string cmd = std::string(SCULPT_BIN_DIR) + "/sculptd repair " + args + " 2>&1";
+    std::string out;
+    FILE* p = ::popen(cmd.c_str(), "r");
+    char buf[512];
+    while (p != nullptr && std::fgets(buf, sizeof(buf), p) != nullptr) out += buf;
+    const int rc = p != nullptr ? ::pclose(p) : -1;
+    return std::make_pair(rc, out);
+  };
+  const auto before = fs::file_size(segments[0]);
+  const auto [dry_rc, dry] = run("--data " + data.string() + " --dry-run");
+  EXPECT_EQ(dry_rc, 0) << dry;
+  EXPECT_NE(dry.find("would"), std::string::npos) << dry;
+  EXPECT_NE(dry.find("cut " + segments[0].string() + " at offset " + std::to_string(offsets[4])),
+            std::string::npos)
+      << dry;  // back to the start of the damaged stroke's group
+  EXPECT_NE(dry.find("after seq 4"), std::string::npos) << dry;
+  EXPECT_NE(dry.find("seq 5..12 (8 records, 1 damaged)"), std::string::npos) << dry;
+  EXPECT_EQ(fs::file_size(segments[0]), before) << "a dry run changes nothing";
+  const auto [rc, done] = run("--data " + data.string());
+  EXPECT_EQ(rc, 0) << done;
+  auto scene = Scene::Open(config);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ((*scene)->StateHash("clay"), after_first);
+  EXPECT_EQ((*scene)->global_seq(), 4u);
+  scene->reset();
+  fs::remove_all(data);
+}
+
 TEST(CrashTest, KillNineTwentyTimesLosesNoAcknowledgedEdit) {
   const fs::path dir = fs::temp_directory_path() / ("sculptd_crash_" + std::to_string(getpid()));
   fs::remove_all(dir);

@@ -670,8 +670,48 @@ StatusOr<RepairReport> EditLog::Repair(const std::string& dir, bool dry_run) {
       out.actions.push_back("cut " + path + " at offset " + std::to_string(cut_offset) + " (" +
                             why + "): " + std::to_string(cut_size - cut_offset) + " bytes");
     }
-    out.discarded.push_back("every record after seq " + std::to_string(last_good) + " in " +
-                            path + " (up to " + upto + ")");
+    {
+      // The records after the cut, as far as their lengths read (a record whose checksum fails
+      // is still counted when its length fits): what exactly the cut gives up.
+      std::string b;
+      uint64_t first = 0, last = 0, n = 0, damaged = 0,
+               off = std::max(cut_offset, kSegmentHeaderBytes);
+      bool unreadable = false;
+      if (ReadWholeFile(path, UINT64_MAX, &b).ok()) {
+        const auto* d = reinterpret_cast<const uint8_t*>(b.data());
+        while (off < b.size()) {
+          if (b.size() - off < kRecordHeaderBytes) {
+            unreadable = true;
+            break;
+          }
+          const uint32_t f = GetU32(d + off);
+          if (f == kSegmentEnd) break;
+          const uint32_t len = f & ~kGroupContinues;
+          if (len > kMaxRecordPayload || b.size() - off - kRecordHeaderBytes < len) {
+            unreadable = true;
+            break;
+          }
+          const uint64_t sq = GetU64(d + off + 8);
+          if (GetU32(d + off + 4) != RecordCrc(d + off + 8, d + off + kRecordHeaderBytes, len)) {
+            ++damaged;
+          }
+          if (first == 0) first = sq;
+          last = sq;
+          ++n;
+          off += kRecordHeaderBytes + len;
+        }
+      }
+      std::string what = "every record after seq " + std::to_string(last_good) + " in " + path;
+      if (n > 0) {
+        what += ": seq " + std::to_string(first) + ".." + std::to_string(last) + " (" +
+                std::to_string(n) + " records, " + std::to_string(damaged) + " damaged)";
+      }
+      if (unreadable || n == 0) {
+        what += (n > 0 ? ", then " : ": ") + std::string("unreadable bytes from offset ") +
+                std::to_string(off) + " (up to " + upto + ")";
+      }
+      out.discarded.push_back(what);
+    }
     describe_rest(cut_file + 1);
     if (!dry_run) {
       if (cut_offset < kSegmentHeaderBytes) {

@@ -733,7 +733,8 @@ TEST_F(EditLogTest, RepairSaysWhatItDiscardsAndThenTheLogOpens) {
   EXPECT_FALSE(plan->clean);
   ASSERT_EQ(plan->discarded.size(), 2u);
   EXPECT_NE(plan->discarded[0].find("after seq 5"), std::string::npos) << plan->discarded[0];
-  EXPECT_NE(plan->discarded[0].find("up to seq 10"), std::string::npos) << plan->discarded[0];
+  EXPECT_NE(plan->discarded[0].find("seq 6..10 (5 records, 1 damaged)"), std::string::npos)
+      << plan->discarded[0];
   EXPECT_NE(plan->discarded[1].find("seq 11..20 (10 records"), std::string::npos)
       << plan->discarded[1];
   EXPECT_EQ(ReadFile(first), bytes) << "a dry run changes nothing";
