@@ -138,9 +138,10 @@ void Session::OnStrokeDone(StrokeOutcome out, Clock::time_point received) {
   sum->set_reinit_passes(static_cast<uint32_t>(out.last.reinit_passes));
   sum->set_islands_removed(static_cast<uint32_t>(out.last.islands_removed));
   sum->set_elapsed_ms(static_cast<float>(out.last.elapsed_ms));
-  Send(m);
+  // Observed before the Ack is queued, so whoever has read the Ack sees it counted.
   server_.stats().stroke_ack_seconds[Index(transport_kind_)].Observe(
       std::chrono::duration<double>(Clock::now() - received).count());
+  Send(m);
 }
 
 // Refusals go out twice: as the generic Error, and in the ack the client waits for. The Error
