@@ -447,6 +447,9 @@ std::string HttpServer::MetricsText() {
             static_cast<double>(r.broadcast_bytes.load()), {{"kind", "broadcast"}});
   w.Counter("sculpt_replication_bytes_total", "Bytes of replication messages built",
             static_cast<double>(r.leaf_delta_bytes.load()), {{"kind", "leaf_delta"}});
+  w.Counter("sculpt_viewer_chunks_superseded_total",
+            "Mesh chunk frames a slow viewer never got because a newer version replaced them",
+            static_cast<double>(s.frames_superseded.load()));
   Scene::MeshStats& m = scene.mesh_stats();
   w.Counter("sculpt_viewer_chunk_encodes_total", "Mesh chunks Draco-encoded for viewers",
             static_cast<double>(m.chunks_encoded.load()));

@@ -29,6 +29,8 @@ struct ServerStats {
   std::atomic<uint64_t> strokes_refused{0};
   std::atomic<uint64_t> errors_sent{0};
   std::atomic<uint64_t> disconnects_for_cause{0};
+  /// Mesh chunk frames replaced, unsent, by a newer version of the same chunk.
+  std::atomic<uint64_t> frames_superseded{0};
   std::array<std::atomic<uint64_t>, kTransportKinds> bytes_in{};
   std::array<std::atomic<uint64_t>, kTransportKinds> bytes_out{};
   std::array<std::atomic<uint64_t>, kTransportKinds> messages_in{};

@@ -7,6 +7,7 @@
 
 #include <cmath>
 
+#include "net/frame_key.h"
 #include "net/server.h"
 #include "net/wire_error.h"
 #include "scene/models.h"
@@ -109,7 +110,23 @@ void Session::DeliverFrame(Frame frame) {
     });
   }
   if (closing_) return;
+  // A viewer that falls behind gets the newest version of each mesh chunk, never a backlog of
+  // versions: a chunk frame still waiting in the queue is replaced in place by the newer one.
+  std::string key = CoalescingKey(*frame);
+  if (!key.empty()) {
+    if (auto it = queued_slots_.find(key); it != queued_slots_.end()) {
+      Frame& slot = queue_[it->second];
+      queued_bytes_ = queued_bytes_ - slot->size() + frame->size();
+      slot = std::move(frame);
+      server_.stats().frames_superseded++;
+      return;
+    }
+  }
   Enqueue(std::move(frame), kStateAllowanceBytes, false);
+  // Still queued (a write is in flight): remember its slot.
+  if (!key.empty() && !closing_ && !queue_.empty()) {
+    queued_slots_[std::move(key)] = queue_.size() - 1;
+  }
 }
 
 void Session::OnStrokeDone(StrokeOutcome out, Clock::time_point received) {
@@ -680,6 +697,7 @@ void Session::DoWrite() {
   std::vector<Frame> frames(std::make_move_iterator(queue_.begin()),
                             std::make_move_iterator(queue_.end()));
   queue_.clear();
+  queued_slots_.clear();
   writing_ = true;
   writing_bytes_ = queued_bytes_;
   queued_bytes_ = 0;

@@ -12,6 +12,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <unordered_map>
 
 #include "net/net.h"
 #include "net/rate_limiter.h"
@@ -113,6 +114,9 @@ class Session : public std::enable_shared_from_this<Session> {
   const uint64_t id_;
 
   std::deque<Frame> queue_;
+  // Coalescing key (frame_key.h) -> index in queue_ of the frame waiting in that slot. The
+  // queue only grows until DoWrite takes all of it, so the indices stay valid until then.
+  std::unordered_map<std::string, size_t> queued_slots_;
   size_t queued_bytes_ = 0;
   size_t writing_bytes_ = 0;
   bool writing_ = false;
