@@ -6,7 +6,10 @@
 #include <sys/socket.h>
 #include <sys/time.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -519,6 +522,49 @@ TEST_F(HttpServerTest, MetricsParseStrictly) {
       EXPECT_EQ(std::system(cmd.c_str()), 0);
     }
   }
+}
+
+}  // namespace
+}  // namespace sculpt::server
+
+namespace sculpt::server {
+namespace {
+
+// A measurement, not a timed test (run by hand, figures in docs/benchmarks.md):
+//   server_tests --gtest_also_run_disabled_tests --gtest_filter='*StrokeAckWebSocketVsTcp*'
+// One TCP and one WebSocket sculptor alternate strokes against the same in-process server, one
+// stroke in flight at a time, so both see the same scene and load; the client measures from
+// send to Ack.
+TEST_F(HttpServerTest, DISABLED_StrokeAckWebSocketVsTcp) {
+  config_.limits.strokes_per_second = 1000;
+  config_.limits.stroke_burst = 1000;
+  Start();
+  RawClient tcp_client(port_);
+  ASSERT_TRUE(tcp_client.Enter(kSculptor, v1::ROLE_SCULPTOR));
+  auto ws = WsSculptor(9100);
+  const int kStrokes = 300;
+  std::vector<double> tcp_ms, ws_ms;
+  using Clock = std::chrono::steady_clock;
+  for (int i = 0; i < kStrokes; ++i) {
+    const double a = i * 0.05;
+    const Vec3 at{11.3 * std::cos(a), 11.3 * std::sin(a), 0};
+    auto t0 = Clock::now();
+    ASSERT_TRUE(tcp_client.Send(RawClient::PressStroke(i + 1, at, 1, 1.0)));
+    ASSERT_TRUE(tcp_client.ReadUntil(v1::ServerMessage::kAck));
+    tcp_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+    t0 = Clock::now();
+    ASSERT_TRUE(ws->Send(RawClient::PressStroke(i + 1, at, 1, 1.0)));
+    ASSERT_TRUE(ws->ReadUntil(v1::ServerMessage::kAck));
+    ws_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+  }
+  auto pct = [](std::vector<double> v, double q) {
+    std::sort(v.begin(), v.end());
+    return v[static_cast<size_t>(q * (v.size() - 1))];
+  };
+  std::printf("{\"strokes\": %d, \"tcp_p50_ms\": %.3f, \"tcp_p99_ms\": %.3f, "
+              "\"ws_p50_ms\": %.3f, \"ws_p99_ms\": %.3f}\n",
+              kStrokes, pct(tcp_ms, 0.5), pct(tcp_ms, 0.99), pct(ws_ms, 0.5), pct(ws_ms, 0.99));
+  EXPECT_GT(pct(ws_ms, 0.5), 0.0);
 }
 
 }  // namespace
