@@ -77,6 +77,10 @@ int main(int argc, char** argv) {
   serve->add_option("--web-root", web_root,
                     "Directory of the web client's files (default: the build's client/web/dist, "
                     "else the installed share/sculpt/web)");
+  std::vector<std::string> allowed_origins;
+  serve->add_option("--http-allow-origin", allowed_origins,
+                    "Another origin whose pages may open /ws (e.g. a dev server "
+                    "http://localhost:5173); repeatable. The page's own origin always may");
   serve->add_option("--http-max-connections", http_max_connections,
                     "Open HTTP connections and WebSocket sessions at most (default 512)")
       ->check(CLI::Range(size_t{1}, size_t{100000}));
@@ -138,6 +142,7 @@ int main(int argc, char** argv) {
     hc.web_root = web_root.empty() ? DefaultWebRoot() : std::filesystem::path(web_root);
     if (http_max_connections > 0) hc.max_connections = http_max_connections;
     if (http_idle_ms > 0) hc.idle_timeout_ms = http_idle_ms;
+    hc.allowed_origins = allowed_origins;
     http = std::make_unique<sculpt::server::HttpServer>(io, hc, server);
     auto hp = http->Start();
     if (!hp.ok()) {

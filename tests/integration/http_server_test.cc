@@ -264,6 +264,32 @@ TEST_F(HttpServerTest, WebSocketHelloJoinStrokeAck) {
   EXPECT_TRUE(dup->ack().duplicate());
 }
 
+TEST_F(HttpServerTest, RefusesWebSocketFromAnotherOrigin) {
+  http_config_.allowed_origins = {"http://localhost:5173"};
+  Start();
+  const std::string upgrade =
+      "GET /ws HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(http_port_) +
+      "\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Version: 13\r\n"
+      "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n";
+  EXPECT_EQ(RawHttp(http_port_, upgrade + "Origin: http://evil.example\r\n\r\n").status, 403);
+  EXPECT_EQ(RawHttp(http_port_, upgrade + "Origin: http://127.0.0.1:" +
+                                    std::to_string(http_port_) + "\r\n\r\n")
+                .status,
+            101);
+  EXPECT_EQ(RawHttp(http_port_, upgrade + "Origin: http://localhost:5173\r\n\r\n").status, 101);
+  EXPECT_EQ(RawHttp(http_port_, upgrade + "\r\n").status, 101);  // native: no Origin
+}
+
+TEST(OriginTest, OwnOriginNoOriginOrListed) {
+  EXPECT_TRUE(OriginAllowed("", "127.0.0.1:7421", {}));
+  EXPECT_TRUE(OriginAllowed("http://127.0.0.1:7421", "127.0.0.1:7421", {}));
+  EXPECT_TRUE(OriginAllowed("https://sculpt.example", "sculpt.example", {}));
+  EXPECT_FALSE(OriginAllowed("http://127.0.0.1:7422", "127.0.0.1:7421", {}));
+  EXPECT_FALSE(OriginAllowed("null", "127.0.0.1:7421", {}));
+  EXPECT_FALSE(OriginAllowed("http://evil.example", "", {}));
+  EXPECT_TRUE(OriginAllowed("http://localhost:5173", "127.0.0.1:7421", {"http://localhost:5173"}));
+}
+
 TEST_F(HttpServerTest, WebSocketViewerMayNotSculpt) {
   Start();
   WsClient c(http_port_);

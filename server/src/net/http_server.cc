@@ -43,6 +43,18 @@ std::string_view PathOf(beast::string_view target) {
 
 }  // namespace
 
+bool OriginAllowed(std::string_view origin, std::string_view host,
+                   const std::vector<std::string>& allowed) {
+  if (origin.empty()) return true;
+  for (const std::string& a : allowed) {
+    if (origin == a) return true;
+  }
+  // "scheme://host[:port]": the page's own origin names the Host it was served from.
+  const size_t sep = origin.find("://");
+  if (sep == std::string_view::npos || host.empty()) return false;
+  return origin.substr(sep + 3) == host;
+}
+
 /// One HTTP connection until it closes or becomes a WebSocket session. Every member is touched
 /// only on its strand.
 class HttpServer::Connection : public std::enable_shared_from_this<Connection> {
@@ -113,6 +125,16 @@ class HttpServer::Connection : public std::enable_shared_from_this<Connection> {
                             "/ws is a WebSocket: one sculpt.v1 message per binary message\n");
         res.set(http::field::upgrade, "websocket");
         return Send(req, std::move(res));
+      }
+      const auto origin = req.find(http::field::origin);
+      const auto host = req.find(http::field::host);
+      auto sv = [](beast::string_view v) { return std::string_view(v.data(), v.size()); };
+      if (!OriginAllowed(origin == req.end() ? "" : sv(origin->value()),
+                         host == req.end() ? "" : sv(host->value()),
+                         owner_.config_.allowed_origins)) {
+        return Send(req, Make(req, http::status::forbidden, "text/plain; charset=utf-8",
+                              "WebSocket from origin " + std::string(sv(origin->value())) +
+                                  " refused: only the page's own origin (or --http-allow-origin)\n"));
       }
       return Upgrade(std::move(req));
     }

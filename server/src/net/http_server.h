@@ -10,6 +10,8 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "net/net.h"
 #include "net/server.h"
@@ -29,7 +31,16 @@ struct HttpConfig {
   int idle_timeout_ms = 15000;
   /// Request line plus headers; larger requests get 431.
   uint32_t max_header_bytes = 8192;
+  /// Origins besides the page's own that may open /ws ("http://localhost:5173" for a dev
+  /// server). A browser upgrade from any other origin gets 403; clients that send no Origin
+  /// (native ones) are not affected.
+  std::vector<std::string> allowed_origins;
 };
+
+/// True when a WebSocket upgrade with this Origin header (empty: none sent) to this Host may
+/// proceed: no Origin, an Origin whose host:port is the Host, or one of `allowed`.
+bool OriginAllowed(std::string_view origin, std::string_view host,
+                   const std::vector<std::string>& allowed);
 
 /// Counters of the HTTP port.
 struct HttpStats {
