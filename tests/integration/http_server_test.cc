@@ -512,6 +512,9 @@ TEST_F(HttpServerTest, BoundsIdleConnectionsWithoutDisturbingSculptors) {
 
 TEST_F(HttpServerTest, MetricsParseStrictly) {
   Start();
+  http_->AddMetricsSource([](MetricsWriter& w) {
+    w.Gauge("sculpt_test_extra", "A family another module adds", 7);
+  });
   ASSERT_TRUE(TcpSculptorServed(1));
   {
     auto ws = WsSculptor(9020);
@@ -536,6 +539,7 @@ TEST_F(HttpServerTest, MetricsParseStrictly) {
     EXPECT_EQ(page.Value("sculpt_http_responses_total", {{"code", "404"}}), 1);
     EXPECT_EQ(page.Value("sculpt_replication_divergences_total"), 0);
     EXPECT_EQ(page.Value("sculpt_viewer_chunk_encodes_total"), 0);
+    EXPECT_EQ(page.Value("sculpt_test_extra"), 7);
 
     // Python's prometheus_client (Debian: python3-prometheus-client) agrees, when installed.
     if (std::system("/usr/bin/python3 -c 'import prometheus_client' 2>/dev/null") == 0) {

@@ -498,7 +498,16 @@ std::string HttpServer::MetricsText() {
   }
   w.Gauge("sculpt_uptime_seconds", "Seconds since the HTTP port opened",
           std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count());
+  {
+    std::lock_guard<std::mutex> lock(sources_mu_);
+    for (const auto& source : sources_) source(w);
+  }
   return w.text();
+}
+
+void HttpServer::AddMetricsSource(std::function<void(MetricsWriter&)> source) {
+  std::lock_guard<std::mutex> lock(sources_mu_);
+  sources_.push_back(std::move(source));
 }
 
 }  // namespace sculpt::server

@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -13,6 +14,7 @@
 #include <string_view>
 #include <vector>
 
+#include "net/metrics.h"
 #include "net/net.h"
 #include "net/server.h"
 #include "net/static_files.h"
@@ -66,8 +68,12 @@ class HttpServer {
   /// Closes the acceptor and the HTTP connections (WebSocket sessions close with the Server).
   void Stop();
 
-  /// The /metrics page: sessions, strokes, latencies, bytes, replication, meshes, HTTP.
+  /// The /metrics page: sessions, strokes, latencies, bytes, replication, meshes, HTTP, then
+  /// what each added source writes.
   std::string MetricsText();
+  /// Adds a writer of more families (the edit log's fsync time, the compute queue depth, ...),
+  /// called on every scrape from an I/O thread; it must only read atomics or take short locks.
+  void AddMetricsSource(std::function<void(MetricsWriter&)> source);
   /// Ok when the scene is recovered and its edit log directory is writable with space left;
   /// Unavailable naming what is not.
   Status Readiness();
@@ -90,6 +96,8 @@ class HttpServer {
   // Shared with the connection slots, which may outlive this object in queued handlers.
   std::shared_ptr<std::atomic<int64_t>> open_ = std::make_shared<std::atomic<int64_t>>(0);
   std::shared_ptr<HttpStats> stats_ = std::make_shared<HttpStats>();
+  std::mutex sources_mu_;
+  std::vector<std::function<void(MetricsWriter&)>> sources_;
   std::mutex connections_mu_;
   std::map<uint64_t, std::weak_ptr<Connection>> connections_;
   uint64_t next_connection_ = 1;
