@@ -40,7 +40,12 @@ void SetRecvTimeout(int fd, int ms) {
 // A blocking WebSocket client speaking sculpt.v1, one message per binary message.
 class WsClient {
  public:
-  explicit WsClient(uint16_t port, bool offer_deflate = false) : ws_(io_) {
+  explicit WsClient(uint16_t port, bool offer_deflate = false, int recv_buffer_bytes = 0)
+      : ws_(io_) {
+    ws_.next_layer().open(tcp::v4());
+    if (recv_buffer_bytes > 0) {
+      ws_.next_layer().set_option(asio::socket_base::receive_buffer_size(recv_buffer_bytes));
+    }
     ws_.next_layer().connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
     SetRecvTimeout(ws_.next_layer().native_handle(), 5000);
     if (offer_deflate) {
@@ -344,6 +349,27 @@ TEST_F(HttpServerTest, WebSocketRejectsOversizedMessage) {
   c.SendRaw(std::string(8192, 'x'));
   EXPECT_TRUE(c.WaitClosed());
   EXPECT_EQ(c.close_code(), static_cast<uint16_t>(websocket::close_code::too_big));
+  EXPECT_TRUE(TcpSculptorServed());
+}
+
+TEST_F(HttpServerTest, DropsAWebSocketClientThatNeverReads) {
+  config_.limits.send_queue_bytes = 64 * 1024;
+  config_.limits.violations_before_disconnect = 1000000;
+  Start();
+  WsClient lazy(http_port_, false, /*recv_buffer_bytes=*/4096);
+  ASSERT_TRUE(lazy.Hello(kSculptor, v1::ROLE_SCULPTOR, 9030));
+  ASSERT_TRUE(lazy.ReadUntil(v1::ServerMessage::kWelcome));
+  ASSERT_TRUE(lazy.Join());
+  // Refused strokes are answered with errors it never reads: its queue must not grow forever.
+  v1::ClientMessage bad = RawClient::PressStroke(1, {0, 0, 11.3});
+  bad.mutable_stroke()->set_object(std::string(60, 'x'));
+  for (int i = 0; i < 40000 && lazy.Send(bad); ++i) {
+    if (server_->stats().disconnects_for_cause.load() > 0) break;
+  }
+  for (int i = 0; i < 100 && server_->stats().disconnects_for_cause.load() == 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_GE(server_->stats().disconnects_for_cause.load(), 1u);
   EXPECT_TRUE(TcpSculptorServed());
 }
 
