@@ -25,7 +25,7 @@ for _ in $(seq 1 300); do
   fi
   sleep 0.1
 done
-PORT=$(cat "$PORT_FILE")
+PORT=$(head -n1 "$PORT_FILE")
 SERVER="127.0.0.1:$PORT"
 echo "demo: sculptd listening on $SERVER, data directory $DATA ($(grep -o 'recovered.*' "$OUT/sculptd.log" | head -1))"
 

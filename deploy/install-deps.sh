@@ -13,6 +13,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libxxhash-dev libsodium-dev libzstd-dev
   gnuplot-nox
+  python3-prometheus-client
 )
 
 missing=()

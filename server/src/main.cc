@@ -5,13 +5,40 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <thread>
 #include <vector>
 
 #include "config/server_config.h"
+#include "net/http_server.h"
 #include "net/server.h"
 #include "scene/scene.h"
 #include "store/edit_log.h"
+
+namespace {
+
+// The web client: the build's output if there is one, else the installed copy.
+std::filesystem::path DefaultWebRoot() {
+  std::error_code ec;
+  for (const char* dir : {SCULPT_WEB_BUILD_DIR, SCULPT_WEB_SOURCE_DIST_DIR}) {
+    if (std::filesystem::is_directory(dir, ec)) return dir;
+  }
+  return SCULPT_WEB_INSTALL_DIR;
+}
+
+// Written whole and renamed into place, so a reader polling for the file never sees half.
+bool WritePortFile(const std::string& path, uint16_t tcp_port, uint16_t http_port) {
+  const std::string tmp = path + ".tmp";
+  FILE* f = std::fopen(tmp.c_str(), "w");
+  if (!f) return false;
+  const bool ok = std::fprintf(f, "%u\n%u\n", tcp_port, http_port) > 0;
+  if (std::fclose(f) != 0 || !ok) return false;
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  return !ec;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   using sculpt::server::ServerConfig;
@@ -40,7 +67,28 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(int64_t{0}, int64_t{1} << 40));
   serve->add_option("--sculptor-token", sculptor_token, "Secret a sculptor presents");
   serve->add_option("--viewer-token", viewer_token, "Secret a viewer presents");
-  serve->add_option("--port-file", port_file, "Write the bound port to this file once listening");
+  serve->add_option("--port-file", port_file,
+                    "Write the bound ports to this file once listening: the TCP port on the first "
+                    "line, the HTTP port (0 when off) on the second");
+  std::string http_listen, web_root;
+  size_t http_max_connections = 0;
+  int http_idle_ms = 0;
+  serve->add_option("--http", http_listen,
+                    "HOST:PORT of the HTTP port (web client, /ws, /metrics, /healthz, /readyz), or "
+                    "'off' (default 127.0.0.1:7421; port 0 when --listen's port is 0)");
+  serve->add_option("--web-root", web_root,
+                    "Directory of the web client's files (default: the build's client/web/dist, "
+                    "else the installed share/sculpt/web)");
+  std::vector<std::string> allowed_origins;
+  serve->add_option("--http-allow-origin", allowed_origins,
+                    "Another origin whose pages may open /ws (e.g. a dev server "
+                    "http://localhost:5173); repeatable. The page's own origin always may");
+  serve->add_option("--http-max-connections", http_max_connections,
+                    "Open HTTP connections and WebSocket sessions at most (default 512)")
+      ->check(CLI::Range(size_t{1}, size_t{100000}));
+  serve->add_option("--http-idle-timeout-ms", http_idle_ms,
+                    "Close an HTTP connection that sends no request for this long (default 15000)")
+      ->check(CLI::Range(100, 3600000));
 
   CLI::App* repair = app.add_subcommand(
       "repair", "Make a damaged edit log start again, saying exactly which edits it gives up");
@@ -106,16 +154,41 @@ int main(int argc, char** argv) {
   }
   spdlog::info("listening on {} (port {}), data {}, fsync {}", config.listen, *port,
                config.data_dir, config.fsync);
-  if (!port_file.empty()) {
-    if (FILE* f = std::fopen(port_file.c_str(), "w")) {
-      std::fprintf(f, "%u\n", *port);
-      std::fclose(f);
+
+  std::unique_ptr<sculpt::server::HttpServer> http;
+  uint16_t http_port = 0;
+  if (http_listen != "off") {
+    sculpt::server::HttpConfig hc;
+    if (!http_listen.empty()) {
+      hc.listen = http_listen;
+    } else if (config.listen.size() >= 2 &&
+               config.listen.compare(config.listen.size() - 2, 2, ":0") == 0) {
+      // An ephemeral TCP port (tests, scripts running side by side) gets an ephemeral HTTP port.
+      hc.listen = "127.0.0.1:0";
     }
+    hc.web_root = web_root.empty() ? DefaultWebRoot() : std::filesystem::path(web_root);
+    if (http_max_connections > 0) hc.max_connections = http_max_connections;
+    if (http_idle_ms > 0) hc.idle_timeout_ms = http_idle_ms;
+    hc.allowed_origins = allowed_origins;
+    http = std::make_unique<sculpt::server::HttpServer>(io, hc, server);
+    auto hp = http->Start();
+    if (!hp.ok()) {
+      spdlog::error("{}", hp.status().ToString());
+      return 1;
+    }
+    http_port = *hp;
+    spdlog::info("http on {} (port {}): open http://{}:{}/ ; web root {}", hc.listen, http_port,
+                 hc.listen.substr(0, hc.listen.rfind(':')), http_port, hc.web_root.string());
+  }
+  if (!port_file.empty() && !WritePortFile(port_file, *port, http_port)) {
+    spdlog::error("cannot write the port file {}", port_file);
+    return 1;
   }
   sculpt::server::asio::signal_set signals(io, SIGINT, SIGTERM);
   signals.async_wait([&](const boost::system::error_code&, int sig) {
     spdlog::info("signal {}: shutting down", sig);
     server.Stop();
+    if (http) http->Stop();
     (*scene)->FlushAndSnapshot();
     io.stop();
   });

@@ -23,7 +23,7 @@ stop() { kill -TERM "$(cat "$WORK/$1.pid")"; wait "$(cat "$WORK/$1.pid")" || tru
 
 echo "[replication-bench] 4 sculptors x 120 Hz, 8 mesh viewers at 10 Hz, replay + leaf-delta replicas, ${SECS}s" >&2
 serve main
-"$BIN/sculpt-loadgen" --server "127.0.0.1:$(cat "$WORK/main.port")" --sculptors 4 --rate 120 \
+"$BIN/sculpt-loadgen" --server "127.0.0.1:$(head -n1 "$WORK/main.port")" --sculptors 4 --rate 120 \
   --viewers 8 --viewer-mesh-hz 10 --replay-replicas 1 --leafdelta-replicas 1 --seconds "$SECS" \
   --json > "$OUT/main-4x120-8viewers.json"
 stop main
@@ -32,7 +32,7 @@ stop main
 # machine is not saturated (server and replicas share these 2 cores).
 echo "[replication-bench] 2 sculptors x 60 Hz, replay + leaf-delta replicas, no viewers, ${SECS}s" >&2
 serve light
-"$BIN/sculpt-loadgen" --server "127.0.0.1:$(cat "$WORK/light.port")" --sculptors 2 --rate 60 \
+"$BIN/sculpt-loadgen" --server "127.0.0.1:$(head -n1 "$WORK/light.port")" --sculptors 2 --rate 60 \
   --viewers 0 --replay-replicas 1 --leafdelta-replicas 1 --seconds "$SECS" \
   --json > "$OUT/light-2x60.json"
 stop light
@@ -40,7 +40,7 @@ stop light
 # Issue 5: the haptic loop of one client on its own replica while 4 sculptors edit at 120 Hz.
 echo "[replication-bench] 4 sculptors x 120 Hz with a haptic client, ${SECS}s" >&2
 serve haptic
-"$BIN/sculpt-loadgen" --server "127.0.0.1:$(cat "$WORK/haptic.port")" --sculptors 4 --rate 120 \
+"$BIN/sculpt-loadgen" --server "127.0.0.1:$(head -n1 "$WORK/haptic.port")" --sculptors 4 --rate 120 \
   --viewers 0 --replay-replicas 0 --leafdelta-replicas 0 --haptic-client --seconds "$SECS" \
   --json > "$OUT/haptic-4x120.json"
 stop haptic
@@ -48,7 +48,7 @@ stop haptic
 echo "[replication-bench] late join of a radius-128-voxel sphere" >&2
 serve late deploy/bench/sphere-r128.toml
 for i in 1 2 3; do
-  "$BIN/sculpt-loadgen" --server "127.0.0.1:$(cat "$WORK/late.port")" --late-join --json \
+  "$BIN/sculpt-loadgen" --server "127.0.0.1:$(head -n1 "$WORK/late.port")" --late-join --json \
     > "$OUT/late-join-r128-$i.json"
 done
 stop late

@@ -21,7 +21,7 @@ run() {  # name fsync sculptors rate viewers seconds [data-parent]
   local pid=$!
   for _ in $(seq 1 300); do [ -s "$port_file" ] && break; sleep 0.1; done
   local port
-  port=$(cat "$port_file")
+  port=$(head -n1 "$port_file")
   ( while kill -0 "$pid" 2>/dev/null; do
       awk '/VmRSS/ {print $2}' "/proc/$pid/status" 2>/dev/null || true
       sleep 1

@@ -10,6 +10,8 @@
 namespace sculpt::server {
 namespace asio = boost::asio;
 using tcp = boost::asio::ip::tcp;
+/// The executor every session, connection and transport of one client runs on.
+using Strand = asio::strand<asio::io_context::executor_type>;
 }  // namespace sculpt::server
 
 #endif  // SCULPT_SERVER_NET_NET_H_

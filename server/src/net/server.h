@@ -1,34 +1,48 @@
-/// @brief The TCP front of sculptd: accepts connections, runs one session per client (on its
-/// own strand), authenticates, validates every message and hands strokes to the scene actor.
+/// @brief The front of sculptd: the TCP acceptor, the set of live sessions (TCP and WebSocket
+/// alike), presence broadcasts and the counters /metrics reports.
 #ifndef SCULPT_SERVER_NET_SERVER_H_
 #define SCULPT_SERVER_NET_SERVER_H_
 
+#include <array>
 #include <atomic>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <set>
 #include <string>
 
 #include "config/server_config.h"
+#include "net/metrics.h"
 #include "net/net.h"
+#include "net/transport.h"
 #include "scene/scene.h"
 
 namespace sculpt::server {
 
 class Session;
 
-/// Metrics a test or an operator reads.
+/// Metrics a test or an operator reads. Per-transport arrays are indexed by TransportKind.
 struct ServerStats {
   std::atomic<uint64_t> connections{0};
   std::atomic<uint64_t> strokes_accepted{0};
   std::atomic<uint64_t> strokes_refused{0};
   std::atomic<uint64_t> errors_sent{0};
   std::atomic<uint64_t> disconnects_for_cause{0};
+  /// Mesh chunk frames replaced, unsent, by a newer version of the same chunk.
+  std::atomic<uint64_t> frames_superseded{0};
+  std::array<std::atomic<uint64_t>, kTransportKinds> bytes_in{};
+  std::array<std::atomic<uint64_t>, kTransportKinds> bytes_out{};
+  std::array<std::atomic<uint64_t>, kTransportKinds> messages_in{};
+  /// From a stroke's arrival to its Ack leaving the session (durable and applied).
+  std::array<LatencyHistogram, kTransportKinds> stroke_ack_seconds;
 };
 
-/// Owns the acceptor and the set of live sessions. Thread safety: Start/Stop from the owning
-/// thread; sessions call back on their strands.
+/// Live sessions counted by (role name, transport name), for /metrics.
+using SessionCounts = std::map<std::pair<std::string, std::string>, uint64_t>;
+
+/// Owns the TCP acceptor and the set of live sessions. Thread safety: Start/Stop from the
+/// owning thread; every other method from any thread.
 class Server {
  public:
   Server(asio::io_context& io, const ServerConfig& config, Scene& scene);
@@ -44,14 +58,21 @@ class Server {
   ServerStats& stats() { return stats_; }
   asio::io_context& io() { return io_; }
 
+  /// Runs a session on a connection another front accepted (the HTTP server's WebSocket
+  /// upgrades). False, and the transport closed, after Stop.
+  bool Adopt(Strand strand, std::shared_ptr<Transport> transport);
+
   // Called by sessions.
-  bool Register(const std::shared_ptr<Session>& s);
   void Unregister(const Session* s);
   void BroadcastPresence();
+  /// Sessions that have joined the scene.
+  size_t JoinedCount();
+  SessionCounts CountSessions();
 
  private:
   void Accept();
   void SchedulePresence();
+  bool Register(const std::shared_ptr<Session>& s);
 
   asio::io_context& io_;
   ServerConfig config_;
@@ -63,8 +84,6 @@ class Server {
   std::atomic<uint64_t> next_session_id_{1};
   std::atomic<bool> stopped_{false};
   ServerStats stats_;
-
-  friend class Session;
 };
 
 }  // namespace sculpt::server

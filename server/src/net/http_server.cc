@@ -1,0 +1,513 @@
+/// @brief HttpServer: static files, /ws, /metrics, /healthz, /readyz on Boost.Beast.
+#include "net/http_server.h"
+
+#include <spdlog/spdlog.h>
+#include <sys/statvfs.h>
+#include <unistd.h>
+
+#include <optional>
+
+#include "net/beast.h"
+#include "net/metrics.h"
+#include "net/ws_transport.h"
+#include "store/recovery.h"
+
+namespace sculpt::server {
+namespace {
+
+// The page may load only its own scripts, styles, images and WebAssembly; three.js's Draco
+// decoder runs in workers made from Blob URLs and compiles WebAssembly ('wasm-unsafe-eval').
+// 'self' in connect-src covers the same-origin ws:// of /ws.
+constexpr char kContentSecurityPolicy[] =
+    "default-src 'self'; script-src 'self' 'wasm-unsafe-eval'; worker-src 'self' blob:; "
+    "connect-src 'self'; img-src 'self' data: blob:; style-src 'self'; object-src 'none'; "
+    "base-uri 'none'; form-action 'self'; frame-ancestors 'none'";
+// Requests carry no body here; a small one is read and ignored (then answered 405).
+constexpr uint64_t kMaxRequestBodyBytes = 16 * 1024;
+// After an error response the rest of the request is read and dropped for this long, so the
+// client sees the response instead of a reset.
+constexpr auto kLingerTime = std::chrono::milliseconds(500);
+
+using Request = http::request<http::string_body>;
+using Response = http::response<http::string_body>;
+
+bool IsHttpParseError(const beast::error_code& ec) {
+  return ec.category() == http::make_error_code(http::error::bad_target).category();
+}
+
+std::string_view PathOf(beast::string_view target) {
+  std::string_view t(target.data(), target.size());
+  const size_t q = t.find_first_of("?#");
+  return q == std::string_view::npos ? t : t.substr(0, q);
+}
+
+}  // namespace
+
+bool OriginAllowed(std::string_view origin, std::string_view host,
+                   const std::vector<std::string>& allowed) {
+  if (origin.empty()) return true;
+  for (const std::string& a : allowed) {
+    if (origin == a) return true;
+  }
+  // "scheme://host[:port]": the page's own origin names the Host it was served from.
+  const size_t sep = origin.find("://");
+  if (sep == std::string_view::npos || host.empty()) return false;
+  return origin.substr(sep + 3) == host;
+}
+
+/// One HTTP connection until it closes or becomes a WebSocket session. Every member is touched
+/// only on its strand.
+class HttpServer::Connection : public std::enable_shared_from_this<Connection> {
+ public:
+  Connection(HttpServer& owner, Strand strand, tcp::socket socket, std::shared_ptr<void> slot)
+      : owner_(owner),
+        strand_(std::move(strand)),
+        stream_(std::move(socket)),
+        slot_(std::move(slot)),
+        stats_(owner.stats_) {}
+
+  void Start() {
+    asio::dispatch(strand_, [self = shared_from_this()] { self->DoRead(); });
+  }
+
+  /// Closes the connection (from any thread).
+  void Stop() {
+    asio::post(strand_, [self = shared_from_this()] {
+      beast::error_code ec;
+      self->stream_.socket().shutdown(tcp::socket::shutdown_both, ec);
+      self->stream_.close();
+    });
+  }
+
+ private:
+  void DoRead() {
+    parser_.emplace();
+    parser_->header_limit(owner_.config_.max_header_bytes);
+    parser_->body_limit(kMaxRequestBodyBytes);
+    stream_.expires_after(std::chrono::milliseconds(owner_.config_.idle_timeout_ms));
+    http::async_read(stream_, buffer_, *parser_,
+                     [self = shared_from_this()](beast::error_code ec, size_t) {
+                       self->OnRead(ec);
+                     });
+  }
+
+  void OnRead(beast::error_code ec) {
+    if (ec == http::error::end_of_stream) return Shutdown();
+    if (ec == beast::error::timeout) {
+      stats_->idle_timeouts++;
+      return Shutdown();
+    }
+    if (ec == http::error::header_limit) {
+      return SendError(http::status::request_header_fields_too_large,
+                       "request headers above " +
+                           std::to_string(owner_.config_.max_header_bytes) + " bytes\n",
+                       /*close=*/true);
+    }
+    if (ec == http::error::body_limit) {
+      return SendError(http::status::payload_too_large, "request body not accepted\n", true);
+    }
+    if (ec) {
+      if (IsHttpParseError(ec)) {
+        return SendError(http::status::bad_request, "bad request: " + ec.message() + "\n", true);
+      }
+      return Shutdown();  // the connection failed: nothing to answer
+    }
+    Route(parser_->release());
+  }
+
+  void Route(Request req) {
+    const std::string_view path = PathOf(req.target());
+    const bool get_or_head = req.method() == http::verb::get || req.method() == http::verb::head;
+    if (path == "/ws") {
+      if (req.method() != http::verb::get) return MethodNotAllowed(req, "GET");
+      if (!websocket::is_upgrade(req)) {
+        Response res = Make(req, http::status::upgrade_required, "text/plain; charset=utf-8",
+                            "/ws is a WebSocket: one sculpt.v1 message per binary message\n");
+        res.set(http::field::upgrade, "websocket");
+        return Send(req, std::move(res));
+      }
+      const auto origin = req.find(http::field::origin);
+      const auto host = req.find(http::field::host);
+      auto sv = [](beast::string_view v) { return std::string_view(v.data(), v.size()); };
+      if (!OriginAllowed(origin == req.end() ? "" : sv(origin->value()),
+                         host == req.end() ? "" : sv(host->value()),
+                         owner_.config_.allowed_origins)) {
+        return Send(req, Make(req, http::status::forbidden, "text/plain; charset=utf-8",
+                              "WebSocket from origin " + std::string(sv(origin->value())) +
+                                  " refused: only the page's own origin (or --http-allow-origin)\n"));
+      }
+      return Upgrade(std::move(req));
+    }
+    if (!get_or_head) return MethodNotAllowed(req, "GET, HEAD");
+    if (path == "/healthz") {
+      return Send(req, Make(req, http::status::ok, "text/plain; charset=utf-8", "ok\n"));
+    }
+    if (path == "/readyz") {
+      const Status ready = owner_.Readiness();
+      return Send(req, Make(req, ready.ok() ? http::status::ok : http::status::service_unavailable,
+                            "text/plain; charset=utf-8",
+                            ready.ok() ? "ready\n" : "not ready: " + ready.message() + "\n"));
+    }
+    if (path == "/metrics") {
+      return Send(req, Make(req, http::status::ok, "text/plain; version=0.0.4; charset=utf-8",
+                            owner_.MetricsText()));
+    }
+    auto file = owner_.files_.Lookup(std::string_view(req.target().data(), req.target().size()));
+    if (!file.ok()) {
+      const Status& st = file.status();
+      const http::status code = st.code() == Status::Code::kInvalidArgument
+                                    ? http::status::bad_request
+                                : st.code() == Status::Code::kNotFound ? http::status::not_found
+                                                                       : http::status::internal_server_error;
+      return Send(req, Make(req, code, "text/plain; charset=utf-8", st.message() + "\n"));
+    }
+    const auto inm = req.find(http::field::if_none_match);
+    if (inm != req.end() && inm->value() == file->etag) {
+      Response res = Make(req, http::status::not_modified, "", "");
+      res.set(http::field::etag, file->etag);
+      res.set(http::field::cache_control, file->cache_control);
+      return Send(req, std::move(res));
+    }
+    Response res = Make(req, http::status::ok, file->content_type, std::move(file->body));
+    res.set(http::field::etag, file->etag);
+    res.set(http::field::cache_control, file->cache_control);
+    Send(req, std::move(res));
+  }
+
+  Response Make(const Request& req, http::status status, std::string_view type, std::string body) {
+    Response res{status, req.version()};
+    res.set(http::field::server, "sculptd");
+    if (!type.empty()) res.set(http::field::content_type, beast::string_view(type.data(), type.size()));
+    res.set("Content-Security-Policy", kContentSecurityPolicy);
+    res.set("X-Content-Type-Options", "nosniff");
+    res.set("Referrer-Policy", "no-referrer");
+    if (status != http::status::ok && status != http::status::not_modified) {
+      res.set(http::field::cache_control, "no-store");
+    }
+    res.keep_alive(req.keep_alive());
+    res.body() = std::move(body);
+    return res;
+  }
+
+  void MethodNotAllowed(const Request& req, const char* allow) {
+    Response res = Make(req, http::status::method_not_allowed, "text/plain; charset=utf-8",
+                        std::string(req.method_string()) + " not allowed; use " + allow + "\n");
+    res.set(http::field::allow, allow);
+    Send(req, std::move(res));
+  }
+
+  void Send(const Request& req, Response res) {
+    const bool head = req.method() == http::verb::head;
+    if (res.result() == http::status::not_modified) {
+      res.content_length(boost::none);
+    } else {
+      res.prepare_payload();
+    }
+    owner_.CountResponse(static_cast<int>(res.result_int()));
+    const bool close = !res.keep_alive();
+    if (head) {
+      // The headers of a GET, without the body.
+      auto h = std::make_shared<http::response<http::empty_body>>(res.base());
+      return Write(std::move(h), close);
+    }
+    Write(std::make_shared<Response>(std::move(res)), close);
+  }
+
+  void SendError(http::status status, std::string text, bool close) {
+    Response res{status, 11};
+    res.set(http::field::server, "sculptd");
+    res.set(http::field::content_type, "text/plain; charset=utf-8");
+    res.set(http::field::cache_control, "no-store");
+    res.keep_alive(!close);
+    res.body() = std::move(text);
+    res.prepare_payload();
+    owner_.CountResponse(static_cast<int>(res.result_int()));
+    auto sp = std::make_shared<Response>(std::move(res));
+    stream_.expires_after(kLingerTime);
+    http::async_write(stream_, *sp, [self = shared_from_this(), sp](beast::error_code ec, size_t) {
+      if (ec) return self->Shutdown();
+      self->Linger();
+    });
+  }
+
+  template <class Message>
+  void Write(std::shared_ptr<Message> msg, bool close) {
+    stream_.expires_after(std::chrono::milliseconds(owner_.config_.idle_timeout_ms));
+    http::async_write(stream_, *msg,
+                      [self = shared_from_this(), msg, close](beast::error_code ec, size_t) {
+                        if (ec || close) return self->Shutdown();
+                        self->DoRead();
+                      });
+  }
+
+  // Half-closes, then reads and drops what the client still sends until it closes or the
+  // linger time passes, so an error response is not lost to a reset.
+  void Linger() {
+    beast::error_code ec;
+    stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
+    stream_.expires_after(kLingerTime);
+    stream_.async_read_some(asio::buffer(drain_),
+                            [self = shared_from_this()](beast::error_code ec, size_t) {
+                              if (ec) return self->stream_.close();
+                              self->LingerMore();
+                            });
+  }
+  void LingerMore() {
+    stream_.async_read_some(asio::buffer(drain_),
+                            [self = shared_from_this()](beast::error_code ec, size_t) {
+                              if (ec) return self->stream_.close();
+                              self->LingerMore();
+                            });
+  }
+
+  void Shutdown() {
+    beast::error_code ec;
+    stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
+    stream_.close();
+  }
+
+  void Upgrade(Request req) {
+    stream_.expires_never();
+    boost::system::error_code ec;
+    const auto ep = stream_.socket().remote_endpoint(ec);
+    std::string remote = ec ? "?" : ep.address().to_string() + ":" + std::to_string(ep.port());
+    auto ws = std::make_unique<WsTransport::Stream>(std::move(stream_));
+    ws->set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+    websocket::permessage_deflate pmd;
+    pmd.server_enable = false;
+    pmd.client_enable = false;
+    ws->set_option(pmd);
+    ws->set_option(websocket::stream_base::decorator(
+        [](websocket::response_type& res) { res.set(http::field::server, "sculptd"); }));
+    auto request = std::make_shared<Request>(std::move(req));
+    WsTransport::Stream* raw = ws.get();
+    raw->async_accept(*request, [self = shared_from_this(), request, ws = std::move(ws),
+                                 remote = std::move(remote)](beast::error_code ec) mutable {
+      if (ec) {
+        spdlog::info("websocket upgrade from {} failed: {}", remote, ec.message());
+        return;
+      }
+      self->stats_->websocket_upgrades++;
+      self->owner_.CountResponse(101);
+      auto transport = std::make_shared<WsTransport>(
+          std::move(ws), std::move(remote), self->owner_.server_.config().limits.max_frame_bytes,
+          std::move(self->slot_));
+      self->owner_.server_.Adopt(self->strand_, std::move(transport));
+    });
+  }
+
+  HttpServer& owner_;
+  Strand strand_;
+  beast::tcp_stream stream_;
+  std::shared_ptr<void> slot_;
+  std::shared_ptr<HttpStats> stats_;
+  beast::flat_buffer buffer_;
+  std::optional<http::request_parser<http::string_body>> parser_;
+  std::array<char, 4096> drain_{};
+};
+
+HttpServer::HttpServer(asio::io_context& io, HttpConfig config, Server& server)
+    : io_(io),
+      config_(std::move(config)),
+      server_(server),
+      files_(config_.web_root),
+      acceptor_(io) {}
+
+HttpServer::~HttpServer() { Stop(); }
+
+StatusOr<uint16_t> HttpServer::Start() {
+  std::string host;
+  uint16_t port = 0;
+  SCULPT_RETURN_IF_ERROR(ParseHostPort(config_.listen, &host, &port));
+  boost::system::error_code ec;
+  const auto address = asio::ip::make_address(host == "localhost" ? "127.0.0.1" : host, ec);
+  if (ec) return InvalidArgument("http host=" + host + " is not an IP address");
+  const tcp::endpoint ep(address, port);
+  acceptor_.open(ep.protocol(), ec);
+  if (!ec) acceptor_.set_option(asio::socket_base::reuse_address(true), ec);
+  if (!ec) acceptor_.bind(ep, ec);
+  if (!ec) acceptor_.listen(asio::socket_base::max_listen_connections, ec);
+  if (ec) {
+    return Status(Status::Code::kUnavailable,
+                  "http listen on " + config_.listen + ": " + ec.message() +
+                      " (choose another with --http HOST:PORT, port 0 picks a free one)");
+  }
+  if (!files_.root_exists()) {
+    spdlog::warn("web root {} does not exist: GET / answers 404 (build client/web or pass "
+                 "--web-root)",
+                 config_.web_root.string());
+  }
+  Accept();
+  return acceptor_.local_endpoint().port();
+}
+
+void HttpServer::Stop() {
+  if (stopped_.exchange(true)) return;
+  asio::post(io_, [this] {
+    boost::system::error_code ec;
+    acceptor_.close(ec);
+  });
+  std::lock_guard<std::mutex> lock(connections_mu_);
+  for (auto& [id, weak] : connections_) {
+    if (auto c = weak.lock()) c->Stop();
+  }
+  connections_.clear();
+}
+
+void HttpServer::Accept() {
+  Strand strand = asio::make_strand(io_);
+  acceptor_.async_accept(strand, [this, strand](boost::system::error_code ec, tcp::socket socket) {
+    if (ec) {
+      if (ec != asio::error::operation_aborted) spdlog::warn("http accept: {}", ec.message());
+      if (!stopped_) Accept();
+      return;
+    }
+    if (static_cast<size_t>(open_->load()) >= config_.max_connections) {
+      // Full: a short answer without waiting on the client, then close. The connections
+      // already open, and every TCP session, are not touched.
+      stats_->connections_refused++;
+      CountResponse(503);
+      static constexpr char kBusy[] =
+          "HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\nConnection: close\r\n\r\n";
+      boost::system::error_code wec;
+      socket.non_blocking(true, wec);
+      socket.write_some(asio::buffer(kBusy, sizeof kBusy - 1), wec);
+      socket.close(wec);
+    } else {
+      stats_->connections_accepted++;
+      open_->fetch_add(1);
+      std::shared_ptr<void> slot(nullptr, [open = open_](void*) { open->fetch_sub(1); });
+      boost::system::error_code nd;
+      socket.set_option(tcp::no_delay(true), nd);
+      auto c = std::make_shared<Connection>(*this, strand, std::move(socket), std::move(slot));
+      {
+        std::lock_guard<std::mutex> lock(connections_mu_);
+        // Forget connections that have ended, so the map stays as small as the open set.
+        for (auto it = connections_.begin(); it != connections_.end();) {
+          it = it->second.expired() ? connections_.erase(it) : std::next(it);
+        }
+        connections_[next_connection_++] = c;
+      }
+      c->Start();
+    }
+    if (!stopped_) Accept();
+  });
+}
+
+void HttpServer::CountResponse(int code) {
+  std::lock_guard<std::mutex> lock(stats_->responses_mu);
+  stats_->responses[code]++;
+}
+
+Status HttpServer::Readiness() {
+  if (stopped_) return Status(Status::Code::kUnavailable, "shutting down");
+  const std::filesystem::path log_dir =
+      std::filesystem::path(server_.config().data_dir) / store::kLogSubdir;
+  if (::access(log_dir.c_str(), W_OK) != 0) {
+    return Status(Status::Code::kUnavailable, "edit log directory " + log_dir.string() +
+                                                  " is not writable");
+  }
+  struct statvfs fs {};
+  if (::statvfs(log_dir.c_str(), &fs) == 0 &&
+      static_cast<uint64_t>(fs.f_bavail) * fs.f_frsize < (1u << 20)) {
+    return Status(Status::Code::kUnavailable,
+                  "edit log directory " + log_dir.string() + " has under 1 MiB free");
+  }
+  return Status::Ok();
+}
+
+std::string HttpServer::MetricsText() {
+  MetricsWriter w;
+  ServerStats& s = server_.stats();
+  Scene& scene = server_.scene();
+  for (const auto& [key, n] : server_.CountSessions()) {
+    w.Gauge("sculpt_sessions", "Live sessions by role and transport", static_cast<double>(n),
+            {{"role", key.first}, {"transport", key.second}});
+  }
+  w.Counter("sculpt_connections_total", "Client connections accepted (TCP and WebSocket)",
+            static_cast<double>(s.connections.load()));
+  w.Counter("sculpt_strokes_accepted_total",
+            "Edits acknowledged (strokes, paints, model intents; duplicates not counted twice)",
+            static_cast<double>(s.strokes_accepted.load()));
+  w.Counter("sculpt_strokes_refused_total", "Edits refused (validation, role, rate limit)",
+            static_cast<double>(s.strokes_refused.load()));
+  w.Counter("sculpt_errors_sent_total", "Error messages sent to clients",
+            static_cast<double>(s.errors_sent.load()));
+  w.Counter("sculpt_disconnects_for_cause_total",
+            "Clients dropped for rate violations or a full send queue",
+            static_cast<double>(s.disconnects_for_cause.load()));
+  w.Counter("sculpt_edits_total",
+            "Edits applied to the scene (its global sequence, since the data directory began)",
+            static_cast<double>(scene.global_seq()));
+  // One family at a time: the text format wants each family's samples together.
+  auto per_transport = [&](const char* name, const char* help,
+                           const std::array<std::atomic<uint64_t>, kTransportKinds>& values) {
+    for (int t = 0; t < kTransportKinds; ++t) {
+      w.Counter(name, help, static_cast<double>(values[t].load()),
+                {{"transport", TransportName(static_cast<TransportKind>(t))}});
+    }
+  };
+  per_transport("sculpt_received_bytes_total", "Bytes read from clients", s.bytes_in);
+  per_transport("sculpt_sent_bytes_total", "Bytes written to clients", s.bytes_out);
+  per_transport("sculpt_received_messages_total", "Client messages received", s.messages_in);
+  for (int t = 0; t < kTransportKinds; ++t) {
+    w.Histogram("sculpt_stroke_ack_seconds",
+                "From a stroke's arrival to its acknowledgement (logged durably and applied)",
+                s.stroke_ack_seconds[t].Read(),
+                {{"transport", TransportName(static_cast<TransportKind>(t))}});
+  }
+  ReplicationStats& r = scene.replication_stats();
+  w.Counter("sculpt_replication_broadcasts_total", "Edit broadcasts built for replicas",
+            static_cast<double>(r.broadcasts.load()));
+  w.Counter("sculpt_replication_leaf_deltas_total", "Leaf-delta messages built for replicas",
+            static_cast<double>(r.leaf_deltas.load()));
+  w.Counter("sculpt_replication_resyncs_total", "Replica region loads (subscribe, interest)",
+            static_cast<double>(r.resyncs.load()));
+  w.Counter("sculpt_replication_divergences_total", "Replicas' reports of a state-hash mismatch",
+            static_cast<double>(r.divergences.load()));
+  w.Counter("sculpt_replication_bytes_total", "Bytes of replication messages built",
+            static_cast<double>(r.broadcast_bytes.load()), {{"kind", "broadcast"}});
+  w.Counter("sculpt_replication_bytes_total", "Bytes of replication messages built",
+            static_cast<double>(r.leaf_delta_bytes.load()), {{"kind", "leaf_delta"}});
+  w.Counter("sculpt_viewer_chunks_superseded_total",
+            "Mesh chunk frames a slow viewer never got because a newer version replaced them",
+            static_cast<double>(s.frames_superseded.load()));
+  Scene::MeshStats& m = scene.mesh_stats();
+  w.Counter("sculpt_viewer_chunk_encodes_total", "Mesh chunks Draco-encoded for viewers",
+            static_cast<double>(m.chunks_encoded.load()));
+  w.Counter("sculpt_viewer_chunk_bytes_total", "Bytes of encoded mesh chunk messages",
+            static_cast<double>(m.chunk_bytes.load()));
+  w.Counter("sculpt_viewer_mesh_updates_total", "Viewer mesh update rounds",
+            static_cast<double>(m.updates.load()));
+  w.Counter("sculpt_viewer_snapshot_seconds_total",
+            "Compute-thread time spent copying sculptures for the mesher",
+            static_cast<double>(m.snapshot_us.load()) * 1e-6);
+  w.Gauge("sculpt_http_connections", "Open HTTP connections and WebSocket sessions",
+          static_cast<double>(open_->load()));
+  w.Counter("sculpt_http_connections_refused_total",
+            "HTTP connections refused at the connection limit",
+            static_cast<double>(stats_->connections_refused.load()));
+  w.Counter("sculpt_http_idle_timeouts_total", "HTTP connections closed for idleness",
+            static_cast<double>(stats_->idle_timeouts.load()));
+  {
+    std::lock_guard<std::mutex> lock(stats_->responses_mu);
+    for (const auto& [code, n] : stats_->responses) {
+      w.Counter("sculpt_http_responses_total", "HTTP responses by status code",
+                static_cast<double>(n), {{"code", std::to_string(code)}});
+    }
+  }
+  w.Gauge("sculpt_uptime_seconds", "Seconds since the HTTP port opened",
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count());
+  {
+    std::lock_guard<std::mutex> lock(sources_mu_);
+    for (const auto& source : sources_) source(w);
+  }
+  return w.text();
+}
+
+void HttpServer::AddMetricsSource(std::function<void(MetricsWriter&)> source) {
+  std::lock_guard<std::mutex> lock(sources_mu_);
+  sources_.push_back(std::move(source));
+}
+
+}  // namespace sculpt::server

@@ -1,0 +1,752 @@
+/// @brief Session: authentication, validation, rate limits, the scene hand-off and the bounded
+/// send queue of one client, independent of its transport.
+#include "net/session.h"
+
+#include <sodium.h>
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+
+#include "net/frame_key.h"
+#include "net/server.h"
+#include "net/wire_error.h"
+#include "scene/models.h"
+#include "scene/paint.h"
+#include "scene/skins.h"
+#include "sculpt/codec/frame.h"
+#include "sculpt/codec/stroke.h"
+
+namespace sculpt::server {
+namespace {
+
+constexpr uint32_t kProtocolVersion = 1;
+constexpr size_t kStateChunkBytes = 256 * 1024;
+// Late-join state and subscription frames may exceed the queue bound by this much.
+constexpr size_t kStateAllowanceBytes = 64u << 20;
+// How long a Bye may take to leave before the connection is closed regardless.
+constexpr auto kByeGrace = std::chrono::milliseconds(500);
+
+// Constant-time token comparison (no early exit on the first differing byte).
+bool TokenEquals(const std::string& a, const std::string& b) {
+  if (a.size() != b.size()) return false;
+  return sodium_memcmp(a.data(), b.data(), a.size()) == 0;
+}
+
+uint32_t ColorFor(uint64_t id) {
+  static const uint32_t kColors[] = {0xe6194bff, 0x3cb44bff, 0x4363d8ff, 0xf58231ff,
+                                     0x911eb4ff, 0x46f0f0ff, 0xf032e6ff, 0xbcf60cff};
+  return kColors[id % 8];
+}
+
+Frame MakeFrame(const v1::ServerMessage& m) {
+  auto f = std::make_shared<std::string>();
+  codec::AppendMessage(m, f.get());
+  return f;
+}
+
+size_t Index(TransportKind k) { return static_cast<size_t>(k); }
+
+}  // namespace
+
+const char* TransportName(TransportKind kind) {
+  return kind == TransportKind::kWebSocket ? "ws" : "tcp";
+}
+
+Session::Session(Server& server, Strand strand, std::shared_ptr<Transport> transport, uint64_t id)
+    : server_(server),
+      strand_(std::move(strand)),
+      transport_(std::move(transport)),
+      transport_kind_(transport_->kind()),
+      auth_timer_(strand_),
+      close_timer_(strand_),
+      id_(id),
+      strokes_(server.config().limits.strokes_per_second, server.config().limits.stroke_burst),
+      poses_(server.config().limits.poses_per_second, server.config().limits.pose_burst) {}
+
+Session::~Session() = default;
+
+// ---- Entry points: each gets onto the strand itself ----------------------------------------
+
+void Session::Start() {
+  if (!strand_.running_in_this_thread()) {
+    return asio::dispatch(strand_, [self = shared_from_this()] { self->Start(); });
+  }
+  const int timeout_ms = server_.config().limits.auth_timeout_ms;
+  auth_timer_.expires_after(std::chrono::milliseconds(timeout_ms));
+  auth_timer_.async_wait([self = shared_from_this(), timeout_ms](boost::system::error_code ec) {
+    if (ec || self->state_ != State::kAwaitHello) return;
+    self->SendError(ProtocolError(v1::ERROR_CODE_UNAUTHENTICATED, "Hello", "none",
+                                  "within " + std::to_string(timeout_ms) + " ms",
+                                  "no Hello received in time"));
+    self->Close("authentication timeout", true);
+  });
+  DoRead();
+}
+
+void Session::Shutdown(std::string reason) {
+  if (!strand_.running_in_this_thread()) {
+    return asio::post(strand_, [self = shared_from_this(), reason = std::move(reason)]() mutable {
+      self->Shutdown(std::move(reason));
+    });
+  }
+  Close(reason, true);
+}
+
+void Session::DeliverPresence(Frame frame) {
+  if (!strand_.running_in_this_thread()) {
+    return asio::post(strand_, [self = shared_from_this(), frame = std::move(frame)]() mutable {
+      self->DeliverPresence(std::move(frame));
+    });
+  }
+  if (!joined_ || closing_ || presence_queued_) return;
+  presence_queued_ = true;
+  Enqueue(std::move(frame), 0, false);
+}
+
+void Session::DeliverFrame(Frame frame) {
+  if (!strand_.running_in_this_thread()) {
+    return asio::post(strand_, [self = shared_from_this(), frame = std::move(frame)]() mutable {
+      self->DeliverFrame(std::move(frame));
+    });
+  }
+  if (closing_) return;
+  // A viewer that falls behind gets the newest version of each mesh chunk, never a backlog of
+  // versions: a chunk frame still waiting in the queue is replaced in place by the newer one.
+  std::string key = CoalescingKey(*frame);
+  if (!key.empty()) {
+    if (auto it = queued_slots_.find(key); it != queued_slots_.end()) {
+      Frame& slot = queue_[it->second];
+      queued_bytes_ = queued_bytes_ - slot->size() + frame->size();
+      slot = std::move(frame);
+      server_.stats().frames_superseded++;
+      return;
+    }
+  }
+  Enqueue(std::move(frame), kStateAllowanceBytes, false);
+  // Still queued (a write is in flight): remember its slot.
+  if (!key.empty() && !closing_ && !queue_.empty()) {
+    queued_slots_[std::move(key)] = queue_.size() - 1;
+  }
+}
+
+void Session::OnStrokeDone(StrokeOutcome out, Clock::time_point received) {
+  if (!strand_.running_in_this_thread()) {
+    return asio::post(strand_, [self = shared_from_this(), out = std::move(out),
+                                received]() mutable { self->OnStrokeDone(std::move(out), received); });
+  }
+  if (closing_) return;
+  if (!out.status.ok()) {
+    server_.stats().strokes_refused++;
+    return SendStatus(out.status, out.client_seq);
+  }
+  server_.stats().strokes_accepted++;
+  v1::ServerMessage m;
+  v1::Ack* a = m.mutable_ack();
+  a->set_client_seq(out.client_seq);
+  a->set_global_seq_first(out.global_seq_first);
+  a->set_edits(out.edits);
+  a->set_duplicate(out.duplicate);
+  v1::EditSummary* sum = a->mutable_summary();
+  sum->set_changed_voxels(static_cast<uint32_t>(out.last.changed_voxels));
+  sum->set_dirty_leaves(static_cast<uint32_t>(out.last.dirty_leaves.size()));
+  sum->set_volume_after(out.last.volume_after);
+  sum->set_reference_volume(out.last.reference_volume);
+  sum->set_substeps(static_cast<uint32_t>(out.last.substeps));
+  sum->set_reinit_passes(static_cast<uint32_t>(out.last.reinit_passes));
+  sum->set_islands_removed(static_cast<uint32_t>(out.last.islands_removed));
+  sum->set_elapsed_ms(static_cast<float>(out.last.elapsed_ms));
+  // Observed before the Ack is queued, so whoever has read the Ack sees it counted.
+  server_.stats().stroke_ack_seconds[Index(transport_kind_)].Observe(
+      std::chrono::duration<double>(Clock::now() - received).count());
+  Send(m);
+}
+
+// Refusals go out twice: as the generic Error, and in the ack the client waits for. The Error
+// carries client_seq 0: these sequences are not a stroke's and must not settle one.
+void Session::OnSkinAck(v1::SkinAck a) {
+  if (!strand_.running_in_this_thread()) {
+    return asio::post(strand_, [self = shared_from_this(), a = std::move(a)]() mutable {
+      self->OnSkinAck(std::move(a));
+    });
+  }
+  if (closing_) return;
+  if (!a.accepted()) {
+    server_.stats().strokes_refused++;
+    v1::Error e = a.error();
+    e.set_client_seq(0);
+    SendError(std::move(e));
+  }
+  v1::ServerMessage m;
+  *m.mutable_skin_ack() = std::move(a);
+  Send(m);
+}
+
+void Session::OnPaintAck(v1::PaintAck a) {
+  if (!strand_.running_in_this_thread()) {
+    return asio::post(strand_, [self = shared_from_this(), a = std::move(a)]() mutable {
+      self->OnPaintAck(std::move(a));
+    });
+  }
+  if (closing_) return;
+  if (!a.accepted()) {
+    server_.stats().strokes_refused++;
+    v1::Error e = a.error();
+    e.set_client_seq(0);
+    SendError(std::move(e));
+  } else if (!a.duplicate()) {
+    server_.stats().strokes_accepted++;
+  }
+  v1::ServerMessage m;
+  *m.mutable_paint_ack() = std::move(a);
+  Send(m);
+}
+
+void Session::OnModelAck(v1::ModelAck a) {
+  if (!strand_.running_in_this_thread()) {
+    return asio::post(strand_, [self = shared_from_this(), a = std::move(a)]() mutable {
+      self->OnModelAck(std::move(a));
+    });
+  }
+  if (closing_) return;
+  if (!a.accepted()) {
+    server_.stats().strokes_refused++;
+    if (a.has_error()) {
+      v1::Error e = a.error();
+      e.set_client_seq(0);
+      SendError(std::move(e));
+    }
+  } else if (!a.duplicate()) {
+    server_.stats().strokes_accepted++;
+  }
+  v1::ServerMessage m;
+  *m.mutable_model_ack() = std::move(a);
+  Send(m);
+}
+
+void Session::OnJoinState(StatusOr<JoinState> js) {
+  if (!strand_.running_in_this_thread()) {
+    return asio::post(strand_, [self = shared_from_this(), js = std::move(js)]() mutable {
+      self->OnJoinState(std::move(js));
+    });
+  }
+  if (closing_) return;
+  if (!js.ok()) return SendStatus(js.status());
+  v1::ServerMessage info;
+  *info.mutable_scene_info() = js->info;
+  Send(info);
+  // The state goes out in chunks, queued behind nothing else of this session; other sessions
+  // are not touched (late join without stalling the others).
+  for (auto& [name, bytes] : js->objects) {
+    const uint32_t count =
+        static_cast<uint32_t>((bytes.size() + kStateChunkBytes - 1) / kStateChunkBytes);
+    for (uint32_t i = 0; i < count; ++i) {
+      v1::ServerMessage m;
+      v1::StateChunk* c = m.mutable_state_chunk();
+      c->set_object(name);
+      c->set_global_seq(js->info.global_seq());
+      c->set_index(i);
+      c->set_count(count);
+      c->set_data(bytes.substr(i * kStateChunkBytes, kStateChunkBytes));
+      Send(m, /*is_state=*/true);
+      if (closing_) return;
+    }
+  }
+}
+
+void Session::OnSubscriptionRefused(bool* flag, Status st) {
+  if (!strand_.running_in_this_thread()) {
+    return asio::post(strand_, [self = shared_from_this(), flag, st = std::move(st)]() mutable {
+      self->OnSubscriptionRefused(flag, std::move(st));
+    });
+  }
+  if (flag) *flag = false;
+  SendStatus(st);
+  Violation();
+}
+
+v1::PresenceEntry Session::PresenceEntry() const {
+  std::lock_guard<std::mutex> lock(presence_mu_);
+  return presence_;
+}
+
+// ---- Reading and dispatch (on the strand) --------------------------------------------------
+
+void Session::DoRead() {
+  if (closing_) return;
+  transport_->AsyncRead([self = shared_from_this()](ReadResult r) { self->OnRead(std::move(r)); });
+}
+
+void Session::OnRead(ReadResult r) {
+  if (closing_) return;
+  ServerStats& stats = server_.stats();
+  stats.bytes_in[Index(transport_kind_)] += r.bytes;
+  for (const std::string& payload : r.payloads) {
+    stats.messages_in[Index(transport_kind_)]++;
+    Handle(payload);
+    if (closing_) return;
+  }
+  switch (r.end) {
+    case ReadResult::End::kNone: return DoRead();
+    case ReadResult::End::kClosed: return Close(r.reason.message(), false);
+    case ReadResult::End::kTooLarge:
+      SendStatus(r.reason);
+      return Close("oversized frame", true);
+    case ReadResult::End::kMalformed:
+      SendError(ProtocolError(v1::ERROR_CODE_MALFORMED, "frame", r.reason.message(),
+                              "binary messages, each a serialized sculpt.v1.ClientMessage",
+                              "unsupported framing"));
+      return Close("malformed framing", true);
+  }
+}
+
+void Session::Handle(const std::string& payload) {
+  const Clock::time_point received = Clock::now();
+  v1::ClientMessage msg;
+  if (!msg.ParseFromString(payload)) {
+    // The stream cannot be trusted after a frame that does not parse.
+    SendError(ProtocolError(v1::ERROR_CODE_MALFORMED, "frame",
+                            std::to_string(payload.size()) + " bytes",
+                            "a serialized sculpt.v1.ClientMessage", "frame does not parse"));
+    return Close("malformed frame", true);
+  }
+  switch (msg.body_case()) {
+    case v1::ClientMessage::kHello: return OnHello(msg.hello());
+    case v1::ClientMessage::kJoin: return OnJoin(msg.join());
+    case v1::ClientMessage::kStroke: return OnStroke(msg.stroke(), received);
+    case v1::ClientMessage::kHover: return OnHover(msg.hover());
+    case v1::ClientMessage::kBye: return Close("client said bye: " + msg.bye().reason(), false);
+    case v1::ClientMessage::kSubscribe: return OnSubscribe(msg.subscribe());
+    case v1::ClientMessage::kSetInterest: return OnSetInterest(msg.set_interest());
+    case v1::ClientMessage::kDivergence:
+      if (subscribed_) server_.scene().ReportDivergence(id_, msg.divergence());
+      return;
+    case v1::ClientMessage::kViewerSubscribe: return OnViewerSubscribe(msg.viewer_subscribe());
+    case v1::ClientMessage::kSkinBallEdit: return OnSkinBallEdit(msg.skin_ball_edit());
+    case v1::ClientMessage::kContourSubscribe: return OnContourSubscribe(msg.contour_subscribe());
+    case v1::ClientMessage::kSkinSweep: return OnSkinSweep(msg.skin_sweep());
+    case v1::ClientMessage::kPaint: return OnPaint(msg.paint());
+    case v1::ClientMessage::kModelIntent: return OnModelIntent(msg.model_intent());
+    case v1::ClientMessage::BODY_NOT_SET: break;
+  }
+  SendError(ProtocolError(
+      v1::ERROR_CODE_MALFORMED, "ClientMessage.body", "unknown or empty",
+      "{hello, join, stroke, hover, bye, subscribe, set_interest, divergence, viewer_subscribe}",
+      "unknown message"));
+  Violation();
+}
+
+void Session::OnHello(const v1::Hello& h) {
+  if (state_ != State::kAwaitHello) {
+    SendError(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, "Hello", "repeated",
+                            "once per connection", "already authenticated"));
+    return Violation();
+  }
+  const ServerConfig& c = server_.config();
+  if (h.protocol_version() != kProtocolVersion) {
+    SendError(ProtocolError(v1::ERROR_CODE_VERSION_MISMATCH, "Hello.protocol_version",
+                            std::to_string(h.protocol_version()), "[1, 1]",
+                            "this server speaks protocol version 1; update the client"));
+    return Close("protocol version mismatch", true);
+  }
+  bool ok = false;
+  if (h.role() == v1::ROLE_SCULPTOR) ok = TokenEquals(h.token(), c.sculptor_token);
+  if (h.role() == v1::ROLE_VIEWER) ok = TokenEquals(h.token(), c.viewer_token);
+  if (h.role() != v1::ROLE_SCULPTOR && h.role() != v1::ROLE_VIEWER) {
+    SendError(ProtocolError(v1::ERROR_CODE_INVALID_ARGUMENT, "Hello.role",
+                            std::to_string(h.role()), "{ROLE_SCULPTOR, ROLE_VIEWER}",
+                            "unknown role"));
+    return Close("bad role", true);
+  }
+  if (!ok) {
+    SendError(ProtocolError(v1::ERROR_CODE_UNAUTHENTICATED, "Hello.token", "(hidden)",
+                            "the configured token of the requested role", "wrong token"));
+    return Close("wrong token", true);
+  }
+  if (h.client_id() == 0) {
+    // Resends are de-duplicated on (client_id, client_seq) across restarts, so the id must be
+    // the client's own, stable one; a server-made id would collide after a restart.
+    SendError(ProtocolError(v1::ERROR_CODE_INVALID_ARGUMENT, "Hello.client_id", "0",
+                            "[1, 2^64 - 1]",
+                            "choose a random client id once and keep it across reconnects"));
+    return Close("client_id 0", true);
+  }
+  if (h.client_name().size() > 64) {
+    SendError(ProtocolError(v1::ERROR_CODE_INVALID_ARGUMENT, "Hello.client_name",
+                            std::to_string(h.client_name().size()) + " bytes", "[0, 64] bytes",
+                            "name too long"));
+    return Close("bad name", true);
+  }
+  auth_timer_.cancel();
+  state_ = State::kAuthed;
+  role_ = h.role();
+  role_flag_ = role_;
+  client_id_ = h.client_id();
+  {
+    std::lock_guard<std::mutex> lock(presence_mu_);
+    presence_.set_session_id(id_);
+    presence_.set_name(h.client_name().empty() ? "user-" + std::to_string(id_) : h.client_name());
+    presence_.set_color_rgba(ColorFor(id_));
+    presence_.set_role(role_);
+  }
+  v1::ServerMessage out;
+  v1::Welcome* w = out.mutable_welcome();
+  w->set_protocol_version(kProtocolVersion);
+  w->set_session_id(id_);
+  w->set_role(role_);
+  w->add_scenes(server_.scene().name());
+  w->set_max_frame_bytes(c.limits.max_frame_bytes);
+  w->set_max_poses_per_stroke(c.limits.max_poses_per_stroke);
+  w->set_max_strokes_per_second(static_cast<float>(c.limits.strokes_per_second));
+  Send(out);
+}
+
+void Session::OnJoin(const v1::JoinScene& j) {
+  if (state_ != State::kAuthed) {
+    SendError(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, "JoinScene", "before Hello",
+                            "after Hello", "authenticate first"));
+    return Close("join before hello", true);
+  }
+  if (!j.scene().empty() && j.scene() != server_.scene().name()) {
+    SendError(ProtocolError(v1::ERROR_CODE_NOT_FOUND, "JoinScene.scene", j.scene(),
+                            "{" + server_.scene().name() + "}", "unknown scene"));
+    return Violation();
+  }
+  if (joined_) {
+    SendError(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, "JoinScene", "repeated",
+                            "once per connection", "already joined"));
+    return Violation();
+  }
+  const size_t joined = server_.JoinedCount();
+  const uint32_t max_clients = server_.config().limits.max_clients_per_scene;
+  if (joined >= max_clients) {
+    SendError(ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "clients", std::to_string(joined),
+                            "[0, " + std::to_string(max_clients) + "]", "scene full"));
+    return Close("scene full", true);
+  }
+  joined_ = true;
+  joined_flag_ = true;
+  if (j.skip_state()) {
+    // A replica loads its region through Subscribe: scene info only.
+    v1::ServerMessage info;
+    *info.mutable_scene_info() = server_.scene().Info();
+    return Send(info);
+  }
+  server_.scene().RequestJoinState(
+      [self = shared_from_this()](StatusOr<JoinState> js) { self->OnJoinState(std::move(js)); });
+}
+
+void Session::OnStroke(const v1::Stroke& s, Clock::time_point received) {
+  if (!joined_) {
+    SendError(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, "Stroke", "before JoinScene",
+                            "after JoinScene", "join a scene first", s.client_seq()));
+    return Violation();
+  }
+  if (role_ != v1::ROLE_SCULPTOR) {
+    server_.stats().strokes_refused++;
+    SendError(ProtocolError(v1::ERROR_CODE_PERMISSION_DENIED, "Hello.role", "ROLE_VIEWER",
+                            "{ROLE_SCULPTOR}", "viewers may not edit", s.client_seq()));
+    return Violation();
+  }
+  if (!strokes_.TryTake(1.0, received)) {
+    server_.stats().strokes_refused++;
+    SendError(ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "strokes_per_second",
+                            "above the limit", strokes_.AllowedRange(), "stroke rate limit",
+                            s.client_seq()));
+    return Violation();
+  }
+  if (!poses_.TryTake(static_cast<double>(s.pose_count()), received)) {
+    server_.stats().strokes_refused++;
+    SendError(ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "poses_per_second",
+                            "above the limit", poses_.AllowedRange(), "pose rate limit",
+                            s.client_seq()));
+    return Violation();
+  }
+  auto limits = server_.scene().LimitsFor(s.object());
+  if (!limits.ok()) {
+    server_.stats().strokes_refused++;
+    SendStatus(limits.status(), s.client_seq());
+    return Violation();
+  }
+  auto decoded = codec::DecodeStroke(s, *limits);
+  if (!decoded.ok()) {
+    server_.stats().strokes_refused++;
+    SendStatus(decoded.status(), s.client_seq());
+    return Violation();
+  }
+  {
+    std::lock_guard<std::mutex> lock(presence_mu_);
+    *presence_.mutable_position() = codec::ToProto(decoded->poses.back().position);
+    presence_.set_radius(s.tool_size().x());
+  }
+  server_.scene().Submit(client_id_, std::move(decoded).value(),
+                         [self = shared_from_this(), received](const StrokeOutcome& out) {
+                           self->OnStrokeDone(out, received);
+                         });
+}
+
+void Session::OnHover(const v1::Hover& h) {
+  if (!joined_) return;
+  if (!std::isfinite(h.position().x()) || !std::isfinite(h.position().y()) ||
+      !std::isfinite(h.position().z()) || !std::isfinite(h.radius())) {
+    SendError(ProtocolError(v1::ERROR_CODE_INVALID_ARGUMENT, "Hover.position", "not finite",
+                            "finite numbers", "hover must be finite"));
+    return Violation();
+  }
+  std::lock_guard<std::mutex> lock(presence_mu_);
+  *presence_.mutable_position() = h.position();
+  presence_.set_radius(h.radius());
+}
+
+ReplicaSink Session::Sink() {
+  ReplicaSink sink;
+  sink.session_id = id_;
+  sink.client_id = client_id_;
+  // Weak: a subscription the scene still holds must not keep a closed session alive.
+  std::weak_ptr<Session> weak = shared_from_this();
+  sink.send = [weak](std::shared_ptr<const std::string> frame) {
+    if (auto self = weak.lock()) self->DeliverFrame(std::move(frame));
+  };
+  return sink;
+}
+
+// Starts a once-per-connection subscription: refuses one before JoinScene or a repeat, else sets
+// `*flag`. The returned callback reports the scene's refusal (and clears the flag).
+std::function<void(Status)> Session::BeginSubscription(const char* what, bool* flag,
+                                                       const char* repeat_hint) {
+  if (!joined_) {
+    SendError(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, what, "before JoinScene",
+                            "after JoinScene", "join a scene first"));
+    Violation();
+    return nullptr;
+  }
+  if (flag && *flag) {
+    SendError(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, what, "repeated",
+                            "once per connection", repeat_hint));
+    Violation();
+    return nullptr;
+  }
+  if (flag) *flag = true;
+  return [self = shared_from_this(), flag](Status st) {
+    if (!st.ok()) self->OnSubscriptionRefused(flag, std::move(st));
+  };
+}
+
+void Session::OnSubscribe(const v1::Subscribe& sub) {
+  auto done = BeginSubscription("Subscribe", &subscribed_, "use SetInterest to move the region");
+  if (done) server_.scene().Subscribe(Sink(), sub, std::move(done));
+}
+
+void Session::OnSetInterest(const v1::SetInterest& si) {
+  auto done = BeginSubscription("SetInterest", nullptr, "");
+  if (done) server_.scene().SetInterest(id_, si, std::move(done));
+}
+
+void Session::OnViewerSubscribe(const v1::ViewerSubscribe& vs) {
+  auto done = BeginSubscription("ViewerSubscribe", &viewing_, "already subscribed to meshes");
+  if (done) server_.scene().SubscribeViewer(Sink(), vs, std::move(done));
+}
+
+void Session::OnContourSubscribe(const v1::ContourSubscribe& c) {
+  if (!joined_) {
+    SendError(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, "ContourSubscribe",
+                            "before JoinScene", "after JoinScene", "join a scene first"));
+    return Violation();
+  }
+  if (const Status st = ValidateContourSubscribe(c); !st.ok()) {
+    SendStatus(st);
+    return Violation();
+  }
+  server_.scene().SubscribeContours(Sink(), c, [self = shared_from_this()](Status st) {
+    if (!st.ok()) self->OnSubscriptionRefused(nullptr, std::move(st));
+  });
+}
+
+// Ball edits, sweeps, paints and model intents are strokes too: joined sculptors only, the
+// stroke token bucket, every field checked here before the scene sees it.
+bool Session::MayEdit(const char* what, uint64_t seq) {
+  if (!joined_) {
+    SendError(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, what, "before JoinScene",
+                            "after JoinScene", "join a scene first", seq));
+    Violation();
+    return false;
+  }
+  if (role_ != v1::ROLE_SCULPTOR) {
+    server_.stats().strokes_refused++;
+    SendError(ProtocolError(v1::ERROR_CODE_PERMISSION_DENIED, "Hello.role", "ROLE_VIEWER",
+                            "{ROLE_SCULPTOR}", "viewers may not edit", seq));
+    Violation();
+    return false;
+  }
+  if (!strokes_.TryTake(1.0, Clock::now())) {
+    server_.stats().strokes_refused++;
+    SendError(ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "strokes_per_second",
+                            "above the limit", strokes_.AllowedRange(), "stroke rate limit", seq));
+    Violation();
+    return false;
+  }
+  return true;
+}
+
+void Session::OnSkinBallEdit(const v1::SkinBallEdit& e) {
+  if (!MayEdit("SkinBallEdit", e.client_seq())) return;
+  if (const Status st = ValidateSkinBallEdit(e); !st.ok()) {
+    v1::SkinAck a;
+    a.set_client_seq(e.client_seq());
+    *a.mutable_error() = ToWireError(st, e.client_seq());
+    OnSkinAck(std::move(a));
+    return Violation();
+  }
+  server_.scene().EditSkin(client_id_, e, [self = shared_from_this()](v1::SkinAck a) {
+    self->OnSkinAck(std::move(a));
+  });
+}
+
+void Session::OnSkinSweep(const v1::SkinSweep& s) {
+  if (!MayEdit("SkinSweep", s.client_seq())) return;
+  if (const Status st = ValidateSkinSweep(s); !st.ok()) {
+    v1::SkinAck a;
+    a.set_client_seq(s.client_seq());
+    *a.mutable_error() = ToWireError(st, s.client_seq());
+    OnSkinAck(std::move(a));
+    return Violation();
+  }
+  server_.scene().SweepSkin(client_id_, s, [self = shared_from_this()](v1::SkinAck a) {
+    self->OnSkinAck(std::move(a));
+  });
+}
+
+void Session::OnPaint(const v1::PaintEdit& p) {
+  if (!MayEdit("PaintEdit", p.client_seq())) return;
+  auto refuse = [&](const Status& st) {
+    v1::PaintAck a;
+    a.set_client_seq(p.client_seq());
+    *a.mutable_error() = ToWireError(st, p.client_seq());
+    OnPaintAck(std::move(a));
+    Violation();
+  };
+  auto limits = server_.scene().LimitsFor(p.object());
+  if (!limits.ok()) {
+    return refuse(NotFound("PaintEdit.object=" + p.object() + " outside the scene's objects"));
+  }
+  const Status st =
+      ValidatePaintEdit(p, *limits, static_cast<int>(server_.config().scene.materials.size()));
+  if (!st.ok()) return refuse(st);
+  server_.scene().Paint(client_id_, p, [self = shared_from_this()](v1::PaintAck a) {
+    self->OnPaintAck(std::move(a));
+  });
+}
+
+void Session::OnModelIntent(const v1::ModelIntent& mi) {
+  if (!MayEdit("ModelIntent", mi.client_seq())) return;
+  if (const Status st = ValidateModelIntent(mi); !st.ok()) {
+    v1::ModelAck a;
+    a.set_client_seq(mi.client_seq());
+    *a.mutable_error() = ToWireError(st, mi.client_seq());
+    OnModelAck(std::move(a));
+    return Violation();
+  }
+  server_.scene().EditModel(client_id_, mi, [self = shared_from_this()](v1::ModelAck a) {
+    self->OnModelAck(std::move(a));
+  });
+}
+
+void Session::Violation() {
+  if (++violations_ >= server_.config().limits.violations_before_disconnect) {
+    server_.stats().disconnects_for_cause++;
+    Close("too many refused messages (" + std::to_string(violations_) + ")", true);
+  }
+}
+
+// ---- Sending (on the strand) ---------------------------------------------------------------
+
+void Session::SendError(v1::Error error) {
+  server_.stats().errors_sent++;
+  v1::ServerMessage m;
+  *m.mutable_error() = std::move(error);
+  Send(m);
+}
+
+void Session::SendStatus(const Status& st, uint64_t client_seq) {
+  SendError(ToWireError(st, client_seq));
+}
+
+void Session::Send(const v1::ServerMessage& m, bool is_state) {
+  if (closing_) return;
+  Enqueue(MakeFrame(m), is_state ? kStateAllowanceBytes : 0, false);
+}
+
+// A client that does not read lets its queue grow: presence is coalesced (one queued at a time),
+// the rest counts against the queue bound, and past it the client is dropped.
+void Session::Enqueue(Frame frame, size_t allowance, bool is_bye) {
+  const size_t limit = server_.config().limits.send_queue_bytes + allowance;
+  if (!is_bye && queued_bytes_ + writing_bytes_ + frame->size() > limit) {
+    server_.stats().disconnects_for_cause++;
+    Close(allowance > 0 ? "send queue overflow: replica is not reading"
+                        : "send queue overflow: client is not reading",
+          true);
+    return;
+  }
+  queued_bytes_ += frame->size();
+  queue_.push_back(std::move(frame));
+  DoWrite();
+}
+
+void Session::DoWrite() {
+  if (writing_ || queue_.empty() || state_ == State::kClosed) return;
+  // Everything queued goes in one gathered write; the frames are shared, not copied.
+  std::vector<Frame> frames(std::make_move_iterator(queue_.begin()),
+                            std::make_move_iterator(queue_.end()));
+  queue_.clear();
+  queued_slots_.clear();
+  writing_ = true;
+  writing_bytes_ = queued_bytes_;
+  queued_bytes_ = 0;
+  presence_queued_ = false;
+  transport_->AsyncWrite(std::move(frames), [self = shared_from_this()](Status st, uint64_t n) {
+    self->OnWritten(std::move(st), n);
+  });
+}
+
+void Session::OnWritten(Status st, uint64_t bytes) {
+  writing_ = false;
+  writing_bytes_ = 0;
+  server_.stats().bytes_out[Index(transport_kind_)] += bytes;
+  if (!st.ok()) return Close(st.message(), false);
+  if (closing_ && queue_.empty()) return FinishClose();
+  DoWrite();
+}
+
+void Session::Close(const std::string& reason, bool send_bye) {
+  if (closing_) return;
+  closing_ = true;
+  joined_flag_ = false;
+  auth_timer_.cancel();
+  spdlog::info("session {} ({}, {} {}): closing: {}", id_, PresenceEntry().name(),
+               TransportName(transport_kind_), transport_->remote(), reason);
+  if (send_bye && state_ != State::kClosed) {
+    v1::ServerMessage m;
+    m.mutable_bye()->set_reason(reason);
+    Enqueue(MakeFrame(m), 0, /*is_bye=*/true);
+    // Give the Bye a moment to leave; a client that does not read is closed regardless.
+    close_timer_.expires_after(kByeGrace);
+    close_timer_.async_wait([self = shared_from_this()](boost::system::error_code) {
+      self->FinishClose();
+    });
+    if (!writing_) FinishClose();
+    return;
+  }
+  FinishClose();
+}
+
+void Session::FinishClose() {
+  if (state_ == State::kClosed) return;
+  state_ = State::kClosed;
+  transport_->Close();
+  close_timer_.cancel();
+  if (subscribed_) server_.scene().Unsubscribe(id_);
+  if (joined_) server_.scene().UnsubscribeContours(id_);
+  if (viewing_) server_.scene().UnsubscribeViewer(id_);
+  server_.Unregister(this);
+}
+
+}  // namespace sculpt::server

@@ -1,0 +1,144 @@
+/// @brief Session: one client of sculptd, whatever its transport: authentication, roles,
+/// validation, rate limits, the hand-off of edits to the scene actor, and a bounded send queue
+/// of shared frames.
+#ifndef SCULPT_SERVER_NET_SESSION_H_
+#define SCULPT_SERVER_NET_SESSION_H_
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <unordered_map>
+
+#include "net/net.h"
+#include "net/rate_limiter.h"
+#include "net/transport.h"
+#include "scene/scene.h"
+#include "sculpt/v1/sculpt.pb.h"
+
+namespace sculpt::server {
+
+class Server;
+
+/// One client connection. Its logic sees whole sculpt.v1 messages and never the framing: the
+/// Transport brings them in and takes frames out. Public methods are entry points callable from
+/// any thread; each gets onto the session's strand itself (posting when called elsewhere), so
+/// every member is touched only there, except the presence fields (presence_mu_) and the
+/// atomics the server reads for metrics.
+class Session : public std::enable_shared_from_this<Session> {
+ public:
+  using Clock = std::chrono::steady_clock;
+
+  /// `transport` must run on `strand`.
+  Session(Server& server, Strand strand, std::shared_ptr<Transport> transport, uint64_t id);
+  ~Session();
+  Session(const Session&) = delete;
+  Session& operator=(const Session&) = delete;
+
+  /// Arms the authentication timer and starts reading.
+  void Start();
+  /// Sends a Bye with `reason` and closes.
+  void Shutdown(std::string reason);
+  /// Queues a presence frame unless one is already waiting (coalesced) or the client has not
+  /// joined.
+  void DeliverPresence(Frame frame);
+  /// Queues a frame built for a subscription (replication, viewer meshes, contours); such frames
+  /// get the state allowance on top of the queue bound.
+  void DeliverFrame(Frame frame);
+
+  uint64_t id() const { return id_; }
+  TransportKind transport_kind() const { return transport_kind_; }
+  /// True once joined and until closing (any thread).
+  bool joined() const { return joined_flag_.load(); }
+  /// ROLE_UNSPECIFIED until authenticated (any thread).
+  v1::Role role() const { return role_flag_.load(); }
+  /// The presence entry the server broadcasts (any thread).
+  v1::PresenceEntry PresenceEntry() const;
+
+ private:
+  enum class State { kAwaitHello, kAuthed, kClosed };
+
+  // Entry points the scene's callbacks reach (any thread; they get onto the strand).
+  void OnStrokeDone(StrokeOutcome out, Clock::time_point received);
+  void OnSkinAck(v1::SkinAck ack);
+  void OnPaintAck(v1::PaintAck ack);
+  void OnModelAck(v1::ModelAck ack);
+  void OnJoinState(StatusOr<JoinState> state);
+  void OnSubscriptionRefused(bool* flag, Status status);
+
+  // Reading and dispatch.
+  void DoRead();
+  void OnRead(ReadResult result);
+  void Handle(const std::string& payload);
+  void OnHello(const v1::Hello& h);
+  void OnJoin(const v1::JoinScene& j);
+  void OnStroke(const v1::Stroke& s, Clock::time_point received);
+  void OnHover(const v1::Hover& h);
+  void OnSubscribe(const v1::Subscribe& sub);
+  void OnSetInterest(const v1::SetInterest& si);
+  void OnViewerSubscribe(const v1::ViewerSubscribe& vs);
+  void OnContourSubscribe(const v1::ContourSubscribe& c);
+  void OnSkinBallEdit(const v1::SkinBallEdit& e);
+  void OnSkinSweep(const v1::SkinSweep& s);
+  void OnPaint(const v1::PaintEdit& p);
+  void OnModelIntent(const v1::ModelIntent& mi);
+
+  // Checks shared by the edits that are not strokes: joined, sculptor, the stroke bucket.
+  bool MayEdit(const char* what, uint64_t client_seq);
+  // Starts a once-per-connection subscription (see session.cc); null when refused.
+  std::function<void(Status)> BeginSubscription(const char* what, bool* flag,
+                                                const char* repeat_hint);
+  ReplicaSink Sink();
+  void Violation();
+
+  // Sending: every message becomes one shared frame in the queue.
+  void SendError(v1::Error error);
+  void SendStatus(const Status& status, uint64_t client_seq = 0);
+  void Send(const v1::ServerMessage& m, bool is_state = false);
+  void Enqueue(Frame frame, size_t allowance, bool is_bye);
+  void DoWrite();
+  void OnWritten(Status status, uint64_t bytes);
+  void Close(const std::string& reason, bool send_bye);
+  void FinishClose();
+
+  Server& server_;
+  Strand strand_;
+  std::shared_ptr<Transport> transport_;
+  const TransportKind transport_kind_;
+  asio::steady_timer auth_timer_;
+  asio::steady_timer close_timer_;
+  const uint64_t id_;
+
+  std::deque<Frame> queue_;
+  // Coalescing key (frame_key.h) -> index in queue_ of the frame waiting in that slot. The
+  // queue only grows until DoWrite takes all of it, so the indices stay valid until then.
+  std::unordered_map<std::string, size_t> queued_slots_;
+  size_t queued_bytes_ = 0;
+  size_t writing_bytes_ = 0;
+  bool writing_ = false;
+  bool presence_queued_ = false;
+
+  State state_ = State::kAwaitHello;
+  bool closing_ = false;
+  bool joined_ = false;
+  bool subscribed_ = false;
+  bool viewing_ = false;
+  std::atomic<bool> joined_flag_{false};
+  std::atomic<v1::Role> role_flag_{v1::ROLE_UNSPECIFIED};
+  v1::Role role_ = v1::ROLE_UNSPECIFIED;
+  uint64_t client_id_ = 0;
+  RateLimiter strokes_;  // strokes and every other edit message
+  RateLimiter poses_;    // each pose is an edit: bounds the work one client queues
+  int violations_ = 0;
+
+  mutable std::mutex presence_mu_;
+  v1::PresenceEntry presence_;
+};
+
+}  // namespace sculpt::server
+
+#endif  // SCULPT_SERVER_NET_SESSION_H_

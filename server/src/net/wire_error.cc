@@ -1,0 +1,41 @@
+/// @brief Status → sculpt.v1.Error.
+#include "net/wire_error.h"
+
+#include "sculpt/codec/stroke.h"
+
+namespace sculpt::server {
+
+v1::ErrorCode ToWireCode(Status::Code code) {
+  switch (code) {
+    case Status::Code::kInvalidArgument:
+    case Status::Code::kOutOfRange: return v1::ERROR_CODE_INVALID_ARGUMENT;
+    case Status::Code::kNotFound: return v1::ERROR_CODE_NOT_FOUND;
+    case Status::Code::kFailedPrecondition: return v1::ERROR_CODE_FAILED_PRECONDITION;
+    case Status::Code::kResourceExhausted: return v1::ERROR_CODE_RESOURCE_EXHAUSTED;
+    case Status::Code::kOk:
+    case Status::Code::kDataLoss:
+    case Status::Code::kUnavailable:
+    case Status::Code::kInternal: return v1::ERROR_CODE_INTERNAL;
+  }
+  return v1::ERROR_CODE_INTERNAL;
+}
+
+v1::Error ToWireError(const Status& status, uint64_t client_seq) {
+  const codec::FieldError fe = codec::SplitFieldError(status);
+  return ProtocolError(ToWireCode(status.code()), fe.field, fe.value, fe.allowed_range, fe.message,
+                       client_seq);
+}
+
+v1::Error ProtocolError(v1::ErrorCode code, std::string field, std::string value,
+                        std::string allowed_range, std::string message, uint64_t client_seq) {
+  v1::Error e;
+  e.set_code(code);
+  e.set_field(std::move(field));
+  e.set_value(std::move(value));
+  e.set_allowed_range(std::move(allowed_range));
+  e.set_message(std::move(message));
+  e.set_client_seq(client_seq);
+  return e;
+}
+
+}  // namespace sculpt::server
