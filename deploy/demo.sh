@@ -37,7 +37,7 @@ echo "demo: $SCULPTORS simulated sculptors and $VIEWERS viewer(s) for $RUN_SECON
 "$BIN/sculpt" export --server "$SERVER" --out "$OUT/sculpture.ply" > /dev/null
 "$BIN/sculpt" export --server "$SERVER" --format glb --out "$OUT/sculpture.glb" > /dev/null
 "$BIN/sculpt" info --server "$SERVER" > "$OUT/scene.json"
-"$BIN/sculpt" info "$OUT/sculpture.vdb" > "$OUT/summary.json"
+"$BIN/sculpt" info --mesh-stats "$OUT/sculpture.vdb" > "$OUT/summary.json"
 
 kill -TERM "$PID"
 wait "$PID" || true
@@ -48,5 +48,8 @@ field() { grep -o "\"$1\": *[^,}]*" "$OUT/loadgen.json" | head -1 | sed 's/.*: *
 echo "demo: strokes sent $(field strokes_sent), acknowledged $(field strokes_acked), refused $(field strokes_refused)"
 echo "demo: stroke->ack p50 $(field stroke_ack_p50_ms) ms, p99 $(field stroke_ack_p99_ms) ms"
 echo "demo: result: $(cat "$OUT/summary.json")"
+mesh() { grep -o "\"$1\": *[^,}]*" "$OUT/summary.json" | head -1 | sed 's/.*: *//'; }
+echo "demo: surface: $(mesh components) piece(s), genus $(mesh genus), $(mesh boundary_edges) open and" \
+  "$(mesh non_manifold_edges) non-manifold edges, enclosed/tracked volume $(mesh signed_volume_over_tracked)"
 echo "demo: results in $OUT/: sculpture.vdb, sculpture.ply, sculpture.glb, summary.json, scene.json, loadgen.json, sculptd.log"
 echo "demo: the scene persists in $DATA/ (edit log and snapshots); run again to keep sculpting it"

@@ -13,7 +13,9 @@
 #include "play_cmd.h"
 #include "sculpt/client/client.h"
 #include "sculpt/levelset/sculpture.h"
+#include "sculpt/mesh/chunk_mesher.h"
 #include "sculpt/mesh/glb_writer.h"
+#include "sculpt/mesh/mesh_stats.h"
 #include "skin_cmd.h"
 #include "thesis_cmd.h"
 
@@ -184,6 +186,10 @@ int main(int argc, char** argv) {
   info_cmd->add_option("--server", info_server, "sculptd address HOST:PORT (joins as a viewer)");
   info_cmd->add_option("--token", info_token, "Viewer secret")->capture_default_str();
   info_cmd->add_option("--scene", info_scene, "Scene (default: the server's)");
+  bool info_mesh_stats = false;
+  info_cmd->add_flag("--mesh-stats", info_mesh_stats,
+                     "With a .vdb file: also mesh it as viewers see it and print its topology "
+                     "(open and non-manifold edges, pieces, genus, signed volume)");
 
   ExportArgs ex;
   CLI::App* export_cmd = app.add_subcommand(
@@ -257,12 +263,29 @@ int main(int argc, char** argv) {
       spdlog::error("{}", s.status().ToString());
       return 1;
     }
-    std::printf(
-        "{\"name\": \"%s\", \"voxel_size\": %g, \"half_width\": %d, \"active_voxels\": %llu, "
-        "\"volume\": %.6f, \"reference_volume\": %.6f, \"state_hash\": \"%016llx\"}\n",
-        s->name().c_str(), s->voxel_size(), s->half_width(),
-        static_cast<unsigned long long>(s->ActiveVoxelCount()), s->volume(), s->reference_volume(),
-        static_cast<unsigned long long>(s->StateHash()));
+    nlohmann::json j = {{"name", s->name()},
+                        {"voxel_size", s->voxel_size()},
+                        {"half_width", s->half_width()},
+                        {"active_voxels", s->ActiveVoxelCount()},
+                        {"volume", s->volume()},
+                        {"reference_volume", s->reference_volume()},
+                        {"state_hash", Hex(s->StateHash())}};
+    if (info_mesh_stats) {
+      const sculpt::mesh::MeshTopology t =
+          sculpt::mesh::ComputeTopology(sculpt::mesh::MeshWhole(*s));
+      j["mesh"] = {{"vertices", t.vertices},
+                   {"triangles", t.faces},
+                   {"boundary_edges", t.boundary_edges},
+                   {"non_manifold_edges", t.non_manifold_edges},
+                   {"inconsistent_edges", t.inconsistent_edges},
+                   {"components", t.components},
+                   {"euler_characteristic", t.euler},
+                   {"genus", t.genus},
+                   {"signed_volume", t.signed_volume},
+                   {"signed_volume_over_tracked", s->volume() > 0 ? t.signed_volume / s->volume()
+                                                                  : 0.0}};
+    }
+    std::printf("%s\n", j.dump().c_str());
     return 0;
   }
   if (*export_cmd) return Export(ex);

@@ -63,6 +63,19 @@ TEST_F(DemoCliTest, DemoWritesVdbMeshAndSummary) {
   std::ifstream info(dir_ / "info.txt");
   nlohmann::json ji = nlohmann::json::parse(info);
   EXPECT_EQ(ji["state_hash"].get<std::string>(), hex);
+  EXPECT_FALSE(ji.contains("mesh"));
+  // --mesh-stats: the mesh viewers get, counted. The demo's sculpture is one closed piece,
+  // wound outward, enclosing the tracked volume.
+  ASSERT_EQ(RunSculpt("info --mesh-stats " + (out / "sculpture.vdb").string(),
+                      dir_ / "stats.txt"),
+            0);
+  std::ifstream stats(dir_ / "stats.txt");
+  nlohmann::json jm = nlohmann::json::parse(stats)["mesh"];
+  EXPECT_EQ(jm["boundary_edges"].get<uint64_t>(), 0u) << jm.dump();
+  EXPECT_EQ(jm["non_manifold_edges"].get<uint64_t>(), 0u) << jm.dump();
+  EXPECT_EQ(jm["inconsistent_edges"].get<uint64_t>(), 0u) << jm.dump();
+  EXPECT_GE(jm["components"].get<uint64_t>(), 1u);
+  EXPECT_NEAR(jm["signed_volume_over_tracked"].get<double>(), 1.0, 0.01) << jm.dump();
   ASSERT_EQ(RunSculpt("export " + (out / "sculpture.vdb").string() + " --out " +
                     (dir_ / "m.obj").string(),
                 dir_ / "export.txt"),

@@ -34,7 +34,9 @@ constexpr int kMargin = kReach + 1;
 int FloorDiv(int a, int n) { return a >= 0 ? a / n : -((-a + n - 1) / n); }
 
 // Splits quads as Sculpture::ExportMesh does and keeps the polygons `keep` accepts, renumbering
-// the vertices they use in order of first use.
+// the vertices they use in order of first use. volumeToMesh winds its polygons clockwise seen
+// from outside; every mesh leaving here is wound counter-clockwise (glTF's and three.js's front
+// faces, positive signed volume), so each polygon's order is reversed here and only here.
 template <typename Keep>
 TriangleMesh Collect(const std::vector<openvdb::Vec3s>& points,
                      const std::vector<openvdb::Vec3I>& tris,
@@ -50,11 +52,11 @@ TriangleMesh Collect(const std::vector<openvdb::Vec3s>& points,
   };
   for (const openvdb::Vec4I& q : quads) {
     if (!keep(q.asPointer(), 4)) continue;
-    for (int c : {0, 1, 2, 0, 2, 3}) use(q[c]);
+    for (int c : {0, 2, 1, 0, 3, 2}) use(q[c]);
   }
   for (const openvdb::Vec3I& t : tris) {
     if (!keep(t.asPointer(), 3)) continue;
-    for (int c : {0, 1, 2}) use(t[c]);
+    for (int c : {0, 2, 1}) use(t[c]);
   }
   return out;
 }

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <array>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -39,6 +40,32 @@ TEST(GlbWriterTest, DracoGltfDecoderReadsTheFaces) {
   auto mesh = decoder.DecodeFromFile(path.string());
   ASSERT_TRUE(mesh.ok()) << mesh.status().error_msg();
   EXPECT_EQ(mesh.value()->num_faces(), stats->triangles);
+  std::filesystem::remove(path);
+}
+
+// The GLB's faces, as a glTF viewer reads them, enclose the sculpture's volume with positive sign
+// (counter-clockwise front faces): it was inside out, -57,702 against the PLY's +57,702.
+TEST(GlbWriterTest, FacesAreWoundOutward) {
+  const levelset::Sculpture s = testing::Sphere(20);
+  const auto path = TempPath("wound.glb");
+  ASSERT_TRUE(WriteGlb(s, path.string()).ok());
+  draco::GltfDecoder decoder;
+  auto decoded = decoder.DecodeFromFile(path.string());
+  ASSERT_TRUE(decoded.ok()) << decoded.status().error_msg();
+  const draco::Mesh& m = *decoded.value();
+  const draco::PointAttribute* pos = m.GetNamedAttribute(draco::GeometryAttribute::POSITION);
+  ASSERT_NE(pos, nullptr);
+  double volume = 0;
+  for (draco::FaceIndex f(0); f < m.num_faces(); ++f) {
+    std::array<std::array<float, 3>, 3> p;
+    for (int c = 0; c < 3; ++c) pos->GetMappedValue(m.face(f)[c], p[c].data());
+    const auto& [a, b, q] = p;
+    volume += (double(a[0]) * (double(b[1]) * q[2] - double(b[2]) * q[1]) +
+               double(a[1]) * (double(b[2]) * q[0] - double(b[0]) * q[2]) +
+               double(a[2]) * (double(b[0]) * q[1] - double(b[1]) * q[0])) / 6.0;
+  }
+  EXPECT_GT(volume, 0.0);
+  EXPECT_NEAR(volume, s.volume(), 0.02 * s.volume());
   std::filesystem::remove(path);
 }
 

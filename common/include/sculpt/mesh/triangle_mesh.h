@@ -9,8 +9,9 @@
 
 namespace sculpt::mesh {
 
-/// Vertices as x, y, z floats (world units); faces as three vertex indices each, wound so the
-/// normal points out of the material (the orientation openvdb::tools::volumeToMesh gives).
+/// Vertices as x, y, z floats (world units); faces as three vertex indices each, wound
+/// counter-clockwise seen from outside the material (glTF's front faces; positive signed volume,
+/// mesh_stats.h). openvdb::tools::volumeToMesh winds the other way; chunk_mesher.cc reverses it.
 /// Thread safety: a value type.
 struct TriangleMesh {
   std::vector<float> positions;
