@@ -67,6 +67,24 @@ Status ValidateSkinConfig(const std::string& k, const SkinConfig& c) {
   return Status::Ok();
 }
 
+// Refuses keys the file's reader does not know, naming the key and where it is, so a typo
+// ("snapshot_every_edit") is not silently ignored.
+Status CheckKeys(const std::string& path, const toml::table& t, const std::string& where,
+                 std::initializer_list<std::string_view> known) {
+  for (const auto& [key, node] : t) {
+    if (std::find(known.begin(), known.end(), key.str()) != known.end()) continue;
+    std::string list;
+    for (std::string_view k : known) list += (list.empty() ? "" : ", ") + std::string(k);
+    std::ostringstream os;
+    os << "config file " << path;
+    if (key.source().begin) os << ":" << key.source().begin.line << ":" << key.source().begin.column;
+    os << ": unknown key " << (where.empty() ? "" : where + ".") << key.str() << " (known in "
+       << (where.empty() ? "the top level" : where) << ": " << list << ")";
+    return InvalidArgument(os.str());
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 Status LoadConfigFile(const std::string& path, ServerConfig* c) {
@@ -80,7 +98,12 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
        << e.source().begin.column << ": " << e.description();
     return InvalidArgument(os.str());
   }
+  SCULPT_RETURN_IF_ERROR(CheckKeys(path, root, "", {"server", "limits", "scene"}));
   if (const toml::table* s = root["server"].as_table()) {
+    SCULPT_RETURN_IF_ERROR(CheckKeys(path, *s, "server",
+                                     {"listen", "data_dir", "io_threads", "fsync", "group_commit_ms",
+                                      "snapshot_every_edits", "snapshot_every_seconds",
+                                      "sculptor_token", "viewer_token", "presence_hz"}));
     Get(*s, "listen", &c->listen);
     Get(*s, "data_dir", &c->data_dir);
     Get(*s, "io_threads", &c->io_threads);
@@ -95,6 +118,11 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     Get(*s, "presence_hz", &c->presence_hz);
   }
   if (const toml::table* l = root["limits"].as_table()) {
+    SCULPT_RETURN_IF_ERROR(CheckKeys(
+        path, *l, "limits",
+        {"max_frame_bytes", "max_poses_per_stroke", "strokes_per_second", "stroke_burst",
+         "poses_per_second", "pose_burst", "violations_before_disconnect",
+         "max_clients_per_scene", "auth_timeout_ms", "send_queue_bytes"}));
     int64_t v = c->limits.max_frame_bytes;
     Get(*l, "max_frame_bytes", &v);
     c->limits.max_frame_bytes = static_cast<uint32_t>(std::clamp<int64_t>(v, 0, 1ll << 31));
@@ -116,6 +144,11 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
   }
   if (const toml::table* s = root["scene"].as_table()) {
     SceneConfig& sc = c->scene;
+    SCULPT_RETURN_IF_ERROR(CheckKeys(
+        path, *s, "scene",
+        {"name", "voxel_size", "half_width", "min_tool_size", "max_tool_size", "max_speed",
+         "max_amount", "bounds_margin", "mesh_position_bits", "mesh_speed", "mesh_max_rate_hz",
+         "mesh_chunk_voxels", "effects", "objects", "materials", "skins"}));
     Get(*s, "name", &sc.name);
     Get(*s, "voxel_size", &sc.voxel_size);
     Get(*s, "half_width", &sc.half_width);
@@ -129,6 +162,9 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     Get(*s, "mesh_max_rate_hz", &sc.mesh_max_rate_hz);
     Get(*s, "mesh_chunk_voxels", &sc.mesh_chunk_voxels);
     if (const toml::table* e = (*s)["effects"].as_table()) {
+      SCULPT_RETURN_IF_ERROR(CheckKeys(path, *e, "scene.effects",
+                                       {"volume_preservation", "smoothing", "islands",
+                                        "min_island_volume", "contours", "materials"}));
       Get(*e, "volume_preservation", &sc.effects.volume_preservation);
       Get(*e, "smoothing", &sc.effects.smoothing);
       Get(*e, "islands", &sc.effects.islands);
@@ -144,6 +180,9 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
       for (const auto& node : *objects) {
         const toml::table* o = node.as_table();
         if (!o) return InvalidArgument("scene.objects entries must be tables");
+        SCULPT_RETURN_IF_ERROR(CheckKeys(
+            path, *o, "scene.objects[" + std::to_string(sc.objects.size()) + "]",
+            {"name", "primitive", "center", "radius", "minor_radius", "size", "end", "model"}));
         ObjectConfig oc;
         Get(*o, "name", &oc.name);
         Get(*o, "primitive", &oc.primitive);
@@ -165,6 +204,7 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
         const toml::table* t = (*materials)[i].as_table();
         const std::string k = "scene.materials[" + std::to_string(i) + "]";
         if (!t) return InvalidArgument(k + " outside tables {name = \"...\", colour = [r, g, b]}");
+        SCULPT_RETURN_IF_ERROR(CheckKeys(path, *t, k, {"name", "colour"}));
         levelset::MaterialDecl m;
         Get(*t, "name", &m.name);
         if (const toml::node* c = t->get("colour")) {
@@ -180,6 +220,9 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
       for (const auto& node : *skins) {
         const toml::table* t = node.as_table();
         if (!t) return InvalidArgument("scene.skins entries must be tables");
+        SCULPT_RETURN_IF_ERROR(
+            CheckKeys(path, *t, "scene.skins[" + std::to_string(sc.skins.size()) + "]",
+                      {"name", "origin", "u", "v", "method", "chord_tolerance", "balls"}));
         SkinConfig k;
         Get(*t, "name", &k.name);
         GetVec(*t, "origin", &k.origin);

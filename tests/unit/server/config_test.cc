@@ -66,6 +66,40 @@ TEST(ConfigTest, ReportsTomlSyntaxErrorsWithLine) {
   EXPECT_NE(s.message().find(":2:"), std::string::npos) << s;
 }
 
+// A typo is refused with the key's full name and its line and column, not silently ignored.
+TEST(ConfigTest, RejectsUnknownKeysNamingThemAndWhere) {
+  struct Case {
+    const char* text;
+    const char* key;
+    const char* where;
+  } cases[] = {
+      {"[server]\nsnapshot_every_edit = 10\n", "unknown key server.snapshot_every_edit", ":2:1"},
+      {"[limits]\n\nstroke_bursts = 3\n", "unknown key limits.stroke_bursts", ":3:1"},
+      {"[scene]\nname = \"s\"\nvoxelsize = 1.0\n", "unknown key scene.voxelsize", ":3:1"},
+      {"[scene.effects]\ncountours = true\n", "unknown key scene.effects.countours", ":2:1"},
+      {"[[scene.objects]]\nname = \"a\"\nradius = 3.0\nraduis = 2.0\n",
+       "unknown key scene.objects[0].raduis", ":4:1"},
+      {"[[scene.skins]]\nname = \"k\"\ntolerance = 0.1\n", "unknown key scene.skins[0].tolerance",
+       ":3:1"},
+      {"[serve]\nlisten = \"127.0.0.1:1\"\n", "unknown key serve ", ":1:2"},
+  };
+  for (const Case& c : cases) {
+    ServerConfig config;
+    const Status s = LoadConfigFile(Write("unknown", c.text), &config);
+    ASSERT_FALSE(s.ok()) << c.text;
+    EXPECT_NE(s.message().find(c.key), std::string::npos) << s;
+    EXPECT_NE(s.message().find(c.where), std::string::npos) << s;
+  }
+}
+
+TEST(ConfigTest, ExampleScenesUseOnlyKnownKeys) {
+  for (const char* f : {"/deploy/scenes/tyre.toml", "/deploy/scenes/mechanical.toml"}) {
+    ServerConfig c;
+    const Status s = LoadConfigFile(std::string(SCULPT_SOURCE_DIR) + f, &c);
+    EXPECT_TRUE(s.ok()) << f << ": " << s;
+  }
+}
+
 TEST(ConfigTest, ParsesHostPort) {
   std::string h;
   uint16_t p = 0;
