@@ -218,6 +218,9 @@ int main(int argc, char** argv) {
                    "Stroke script (JSON; format below; optional with --haptics)")
       ->check(CLI::ExistingFile);
   play_cmd->add_option("--token", play.token, "Sculptor secret")->capture_default_str();
+  play_cmd->add_option("--object", play.object,
+                       "Object every stroke sculpts (default: the script's \"object\", else the "
+                       "scene's first object)");
   play_cmd->add_option("--name", play.name, "Name shown to others")->capture_default_str();
   play_cmd->add_option("--scene", play.scene, "Scene (default: the script's, else the server's)");
   play_cmd->add_option("--timeout", play.timeout_s, "Seconds to wait for the last acks")

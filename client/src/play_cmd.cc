@@ -45,7 +45,8 @@ namespace sculpt::client {
 // A pose without t_ms is taken 1/120 s after the previous one. Strokes are sent in t_ms order
 // (ties in file order).
 const char kPlayScriptHelp[] =
-    "Script (JSON): {\"scene\": \"default\", \"object\": \"clay\", \"kind\": \"press\", "
+    "Script (JSON): {\"scene\": \"default\", \"object\": \"clay\" (default: --object, else "
+    "the scene's first object), \"kind\": \"press\", "
     "\"tool\": \"sphere\", \"size\": [2.5, 0, 0], \"speed\": 60, \"amount\": 0, \"strokes\": "
     "[{\"t_ms\": 0, \"poses\": [[x, y, z, t_ms], ...]}, ...]}. kind: press|add|subtract|"
     "smooth|inflate|deflate; tool: sphere|ellipsoid|box|capsule; size in world units (a number "
@@ -151,6 +152,7 @@ StatusOr<std::vector<ScriptStroke>> ParseScript(const json& script, std::string*
     *scene = script["scene"].get<std::string>();
   }
   StrokeRequest defaults;
+  defaults.object.clear();  // unnamed: --object, else the scene's first object (ResolveObject)
   SCULPT_RETURN_IF_ERROR(ReadStrokeFields(script, "script", &defaults));
   if (defaults_out) *defaults_out = defaults;
   if (!script.contains("strokes") || !script["strokes"].is_array()) {
@@ -257,11 +259,43 @@ levelset::Aabb BoxAround(const Vec3& p, double r) { return {p - Vec3{r, r, r}, p
 
 Vec3 FromProto(const v1::Vec3f& v) { return {v.x(), v.y(), v.z()}; }
 
+// The object each stroke sculpts: `forced` (--object) for all of them, else the script's, else
+// the scene's first object. NotFound naming the scene's objects for a name the scene lacks.
+Status ResolveObject(const v1::SceneInfo& info, const std::string& forced, StrokeRequest* defaults,
+                     std::vector<ScriptStroke>* strokes) {
+  if (info.objects_size() == 0) return NotFound("scene " + info.scene() + " has no objects");
+  const std::string fallback = info.objects(0).name();
+  auto resolve = [&](std::string* object) {
+    if (!forced.empty()) *object = forced;
+    if (object->empty()) *object = fallback;
+  };
+  resolve(&defaults->object);
+  for (ScriptStroke& s : *strokes) resolve(&s.request.object);
+  std::string names;
+  for (const v1::ObjectInfo& o : info.objects()) names += (names.empty() ? "" : ", ") + o.name();
+  auto known = [&](const std::string& name) {
+    for (const v1::ObjectInfo& o : info.objects()) {
+      if (o.name() == name) return true;
+    }
+    return false;
+  };
+  if (!known(defaults->object)) {
+    return NotFound("object=" + defaults->object + " outside the scene's objects {" + names + "}");
+  }
+  for (const ScriptStroke& s : *strokes) {
+    if (!known(s.request.object)) {
+      return NotFound("strokes[" + std::to_string(s.index) + "].object=" + s.request.object +
+                      " outside the scene's objects {" + names + "}");
+    }
+  }
+  return Status::Ok();
+}
+
 json Vec3Json(const Vec3& v) { return json::array({Round3(v.x), Round3(v.y), Round3(v.z)}); }
 
 int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t port,
-               const std::string& scene, const StrokeRequest& stroke_template,
-               const std::vector<ScriptStroke>& script) {
+               const std::string& scene, StrokeRequest stroke_template,
+               std::vector<ScriptStroke> script) {
   const PlayHapticsOptions& ho = options.haptics;
   haptics::HapticSettings hs;
   auto model = haptics::ParseForceModel(ho.model);
@@ -302,6 +336,10 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
   if (!welcome.ok()) return fail("hello", welcome.status());
   auto joined = client.Join(scene);
   if (!joined.ok()) return fail("join", joined.status());
+  if (Status st = ResolveObject(joined->info, options.object, &stroke_template, &script);
+      !st.ok()) {
+    return fail("join", st);
+  }
   const v1::ObjectInfo* object = nullptr;
   for (const v1::ObjectInfo& o : joined->info.objects()) {
     if (o.name() == stroke_template.object) object = &o;
@@ -654,6 +692,9 @@ int RunPlay(const PlayOptions& options) {
   if (!welcome.ok()) return fail("hello", welcome.status());
   auto joined = client.Join(scene);
   if (!joined.ok()) return fail("join", joined.status());
+  if (Status st = ResolveObject(joined->info, options.object, &defaults, &*strokes); !st.ok()) {
+    return fail("join", st);
+  }
 
   std::mutex mu;
   std::vector<double> latencies;

@@ -35,6 +35,7 @@ struct PlayOptions {
   std::string token = "sculpt-dev-sculptor";
   std::string name = "sculpt-play";
   std::string scene;      // empty: the script's "scene", else the server's default
+  std::string object;     // empty: the script's "object", else the scene's first object
   double timeout_s = 30;  // for the last acks after the last stroke
   double speedup = 1;     // divides every time in the script
   PlayHapticsOptions haptics;

@@ -4,6 +4,7 @@
 /// material and a GLB whose vertices carry COLOR_0.
 #include <gtest/gtest.h>
 #include <openvdb/openvdb.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -13,6 +14,7 @@
 #include <fstream>
 #include <iterator>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
 
@@ -180,6 +182,44 @@ TEST_P(ExampleSceneTest, VoxelisesSculptsPaintsAndExports) {
   EXPECT_EQ(glb.substr(0, 4), "glTF");
   EXPECT_NE(glb.find("KHR_draco_mesh_compression"), std::string::npos);
   EXPECT_NE(glb.find("COLOR_0"), std::string::npos);
+}
+
+// `sculpt play` sculpts the scene's first object when neither the script nor --object names
+// one (it used to assume "clay" and failed on both example scenes), and names the scene's
+// objects when --object names one it lacks.
+TEST_P(ExampleSceneTest, PlaySculptsTheScenesFirstObjectByDefault) {
+  const Example& ex = GetParam();
+  const Vec3 p = SurfacePoint();
+  ASSERT_TRUE(p.IsFinite());
+  const double size = std::min(2.0 * config_.scene.voxel_size, config_.scene.max_tool_size);
+  nlohmann::json script = {{"kind", "press"}, {"tool", "sphere"}, {"size", {size, 0, 0}},
+                           {"speed", 10}, {"strokes", nlohmann::json::array()}};
+  for (int i = 0; i < 2; ++i) {
+    nlohmann::json poses = nlohmann::json::array();
+    for (int k = 0; k < 4; ++k) {
+      poses.push_back({p.x - 0.25 * size * k, p.y + 0.5 * size * i, p.z, 8.0 * k});
+    }
+    script["strokes"].push_back({{"t_ms", 20 * i}, {"poses", poses}});
+  }
+  std::ofstream(dir_ / "script.json") << script.dump();
+  const uint64_t before = scene_->StateHash(ex.object);
+  const std::string play = std::string(SCULPT_BIN_DIR) + "/sculpt play --server 127.0.0.1:" +
+                           std::to_string(port_) + " --token " + config_.sculptor_token +
+                           " --script " + (dir_ / "script.json").string();
+  const std::string out = (dir_ / "play.json").string();
+  ASSERT_EQ(std::system((play + " > " + out + " 2>&1").c_str()), 0);
+  const nlohmann::json summary = nlohmann::json::parse(std::ifstream(out));
+  EXPECT_EQ(summary["acked"].get<int>(), 2) << summary.dump();
+  EXPECT_NE(scene_->StateHash(ex.object), before);
+
+  const int wrong = std::system((play + " --object nosuch > " + out + " 2>&1").c_str());
+  EXPECT_TRUE(WIFEXITED(wrong) && WEXITSTATUS(wrong) == 1);
+  const nlohmann::json refused = nlohmann::json::parse(std::ifstream(out));
+  EXPECT_NE(refused["error"].get<std::string>().find(std::string("object=nosuch outside the "
+                                                                 "scene's objects {") +
+                                                     ex.object + "}"),
+            std::string::npos)
+      << refused.dump();
 }
 
 INSTANTIATE_TEST_SUITE_P(Examples, ExampleSceneTest,
