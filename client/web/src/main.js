@@ -1,0 +1,211 @@
+// Sculpt's browser client: join a scene over sculptd's WebSocket as a viewer or a sculptor, see
+// the shared sculpture from its Draco chunks, sculpt with the pointer, see who else is there.
+// Modules: connection.js (the wire), meshes.js (mesh assembly), packing.js (stroke poses),
+// tools.js (pointer sculpting and presence); this file is the page and its state.
+import * as THREE from 'three';
+import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
+import { Connection, describeError, num, v1 } from './connection.js';
+import { ChunkMeshes } from './meshes.js';
+import { Sculpting, Presence } from './tools.js';
+
+const $ = (id) => document.getElementById(id);
+
+/** Reads #token=...&role=...&name=... (the fragment never reaches a server). */
+function fragmentOptions() {
+  const params = new URLSearchParams(location.hash.replace(/^#/, ''));
+  return { token: params.get('token'), role: params.get('role'), name: params.get('name'),
+    scene: params.get('scene') || '' };
+}
+
+function percentile(sorted, q) {
+  if (sorted.length === 0) return 0;
+  return sorted[Math.min(sorted.length - 1, Math.floor(q * sorted.length))];
+}
+
+class App {
+  constructor() {
+    this.stats = { state: 'idle', role: '', globalSeq: 0, acks: 0, strokesSent: 0,
+      errors: [], ackLatencies: [], chunksPerSecond: 0, bytesPerSecond: 0, presence: [] };
+    this.renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+    this.renderer.setPixelRatio(Math.min(2, window.devicePixelRatio || 1));
+    $('view').appendChild(this.renderer.domElement);
+    this.scene = new THREE.Scene();
+    this.scene.background = new THREE.Color(0x2a2f37);
+    this.camera = new THREE.PerspectiveCamera(40, 1, 0.01, 5000);
+    this.camera.position.set(30, 20, 40);
+    this.scene.add(new THREE.HemisphereLight(0xf4f1ea, 0x3a3530, 1.4));
+    const sun = new THREE.DirectionalLight(0xffffff, 1.8);
+    sun.position.set(1, 2, 1.5);
+    this.camera.add(sun);
+    this.scene.add(this.camera);
+    this.controls = new OrbitControls(this.camera, this.renderer.domElement);
+    this.controls.enableDamping = true;
+    this.meshes = new ChunkMeshes(this.scene);
+    this.meshes.onChange = () => {
+      if (!this.framed && this.meshes.chunks.size > 0) this.frameSoon();
+      this.invalidate();
+    };
+    this.presence = new Presence(this.scene, $('people-list'));
+    this.framed = false;
+    window.addEventListener('resize', () => this.resize());
+    this.resize();
+    // Drawn on demand (a change of view, mesh, tool or presence), not 60 times a second: a
+    // software-rendered browser (no GPU) would otherwise spend a core on unchanged frames.
+    this.controls.addEventListener('change', () => this.invalidate());
+    this.lastRate = { t: performance.now(), bytes: 0, chunks: 0 };
+    setInterval(() => this.updateRates(), 1000);
+    setInterval(() => this.showStatus(), 250);
+  }
+
+  resize() {
+    const el = $('view');
+    const w = el.clientWidth || window.innerWidth, h = el.clientHeight || window.innerHeight;
+    this.renderer.setSize(w, h, false);
+    this.camera.aspect = w / Math.max(1, h);
+    this.camera.updateProjectionMatrix();
+    this.invalidate();
+  }
+
+  invalidate() {
+    if (this.frameRequested) return;
+    this.frameRequested = true;
+    requestAnimationFrame(() => this.frame());
+  }
+
+  frame() {
+    this.frameRequested = false;
+    this.frameStarted = performance.now();
+    // Damping keeps the view moving after the pointer stops: update() reports it changed.
+    if (this.controls.update()) this.invalidate();
+    this.renderer.render(this.scene, this.camera);
+    this.stats.frameMs = performance.now() - this.frameStarted;
+    this.stats.frames = (this.stats.frames || 0) + 1;
+  }
+
+  frameSoon() {
+    clearTimeout(this.frameTimer);
+    this.frameTimer = setTimeout(() => this.frameObject(), 150);
+  }
+
+  /** Points the camera at the whole object. */
+  frameObject() {
+    const box = this.meshes.bounds();
+    if (box.isEmpty()) return;
+    this.framed = true;
+    const centre = box.getCenter(new THREE.Vector3());
+    const radius = box.getSize(new THREE.Vector3()).length() / 2;
+    const dist = radius / Math.sin(THREE.MathUtils.degToRad(this.camera.fov / 2)) * 1.1;
+    const dir = new THREE.Vector3(0.55, 0.4, 0.75).normalize();
+    this.camera.position.copy(centre).addScaledVector(dir, dist);
+    this.camera.near = dist / 100;
+    this.camera.far = dist * 10;
+    this.camera.updateProjectionMatrix();
+    this.controls.target.copy(centre);
+    this.controls.update();
+    this.invalidate();
+  }
+
+  showError(text) {
+    this.stats.errors.push(text);
+    const div = document.createElement('div');
+    div.className = 'error';
+    div.textContent = text;
+    $('errors').appendChild(div);
+    while ($('errors').children.length > 4) $('errors').firstChild.remove();
+    console.warn(`sculpt: ${text}`);
+  }
+
+  updateRates() {
+    const now = performance.now();
+    const dt = (now - this.lastRate.t) / 1000;
+    const bytes = this.conn ? this.conn.bytesIn : 0;
+    this.stats.bytesPerSecond = (bytes - this.lastRate.bytes) / dt;
+    this.stats.chunksPerSecond = (this.meshes.received - this.lastRate.chunks) / dt;
+    this.lastRate = { t: now, bytes, chunks: this.meshes.received };
+  }
+
+  showStatus() {
+    const s = this.stats;
+    const lat = [...s.ackLatencies].sort((a, b) => a - b);
+    const t = this.meshes.totals();
+    $('status').textContent = [
+      s.state, s.role || '-', `seq ${s.globalSeq}`,
+      `ack p50 ${percentile(lat, 0.5).toFixed(1)} ms p99 ${percentile(lat, 0.99).toFixed(1)} ms`,
+      `${(s.bytesPerSecond / 1024).toFixed(1)} KB/s`, `${s.chunksPerSecond.toFixed(1)} chunks/s`,
+      `${t.chunks} chunks ${t.faces} triangles`,
+    ].join('  |  ');
+  }
+
+  async join({ token, role, name, scene }) {
+    const proto = location.protocol === 'https:' ? 'wss:' : 'ws:';
+    this.conn = new Connection(`${proto}//${location.host}/ws`);
+    this.stats.state = 'connecting';
+    this.conn.addEventListener('close', (ev) => {
+      this.stats.state = 'disconnected';
+      if (ev.detail.reason) this.showError(`disconnected: ${ev.detail.reason}`);
+    });
+    this.conn.addEventListener('error', (ev) => this.showError(describeError(ev.detail)));
+    this.conn.addEventListener('bye', (ev) => { if (ev.detail.reason) this.showError(`server: ${ev.detail.reason}`); });
+    this.conn.addEventListener('protocol-error', (ev) => this.showError(`bad message: ${ev.detail}`));
+    await this.conn.open();
+    const wantRole = role === 'viewer' ? v1.Role.ROLE_VIEWER : v1.Role.ROLE_SCULPTOR;
+    const clientId = Math.floor(Math.random() * 2 ** 48) + 1;
+    this.conn.send('hello', { protocolVersion: 1, token: token || '', role: wantRole,
+      clientName: (name || 'browser').slice(0, 64), clientId });
+    const welcome = await this.conn.next('welcome');
+    this.welcome = welcome;
+    this.stats.role = welcome.role === v1.Role.ROLE_VIEWER ? 'viewer' : 'sculptor';
+    this.presence.ownSession = num(welcome.sessionId);
+    this.conn.send('join', { scene, skipState: true });
+    const info = await this.conn.next('sceneInfo');
+    this.info = info;
+    this.stats.state = 'joined';
+    this.stats.scene = info.scene;
+    this.stats.globalSeq = num(info.globalSeq);
+    this.conn.addEventListener('meshChunk', (ev) => {
+      this.stats.globalSeq = Math.max(this.stats.globalSeq, num(ev.detail.version));
+      this.meshes.add(ev.detail);
+    });
+    this.conn.addEventListener('presence', (ev) => {
+      this.presence.update(ev.detail);
+      this.stats.presence = this.presence.others();
+      this.invalidate();
+    });
+    for (const o of info.objects) this.conn.send('viewerSubscribe', { object: o.name, maxRateHz: 10 });
+    if (this.stats.role === 'sculptor') {
+      this.sculpting = new Sculpting(this, info, welcome, clientId);
+      $('tools').hidden = false;
+      this.controls.mouseButtons = { LEFT: -1, MIDDLE: THREE.MOUSE.DOLLY, RIGHT: THREE.MOUSE.ROTATE };
+    }
+    document.title = `Sculpt: ${info.scene} (${this.stats.role})`;
+  }
+}
+
+const app = new App();
+window.sculpt = app;  // for the browser tests and the console
+$('frame').addEventListener('click', () => app.frameObject());
+
+async function start(opts) {
+  $('join').hidden = true;
+  try {
+    await app.join(opts);
+  } catch (err) {
+    app.stats.state = 'refused';
+    if (!err.wire) app.showError(err.message);  // a wire Error is already shown
+    $('join').hidden = false;
+  }
+}
+
+$('join').addEventListener('submit', (ev) => {
+  ev.preventDefault();
+  start({ token: $('join-token').value, role: $('join-role').value, name: $('join-name').value,
+    scene: fragmentOptions().scene });
+});
+
+const frag = fragmentOptions();
+if (frag.token) {
+  $('join-token').value = frag.token;
+  if (frag.role) $('join-role').value = frag.role;
+  if (frag.name) $('join-name').value = frag.name;
+  start({ token: frag.token, role: frag.role || 'sculptor', name: frag.name || 'browser', scene: frag.scene });
+}

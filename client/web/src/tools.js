@@ -1,0 +1,203 @@
+// Pointer sculpting and presence. A drag on the surface samples the pointer at its own rate;
+// samples are sent as strokes at most 60 times a second (packed poses, packing.js) and drawn at
+// once as a trail, which the server's chunks then replace. Hovering sends the tool's position
+// for presence at 10 Hz; other sculptors' tools are drawn as translucent spheres in their colour.
+import * as THREE from 'three';
+import { num, v1 } from './connection.js';
+import { packPoses } from './packing.js';
+
+const $ = (id) => document.getElementById(id);
+const kStrokeHz = 60;
+const kHoverHz = 10;
+
+export class Sculpting {
+  constructor(app, info, welcome, clientId) {
+    this.app = app;
+    this.info = info;
+    this.object = info.objects[0];
+    this.voxelSize = this.object.voxelSize;
+    this.maxPoses = Math.max(1, Math.min(welcome.maxPosesPerStroke || 32, 32));
+    this.clientId = clientId;
+    this.seq = 0;
+    this.pending = new Map();  // client_seq -> send time
+    this.samples = [];
+    this.dragging = false;
+    this.lastHover = 0;
+    this.raycaster = new THREE.Raycaster();
+    this.preview = new THREE.Mesh(new THREE.SphereGeometry(1, 24, 16),
+      new THREE.MeshBasicMaterial({ color: 0x7fd0ff, transparent: true, opacity: 0.25, depthWrite: false }));
+    this.preview.visible = false;
+    app.scene.add(this.preview);
+    this.trail = new THREE.Line(new THREE.BufferGeometry(), new THREE.LineBasicMaterial({ color: 0xffe080 }));
+    this.trailPoints = [];
+    app.scene.add(this.trail);
+    const el = app.renderer.domElement;
+    el.addEventListener('pointerdown', (e) => this.down(e));
+    el.addEventListener('pointermove', (e) => this.move(e));
+    el.addEventListener('pointerup', (e) => this.up(e));
+    el.addEventListener('pointercancel', (e) => this.up(e));
+    el.addEventListener('contextmenu', (e) => e.preventDefault());
+    app.conn.addEventListener('ack', (ev) => this.onAck(ev.detail));
+    this.timer = setInterval(() => this.flush(), 1000 / kStrokeHz);
+  }
+
+  radius() {
+    const r = Number($('tool-radius').value) * this.voxelSize * 2;
+    return Math.min(this.info.maxToolSize || r, Math.max(this.info.minToolSize || r, r));
+  }
+
+  hit(e) {
+    const rect = this.app.renderer.domElement.getBoundingClientRect();
+    const ndc = new THREE.Vector2(((e.clientX - rect.left) / rect.width) * 2 - 1,
+      -((e.clientY - rect.top) / rect.height) * 2 + 1);
+    this.raycaster.setFromCamera(ndc, this.app.camera);
+    const hits = this.raycaster.intersectObjects(this.app.meshes.meshes(), false);
+    return hits.length ? hits[0].point : null;
+  }
+
+  down(e) {
+    if (e.button !== 0) return;
+    const p = this.hit(e);
+    if (!p) return;
+    this.dragging = true;
+    this.pressure = e.pressure > 0 ? e.pressure : 0.5;
+    this.app.renderer.domElement.setPointerCapture(e.pointerId);
+    this.sample(p);
+  }
+
+  move(e) {
+    const p = this.hit(e);
+    const r = this.radius();
+    if (this.preview.visible !== !!p) this.app.invalidate();
+    this.preview.visible = !!p;
+    if (p) {
+      this.app.invalidate();
+      this.preview.position.copy(p);
+      this.preview.scale.setScalar(r);
+      const now = performance.now();
+      if (now - this.lastHover > 1000 / kHoverHz) {
+        this.lastHover = now;
+        this.app.conn.send('hover', { position: { x: p.x, y: p.y, z: p.z }, radius: r });
+      }
+    }
+    if (!this.dragging || !p) return;
+    if (e.pressure > 0) this.pressure = e.pressure;
+    const events = typeof e.getCoalescedEvents === 'function' ? e.getCoalescedEvents() : [];
+    if (events.length > 1) {
+      for (const c of events) { const q = this.hit(c); if (q) this.sample(q); }
+    } else {
+      this.sample(p);
+    }
+  }
+
+  up(e) {
+    if (!this.dragging) return;
+    this.dragging = false;
+    this.flush();
+  }
+
+  sample(p) {
+    this.samples.push({ x: p.x, y: p.y, z: p.z, t: performance.now() });
+    this.trailPoints.push(p.clone());
+    this.trail.geometry.setFromPoints(this.trailPoints);
+    this.app.invalidate();
+    if (this.samples.length >= this.maxPoses) this.flush();
+  }
+
+  /** Sends the samples gathered since the last stroke as one stroke. */
+  flush() {
+    if (this.samples.length === 0) return;
+    const poses = this.samples.splice(0, this.maxPoses);
+    const packed = packPoses(poses, this.voxelSize);
+    if (!packed) { this.app.showError('stroke out of reach of its origin: dropped'); return; }
+    const kind = Number($('tool-kind').value);
+    const strength = Number($('tool-strength').value) * Math.min(1, 2 * this.pressure);
+    const r = this.radius();
+    const maxSpeed = this.info.maxSpeed || 10;
+    const stroke = {
+      clientSeq: ++this.seq,
+      object: this.object.name,
+      kind,
+      tool: v1.ToolKind.TOOL_KIND_SPHERE,
+      toolSize: { x: r, y: 0, z: 0 },
+      speed: Math.max(0.01, strength * maxSpeed * 0.25),
+      amount: kind === v1.EditKind.EDIT_KIND_SMOOTH ? 4 * strength
+        : (kind === v1.EditKind.EDIT_KIND_INFLATE || kind === v1.EditKind.EDIT_KIND_DEFLATE) ? 0.5 * r * strength : 0,
+      origin: packed.origin,
+      t0Ms: packed.t0,
+      poseCount: poses.length,
+      poses: packed.bytes,
+    };
+    if (this.app.conn.send('stroke', stroke)) {
+      this.pending.set(stroke.clientSeq, performance.now());
+      this.app.stats.strokesSent += 1;
+    }
+  }
+
+  onAck(ack) {
+    const seq = num(ack.clientSeq);
+    const sent = this.pending.get(seq);
+    if (sent !== undefined) {
+      this.app.stats.ackLatencies.push(performance.now() - sent);
+      if (this.app.stats.ackLatencies.length > 2000) this.app.stats.ackLatencies.shift();
+      this.pending.delete(seq);
+    }
+    this.app.stats.acks += 1;
+    const edits = ack.edits || 0;
+    if (edits > 0) {
+      this.app.stats.globalSeq = Math.max(this.app.stats.globalSeq, num(ack.globalSeqFirst) + edits - 1);
+    }
+    if (this.pending.size === 0 && !this.dragging) {
+      // The server's chunks now show what the trail stood in for.
+      setTimeout(() => { if (!this.dragging) { this.trailPoints = []; this.trail.geometry.setFromPoints([]); this.app.invalidate(); } }, 300);
+    }
+  }
+}
+
+export class Presence {
+  constructor(scene, list) {
+    this.scene = scene;
+    this.list = list;
+    this.ownSession = 0;
+    this.shapes = new Map();  // session -> mesh
+    this.entries = [];
+  }
+
+  update(presence) {
+    this.entries = presence.users.map((u) => ({ session: num(u.sessionId), name: u.name,
+      colour: u.colorRgba >>> 0, role: u.role, position: u.position, radius: u.radius }));
+    const seen = new Set();
+    this.list.textContent = '';
+    for (const u of this.entries) {
+      const li = document.createElement('li');
+      const own = u.session === this.ownSession;
+      li.textContent = `${u.name}${own ? ' (you)' : ''}${u.role === v1.Role.ROLE_VIEWER ? ' · viewer' : ''}`;
+      li.style.color = `#${(u.colour >>> 8).toString(16).padStart(6, '0')}`;
+      this.list.appendChild(li);
+      if (own || !u.position || !(u.radius > 0)) continue;
+      seen.add(u.session);
+      let shape = this.shapes.get(u.session);
+      if (!shape) {
+        shape = new THREE.Mesh(new THREE.SphereGeometry(1, 20, 14),
+          new THREE.MeshBasicMaterial({ transparent: true, opacity: 0.35, depthWrite: false }));
+        this.scene.add(shape);
+        this.shapes.set(u.session, shape);
+      }
+      shape.material.color.setHex(u.colour >>> 8);
+      shape.position.set(u.position.x, u.position.y, u.position.z);
+      shape.scale.setScalar(u.radius);
+      shape.userData.name = u.name;
+    }
+    for (const [session, shape] of this.shapes) {
+      if (seen.has(session)) continue;
+      this.scene.remove(shape);
+      this.shapes.delete(session);
+    }
+  }
+
+  /** Other people's tools being drawn: [{name, position, radius}]. */
+  others() {
+    return [...this.shapes.values()].map((s) => ({ name: s.userData.name,
+      position: { x: s.position.x, y: s.position.y, z: s.position.z }, radius: s.scale.x }));
+  }
+}
