@@ -26,12 +26,34 @@ for _ in $(seq 1 300); do
   sleep 0.1
 done
 PORT=$(head -n1 "$PORT_FILE")
+HTTP_PORT=$(sed -n 2p "$PORT_FILE")
 SERVER="127.0.0.1:$PORT"
 echo "demo: sculptd listening on $SERVER, data directory $DATA ($(grep -o 'recovered.*' "$OUT/sculptd.log" | head -1))"
 
+WEB_URL="http://127.0.0.1:$HTTP_PORT/"
+if [ -n "$HTTP_PORT" ] && [ "$HTTP_PORT" != 0 ]; then
+  echo "demo: watch it live in a browser while it runs: ${WEB_URL}#role=viewer&token=sculpt-dev-viewer"
+  echo "demo: or sculpt along: ${WEB_URL}#role=sculptor&token=sculpt-dev-sculptor&name=you" \
+    "(DEMO_SECONDS=300 make demo gives you five minutes)"
+fi
+
 echo "demo: $SCULPTORS simulated sculptors and $VIEWERS viewer(s) for $RUN_SECONDS s ..."
 "$BIN/sculpt-loadgen" --server "$SERVER" --sculptors "$SCULPTORS" --viewers "$VIEWERS" \
-  --rate 60 --seconds "$RUN_SECONDS" --json > "$OUT/loadgen.json"
+  --rate 60 --seconds "$RUN_SECONDS" --json > "$OUT/loadgen.json" &
+LOADGEN=$!
+# A picture of the live session as a browser viewer sees it, halfway through the run.
+SHOT_SCRIPT="$(dirname "$0")/../client/web/test/screenshot.mjs"
+if [ -n "$HTTP_PORT" ] && command -v node > /dev/null && [ -x /usr/bin/chromium ] &&
+   [ -d "$(dirname "$0")/../client/web/node_modules/playwright-core" ]; then
+  sleep "$(( RUN_SECONDS / 2 ))"
+  node "$SHOT_SCRIPT" "${WEB_URL}#role=viewer&token=sculpt-dev-viewer&name=demo-camera" \
+    "$OUT/live.png" 500 > "$OUT/screenshot.log" 2>&1 &&
+    echo "demo: $(cat "$OUT/screenshot.log")" ||
+    echo "demo: no live screenshot (see $OUT/screenshot.log)"
+else
+  echo "demo: no live screenshot (node, chromium or client/web/node_modules missing)"
+fi
+wait "$LOADGEN"
 
 "$BIN/sculpt" export --server "$SERVER" --out "$OUT/sculpture.vdb" > /dev/null
 "$BIN/sculpt" export --server "$SERVER" --out "$OUT/sculpture.ply" > /dev/null
@@ -51,5 +73,5 @@ echo "demo: result: $(cat "$OUT/summary.json")"
 mesh() { grep -o "\"$1\": *[^,}]*" "$OUT/summary.json" | head -1 | sed 's/.*: *//'; }
 echo "demo: surface: $(mesh components) piece(s), genus $(mesh genus), $(mesh boundary_edges) open and" \
   "$(mesh non_manifold_edges) non-manifold edges, enclosed/tracked volume $(mesh signed_volume_over_tracked)"
-echo "demo: results in $OUT/: sculpture.vdb, sculpture.ply, sculpture.glb, summary.json, scene.json, loadgen.json, sculptd.log"
+echo "demo: results in $OUT/: sculpture.vdb, sculpture.ply, sculpture.glb, summary.json, scene.json, loadgen.json, live.png, sculptd.log"
 echo "demo: the scene persists in $DATA/ (edit log and snapshots); run again to keep sculpting it"
