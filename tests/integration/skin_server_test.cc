@@ -54,6 +54,7 @@ class SkinServerTest : public ::testing::Test {
     skin.chord_tolerance = 0.02;
     skin.balls = {{-12, 0, 3, 0}, {-6, 1, 2.5, 0}, {0, 0, 3, 0}, {6, -1, 2.5, 0}, {12, 0, 3, 0}};
     config_.scene.skins = {skin};
+    config_.scene.effects.contours = true;
     StartServer();
   }
 
@@ -248,6 +249,36 @@ TEST_F(SkinServerTest, RejectsBadBallFieldsAndKeepsServing) {
   ASSERT_TRUE(ok.accepted()) << ok.error().message();
   ASSERT_TRUE(follower.WaitSkinVersion(kSkin, 1, seconds(10)));
   ExpectViewMatches(follower.View(kSkin));
+}
+
+// A scene that does not ask for contours computes none: subscriptions to a skin or a slice are
+// refused naming the setting, and SceneInfo says so.
+TEST_F(SkinServerTest, SceneWithoutContoursRefusesContourAndSliceSubscriptions) {
+  StopServer();
+  config_.scene.effects.contours = false;
+  StartServer();
+  auto viewer = Joined(v1::ROLE_VIEWER);
+  EXPECT_FALSE(scene_->Info().effects().contours());
+  SkinClient follower(*viewer);
+  ASSERT_TRUE(follower.FollowSkin(kSkin).ok());
+  v1::ContourSlice slice;
+  slice.set_object("clay");
+  slice.mutable_u()->set_x(1);
+  slice.mutable_v()->set_y(1);
+  slice.set_half_extent(30);
+  slice.set_step(0.5);
+  ASSERT_TRUE(follower.FollowSlice(slice).ok());
+  int refused = 0;
+  for (int i = 0; i < 15 && refused < 2; ++i) {
+    auto ev = viewer->NextEvent(milliseconds(200));
+    if (!ev) continue;
+    if (ev->type == Event::Type::kError && ev->error.field() == "scene.effects.contours" &&
+        ev->error.value() == "false" && ev->error.code() == v1::ERROR_CODE_FAILED_PRECONDITION) {
+      ++refused;
+    }
+  }
+  EXPECT_EQ(refused, 2);
+  EXPECT_FALSE(follower.WaitSlice("clay", 0, milliseconds(300)));
 }
 
 TEST_F(SkinServerTest, SliceFollowsTheSculpture) {

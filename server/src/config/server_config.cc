@@ -333,9 +333,6 @@ Status ValidateConfig(const ServerConfig& c) {
     const Status m = levelset::ValidateMaterialDecls(s.materials);
     if (!m.ok()) return InvalidArgument("scene.materials: " + m.message());
   }
-  if (s.effects.contours) {
-    return InvalidArgument("scene.effects.contours=true is not supported yet; set it to false");
-  }
   if (s.objects.empty()) return InvalidArgument("scene.objects is empty");
   for (size_t i = 0; i < s.objects.size(); ++i) {
     const ObjectConfig& o = s.objects[i];

@@ -558,7 +558,7 @@ void Scene::RefreshInfoLocked() {
   e->set_smoothing(config_.scene.effects.smoothing);
   e->set_islands(config_.scene.effects.islands);
   e->set_min_island_volume(config_.scene.effects.min_island_volume);
-  e->set_contours(false);
+  e->set_contours(config_.scene.effects.contours);
   for (const levelset::MaterialDecl& m : config_.scene.materials) {
     e->add_materials(m.name);
     for (double c : m.colour) e->add_material_colours(static_cast<float>(c));

@@ -674,6 +674,13 @@ void Scene::SubscribeContours(ReplicaSink sink, v1::ContourSubscribe req,
   auto cb = std::make_shared<std::function<void(Status)>>(std::move(done));
   Post([this, sink = std::move(sink), req = std::move(req), cb]() mutable {
     const uint64_t session = sink.session_id;
+    // The scene decides which effects it computes: without contours, no skin contour or slice
+    // is encoded for anyone (principle 2 of ARCHITECTURE.md).
+    if (!config_.scene.effects.contours && !req.unsubscribe()) {
+      return (*cb)(FailedPrecondition(
+          "scene.effects.contours=false outside {true}: this scene computes no skin contours or "
+          "slices (set contours = true under [scene.effects])"));
+    }
     if (!req.skin().empty()) {
       auto it = skins_->skins.find(req.skin());
       if (it == skins_->skins.end()) {
