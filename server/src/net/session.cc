@@ -25,6 +25,8 @@ constexpr size_t kStateChunkBytes = 256 * 1024;
 constexpr size_t kStateAllowanceBytes = 64u << 20;
 // How long a Bye may take to leave before the connection is closed regardless.
 constexpr auto kByeGrace = std::chrono::milliseconds(500);
+// How long a client being disconnected for violations waits for its accepted strokes' acks.
+constexpr auto kDrainLimit = std::chrono::seconds(5);
 
 // Constant-time token comparison (no early exit on the first differing byte).
 bool TokenEquals(const std::string& a, const std::string& b) {
@@ -134,10 +136,13 @@ void Session::OnStrokeDone(StrokeOutcome out, Clock::time_point received) {
     return asio::post(strand_, [self = shared_from_this(), out = std::move(out),
                                 received]() mutable { self->OnStrokeDone(std::move(out), received); });
   }
+  if (strokes_in_flight_ > 0) --strokes_in_flight_;
   if (closing_) return;
   if (!out.status.ok()) {
     server_.stats().strokes_refused++;
-    return SendStatus(out.status, out.client_seq);
+    SendStatus(out.status, out.client_seq);
+    if (draining_ && strokes_in_flight_ == 0) Close(drain_reason_, true);
+    return;
   }
   server_.stats().strokes_accepted++;
   v1::ServerMessage m;
@@ -159,6 +164,7 @@ void Session::OnStrokeDone(StrokeOutcome out, Clock::time_point received) {
   server_.stats().stroke_ack_seconds[Index(transport_kind_)].Observe(
       std::chrono::duration<double>(Clock::now() - received).count());
   Send(m);
+  if (draining_ && strokes_in_flight_ == 0) Close(drain_reason_, true);
 }
 
 // Refusals go out twice: as the generic Error, and in the ack the client waits for. The Error
@@ -300,6 +306,7 @@ void Session::OnRead(ReadResult r) {
 }
 
 void Session::Handle(const std::string& payload) {
+  if (draining_) return;  // being disconnected: only the pending acks go out
   const Clock::time_point received = Clock::now();
   v1::ClientMessage msg;
   if (!msg.ParseFromString(payload)) {
@@ -478,6 +485,7 @@ void Session::OnStroke(const v1::Stroke& s, Clock::time_point received) {
     *presence_.mutable_position() = codec::ToProto(decoded->poses.back().position);
     presence_.set_radius(s.tool_size().x());
   }
+  ++strokes_in_flight_;
   server_.scene().Submit(client_id_, std::move(decoded).value(),
                          [self = shared_from_this(), received](const StrokeOutcome& out) {
                            self->OnStrokeDone(out, received);
@@ -651,10 +659,20 @@ void Session::OnModelIntent(const v1::ModelIntent& mi) {
 }
 
 void Session::Violation() {
-  if (++violations_ >= server_.config().limits.violations_before_disconnect) {
-    server_.stats().disconnects_for_cause++;
-    Close("too many refused messages (" + std::to_string(violations_) + ")", true);
-  }
+  if (draining_ || ++violations_ < server_.config().limits.violations_before_disconnect) return;
+  server_.stats().disconnects_for_cause++;
+  const std::string reason = "too many refused messages (" + std::to_string(violations_) + ")";
+  if (strokes_in_flight_ == 0) return Close(reason, true);
+  // Strokes already accepted will be applied: their acks go out first, then the Bye. Nothing
+  // more is read from this client meanwhile, and a scene that takes too long does not keep the
+  // connection open past kDrainLimit.
+  draining_ = true;
+  drain_reason_ = reason;
+  close_timer_.expires_after(kDrainLimit);
+  close_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
+    if (ec == asio::error::operation_aborted) return;
+    self->Close(self->drain_reason_ + "; acks still pending", true);
+  });
 }
 
 // ---- Sending (on the strand) ---------------------------------------------------------------

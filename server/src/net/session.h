@@ -134,6 +134,11 @@ class Session : public std::enable_shared_from_this<Session> {
   RateLimiter strokes_;  // strokes and every other edit message
   RateLimiter poses_;    // each pose is an edit: bounds the work one client queues
   int violations_ = 0;
+  // Strokes handed to the scene and not yet answered. A client disconnected for its violations
+  // first gets the acks of these (draining_), so no applied stroke is reported as lost.
+  uint32_t strokes_in_flight_ = 0;
+  bool draining_ = false;
+  std::string drain_reason_;
 
   mutable std::mutex presence_mu_;
   v1::PresenceEntry presence_;
