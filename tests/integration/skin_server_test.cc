@@ -38,6 +38,17 @@ double Area(const skin::Polyline2& p) {
   return 0.5 * std::abs(a);
 }
 
+// A slice through the sphere's equator (the plane z = 0), every half unit.
+v1::ContourSlice EquatorSlice() {
+  v1::ContourSlice slice;
+  slice.set_object("clay");
+  slice.mutable_u()->set_x(1);
+  slice.mutable_v()->set_y(1);
+  slice.set_half_extent(30);
+  slice.set_step(0.5);
+  return slice;
+}
+
 class SkinServerTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -261,12 +272,7 @@ TEST_F(SkinServerTest, SceneWithoutContoursRefusesContourAndSliceSubscriptions) 
   EXPECT_FALSE(scene_->Info().effects().contours());
   SkinClient follower(*viewer);
   ASSERT_TRUE(follower.FollowSkin(kSkin).ok());
-  v1::ContourSlice slice;
-  slice.set_object("clay");
-  slice.mutable_u()->set_x(1);
-  slice.mutable_v()->set_y(1);
-  slice.set_half_extent(30);
-  slice.set_step(0.5);
+  v1::ContourSlice slice = EquatorSlice();
   ASSERT_TRUE(follower.FollowSlice(slice).ok());
   int refused = 0;
   for (int i = 0; i < 15 && refused < 2; ++i) {
@@ -284,12 +290,7 @@ TEST_F(SkinServerTest, SceneWithoutContoursRefusesContourAndSliceSubscriptions) 
 TEST_F(SkinServerTest, SliceFollowsTheSculpture) {
   auto viewer = Joined(v1::ROLE_VIEWER);
   SkinClient follower(*viewer);
-  v1::ContourSlice slice;
-  slice.set_object("clay");
-  slice.mutable_u()->set_x(1);
-  slice.mutable_v()->set_y(1);
-  slice.set_half_extent(30);
-  slice.set_step(0.5);
+  v1::ContourSlice slice = EquatorSlice();
   ASSERT_TRUE(follower.FollowSlice(slice).ok());
   ASSERT_TRUE(follower.WaitSlice("clay", 0, seconds(10)));
   const auto lines = follower.Slice("clay");

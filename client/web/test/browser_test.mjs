@@ -6,7 +6,7 @@ import { spawn } from 'node:child_process';
 import { mkdtempSync, readFileSync, existsSync, rmSync, mkdirSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
-import { chromium } from 'playwright-core';
+import { chromiumPath, launchChromium } from './chromium.mjs';
 
 const args = Object.fromEntries(process.argv.slice(2).reduce((acc, a, i, all) =>
   (a.startsWith('--') ? [...acc, [a.slice(2), all[i + 1]]] : acc), []));
@@ -15,7 +15,6 @@ const harmless = (l) => l.includes('favicon');
 const bin = args.bin;
 const webRoot = args['web-root'];
 const shots = args.screenshots;
-const chromiumPath = process.env.CHROMIUM || '/usr/bin/chromium';
 if (!bin || !webRoot) { console.error('usage: --bin DIR --web-root DIR [--screenshots DIR]'); process.exit(2); }
 if (!existsSync(chromiumPath)) { console.error(`${chromiumPath} missing (deploy/install-deps.sh installs chromium)`); process.exit(1); }
 
@@ -50,10 +49,7 @@ try {
   if (!ports || ports.length < 2) throw new Error('sculptd wrote no port file');
   const [tcpPort, httpPort] = ports;
   const base = `http://127.0.0.1:${httpPort}/`;
-  browser = await chromium.launch({ executablePath: chromiumPath, headless: true,
-    args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
-      '--disable-background-networking', '--disable-component-update', '--disable-sync',
-      '--use-angle=swiftshader', '--enable-unsafe-swiftshader'] });
+  browser = await launchChromium();
   const open = async (fragment) => {
     const page = await browser.newPage({ viewport: { width: 800, height: 600 } });
     const logs = [];

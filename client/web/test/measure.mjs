@@ -2,14 +2,11 @@
 //   node test/measure.mjs HTTP_URL [SECONDS]
 // Time from opening the page to the first full mesh, Draco chunk decode p50/p99 in Chromium,
 // and, while SECONDS pass, the viewer's received bytes per second and frame time.
-import { chromium } from 'playwright-core';
+import { launchChromium } from './chromium.mjs';
 
 const [base, seconds = '10'] = process.argv.slice(2);
 if (!base) { console.error('usage: node measure.mjs http://HOST:PORT/ [SECONDS]'); process.exit(2); }
-const browser = await chromium.launch({ executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-  headless: true, args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
-    '--disable-background-networking', '--disable-component-update', '--disable-sync',
-    '--use-angle=swiftshader', '--enable-unsafe-swiftshader'] });
+const browser = await launchChromium();
 try {
   const page = await browser.newPage({ viewport: { width: 1024, height: 720 } });
   const t0 = Date.now();

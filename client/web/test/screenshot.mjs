@@ -2,14 +2,11 @@
 //   node screenshot.mjs URL OUT.png [WAIT_MS]
 // Opens URL in Debian's headless Chromium, waits until the page has joined and decoded every
 // chunk it was sent, waits WAIT_MS more (default 1500), then writes the screenshot.
-import { chromium } from 'playwright-core';
+import { launchChromium } from './chromium.mjs';
 
 const [url, out, waitMs = '1500'] = process.argv.slice(2);
 if (!url || !out) { console.error('usage: node screenshot.mjs URL OUT.png [WAIT_MS]'); process.exit(2); }
-const browser = await chromium.launch({ executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-  headless: true, args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
-    '--disable-background-networking', '--disable-component-update', '--disable-sync',
-    '--use-angle=swiftshader', '--enable-unsafe-swiftshader'] });
+const browser = await launchChromium();
 try {
   const page = await browser.newPage({ viewport: { width: 1024, height: 720 } });
   await page.goto(url);
