@@ -262,7 +262,8 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
   for (uint64_t i = 0; i < nlines; ++i) {
     uint64_t n = 0;
     if (!r.Varint(&n)) return Truncated("point count");
-    total += n;
+    // n is any 64-bit value: a sum that wrapped would pass the cap below (fuzz-found).
+    total = n > kMaxContourPoints ? n : total + n;
     // Even entropy-coded, a point costs far more than 1/256 byte: a claim beyond that is a lie
     // that would only make us allocate.
     const uint64_t cap = std::min<uint64_t>(kMaxContourPoints, 65536 + 256 * bytes.size());

@@ -138,5 +138,18 @@ TEST(ContourCodecTest, SnapshotAndUpdatesReproduceTheSkin) {
   EXPECT_FALSE(EncodeSkinSnapshot(*skin, 2 * step).ok());  // step above the chord tolerance
 }
 
+
+// Found by tests/fuzz (contour target): a point count near 2^64 wrapped the running total past
+// the cap, and the decoder then tried to allocate that many points (std::length_error).
+TEST(ContourCodecTest, RejectsPointCountThatWrapsTheTotal) {
+  const std::string bytes(
+      "\x53\x4b\x43\x31\x01\x5b\x01\x4b\x43\x31\x00\x00\x00\x00\x02\x53\x4b\x43\x00\x00\x43\x00"
+      "\x00\xff\xff\xff\xff\xff\xff\xff\xff\xff\x43\x31\x31\x01\x5b\x01\x4b\x43\x31\x43\x04\x00"
+      "\x00\x00\xff\xff",
+      48);
+  const auto decoded = DecodeContours(bytes);
+  EXPECT_FALSE(decoded.ok());
+}
+
 }  // namespace
 }  // namespace sculpt::skin
