@@ -4,7 +4,7 @@ BUILD_DIR ?= build
 JOBS ?= $(shell nproc)
 DEMO_OUT ?= demo-output
 
-.PHONY: all deps configure build demo demo-local test soak bench bench-server bench-replication clean
+.PHONY: all deps configure build demo demo-local test soak fuzz bench bench-server bench-replication clean
 
 all: build
 
@@ -32,6 +32,11 @@ test: build
 
 soak: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -L soak
+
+# libFuzzer targets (clang, build-fuzz/), FUZZ_SECONDS each; see docs/fuzzing.md.
+FUZZ_SECONDS ?= 60
+fuzz:
+	tests/fuzz/run.sh $(FUZZ_SECONDS)
 
 bench: build
 	$(BUILD_DIR)/bin/sculpt-bench edit --json
