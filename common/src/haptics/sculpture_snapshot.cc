@@ -38,19 +38,40 @@ Accessor& AccessorFor(uint64_t id, const Tree& tree) {
   return *t_accessor.accessor;
 }
 
-double Trilinear(Accessor& acc, const openvdb::math::Transform& xform, const Vec3& p) {
+// The 8 corners of the cell holding p, and p's fractional position in it.
+struct Corners {
+  double v[2][2][2];
+  openvdb::Coord origin;
+  double tx, ty, tz;
+};
+
+Corners ReadCorners(Accessor& acc, const openvdb::math::Transform& xform, const Vec3& p) {
   const openvdb::Vec3d u = xform.worldToIndex(openvdb::Vec3d(p.x, p.y, p.z));
   const double fx = std::floor(u.x()), fy = std::floor(u.y()), fz = std::floor(u.z());
-  const double tx = u.x() - fx, ty = u.y() - fy, tz = u.z() - fz;
-  const openvdb::Coord c(static_cast<int>(fx), static_cast<int>(fy), static_cast<int>(fz));
-  double v[2][2][2];
+  Corners c;
+  c.tx = u.x() - fx;
+  c.ty = u.y() - fy;
+  c.tz = u.z() - fz;
+  const openvdb::Coord o(static_cast<int>(fx), static_cast<int>(fy), static_cast<int>(fz));
+  c.origin = o;
   for (int k = 0; k < 2; ++k) {
     for (int j = 0; j < 2; ++j) {
       for (int i = 0; i < 2; ++i) {
-        v[i][j][k] = acc.getValue(c.offsetBy(i, j, k));
+        c.v[i][j][k] = acc.getValue(o.offsetBy(i, j, k));
       }
     }
   }
+  return c;
+}
+
+double Interpolate(const double (&v)[2][2][2], double tx, double ty, double tz);
+
+double Trilinear(Accessor& acc, const openvdb::math::Transform& xform, const Vec3& p) {
+  const Corners c = ReadCorners(acc, xform, p);
+  return Interpolate(c.v, c.tx, c.ty, c.tz);
+}
+
+double Interpolate(const double (&v)[2][2][2], double tx, double ty, double tz) {
   const double x00 = v[0][0][0] + tx * (v[1][0][0] - v[0][0][0]);
   const double x10 = v[0][1][0] + tx * (v[1][1][0] - v[0][1][0]);
   const double x01 = v[0][0][1] + tx * (v[1][0][1] - v[0][0][1]);
@@ -58,6 +79,48 @@ double Trilinear(Accessor& acc, const openvdb::math::Transform& xform, const Vec
   const double y0 = x00 + ty * (x10 - x00);
   const double y1 = x01 + ty * (x11 - x01);
   return y0 + tz * (y1 - y0);
+}
+
+// Central differences of the trilinear interpolant one voxel either side of p, in index units,
+// read as one stencil: p's 8 corners plus the 24 outer corners of the cells one voxel away along
+// each axis (32 distinct values and one world-to-index transform, where six separate trilinear
+// lookups read 48 values through six transforms). Same value as the six lookups, so the normal
+// stays continuous across cell faces (the analytic gradient of one cell's interpolant does not).
+openvdb::Vec3d CentralIndexGradient(Accessor& acc, const Corners& c, const openvdb::Coord& o) {
+  const auto& v = c.v;
+  double lo[2][2][2], hi[2][2][2];
+  double g[3];
+  for (int axis = 0; axis < 3; ++axis) {
+    for (int a = 0; a < 2; ++a) {
+      for (int b = 0; b < 2; ++b) {
+        // (a, b) index the two axes other than `axis`, in increasing order.
+        int ijk_lo[3], ijk_hi[3], ijk0[3], ijk1[3];
+        int other = 0;
+        for (int d = 0; d < 3; ++d) {
+          if (d == axis) continue;
+          const int w = other++ == 0 ? a : b;
+          ijk_lo[d] = ijk_hi[d] = ijk0[d] = ijk1[d] = w;
+        }
+        ijk_lo[axis] = -1;
+        ijk_hi[axis] = 2;
+        ijk0[axis] = 0;
+        ijk1[axis] = 1;
+        const double outer_lo = acc.getValue(o.offsetBy(ijk_lo[0], ijk_lo[1], ijk_lo[2]));
+        const double outer_hi = acc.getValue(o.offsetBy(ijk_hi[0], ijk_hi[1], ijk_hi[2]));
+        const double in0 = v[ijk0[0]][ijk0[1]][ijk0[2]];
+        const double in1 = v[ijk1[0]][ijk1[1]][ijk1[2]];
+        // The cell one voxel below along `axis` spans (outer_lo, in0); the one above (in1, outer_hi).
+        ijk0[axis] = 0;
+        ijk1[axis] = 1;
+        lo[ijk0[0]][ijk0[1]][ijk0[2]] = outer_lo;
+        lo[ijk1[0]][ijk1[1]][ijk1[2]] = in0;
+        hi[ijk0[0]][ijk0[1]][ijk0[2]] = in1;
+        hi[ijk1[0]][ijk1[1]][ijk1[2]] = outer_hi;
+      }
+    }
+    g[axis] = (Interpolate(hi, c.tx, c.ty, c.tz) - Interpolate(lo, c.tx, c.ty, c.tz)) / 2;
+  }
+  return {g[0], g[1], g[2]};
 }
 
 }  // namespace
@@ -83,14 +146,14 @@ double SculptureSnapshot::Phi(const Vec3& p) const {
 
 Vec3 SculptureSnapshot::Gradient(const Vec3& p) const {
   const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
+  const auto& xform = grid.transform();
   Accessor& acc = AccessorFor(id_, grid.tree());
-  const double h = voxel_size_;
-  auto d = [&](const Vec3& e) {
-    return (Trilinear(acc, grid.transform(), p + e * h) -
-            Trilinear(acc, grid.transform(), p - e * h)) /
-           (2 * h);
-  };
-  return {d({1, 0, 0}), d({0, 1, 0}), d({0, 0, 1})};
+  const Corners c = ReadCorners(acc, xform, p);
+  const openvdb::Vec3d gi = CentralIndexGradient(acc, c, c.origin);
+  // World gradient: the index gradient through the inverse transpose of the index-to-world map
+  // (for the uniform scale of a level set, divided by the voxel size).
+  const openvdb::Vec3d gw = xform.baseMap()->applyIJT(gi);
+  return {gw.x(), gw.y(), gw.z()};
 }
 
 }  // namespace sculpt::haptics
