@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <optional>
 #include <thread>
 
@@ -578,6 +579,97 @@ TEST_F(HttpServerTest, MetricsParseStrictly) {
       EXPECT_EQ(std::system(cmd.c_str()), 0);
     }
   }
+}
+
+// Python's prometheus_client (Debian: python3-prometheus-client, installed by
+// deploy/install-deps.sh) parses the page too and finds the fdatasync histogram (its +Inf bucket
+// equal to its count, at least `min_fsyncs`) and the compute queue gauge.
+constexpr char kPythonMetricsCheck[] = R"(import sys
+from prometheus_client.parser import text_string_to_metric_families
+fams = {f.name: f for f in text_string_to_metric_families(open(sys.argv[1]).read())}
+h = fams['sculpt_log_fsync_seconds']
+assert h.type == 'histogram', h.type
+count = [s.value for s in h.samples if s.name == 'sculpt_log_fsync_seconds_count']
+inf = [s.value for s in h.samples
+       if s.name == 'sculpt_log_fsync_seconds_bucket' and s.labels['le'] == '+Inf']
+assert count == inf and count[0] >= int(sys.argv[2]), (count, inf)
+assert fams['sculpt_compute_queue_depth'].type == 'gauge'
+assert fams['sculpt_acks_awaiting_durability'].type == 'gauge'
+)";
+
+TEST_F(HttpServerTest, MetricsReportLogFsyncTimeAndComputeQueueDepth) {
+  Start();
+  std::string body;
+  auto scrape = [&](sculpt::testing::PromPage* page) {
+    auto r = Get(http_port_, "/metrics");
+    ASSERT_EQ(r.status, 200);
+    body = r.msg.body();
+    std::string error;
+    ASSERT_TRUE(sculpt::testing::ParsePrometheusText(body, page, &error)) << error << "\n" << body;
+    ASSERT_EQ(page->types["sculpt_log_fsync_seconds"], "histogram");
+    ASSERT_EQ(page->types["sculpt_compute_queue_depth"], "gauge");
+    ASSERT_EQ(page->types["sculpt_acks_awaiting_durability"], "gauge");
+  };
+  sculpt::testing::PromPage before;
+  ASSERT_NO_FATAL_FAILURE(scrape(&before));
+  const double fsyncs_before = before.Value("sculpt_log_fsync_seconds_count");
+  ASSERT_FALSE(std::isnan(fsyncs_before));
+
+  // One stroke in flight at a time: each acknowledgement waits for an fdatasync of its own.
+  RawClient c(port_);
+  ASSERT_TRUE(c.Enter(kSculptor, v1::ROLE_SCULPTOR));
+  for (uint64_t seq = 1; seq <= 3; ++seq) {
+    c.Send(RawClient::PressStroke(seq, {0, 0, 11.3}));
+    auto ack = c.ReadUntil(v1::ServerMessage::kAck);
+    ASSERT_TRUE(ack && ack->ack().edits() == 4);
+  }
+  sculpt::testing::PromPage after;
+  ASSERT_NO_FATAL_FAILURE(scrape(&after));
+  EXPECT_GE(after.Value("sculpt_log_fsync_seconds_count"), fsyncs_before + 3) << body;
+  EXPECT_GE(after.Value("sculpt_log_fsync_seconds_sum"),
+            before.Value("sculpt_log_fsync_seconds_sum"));
+  EXPECT_EQ(after.Value("sculpt_log_fsync_seconds_bucket", {{"le", "+Inf"}}),
+            after.Value("sculpt_log_fsync_seconds_count"));
+
+  // The compute thread held by a task: strokes sent meanwhile wait in its queue, and /metrics
+  // shows them; released, the queue drains and every stroke is acknowledged.
+  std::promise<void> running, release;
+  std::shared_future<void> released = release.get_future().share();
+  std::thread holder([&] {
+    scene_->Inspect("clay", [&](const levelset::Sculpture&) {
+      running.set_value();
+      released.wait();
+    });
+  });
+  running.get_future().wait();
+  for (uint64_t seq = 4; seq <= 6; ++seq) c.Send(RawClient::PressStroke(seq, {0, 0, 11.3}));
+  double depth = 0;
+  for (int i = 0; i < 100 && depth < 3; ++i) {
+    sculpt::testing::PromPage held;
+    ASSERT_NO_FATAL_FAILURE(scrape(&held));
+    depth = held.Value("sculpt_compute_queue_depth");
+    if (depth < 3) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_EQ(depth, 3) << body;
+  release.set_value();
+  holder.join();
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(c.ReadUntil(v1::ServerMessage::kAck));
+  scene_->Flush();
+  sculpt::testing::PromPage drained;
+  ASSERT_NO_FATAL_FAILURE(scrape(&drained));
+  EXPECT_EQ(drained.Value("sculpt_compute_queue_depth"), 0);
+  EXPECT_EQ(drained.Value("sculpt_acks_awaiting_durability"), 0);
+  EXPECT_GE(drained.Value("sculpt_log_fsync_seconds_count"), fsyncs_before + 4);
+
+  ASSERT_EQ(std::system("/usr/bin/python3 -c 'import prometheus_client' 2>/dev/null"), 0)
+      << "python3-prometheus-client is missing: run deploy/install-deps.sh";
+  const fs::path page_file = dir_ / "metrics.txt";
+  const fs::path script = dir_ / "check_metrics.py";
+  std::ofstream(page_file) << body;
+  std::ofstream(script) << kPythonMetricsCheck;
+  const std::string cmd = "/usr/bin/python3 " + script.string() + " " + page_file.string() + " " +
+                          std::to_string(static_cast<int>(fsyncs_before) + 4);
+  EXPECT_EQ(std::system(cmd.c_str()), 0) << body;
 }
 
 }  // namespace

@@ -427,7 +427,8 @@ std::string HttpServer::MetricsText() {
   w.Counter("sculpt_connections_total", "Client connections accepted (TCP and WebSocket)",
             static_cast<double>(s.connections.load()));
   w.Counter("sculpt_strokes_accepted_total",
-            "Edits acknowledged (strokes, paints, model intents; duplicates not counted twice)",
+            "Edits acknowledged (strokes, paints, model intents; duplicates not counted "
+            "twice); rate() gives strokes per second",
             static_cast<double>(s.strokes_accepted.load()));
   w.Counter("sculpt_strokes_refused_total", "Edits refused (validation, role, rate limit)",
             static_cast<double>(s.strokes_refused.load()));
@@ -437,7 +438,8 @@ std::string HttpServer::MetricsText() {
             "Clients dropped for rate violations or a full send queue",
             static_cast<double>(s.disconnects_for_cause.load()));
   w.Counter("sculpt_edits_total",
-            "Edits applied to the scene (its global sequence, since the data directory began)",
+            "Edits applied to the scene (its global sequence, since the data directory "
+            "began); rate() gives edits per second",
             static_cast<double>(scene.global_seq()));
   // One family at a time: the text format wants each family's samples together.
   auto per_transport = [&](const char* name, const char* help,
@@ -482,6 +484,17 @@ std::string HttpServer::MetricsText() {
   w.Counter("sculpt_viewer_snapshot_seconds_total",
             "Compute-thread time spent copying sculptures for the mesher",
             static_cast<double>(m.snapshot_us.load()) * 1e-6);
+  w.Histogram("sculpt_log_fsync_seconds",
+              "Durations of the edit log's fdatasync calls, each making the records written "
+              "before it durable (acknowledgements wait for them)",
+              scene.log_sync_seconds());
+  w.Gauge("sculpt_compute_queue_depth",
+          "Tasks queued for the scene's compute thread and not yet started (edits, joins, "
+          "subscriptions)",
+          static_cast<double>(scene.compute_queue_depth()));
+  w.Gauge("sculpt_acks_awaiting_durability",
+          "Edits applied whose acknowledgement waits for the edit log's next fdatasync",
+          static_cast<double>(scene.acks_awaiting_durability()));
   w.Gauge("sculpt_http_connections", "Open HTTP connections and WebSocket sessions",
           static_cast<double>(open_->load()));
   w.Counter("sculpt_http_connections_refused_total",

@@ -342,6 +342,7 @@ void Scene::Post(std::function<void()> job) {
   {
     std::lock_guard<std::mutex> lock(jobs_mu_);
     jobs_.push_back(std::move(job));
+    queue_depth_.store(jobs_.size(), std::memory_order_relaxed);
   }
   jobs_cv_.notify_one();
 }
@@ -355,6 +356,7 @@ void Scene::Run() {
       if (jobs_.empty()) return;  // stop_ and drained
       job = std::move(jobs_.front());
       jobs_.pop_front();
+      queue_depth_.store(jobs_.size(), std::memory_order_relaxed);
     }
     job();
   }
@@ -451,6 +453,13 @@ void Scene::ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, Stroke
   MaybeSnapshot();
   if (out.edits > 0) SendSlices(stroke.object, out.last.dirty_leaves);
 }
+
+size_t Scene::acks_awaiting_durability() const {
+  std::lock_guard<std::mutex> lock(pending_mu_);
+  return pending_.size();
+}
+
+LatencyHistogram::Snapshot Scene::log_sync_seconds() const { return log_->sync_seconds(); }
 
 void Scene::ReleaseDurable(uint64_t durable_seq) {
   std::vector<Pending> ready;

@@ -18,6 +18,7 @@
 
 #include "config/server_config.h"
 #include "sculpt/codec/stroke.h"
+#include "sculpt/core/latency_histogram.h"
 #include "sculpt/core/status.h"
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/region.h"
@@ -190,6 +191,13 @@ class Scene {
   /// The model of a `model` object (tests, tools). NotFound for an object without one.
   StatusOr<ModelSummary> ModelInfo(const std::string& object);
 
+  /// Tasks queued for the compute thread and not yet started (edits, joins, subscriptions).
+  size_t compute_queue_depth() const { return queue_depth_.load(std::memory_order_relaxed); }
+  /// Edits applied and waiting for the edit log to become durable before they are acknowledged.
+  size_t acks_awaiting_durability() const;
+  /// Durations of the edit log's fdatasync calls since start.
+  LatencyHistogram::Snapshot log_sync_seconds() const;
+
   /// What recovery found at start-up.
   const std::string& recovery_summary() const { return recovery_summary_; }
 
@@ -292,7 +300,7 @@ class Scene {
   v1::SceneInfo info_;
   std::map<std::string, levelset::Aabb> bounds_;
 
-  std::mutex pending_mu_;
+  mutable std::mutex pending_mu_;
   struct Pending {
     uint64_t seq;
     StrokeOutcome outcome;
@@ -307,6 +315,7 @@ class Scene {
   std::mutex jobs_mu_;
   std::condition_variable jobs_cv_;
   std::deque<std::function<void()>> jobs_;
+  std::atomic<size_t> queue_depth_{0};  // jobs_.size(), read without jobs_mu_
   bool stop_ = false;
   std::thread thread_;
 };

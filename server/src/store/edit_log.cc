@@ -808,7 +808,11 @@ StatusOr<uint64_t> EditLog::SyncLocked() {
   // fdatasync, not fsync: it flushes the data and the file size (all a reader needs) but not
   // the timestamps, which saves a journal commit on most appends. A failure cannot be retried:
   // Linux may mark the lost pages clean, so a second fdatasync would falsely succeed.
-  if (::fdatasync(fd_) != 0) return Poison(Errno("fdatasync of", segments_.back().path));
+  const auto t0 = std::chrono::steady_clock::now();
+  const int rc = ::fdatasync(fd_);
+  sync_seconds_.Observe(
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  if (rc != 0) return Poison(Errno("fdatasync of", segments_.back().path));
   durable_seq_.store(target);
   return target;
 }

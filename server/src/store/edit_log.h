@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "sculpt/core/latency_histogram.h"
 #include "sculpt/core/status.h"
 
 namespace sculpt::server::store {
@@ -219,6 +220,9 @@ class EditLog {
   size_t segment_count() const;
   const std::string& dir() const { return dir_; }
   const FsyncPolicy& policy() const { return options_.fsync; }
+  /// Durations of the fdatasync calls that made appended records durable (the group sync,
+  /// Sync(), each Append under kAlways) since Open; the scan at Open is not counted.
+  LatencyHistogram::Snapshot sync_seconds() const { return sync_seconds_.Read(); }
 
  private:
   struct Segment {
@@ -261,6 +265,7 @@ class EditLog {
 
   std::atomic<uint64_t> written_seq_{0};
   std::atomic<uint64_t> durable_seq_{0};
+  LatencyHistogram sync_seconds_;
 
   std::mutex callback_mu_;
   DurableCallback callback_;

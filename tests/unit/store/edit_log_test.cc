@@ -145,6 +145,19 @@ TEST_F(EditLogTest, RoundTripsThousandRecordsUnderAlwaysPolicy) {
   }
 }
 
+TEST_F(EditLogTest, TimesEveryFdatasyncThatMakesRecordsDurable) {
+  auto log = OpenOrDie(Always());
+  ASSERT_NE(log, nullptr);
+  EXPECT_EQ(log->sync_seconds().count, 0u);  // the scan at Open is not counted
+  for (uint64_t seq = 1; seq <= 5; ++seq) ASSERT_TRUE(log->Append(seq, Payload(seq)).ok());
+  const auto after_appends = log->sync_seconds();
+  EXPECT_EQ(after_appends.count, 5u);  // kAlways: one fdatasync per Append
+  EXPECT_EQ(after_appends.cumulative.back(), after_appends.count);  // none over 10 s
+  EXPECT_GE(after_appends.sum, 0.0);
+  ASSERT_TRUE(log->Sync().ok());  // nothing new written: no fdatasync
+  EXPECT_EQ(log->sync_seconds().count, 5u);
+}
+
 TEST_F(EditLogTest, RoundTripsThousandRecordsUnderGroupPolicy) {
   WriteRecords(1000, Group());
   RecoveryReport report;
