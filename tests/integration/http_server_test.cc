@@ -609,6 +609,9 @@ TEST_F(HttpServerTest, MetricsReportLogFsyncTimeAndComputeQueueDepth) {
     ASSERT_EQ(page->types["sculpt_log_fsync_seconds"], "histogram");
     ASSERT_EQ(page->types["sculpt_compute_queue_depth"], "gauge");
     ASSERT_EQ(page->types["sculpt_acks_awaiting_durability"], "gauge");
+    ASSERT_EQ(page->types["sculpt_compute_task_failures_total"], "counter");
+    ASSERT_EQ(page->types["sculpt_late_joins_pending"], "gauge");
+    ASSERT_EQ(page->types["sculpt_late_joins_refused_total"], "counter");
   };
   sculpt::testing::PromPage before;
   ASSERT_NO_FATAL_FAILURE(scrape(&before));

@@ -4,8 +4,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <filesystem>
+#include <future>
+#include <mutex>
+#include <new>
+#include <stdexcept>
 #include <random>
 #include <thread>
 
@@ -480,6 +485,207 @@ TEST_F(ServerTest, ResendAfterReconnectIsNotAppliedTwice) {
   EXPECT_FALSE(ack->ack().duplicate());
   EXPECT_EQ(ack->ack().global_seq_first(), 5u);
   EXPECT_EQ(scene_->global_seq(), 8u);
+}
+
+// Holds the scene's compute thread inside a task until released (or destroyed), so tests can
+// line requests up behind it.
+class ComputeHold {
+ public:
+  explicit ComputeHold(Scene& scene)
+      : released_(release_.get_future().share()), thread_([this, &scene] {
+          scene.Inspect("clay", [this](const levelset::Sculpture&) {
+            running_.set_value();
+            released_.wait();
+          });
+        }) {
+    running_.get_future().wait();
+  }
+  ~ComputeHold() { Release(); }
+  void Release() {
+    if (!thread_.joinable()) return;
+    release_.set_value();
+    thread_.join();
+  }
+
+ private:
+  std::promise<void> running_, release_;
+  std::shared_future<void> released_;
+  std::thread thread_;
+};
+
+// What a JoinScene got: the scene info and every state chunk, or an error.
+struct JoinReply {
+  bool joined = false;
+  v1::Error error;
+};
+JoinReply ReadJoinReply(RawClient& c) {
+  JoinReply r;
+  for (;;) {
+    auto m = c.Read();
+    if (!m) return r;
+    if (m->has_error()) {
+      r.error = m->error();
+      return r;
+    }
+    if (m->has_state_chunk() && m->state_chunk().index() + 1 == m->state_chunk().count()) {
+      r.joined = true;
+      return r;
+    }
+  }
+}
+
+// OpenVDB can throw from any task on the compute thread: the requester is told INTERNAL naming
+// the operation, and the thread keeps serving everyone, the same client included.
+TEST_F(ServerTest, ComputeTaskThatThrowsIsAnsweredInternalAndTheSceneServesOn) {
+  Start();
+  std::atomic<int> throws{1};
+  scene_->InjectTaskFaultForTesting([&throws](const std::string& op) {
+    if (op == "stroke" && throws.fetch_sub(1) > 0) throw std::runtime_error("injected failure");
+  });
+  auto c = Sculptor();
+  c->Send(RawClient::PressStroke(1, {0, 0, 13.3}));
+  const v1::Error e = ExpectError(*c);
+  EXPECT_EQ(e.code(), v1::ERROR_CODE_INTERNAL);
+  EXPECT_EQ(e.field(), "compute_task");
+  EXPECT_EQ(e.value(), "stroke");
+  EXPECT_EQ(e.client_seq(), 1u);
+  EXPECT_EQ(scene_->task_stats().failures.load(), 1u);
+  c->Send(RawClient::PressStroke(2, {0, 0, 13.3}));
+  auto ack = c->ReadUntil(v1::ServerMessage::kAck);
+  ASSERT_TRUE(ack);
+  EXPECT_EQ(ack->ack().edits(), 4u);
+  EXPECT_EQ(ack->ack().global_seq_first(), 1u);  // the failed stroke logged nothing
+  EXPECT_TRUE(OthersStillServed());
+
+  // A blocking query whose task throws returns (it does not wait forever); the next is answered.
+  scene_->InjectTaskFaultForTesting([](const std::string& op) {
+    if (op == "state hash") throw std::bad_alloc();
+  });
+  EXPECT_EQ(scene_->StateHash("clay"), 0u);
+  scene_->InjectTaskFaultForTesting(nullptr);
+  EXPECT_NE(scene_->StateHash("clay"), 0u);
+  EXPECT_EQ(scene_->task_stats().failures.load(), 2u);
+}
+
+TEST_F(ServerTest, JoinSerialisationThatThrowsIsAnsweredAndTheJoinerMayRetry) {
+  Start();
+  std::atomic<int> throws{1};
+  scene_->InjectTaskFaultForTesting([&throws](const std::string& op) {
+    if (op == "join state serialisation" && throws.fetch_sub(1) > 0) {
+      throw std::runtime_error("injected failure");
+    }
+  });
+  RawClient c(port_);
+  ASSERT_TRUE(c.Hello(kViewer, v1::ROLE_VIEWER));
+  ASSERT_TRUE(c.ReadUntil(v1::ServerMessage::kWelcome));
+  ASSERT_TRUE(c.Join());
+  JoinReply r = ReadJoinReply(c);
+  EXPECT_FALSE(r.joined);
+  EXPECT_EQ(r.error.code(), v1::ERROR_CODE_INTERNAL);
+  EXPECT_EQ(r.error.field(), "compute_task");
+  EXPECT_EQ(r.error.value(), "join state serialisation");
+  ASSERT_TRUE(c.Join());  // the worker serves on, and a failed join may be asked again
+  EXPECT_TRUE(ReadJoinReply(c).joined);
+  EXPECT_EQ(scene_->pending_joins(), 0u);
+  EXPECT_TRUE(OthersStillServed());
+}
+
+// Late joins are served by one bounded worker: with the compute thread held, exactly
+// max_pending_joins are admitted and the rest refused at once naming the limit; released, the
+// admitted ones complete, and the refused ones, retrying all at once, all get in.
+TEST_F(ServerTest, ManySimultaneousLateJoinsCompleteOrAreRefusedNamingTheLimit) {
+  config_.limits.max_pending_joins = 4;
+  Start();
+  constexpr int kJoiners = 12;
+  std::vector<std::unique_ptr<RawClient>> clients;
+  for (int i = 0; i < kJoiners; ++i) {
+    clients.push_back(std::make_unique<RawClient>(port_));
+    ASSERT_TRUE(clients.back()->Hello(kViewer, v1::ROLE_VIEWER));
+    ASSERT_TRUE(clients.back()->ReadUntil(v1::ServerMessage::kWelcome));
+  }
+  {
+    ComputeHold hold(*scene_);
+    for (auto& c : clients) ASSERT_TRUE(c->Join());
+    for (int i = 0; i < 250 && scene_->task_stats().joins_refused.load() < kJoiners - 4; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    EXPECT_EQ(scene_->pending_joins(), 4u);
+    EXPECT_EQ(scene_->task_stats().joins_refused.load(), uint64_t{kJoiners - 4});
+  }
+  std::vector<RawClient*> refused;
+  int joined = 0;
+  for (auto& c : clients) {
+    const JoinReply r = ReadJoinReply(*c);
+    if (r.joined) {
+      ++joined;
+      continue;
+    }
+    EXPECT_EQ(r.error.code(), v1::ERROR_CODE_RESOURCE_EXHAUSTED);
+    EXPECT_EQ(r.error.field(), "limits.max_pending_joins");
+    EXPECT_EQ(r.error.allowed_range().rfind("[1, 4]", 0), 0u) << r.error.allowed_range();
+    refused.push_back(c.get());
+  }
+  EXPECT_EQ(joined, 4);
+  ASSERT_EQ(refused.size(), size_t{kJoiners - 4});
+
+  std::atomic<int> retried_in{0};
+  std::vector<std::thread> threads;
+  for (RawClient* c : refused) {
+    threads.emplace_back([c, &retried_in] {
+      for (int attempt = 0; attempt < 100; ++attempt) {
+        if (!c->Join()) return;
+        const JoinReply r = ReadJoinReply(*c);
+        if (r.joined) {
+          ++retried_in;
+          return;
+        }
+        if (r.error.code() != v1::ERROR_CODE_RESOURCE_EXHAUSTED) return;
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(retried_in.load(), kJoiners - 4);
+  EXPECT_EQ(scene_->pending_joins(), 0u);
+  EXPECT_TRUE(OthersStillServed());
+}
+
+// The join worker is joined at shutdown: the join being serialised finishes, the queued ones are
+// answered Unavailable, and the scene goes away without hanging.
+TEST_F(ServerTest, ShutdownAnswersEveryPendingJoinAndDoesNotHang) {
+  Start();
+  scene_->InjectTaskFaultForTesting([](const std::string& op) {
+    if (op == "join state serialisation") {
+      std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    }
+  });
+  std::mutex mu;
+  std::vector<Status::Code> answers;
+  ComputeHold hold(*scene_);
+  for (int i = 0; i < 4; ++i) {
+    scene_->RequestJoinState([&](StatusOr<JoinState> js) {
+      std::lock_guard<std::mutex> lock(mu);
+      answers.push_back(js.ok() ? Status::Code::kOk : js.status().code());
+    });
+  }
+  std::promise<void> stopped;
+  std::thread stopper([&] {
+    Stop();
+    stopped.set_value();
+  });
+  hold.Release();
+  const bool done =
+      stopped.get_future().wait_for(std::chrono::seconds(20)) == std::future_status::ready;
+  if (!done) std::abort();  // a hung shutdown: fail loudly instead of blocking the suite
+  stopper.join();
+  std::lock_guard<std::mutex> lock(mu);
+  ASSERT_EQ(answers.size(), 4u);
+  int unavailable = 0;
+  for (Status::Code code : answers) {
+    EXPECT_TRUE(code == Status::Code::kOk || code == Status::Code::kUnavailable);
+    unavailable += code == Status::Code::kUnavailable;
+  }
+  EXPECT_GE(unavailable, 1);
 }
 
 }  // namespace

@@ -91,6 +91,9 @@ struct LimitsConfig {
   uint32_t max_clients_per_scene = 64;
   int auth_timeout_ms = 5000;
   size_t send_queue_bytes = 8u << 20;  // per session; then coalesce, then disconnect
+  // Late joins being prepared at once (waiting for the scene's copy or its serialisation, one
+  // worker); past it a join is refused with RESOURCE_EXHAUSTED. Bounds the copies held.
+  uint32_t max_pending_joins = 8;
 };
 
 struct ServerConfig {

@@ -495,6 +495,15 @@ std::string HttpServer::MetricsText() {
   w.Gauge("sculpt_acks_awaiting_durability",
           "Edits applied whose acknowledgement waits for the edit log's next fdatasync",
           static_cast<double>(scene.acks_awaiting_durability()));
+  w.Counter("sculpt_compute_task_failures_total",
+            "Scene tasks (compute thread, join worker) that threw; each requester got INTERNAL",
+            static_cast<double>(scene.task_stats().failures.load()));
+  w.Gauge("sculpt_late_joins_pending",
+          "Late joins admitted and not yet answered (copying, queued or being serialised)",
+          static_cast<double>(scene.pending_joins()));
+  w.Counter("sculpt_late_joins_refused_total",
+            "Late joins refused over limits.max_pending_joins (RESOURCE_EXHAUSTED)",
+            static_cast<double>(scene.task_stats().joins_refused.load()));
   w.Gauge("sculpt_http_connections", "Open HTTP connections and WebSocket sessions",
           static_cast<double>(open_->load()));
   w.Counter("sculpt_http_connections_refused_total",

@@ -236,7 +236,12 @@ void Session::OnJoinState(StatusOr<JoinState> js) {
     });
   }
   if (closing_) return;
-  if (!js.ok()) return SendStatus(js.status());
+  if (!js.ok()) {
+    // Not joined: the client may ask again (a refusal over limits.max_pending_joins says so).
+    joined_ = false;
+    joined_flag_ = false;
+    return SendStatus(js.status());
+  }
   v1::ServerMessage info;
   *info.mutable_scene_info() = js->info;
   Send(info);

@@ -15,6 +15,7 @@
 #include <future>
 #include <sstream>
 
+#include "scene/answer_once.h"
 #include "scene/log_payload.h"
 #include "scene/scene.h"
 #include "sculpt/codec/stroke.h"
@@ -272,7 +273,8 @@ bool Scene::SaveModels(uint64_t seq) {
 
 StatusOr<ModelSummary> Scene::ModelInfo(const std::string& object) {
   std::promise<StatusOr<ModelSummary>> p;
-  Post([&] {
+  auto fail = [&p](const Status& st) { p.set_value(st); };
+  Post("model info", fail, [&] {
     auto it = models_.find(object);
     if (it == models_.end()) {
       p.set_value(NotFound("object " + object + " holds no hyperpatch model"));
@@ -292,8 +294,10 @@ StatusOr<ModelSummary> Scene::ModelInfo(const std::string& object) {
 
 void Scene::EditModel(uint64_t client_id, v1::ModelIntent m,
                       std::function<void(v1::ModelAck)> done) {
-  auto cb = std::make_shared<std::function<void(v1::ModelAck)>>(std::move(done));
-  Post([this, client_id, m = std::move(m), cb] {
+  auto once = AnswerOnce(std::move(done));
+  auto cb = std::make_shared<std::function<void(v1::ModelAck)>>(once);
+  auto fail = [once, seq = m.client_seq()](const Status& st) { once(Refused(st, seq)); };
+  Post("model intent", fail, [this, client_id, m = std::move(m), cb] {
     auto it = models_.find(m.object());
     if (it == models_.end()) {
       return (*cb)(Refused(NotFound("ModelIntent.object=" + m.object() +

@@ -7,6 +7,7 @@
 
 #include <cmath>
 
+#include "scene/answer_once.h"
 #include "scene/log_payload.h"
 #include "scene/scene.h"
 #include "sculpt/codec/frame.h"
@@ -181,8 +182,10 @@ void Scene::ReplicateLeaves(const std::string& object, const levelset::Sculpture
 }
 
 void Scene::Paint(uint64_t client_id, v1::PaintEdit e, std::function<void(v1::PaintAck)> done) {
-  auto cb = std::make_shared<std::function<void(v1::PaintAck)>>(std::move(done));
-  Post([this, client_id, e = std::move(e), cb] {
+  auto once = AnswerOnce(std::move(done));
+  auto cb = std::make_shared<std::function<void(v1::PaintAck)>>(once);
+  auto fail = [once, seq = e.client_seq()](const Status& st) { once(Refused(st, seq)); };
+  Post("paint", fail, [this, client_id, e = std::move(e), cb] {
     auto obj = sculptures_.find(e.object());
     if (obj == sculptures_.end()) {
       return (*cb)(

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <future>
 
+#include "scene/answer_once.h"
 #include "scene/scene.h"
 #include "sculpt/codec/frame.h"
 #include "sculpt/core/check.h"
@@ -84,8 +85,10 @@ void Scene::SendRegion(Sub& sub, const levelset::Sculpture& sculpture, uint64_t 
 }
 
 void Scene::Subscribe(ReplicaSink sink, v1::Subscribe req, std::function<void(Status)> done) {
-  auto cb = std::make_shared<std::function<void(Status)>>(std::move(done));
-  Post([this, sink = std::move(sink), req = std::move(req), cb]() mutable {
+  auto once = AnswerOnce(std::move(done));
+  auto cb = std::make_shared<std::function<void(Status)>>(once);
+  auto fail = [once](const Status& st) { once(st); };
+  Post("subscribe", fail, [this, sink = std::move(sink), req = std::move(req), cb]() mutable {
     auto it = sculptures_.find(req.object());
     if (it == sculptures_.end()) {
       return (*cb)(NotFound("Subscribe.object=" + req.object() + " outside the scene's objects"));
@@ -118,8 +121,10 @@ void Scene::Subscribe(ReplicaSink sink, v1::Subscribe req, std::function<void(St
 }
 
 void Scene::SetInterest(uint64_t session_id, v1::SetInterest req, std::function<void(Status)> done) {
-  auto cb = std::make_shared<std::function<void(Status)>>(std::move(done));
-  Post([this, session_id, req = std::move(req), cb] {
+  auto once = AnswerOnce(std::move(done));
+  auto cb = std::make_shared<std::function<void(Status)>>(once);
+  auto fail = [once](const Status& st) { once(st); };
+  Post("set interest", fail, [this, session_id, req = std::move(req), cb] {
     auto s = subs_.find(session_id);
     if (s == subs_.end() || s->second.object != req.object()) {
       return (*cb)(FailedPrecondition("SetInterest.object=" + req.object() +
@@ -137,7 +142,7 @@ void Scene::SetInterest(uint64_t session_id, v1::SetInterest req, std::function<
 }
 
 void Scene::Unsubscribe(uint64_t session_id) {
-  Post([this, session_id] { subs_.erase(session_id); });
+  Post("unsubscribe", [this, session_id] { subs_.erase(session_id); });
 }
 
 void Scene::ReportDivergence(uint64_t session_id, const v1::DivergenceReport& r) {
@@ -148,7 +153,8 @@ void Scene::ReportDivergence(uint64_t session_id, const v1::DivergenceReport& r)
 
 uint64_t Scene::RegionHash(const std::string& object, const levelset::VoxelBox& box) {
   std::promise<uint64_t> p;
-  Post([&] {
+  auto fail = [&p](const Status&) { p.set_value(0); };
+  Post("region hash", fail, [&] {
     auto it = sculptures_.find(object);
     p.set_value(it == sculptures_.end() ? 0 : levelset::RegionHash(it->second, box));
   });

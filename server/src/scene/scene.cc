@@ -4,12 +4,14 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <exception>
 #include <filesystem>
 #include <future>
 
 #include "sculpt/codec/frame.h"
 #include "sculpt/codec/settings.h"
 #include "sculpt/core/check.h"
+#include "scene/answer_once.h"
 #include "scene/models.h"
 #include "scene/paint.h"
 #include "scene/skins.h"
@@ -300,13 +302,14 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   scene->edits_since_snapshot_ = rec.report.replayed_records;
   scene->tail_apply_s_ = NowSeconds() - t0;
   scene->thread_ = std::thread([raw] { raw->Run(); });
+  scene->join_worker_ = std::thread([raw] { raw->JoinLoop(); });
   const uint64_t every = config.snapshot_every_edits > 0 ? config.snapshot_every_edits
                                                          : kPromptSnapshotAfterReplay;
   const bool snapshots_on = config.snapshot_every_edits > 0 || config.snapshot_every_seconds > 0;
   if (snapshots_on && rec.report.replayed_records > 0 &&
       (rec.report.replayed_records >= std::min(every, kPromptSnapshotAfterReplay) / 2 ||
        NowSeconds() - t0 >= kPromptSnapshotAfterSeconds)) {
-    raw->Post([raw] { raw->MaybeSnapshot(/*force=*/true); });
+    raw->Post("snapshot after replay", [raw] { raw->MaybeSnapshot(/*force=*/true); });
   }
   scene->mesher_ = std::thread([raw] { raw->MesherLoop(); });
   return scene;
@@ -321,16 +324,19 @@ Scene::~Scene() {
   mesher_cv_.notify_all();
   if (mesher_.joinable()) mesher_.join();
   {
-    // Serialisations for late joiners hold only copies, but they report through this scene.
-    std::unique_lock<std::mutex> lock(join_mu_);
-    join_cv_.wait(lock, [this] { return joins_running_ == 0; });
-  }
-  {
     std::lock_guard<std::mutex> lock(jobs_mu_);
     stop_ = true;
   }
   jobs_cv_.notify_all();
   if (thread_.joinable()) thread_.join();
+  {
+    // After the compute thread, whose join tasks feed the worker: the join being serialised
+    // finishes, the ones still queued are answered Unavailable.
+    std::lock_guard<std::mutex> lock(join_mu_);
+    join_stop_ = true;
+  }
+  join_cv_.notify_all();
+  if (join_worker_.joinable()) join_worker_.join();
   if (log_) {
     (void)log_->Sync();
     log_->OnDurable(nullptr);
@@ -338,18 +344,55 @@ Scene::~Scene() {
   if (snapshots_) (void)snapshots_->WaitIdle();
 }
 
-void Scene::Post(std::function<void()> job) {
+void Scene::Post(const char* operation, std::function<void(const Status&)> fail,
+                 std::function<void()> run) {
   {
     std::lock_guard<std::mutex> lock(jobs_mu_);
-    jobs_.push_back(std::move(job));
+    jobs_.push_back({operation, std::move(run), std::move(fail)});
     queue_depth_.store(jobs_.size(), std::memory_order_relaxed);
   }
   jobs_cv_.notify_one();
 }
 
+void Scene::InjectTaskFaultForTesting(std::function<void(const std::string&)> hook) {
+  std::lock_guard<std::mutex> lock(jobs_mu_);
+  fault_hook_ = std::move(hook);
+}
+
+namespace {
+
+// What a requester of a task that threw is told: the operation as the field's value, so a client
+// sees which request failed; the exception's text stays in the server log.
+Status TaskFailed(const char* operation) {
+  return Internal(std::string("compute_task=") + operation +
+                  " outside tasks that completed: it threw (logged by the server, which keeps "
+                  "serving)");
+}
+
+// Runs `fn`; an exception from it is logged, counted and returned as TaskFailed.
+template <typename Fn>
+Status RunGuarded(const char* thread, const char* operation, Scene::TaskStats& stats, Fn&& fn) {
+  std::string what;
+  try {
+    fn();
+    return Status::Ok();
+  } catch (const std::exception& e) {
+    what = e.what();
+  } catch (...) {
+    what = "an exception of unknown type";
+  }
+  stats.failures++;
+  spdlog::error("{}: task '{}' threw: {}; its requester gets INTERNAL, the thread serves on",
+                thread, operation, what);
+  return TaskFailed(operation);
+}
+
+}  // namespace
+
 void Scene::Run() {
   for (;;) {
-    std::function<void()> job;
+    Job job;
+    std::function<void(const std::string&)> hook;
     {
       std::unique_lock<std::mutex> lock(jobs_mu_);
       jobs_cv_.wait(lock, [this] { return stop_ || !jobs_.empty(); });
@@ -357,15 +400,34 @@ void Scene::Run() {
       job = std::move(jobs_.front());
       jobs_.pop_front();
       queue_depth_.store(jobs_.size(), std::memory_order_relaxed);
+      if (fault_hook_) hook = fault_hook_;
     }
-    job();
+    // The exception boundary: OpenVDB (and allocation) may throw from any task. The scene's
+    // members stay as the task left them and its requester is told it failed. An edit that threw
+    // after reaching the log is still in the log, so the next recovery applies it even though
+    // the live scene may lack it: the log stays the truth.
+    const Status s = RunGuarded("compute thread", job.operation, task_stats_, [&] {
+      if (hook) hook(job.operation);
+      job.run();
+    });
+    if (!s.ok() && job.fail) {
+      (void)RunGuarded("compute thread", job.operation, task_stats_, [&] { job.fail(s); });
+    }
   }
 }
 
 void Scene::Submit(uint64_t client_id, codec::DecodedStroke stroke, StrokeDone done) {
+  const uint64_t client_seq = stroke.client_seq;
+  StrokeDone once = AnswerOnce(std::move(done));
   auto shared = std::make_shared<codec::DecodedStroke>(std::move(stroke));
-  auto cb = std::make_shared<StrokeDone>(std::move(done));
-  Post([this, client_id, shared, cb] { ApplyStroke(client_id, *shared, *cb); });
+  auto cb = std::make_shared<StrokeDone>(once);
+  auto fail = [once, client_seq](const Status& st) {
+    StrokeOutcome out;
+    out.status = st;
+    out.client_seq = client_seq;
+    once(out);
+  };
+  Post("stroke", fail, [this, client_id, shared, cb] { ApplyStroke(client_id, *shared, *cb); });
 }
 
 void Scene::ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, StrokeDone& done) {
@@ -610,11 +672,43 @@ StatusOr<codec::StrokeLimits> Scene::LimitsFor(const std::string& object) const 
   return l;
 }
 
+size_t Scene::pending_joins() const {
+  std::lock_guard<std::mutex> lock(join_mu_);
+  return joins_pending_;
+}
+
 void Scene::RequestJoinState(std::function<void(StatusOr<JoinState>)> done) {
-  auto cb = std::make_shared<std::function<void(StatusOr<JoinState>)>>(std::move(done));
-  Post([this, cb] {
-    // Only the deep copies happen on the compute thread (milliseconds); serialising the copies
-    // runs on a thread of its own, so a late joiner never stalls the others' edits.
+  const size_t limit = config_.limits.max_pending_joins;
+  {
+    std::unique_lock<std::mutex> lock(join_mu_);
+    if (join_stop_) {
+      lock.unlock();
+      return done(Status(Status::Code::kUnavailable, "scene is shutting down"));
+    }
+    if (joins_pending_ >= limit) {
+      const size_t wanted = joins_pending_ + 1;
+      lock.unlock();
+      task_stats_.joins_refused++;
+      return done(ResourceExhausted("limits.max_pending_joins=" + std::to_string(wanted) +
+                                    " outside [1, " + std::to_string(limit) +
+                                    "] late joins prepared at once; join again shortly"));
+    }
+    ++joins_pending_;
+  }
+  // Answered exactly once, by whichever step ends the join; the slot is free before the answer
+  // goes out, so a joiner that retries at once finds it.
+  auto answer = AnswerOnce(std::function<void(StatusOr<JoinState>)>(
+      [this, done = std::move(done)](StatusOr<JoinState> result) {
+        {
+          std::lock_guard<std::mutex> lock(join_mu_);
+          --joins_pending_;
+        }
+        done(std::move(result));
+      }));
+  auto fail = [answer](const Status& st) { answer(st); };
+  Post("join state copy", fail, [this, answer, fail] {
+    // Only the deep copies happen on the compute thread (milliseconds); serialising them waits
+    // for the join worker, so a late joiner never stalls the others' edits.
     auto info = std::make_shared<v1::SceneInfo>();
     {
       std::lock_guard<std::mutex> lock(info_mu_);
@@ -622,39 +716,63 @@ void Scene::RequestJoinState(std::function<void(StatusOr<JoinState>)> done) {
     }
     auto copies = std::make_shared<std::vector<std::pair<std::string, levelset::Sculpture>>>();
     for (auto& [name, s] : sculptures_) copies->emplace_back(name, s.Clone());
-    {
-      std::lock_guard<std::mutex> lock(join_mu_);
-      ++joins_running_;
-    }
-    std::thread([this, cb, info, copies] {
-      struct Done {
-        Scene* scene;
-        ~Done() {
-          std::lock_guard<std::mutex> lock(scene->join_mu_);
-          --scene->joins_running_;
-          scene->join_cv_.notify_all();
-        }
-      } done_guard{this};
+    JoinWork work;
+    work.fail = fail;
+    work.run = [answer, info, copies](bool cancelled) {
+      if (cancelled) return answer(Status(Status::Code::kUnavailable, "scene is shutting down"));
       JoinState js;
       js.info = *info;
       for (size_t i = 0; i < copies->size(); ++i) {
         auto& [name, copy] = (*copies)[i];
         auto bytes = copy.SerializeVdb();
-        if (!bytes.ok()) {
-          (*cb)(bytes.status());
-          return;
-        }
+        if (!bytes.ok()) return answer(bytes.status());
         js.objects.emplace_back(name, std::move(bytes).value());
         js.info.mutable_objects(static_cast<int>(i))->set_state_hash(copy.StateHash());
       }
-      (*cb)(std::move(js));
-    }).detach();
+      answer(std::move(js));
+    };
+    {
+      std::lock_guard<std::mutex> lock(join_mu_);
+      join_queue_.push_back(std::move(work));
+    }
+    join_cv_.notify_one();
   });
+}
+
+void Scene::JoinLoop() {
+  for (;;) {
+    JoinWork job;
+    std::function<void(const std::string&)> hook;
+    bool cancelled = false;
+    {
+      std::unique_lock<std::mutex> lock(join_mu_);
+      join_cv_.wait(lock, [this] { return join_stop_ || !join_queue_.empty(); });
+      if (join_queue_.empty()) return;  // stopped and drained
+      job = std::move(join_queue_.front());
+      join_queue_.pop_front();
+      cancelled = join_stop_;
+    }
+    {
+      std::lock_guard<std::mutex> lock(jobs_mu_);
+      if (fault_hook_) hook = fault_hook_;
+    }
+    // A serialisation that throws is answered Internal (AnswerOnce drops a second answer).
+    const Status s = RunGuarded("join worker", "join state serialisation", task_stats_, [&] {
+      if (hook && !cancelled) hook("join state serialisation");
+      job.run(cancelled);
+    });
+    if (!s.ok()) {
+      (void)RunGuarded("join worker", "join state serialisation", task_stats_,
+                       [&] { job.fail(s); });
+    }
+  }
 }
 
 void Scene::Flush() {
   std::promise<void> applied;
-  Post([&applied] { applied.set_value(); });
+  // Each of these tasks sets its promise as its last step, so `fail` runs only when it did not.
+  auto fail = [&applied](const Status&) { applied.set_value(); };
+  Post("flush", fail, [&applied] { applied.set_value(); });
   applied.get_future().wait();
   (void)log_->Sync();
   ReleaseDurable(log_->durable_seq());
@@ -663,7 +781,8 @@ void Scene::Flush() {
 
 void Scene::FlushAndSnapshot() {
   std::promise<void> taken;
-  Post([this, &taken] {
+  auto fail = [&taken](const Status&) { taken.set_value(); };
+  Post("snapshot", fail, [this, &taken] {
     MaybeSnapshot(/*force=*/true);
     taken.set_value();
   });
@@ -673,7 +792,8 @@ void Scene::FlushAndSnapshot() {
 
 uint64_t Scene::StateHash(const std::string& object) {
   std::promise<uint64_t> p;
-  Post([&] {
+  auto fail = [&p](const Status&) { p.set_value(0); };
+  Post("state hash", fail, [&] {
     auto it = sculptures_.find(object);
     p.set_value(it == sculptures_.end() ? 0 : it->second.StateHash());
   });

@@ -104,8 +104,15 @@ class Scene {
   /// is not applied again: `done` gets duplicate = true.
   void Submit(uint64_t client_id, codec::DecodedStroke stroke, StrokeDone done);
 
-  /// Runs between two edits on the compute thread: scene info and each object's .vdb bytes.
+  /// Scene info and each object's .vdb bytes for a late joiner: the objects are copied between
+  /// two edits on the compute thread and serialised on the one join worker, so a joiner never
+  /// stalls the others' edits. At most limits.max_pending_joins joins are in progress at once;
+  /// past it `done` gets ResourceExhausted naming that limit at once (nothing is copied).
+  /// Unavailable when the scene is shutting down; Internal naming the step when one threw.
   void RequestJoinState(std::function<void(StatusOr<JoinState>)> done);
+  /// Late joins admitted and not yet answered (waiting for a copy, for the worker, or being
+  /// serialised).
+  size_t pending_joins() const;
 
   /// Limits a stroke on `object` is decoded against; NotFound for an unknown object.
   StatusOr<codec::StrokeLimits> LimitsFor(const std::string& object) const;
@@ -198,13 +205,35 @@ class Scene {
   /// Durations of the edit log's fdatasync calls since start.
   LatencyHistogram::Snapshot log_sync_seconds() const;
 
+  /// The compute thread's and the join worker's failure and refusal counts since start.
+  struct TaskStats {
+    std::atomic<uint64_t> failures{0};       // tasks that threw (answered INTERNAL)
+    std::atomic<uint64_t> joins_refused{0};  // late joins over limits.max_pending_joins
+  };
+  TaskStats& task_stats() { return task_stats_; }
+
+  /// Tests only: `hook(operation)` runs before each compute-thread task and each join
+  /// serialisation, inside the exception boundary, so a hook that throws fails that task as an
+  /// exception from OpenVDB would. Null removes it.
+  void InjectTaskFaultForTesting(std::function<void(const std::string& operation)> hook);
+
   /// What recovery found at start-up.
   const std::string& recovery_summary() const { return recovery_summary_; }
 
  private:
   explicit Scene(const ServerConfig& config);
   void Run();
-  void Post(std::function<void()> job);
+  // Queues `run` for the compute thread; `operation` names it in logs and errors. If `run`
+  // throws, the exception is logged and `fail` gets Internal naming the operation; the thread
+  // then serves the next task. A task that answers a requester does so through an AnswerOnce
+  // wrapper that `fail` shares, or as its last step (so `fail` runs only when it did not).
+  void Post(const char* operation, std::function<void(const Status&)> fail,
+            std::function<void()> run);
+  // A task without a requester to answer: an exception is logged and counted.
+  void Post(const char* operation, std::function<void()> run) {
+    Post(operation, nullptr, std::move(run));
+  }
+  void JoinLoop();
   void ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, StrokeDone& done);
   void MaybeSnapshot(bool force = false);
   void ReleaseDurable(uint64_t durable_seq);
@@ -308,13 +337,30 @@ class Scene {
   };
   std::deque<Pending> pending_;
 
-  std::mutex join_mu_;
+  // Late joins (RequestJoinState): admitted up to limits.max_pending_joins, serialised in order
+  // on one worker joined at shutdown. A queued join runs with `cancelled` = true when the scene
+  // stops before it was served.
+  mutable std::mutex join_mu_;
   std::condition_variable join_cv_;
-  int joins_running_ = 0;
+  struct JoinWork {
+    std::function<void(bool cancelled)> run;
+    std::function<void(const Status&)> fail;  // when `run` throws
+  };
+  std::deque<JoinWork> join_queue_;
+  size_t joins_pending_ = 0;
+  bool join_stop_ = false;
+  std::thread join_worker_;
 
-  std::mutex jobs_mu_;
+  TaskStats task_stats_;
+  struct Job {
+    const char* operation;
+    std::function<void()> run;
+    std::function<void(const Status&)> fail;
+  };
+  std::function<void(const std::string&)> fault_hook_;  // guarded by jobs_mu_
+  mutable std::mutex jobs_mu_;
   std::condition_variable jobs_cv_;
-  std::deque<std::function<void()>> jobs_;
+  std::deque<Job> jobs_;
   std::atomic<size_t> queue_depth_{0};  // jobs_.size(), read without jobs_mu_
   bool stop_ = false;
   std::thread thread_;

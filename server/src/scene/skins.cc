@@ -17,6 +17,7 @@
 #include <future>
 #include <iterator>
 
+#include "scene/answer_once.h"
 #include "scene/log_payload.h"
 #include "scene/scene.h"
 #include "sculpt/codec/frame.h"
@@ -434,8 +435,10 @@ bool Scene::SaveSkins(uint64_t seq) {
 
 void Scene::EditSkin(uint64_t client_id, v1::SkinBallEdit e,
                      std::function<void(v1::SkinAck)> done) {
-  auto cb = std::make_shared<std::function<void(v1::SkinAck)>>(std::move(done));
-  Post([this, client_id, e = std::move(e), cb] {
+  auto once = AnswerOnce(std::move(done));
+  auto cb = std::make_shared<std::function<void(v1::SkinAck)>>(once);
+  auto fail = [once, seq = e.client_seq()](const Status& st) { once(Refused(st, seq)); };
+  Post("ball edit", fail, [this, client_id, e = std::move(e), cb] {
     auto it = skins_->skins.find(e.skin());
     if (it == skins_->skins.end()) {
       return (*cb)(Refused(NotFound("SkinBallEdit.skin=" + e.skin() + " outside the scene's skins"),
@@ -528,8 +531,10 @@ void Scene::EditSkin(uint64_t client_id, v1::SkinBallEdit e,
 }
 
 void Scene::SweepSkin(uint64_t client_id, v1::SkinSweep s, std::function<void(v1::SkinAck)> done) {
-  auto cb = std::make_shared<std::function<void(v1::SkinAck)>>(std::move(done));
-  Post([this, client_id, s = std::move(s), cb] {
+  auto once = AnswerOnce(std::move(done));
+  auto cb = std::make_shared<std::function<void(v1::SkinAck)>>(once);
+  auto fail = [once, seq = s.client_seq()](const Status& st) { once(Refused(st, seq)); };
+  Post("skin sweep", fail, [this, client_id, s = std::move(s), cb] {
     auto it = skins_->skins.find(s.skin());
     if (it == skins_->skins.end()) {
       return (*cb)(Refused(NotFound("SkinSweep.skin=" + s.skin() + " outside the scene's skins"),
@@ -671,8 +676,10 @@ bool PlaneCrosses(const levelset::SweepPlane& plane, const std::vector<levelset:
 
 void Scene::SubscribeContours(ReplicaSink sink, v1::ContourSubscribe req,
                               std::function<void(Status)> done) {
-  auto cb = std::make_shared<std::function<void(Status)>>(std::move(done));
-  Post([this, sink = std::move(sink), req = std::move(req), cb]() mutable {
+  auto once = AnswerOnce(std::move(done));
+  auto cb = std::make_shared<std::function<void(Status)>>(once);
+  auto fail = [once](const Status& st) { once(st); };
+  Post("contours", fail, [this, sink = std::move(sink), req = std::move(req), cb]() mutable {
     const uint64_t session = sink.session_id;
     // The scene decides which effects it computes: without contours, no skin contour or slice
     // is encoded for anyone (principle 2 of ARCHITECTURE.md).
@@ -737,7 +744,7 @@ void Scene::SendSlices(const std::string& object, const std::vector<levelset::In
 }
 
 void Scene::UnsubscribeContours(uint64_t session_id) {
-  Post([this, session_id] {
+  Post("contour unsubscribe", [this, session_id] {
     for (auto& [name, entry] : skins_->skins) entry.subs.erase(session_id);
     for (auto& [object, subs] : skins_->slices) subs.erase(session_id);
   });
@@ -745,7 +752,8 @@ void Scene::UnsubscribeContours(uint64_t session_id) {
 
 StatusOr<skin::Skin> Scene::SkinCopy(const std::string& name) {
   std::promise<StatusOr<skin::Skin>> p;
-  Post([&] {
+  auto fail = [&p](const Status& st) { p.set_value(st); };
+  Post("skin copy", fail, [&] {
     auto it = skins_->skins.find(name);
     if (it == skins_->skins.end()) {
       p.set_value(NotFound("skin=" + name + " outside the scene's skins"));

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <future>
 
+#include "scene/answer_once.h"
 #include "scene/scene.h"
 #include "sculpt/codec/frame.h"
 #include "sculpt/core/check.h"
@@ -36,8 +37,10 @@ struct Scene::MeshWork {
 
 void Scene::SubscribeViewer(ReplicaSink sink, v1::ViewerSubscribe req,
                             std::function<void(Status)> done) {
-  auto cb = std::make_shared<std::function<void(Status)>>(std::move(done));
-  Post([this, sink = std::move(sink), req = std::move(req), cb]() mutable {
+  auto once = AnswerOnce(std::move(done));
+  auto cb = std::make_shared<std::function<void(Status)>>(once);
+  auto fail = [once](const Status& st) { once(st); };
+  Post("viewer", fail, [this, sink = std::move(sink), req = std::move(req), cb]() mutable {
     auto it = sculptures_.find(req.object());
     if (it == sculptures_.end()) {
       return (*cb)(NotFound("ViewerSubscribe.object=" + req.object() +
@@ -76,7 +79,7 @@ void Scene::SubscribeViewer(ReplicaSink sink, v1::ViewerSubscribe req,
 }
 
 void Scene::UnsubscribeViewer(uint64_t session_id) {
-  Post([this, session_id] {
+  Post("viewer unsubscribe", [this, session_id] {
     viewers_.erase(session_id);
     viewer_count_ = static_cast<int>(viewers_.size());
     if (viewers_.empty()) dirty_chunks_.clear();  // no meshing while nobody watches
@@ -86,7 +89,8 @@ void Scene::UnsubscribeViewer(uint64_t session_id) {
 bool Scene::Inspect(const std::string& object,
                     const std::function<void(const levelset::Sculpture&)>& fn) {
   std::promise<bool> p;
-  Post([&] {
+  auto fail = [&p](const Status&) { p.set_value(false); };
+  Post("inspect", fail, [&] {
     auto it = sculptures_.find(object);
     if (it != sculptures_.end()) fn(it->second);
     p.set_value(it != sculptures_.end());
@@ -121,7 +125,8 @@ void Scene::MesherLoop() {
     // Take the work between two edits: the dirty sets and a copy of each watched object.
     auto work = std::make_shared<std::promise<std::vector<MeshWork>>>();
     auto fut = work->get_future();
-    Post([this, work] {
+    auto fail = [work](const Status&) { work->set_value({}); };
+    Post("mesh snapshot", fail, [this, work] {
       const auto t0 = Clock::now();
       std::map<std::string, MeshWork> by_object;
       for (auto& [id, v] : viewers_) {

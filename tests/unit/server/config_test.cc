@@ -59,6 +59,18 @@ TEST(ConfigTest, RejectsUnsupportedEffects) {
   EXPECT_TRUE(ValidateConfig(c).ok()) << ValidateConfig(c);
 }
 
+TEST(ConfigTest, ReadsMaxPendingJoinsAndRejectsZero) {
+  ServerConfig c;
+  EXPECT_EQ(c.limits.max_pending_joins, 8u);
+  ASSERT_TRUE(LoadConfigFile(Write("joins", "[limits]\nmax_pending_joins = 3\n"), &c).ok());
+  EXPECT_EQ(c.limits.max_pending_joins, 3u);
+  EXPECT_TRUE(ValidateConfig(c).ok()) << ValidateConfig(c);
+  ASSERT_TRUE(LoadConfigFile(Write("joins0", "[limits]\nmax_pending_joins = 0\n"), &c).ok());
+  const Status s = ValidateConfig(c);
+  EXPECT_NE(s.message().find("limits.max_pending_joins=0 outside [1, 1024]"), std::string::npos)
+      << s;
+}
+
 TEST(ConfigTest, ReportsTomlSyntaxErrorsWithLine) {
   ServerConfig c;
   const Status s = LoadConfigFile(Write("syntax", "[server]\nlisten = \n"), &c);
