@@ -567,6 +567,35 @@ TEST_F(ServerTest, ComputeTaskThatThrowsIsAnsweredInternalAndTheSceneServesOn) {
   EXPECT_EQ(scene_->task_stats().failures.load(), 2u);
 }
 
+// The mesher has its own boundary: a chunk whose encoding throws is skipped, and the viewer
+// still gets the other chunks and every later update.
+TEST_F(ServerTest, MeshChunkThatThrowsIsSkippedAndTheMesherServesOn) {
+  Start();
+  std::atomic<int> throws{1};
+  scene_->InjectTaskFaultForTesting([&throws](const std::string& op) {
+    if (op == "mesh chunk" && throws.fetch_sub(1) > 0) throw std::runtime_error("injected");
+  });
+  RawClient viewer(port_);
+  ASSERT_TRUE(viewer.Enter(kViewer, v1::ROLE_VIEWER));
+  v1::ClientMessage sub;
+  sub.mutable_viewer_subscribe()->set_object("clay");
+  sub.mutable_viewer_subscribe()->set_max_rate_hz(30);
+  ASSERT_TRUE(viewer.Send(sub));
+  auto first = viewer.ReadUntil(v1::ServerMessage::kMeshChunk);
+  ASSERT_TRUE(first);
+  EXPECT_EQ(first->mesh_chunk().version(), 0u);
+  auto c = Sculptor();
+  c->Send(RawClient::PressStroke(1, {0, 0, 13.3}));
+  ASSERT_TRUE(c->ReadUntil(v1::ServerMessage::kAck));
+  bool updated = false;
+  while (!updated) {
+    auto m = viewer.ReadUntil(v1::ServerMessage::kMeshChunk);
+    ASSERT_TRUE(m) << "no mesh update after the stroke";
+    updated = m->mesh_chunk().version() >= 4;
+  }
+  EXPECT_EQ(scene_->task_stats().failures.load(), 1u);
+}
+
 TEST_F(ServerTest, JoinSerialisationThatThrowsIsAnsweredAndTheJoinerMayRetry) {
   Start();
   std::atomic<int> throws{1};

@@ -496,7 +496,8 @@ std::string HttpServer::MetricsText() {
           "Edits applied whose acknowledgement waits for the edit log's next fdatasync",
           static_cast<double>(scene.acks_awaiting_durability()));
   w.Counter("sculpt_compute_task_failures_total",
-            "Scene tasks (compute thread, join worker) that threw; each requester got INTERNAL",
+            "Scene tasks that threw (compute thread and join worker: the requester got INTERNAL; "
+            "mesher: the chunk was skipped)",
             static_cast<double>(scene.task_stats().failures.load()));
   w.Gauge("sculpt_late_joins_pending",
           "Late joins admitted and not yet answered (copying, queued or being serialised)",

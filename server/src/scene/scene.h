@@ -207,14 +207,14 @@ class Scene {
 
   /// The compute thread's and the join worker's failure and refusal counts since start.
   struct TaskStats {
-    std::atomic<uint64_t> failures{0};       // tasks that threw (answered INTERNAL)
+    std::atomic<uint64_t> failures{0};       // tasks (or mesh chunks) that threw
     std::atomic<uint64_t> joins_refused{0};  // late joins over limits.max_pending_joins
   };
   TaskStats& task_stats() { return task_stats_; }
 
-  /// Tests only: `hook(operation)` runs before each compute-thread task and each join
-  /// serialisation, inside the exception boundary, so a hook that throws fails that task as an
-  /// exception from OpenVDB would. Null removes it.
+  /// Tests only: `hook(operation)` runs before each compute-thread task, each join
+  /// serialisation and each mesh chunk encode ("mesh chunk"), inside the exception boundary, so
+  /// a hook that throws fails that task as an exception from OpenVDB would. Null removes it.
   void InjectTaskFaultForTesting(std::function<void(const std::string& operation)> hook);
 
   /// What recovery found at start-up.

@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <exception>
 #include <future>
 
 #include "scene/answer_once.h"
@@ -163,13 +164,18 @@ void Scene::MesherLoop() {
       }
       jobs = fut.get();
     }
+    std::function<void(const std::string&)> hook;  // tests only
+    {
+      std::lock_guard<std::mutex> lock(jobs_mu_);
+      if (fault_hook_) hook = fault_hook_;
+    }
     mesh::DracoChunkOptions dopt;
     dopt.position_bits = config_.scene.mesh_position_bits;
     dopt.speed = config_.scene.mesh_speed;
     for (MeshWork& w : jobs) {
       dopt.frame = w.frame;
       auto& cache = mesh_cache_[w.object];
-      auto encode = [&](const mesh::ChunkKey& key) -> std::shared_ptr<const std::string> {
+      auto encode_chunk = [&](const mesh::ChunkKey& key) -> std::shared_ptr<const std::string> {
         const auto t0 = Clock::now();
         auto m = mesh::MeshChunk(*w.copy, key, mo);
         if (!m.ok()) {
@@ -205,6 +211,23 @@ void Scene::MesherLoop() {
         mesh_stats_.chunks_encoded++;
         mesh_stats_.chunk_bytes += f->size();
         return f;
+      };
+      // The mesher's exception boundary (OpenVDB and Draco may throw): a chunk that throws is
+      // skipped like one that fails to mesh, and the thread keeps meshing.
+      auto encode = [&](const mesh::ChunkKey& key) -> std::shared_ptr<const std::string> {
+        std::string what;
+        try {
+          if (hook) hook("mesh chunk");
+          return encode_chunk(key);
+        } catch (const std::exception& e) {
+          what = e.what();
+        } catch (...) {
+          what = "an exception of unknown type";
+        }
+        task_stats_.failures++;
+        spdlog::error("mesher: chunk ({},{},{}) of {} threw: {}; skipped", key.x, key.y, key.z,
+                      w.object, what);
+        return nullptr;
       };
       // Changed chunks go to every viewer; an emptied chunk is sent once (empty bytes) so
       // viewers drop it, then forgotten.
