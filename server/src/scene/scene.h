@@ -205,7 +205,7 @@ class Scene {
   /// Durations of the edit log's fdatasync calls since start.
   LatencyHistogram::Snapshot log_sync_seconds() const;
 
-  /// The compute thread's and the join worker's failure and refusal counts since start.
+  /// Failures of the compute thread, join worker and mesher, and late-join refusals, since start.
   struct TaskStats {
     std::atomic<uint64_t> failures{0};       // tasks (or mesh chunks) that threw
     std::atomic<uint64_t> joins_refused{0};  // late joins over limits.max_pending_joins
@@ -353,12 +353,12 @@ class Scene {
 
   TaskStats task_stats_;
   struct Job {
-    const char* operation;
+    const char* operation = "";
     std::function<void()> run;
     std::function<void(const Status&)> fail;
   };
   std::function<void(const std::string&)> fault_hook_;  // guarded by jobs_mu_
-  mutable std::mutex jobs_mu_;
+  std::mutex jobs_mu_;
   std::condition_variable jobs_cv_;
   std::deque<Job> jobs_;
   std::atomic<size_t> queue_depth_{0};  // jobs_.size(), read without jobs_mu_
