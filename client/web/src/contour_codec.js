@@ -4,9 +4,15 @@
 // dependencies: bundled into the web client and run by node in the tests.
 //
 // Bytes come off the wire: every read is bounded, counts are capped as the C++ decoder caps
-// them, and anything wrong throws a ContourError naming it. Where Draco 1.5.5's symbol decoder
-// tolerates something (bits read past the end of the value stream are zeros), this decoder
-// tolerates it too, so that both accept exactly the same messages.
+// them, and anything wrong throws a ContourError naming it. Every message the C++ decoder
+// refuses is refused here; a few it accepts are refused too, all of which no encoder writes:
+// - Draco's tagged scheme reads value bits past the end of the message as zeros, so a message
+//   cut inside its values decodes, wrongly, in C++; here it is "truncated";
+// - a rANS stream must end in the state it started from, having used all its bytes (Draco's
+//   decoder has ans.read_end() but ignores it), which catches most corrupted symbol data;
+// - a rANS stream whose final-state tag claims 4 bytes must have them (Draco reads up to 3 bytes
+//   before the stream);
+// - section ids and versions must be below 2^53 (JavaScript numbers).
 
 /** Thrown for truncated, oversized or malformed input; the message names what is wrong. */
 export class ContourError extends Error {
@@ -192,19 +198,27 @@ class RansSymbolDecoder {
       this.offset = size - 3;
       state = (b[last - 2] | (b[last - 1] << 8) | (b[last] << 16)) & 0x3fffff;
     } else {
-      // Draco does not check that 4 bytes are there: it reads up to 3 bytes before the stream,
-      // which here are always bytes of the same message (the header precedes the symbols).
-      // Reading them as it does keeps both decoders' verdicts identical.
+      if (size < 4) throw symbolError('rANS state cut short');  // unchecked in Draco
       this.offset = size - 4;
-      const at = (i) => (i >= 0 && i < b.length ? b[i] : 0);
-      state = (at(last - 3) + at(last - 2) * 2 ** 8 + at(last - 1) * 2 ** 16 +
-               at(last) * 2 ** 24) % 2 ** 30;
+      state = (b[last - 3] + b[last - 2] * 2 ** 8 + b[last - 1] * 2 ** 16 + b[last] * 2 ** 24) %
+              2 ** 30;
     }
     state += this.base;
     if (state >= this.base * 256) throw symbolError('rANS initial state out of range');
     this.state = state;
     this.head = head;
     this.bytes = b;
+  }
+
+  /** The encoder starts from the base state: after the last symbol (and the refill that
+   *  undoes the encoder's first renormalisation) the decoder must be back there, every byte
+   *  used. */
+  end() {
+    let s = this.state;
+    while (s < this.base && this.offset > 0) s = s * 256 + this.bytes[this.head + --this.offset];
+    if (s !== this.base || this.offset !== 0) {
+      throw symbolError('rANS stream does not end in its initial state (corrupted)');
+    }
   }
 
   /** rans_read(): refill from the back while below base (never before the stream's start). */
@@ -233,8 +247,8 @@ function decodeSymbols(numValues, numComponents, buf, out) {
     tags.readTable(buf);
     tags.start(buf);
     if (tags.numSymbols === 0) throw symbolError('tagged scheme without tags');
-    // The values' bits follow the tags' rANS data; past the end they read as zeros (Draco's
-    // BitDecoder), and only the bits actually read count as consumed.
+    // The values' bits follow the tags' rANS data, least significant first. Draco reads bits
+    // past the end as zeros; a valid message never needs them, so here they mean truncation.
     const b = buf.bytes;
     const start = buf.pos;
     const availBits = (buf.end - start) * 8;
@@ -243,14 +257,18 @@ function decodeSymbols(numValues, numComponents, buf, out) {
     for (let i = 0; i < numValues; i += numComponents) {
       const length = tags.next();
       if (length > 32) throw symbolError(`tagged bit length ${length} above 32`);
+      if (bit + numComponents * length > availBits) {
+        throw truncated('residuals (tagged values past the end of the message)');
+      }
       for (let j = 0; j < numComponents; ++j) {
         let v = 0;
-        for (let k = 0; k < length && bit < availBits; ++k, ++bit) {
+        for (let k = 0; k < length; ++k, ++bit) {
           v += ((b[start + (bit >> 3)] >> (bit & 7)) & 1) * 2 ** k;
         }
         out[id++] = v;
       }
     }
+    tags.end();
     buf.pos = start + Math.ceil(bit / 8);
     return { scheme: 'tagged', precisionBits: tags.precisionBits };
   }
@@ -264,6 +282,7 @@ function decodeSymbols(numValues, numComponents, buf, out) {
     if (dec.numSymbols === 0) throw symbolError('raw scheme without symbols');
     dec.start(buf);
     for (let i = 0; i < numValues; ++i) out[i] = dec.next();
+    dec.end();
     return { scheme: 'raw', precisionBits: dec.precisionBits, bitLength };
   }
   throw symbolError(`scheme ${scheme} outside [0, 1]`);
@@ -367,7 +386,8 @@ function parse(bytes) {
   const kind = bytes[r.pos++];
   if (kind > kUpdate) throw new ContourError(`contour.kind=${kind} outside [0, 2]`);
   if (bytes.length - r.pos < 8) throw truncated('step');
-  const step = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength).getFloat64(r.pos, true);
+  const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  const step = view.getFloat64(r.pos, true);
   r.pos += 8;
   if (!Number.isFinite(step) || !(step > 0)) {
     throw new ContourError(`contour.step=${step} outside (0, inf)`);
@@ -424,9 +444,10 @@ function parse(bytes) {
     nlines = 2 * entries;
   }
 
-  // Point counts and first points.
-  const counts = new Array(nlines);
-  const firsts = new Array(2 * nlines);
+  // Point counts and first points (grown as read: a hostile line count costs no memory until
+  // its bytes are there).
+  const counts = [];
+  const firsts = [];
   const cap = Math.min(kMaxContourPoints, 65536 + 256 * bytes.length);
   let total = 0;
   let nres = 0;
@@ -440,11 +461,15 @@ function parse(bytes) {
       throw new ContourError(`contour.points=${total} outside [0, ${cap}] for a ` +
                              `${bytes.length}-byte message`);
     }
-    counts[i] = n;
-    if (n === 0) continue;
-    firsts[2 * i] = r.varint();
-    firsts[2 * i + 1] = firsts[2 * i] === null ? null : r.varint();
-    if (firsts[2 * i + 1] === null) throw truncated('first point');
+    counts.push(n);
+    if (n === 0) {
+      firsts.push(0, 0);
+      continue;
+    }
+    const fx = r.varint();
+    const fy = fx === null ? null : r.varint();
+    if (fy === null) throw truncated('first point');
+    firsts.push(fx, fy);
     nres += 2 * (n - 1);
   }
 
@@ -478,13 +503,13 @@ function parse(bytes) {
   }
 
   // Undo the prediction, line by line, in integer plane coordinates.
-  const q = new Array(nlines);
+  const q = [];
   const pred = [0, 0];
   let next = 0;
   for (let i = 0; i < nlines; ++i) {
     const n = counts[i];
     const line = allocate(Float64Array, 2 * n);
-    q[i] = line;
+    q.push(line);
     if (n === 0) {
       p.lines.push(line);
       continue;
