@@ -1,12 +1,14 @@
 // Sculpt's browser client: join a scene over sculptd's WebSocket as a viewer or a sculptor, see
 // the shared sculpture from its Draco chunks, sculpt with the pointer, see who else is there.
 // Modules: connection.js (the wire), meshes.js (mesh assembly), packing.js (stroke poses),
-// tools.js (pointer sculpting and presence); this file is the page and its state.
+// tools.js (pointer sculpting, painting and presence), contours.js (skin and slice panels, over
+// contour_codec.js); this file is the page and its state.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
 import { Connection, describeError, num, v1 } from './connection.js';
 import { ChunkMeshes } from './meshes.js';
 import { Sculpting, Presence } from './tools.js';
+import { Contours } from './contours.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -24,7 +26,7 @@ function percentile(sorted, q) {
 
 class App {
   constructor() {
-    this.stats = { state: 'idle', role: '', globalSeq: 0, acks: 0, strokesSent: 0,
+    this.stats = { state: 'idle', role: '', globalSeq: 0, acks: 0, strokesSent: 0, paintsSent: 0, paintsAcked: 0,
       errors: [], ackLatencies: [], chunksPerSecond: 0, bytesPerSecond: 0, presence: [] };
     this.renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
     this.renderer.setPixelRatio(Math.min(2, window.devicePixelRatio || 1));
@@ -46,6 +48,8 @@ class App {
       this.invalidate();
     };
     this.presence = new Presence(this.scene, $('people-list'));
+    this.skinEditSeq = 0;
+    this.pendingSkinEdits = new Map();  // ball edit client_seq -> its skin panel
     this.framed = false;
     window.addEventListener('resize', () => this.resize());
     this.resize();
@@ -172,6 +176,8 @@ class App {
       this.invalidate();
     });
     for (const o of info.objects) this.conn.send('viewerSubscribe', { object: o.name, maxRateHz: 10 });
+    // Skin contours and slices, when the scene computes them.
+    if (info.effects && info.effects.contours) this.contours = new Contours(this, info, this.stats.role === 'sculptor');
     if (this.stats.role === 'sculptor') {
       this.sculpting = new Sculpting(this, info, welcome, clientId);
       $('tools').hidden = false;
