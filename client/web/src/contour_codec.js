@@ -34,6 +34,7 @@ const kVarint = 0;
 const kRans = 1;
 const kMaxQuantised = 2 ** 52;
 const kExact = 2 ** 53;  // integers up to here are exact doubles
+const kPow2 = Float64Array.from({ length: 33 }, (_, i) => 2 ** i);
 
 function truncated(what) {
   return new ContourError(`contour: truncated ${what}`);
@@ -223,10 +224,11 @@ class RansSymbolDecoder {
 
   /** rans_read(): refill from the back while below base (never before the stream's start). */
   next() {
+    // The state stays below base * 256 <= 2^30: int32 arithmetic throughout.
     let s = this.state;
-    while (s < this.base && this.offset > 0) s = s * 256 + this.bytes[this.head + --this.offset];
-    const rem = s % this.precision;
-    const quo = (s - rem) / this.precision;
+    while (s < this.base && this.offset > 0) s = (s << 8) | this.bytes[this.head + --this.offset];
+    const rem = s & (this.precision - 1);
+    const quo = s >>> this.precisionBits;
     const sym = this.lookup[rem];
     this.state = quo * this.prob[sym] + rem - this.cum[sym];
     return sym;
@@ -262,8 +264,12 @@ function decodeSymbols(numValues, numComponents, buf, out) {
       }
       for (let j = 0; j < numComponents; ++j) {
         let v = 0;
-        for (let k = 0; k < length; ++k, ++bit) {
-          v += ((b[start + (bit >> 3)] >> (bit & 7)) & 1) * 2 ** k;
+        for (let got = 0; got < length;) {  // up to a byte at a time
+          const shift = bit & 7;
+          const take = Math.min(8 - shift, length - got);
+          v += ((b[start + (bit >> 3)] >> shift) & ((1 << take) - 1)) * kPow2[got];
+          got += take;
+          bit += take;
         }
         out[id++] = v;
       }
