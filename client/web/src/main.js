@@ -195,7 +195,9 @@ class App {
     if (this.stats.role === 'sculptor') {
       this.sculpting = new Sculpting(this, info, welcome, clientId);
       $('tools').hidden = false;
-      this.controls.mouseButtons = { LEFT: -1, MIDDLE: THREE.MOUSE.DOLLY, RIGHT: THREE.MOUSE.ROTATE };
+      // The left button and one finger sculpt; the view moves with the others (the wheel zooms).
+      this.controls.mouseButtons = { LEFT: -1, MIDDLE: THREE.MOUSE.PAN, RIGHT: THREE.MOUSE.ROTATE };
+      this.controls.touches = { ONE: -1, TWO: THREE.TOUCH.DOLLY_ROTATE };
     }
     document.title = `Sculpt: ${info.scene} (${this.stats.role})`;
   }
