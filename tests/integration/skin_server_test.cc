@@ -138,6 +138,19 @@ class SkinServerTest : public ::testing::Test {
     }
   }
 
+  // The chain each ContourUpdate carries is the server's, ball for ball.
+  void ExpectBallsMatch(const std::vector<skin::OrientedBall>& balls) {
+    auto server_skin = scene_->SkinCopy(kSkin);
+    ASSERT_TRUE(server_skin.ok()) << server_skin.status();
+    ASSERT_EQ(balls.size(), server_skin->balls().size());
+    for (size_t i = 0; i < balls.size(); ++i) {
+      EXPECT_EQ(balls[i].c.x, server_skin->balls()[i].c.x) << "ball " << i;
+      EXPECT_EQ(balls[i].c.y, server_skin->balls()[i].c.y) << "ball " << i;
+      EXPECT_EQ(balls[i].r, server_skin->balls()[i].r) << "ball " << i;
+      EXPECT_EQ(balls[i].theta, server_skin->balls()[i].theta) << "ball " << i;
+    }
+  }
+
   fs::path dir_;
   server::ServerConfig config_;
   std::unique_ptr<server::asio::io_context> io_;
@@ -153,6 +166,7 @@ TEST_F(SkinServerTest, TwoSculptorsEditOneSkinAndASubscriberFollowsOnlyChangedSe
   ASSERT_TRUE(follower.FollowSkin(kSkin).ok());
   ASSERT_TRUE(follower.WaitSkinVersion(kSkin, 0, seconds(10)));
   ExpectViewMatches(follower.View(kSkin));
+  ExpectBallsMatch(follower.Balls(kSkin));
   ASSERT_EQ(follower.UpdateSections(kSkin).size(), 1u);
   EXPECT_EQ(follower.UpdateSections(kSkin)[0], 4u);  // the snapshot: every section
 
@@ -167,6 +181,8 @@ TEST_F(SkinServerTest, TwoSculptorsEditOneSkinAndASubscriberFollowsOnlyChangedSe
   EXPECT_LE(follower.UpdateSections(kSkin).back(), 2u);
   EXPECT_EQ(follower.UpdateSections(kSkin).back(), move.changed_sections());
   ExpectViewMatches(follower.View(kSkin));
+  ExpectBallsMatch(follower.Balls(kSkin));
+  EXPECT_EQ(follower.Balls(kSkin)[2].c.y, 1.0);
 
   // B re-orients the end ball: one section.
   const v1::SkinAck orient = Ack(sb, sb.OrientBall(kSkin, 4, 0.3));
@@ -187,12 +203,31 @@ TEST_F(SkinServerTest, TwoSculptorsEditOneSkinAndASubscriberFollowsOnlyChangedSe
     EXPECT_LE(follower.UpdateSections(kSkin)[i], 2u) << "update " << i;
   }
   ExpectViewMatches(follower.View(kSkin));
+  ExpectBallsMatch(follower.Balls(kSkin));
+  EXPECT_EQ(follower.Balls(kSkin).size(), 5u);
   EXPECT_EQ(follower.decode_errors(), 0u);
   // The thin client's contours are far smaller than the float32 points they stand for.
   size_t points = 0;
   const skin::ContourView view = follower.View(kSkin);
   for (const auto& s : view.sections()) points += s.plus.size() + s.minus.size();
   EXPECT_GT(points, 0u);
+}
+
+TEST_F(SkinServerTest, SceneInfoListsTheSkinsWithTheirPlanes) {
+  ClientOptions options;
+  options.timeout = seconds(10);
+  Client c(options);
+  ASSERT_TRUE(c.Connect("127.0.0.1", port_).ok());
+  ASSERT_TRUE(c.Hello("sculpt-dev-viewer", v1::ROLE_VIEWER, "t", 0).ok());
+  auto j = c.Join();
+  ASSERT_TRUE(j.ok()) << j.status();
+  ASSERT_EQ(j->info.skins_size(), 1);
+  const v1::SkinInfo& k = j->info.skins(0);
+  EXPECT_EQ(k.name(), kSkin);
+  EXPECT_EQ(k.origin().z(), static_cast<float>(kPlaneZ));
+  EXPECT_EQ(k.u().x(), 1.f);
+  EXPECT_EQ(k.v().y(), 1.f);
+  EXPECT_TRUE(j->info.effects().contours());
 }
 
 TEST_F(SkinServerTest, RejectsBadBallFieldsAndKeepsServing) {

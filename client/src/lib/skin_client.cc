@@ -28,6 +28,8 @@ void SkinClient::OnMessage(v1::ServerMessage&& m) {
       } else {
         f.version = u.skin_version();
         f.sections.push_back(u.sections());
+        f.balls.clear();
+        for (const v1::SkinBall& b : u.balls()) f.balls.push_back({{b.x(), b.y()}, b.r(), b.theta()});
       }
     } else {
       auto lines = skin::DecodeContours(u.data());
@@ -166,6 +168,12 @@ std::vector<uint32_t> SkinClient::UpdateSections(const std::string& skin) const 
   std::lock_guard<std::mutex> lock(mu_);
   auto it = skins_.find(skin);
   return it == skins_.end() ? std::vector<uint32_t>{} : it->second.sections;
+}
+
+std::vector<skin::OrientedBall> SkinClient::Balls(const std::string& skin) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = skins_.find(skin);
+  return it == skins_.end() ? std::vector<skin::OrientedBall>{} : it->second.balls;
 }
 
 std::vector<skin::Polyline2> SkinClient::Slice(const std::string& object) const {

@@ -17,6 +17,7 @@ export class ChunkMeshes {
     this.decodeMs = [];
     this.received = 0;
     this.decoding = 0;  // chunks handed to the decoder and not back yet
+    this.lastChangeAt = 0;  // performance.now() when a chunk's mesh last came in
     this.material = new THREE.MeshStandardMaterial({ color: 0xc9a27e, roughness: 0.75, metalness: 0.0 });
     this.colouredMaterial = new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.7 });
     this.onChange = () => {};
@@ -57,6 +58,7 @@ export class ChunkMeshes {
       this.group.add(mesh);
       const faces = geometry.index ? geometry.index.count / 3 : geometry.getAttribute('position').count / 3;
       this.chunks.set(key, { mesh, version, faces, serverFaces: chunk.faces });
+      this.lastChangeAt = performance.now();
       this.onChange();
     }, (err) => {
       this.decoding -= 1;

@@ -38,7 +38,31 @@ export class Sculpting {
     el.addEventListener('pointercancel', (e) => this.up(e));
     el.addEventListener('contextmenu', (e) => e.preventDefault());
     app.conn.addEventListener('ack', (ev) => this.onAck(ev.detail));
+    app.conn.addEventListener('paintAck', (ev) => this.onPaintAck(ev.detail));
+    this.paintSeq = 0;
+    this.pendingPaints = new Map();  // paint client_seq -> send time
+    this.offerPaint(info.effects);
     this.timer = setInterval(() => this.flush(), 1000 / kStrokeHz);
+  }
+
+  /** The paint tool, with the scene's materials, when the scene declares any. */
+  offerPaint(effects) {
+    const materials = (effects && effects.materials) || [];
+    if (materials.length === 0) return;
+    const opt = document.createElement('option');
+    opt.value = 'paint';
+    opt.textContent = 'paint';
+    $('tool-kind').appendChild(opt);
+    const select = $('tool-material');
+    materials.forEach((name, i) => {
+      const o = document.createElement('option');
+      o.value = String(i);
+      o.textContent = name;
+      select.appendChild(o);
+    });
+    const show = () => { $('material-label').hidden = $('tool-kind').value !== 'paint'; };
+    $('tool-kind').addEventListener('change', show);
+    show();
   }
 
   radius() {
@@ -104,9 +128,10 @@ export class Sculpting {
     if (this.samples.length >= this.maxPoses) this.flush();
   }
 
-  /** Sends the samples gathered since the last stroke as one stroke. */
+  /** Sends the samples gathered since the last stroke as one stroke (or one paint). */
   flush() {
     if (this.samples.length === 0) return;
+    if ($('tool-kind').value === 'paint') return this.flushPaint();
     const poses = this.samples.splice(0, this.maxPoses);
     const packed = packPoses(poses, this.voxelSize);
     if (!packed) { this.app.showError('stroke out of reach of its origin: dropped'); return; }
@@ -131,6 +156,40 @@ export class Sculpting {
     if (this.app.conn.send('stroke', stroke)) {
       this.pending.set(stroke.clientSeq, performance.now());
       this.app.stats.strokesSent += 1;
+    }
+  }
+
+  /** A paint at the newest sample: the material under the tool, weighted by strength and pressure. */
+  flushPaint() {
+    const p = this.samples[this.samples.length - 1];
+    this.samples = [];
+    const r = this.radius();
+    const paint = {
+      clientSeq: ++this.paintSeq,
+      object: this.object.name,
+      tool: v1.ToolKind.TOOL_KIND_SPHERE,
+      toolSize: { x: r, y: 0, z: 0 },
+      position: { x: p.x, y: p.y, z: p.z },
+      material: Number($('tool-material').value),
+      weight: Math.min(1, Number($('tool-strength').value) * Math.min(1, 2 * this.pressure)),
+    };
+    if (this.app.conn.send('paint', paint)) {
+      this.pendingPaints.set(paint.clientSeq, performance.now());
+      this.app.stats.paintsSent += 1;
+    }
+  }
+
+  onPaintAck(ack) {
+    const seq = num(ack.clientSeq);
+    const sent = this.pendingPaints.get(seq);
+    this.pendingPaints.delete(seq);
+    if (sent !== undefined && ack.accepted) {
+      this.app.stats.ackLatencies.push(performance.now() - sent);
+      if (this.app.stats.ackLatencies.length > 2000) this.app.stats.ackLatencies.shift();
+    }
+    if (ack.accepted) {
+      this.app.stats.paintsAcked += 1;
+      this.app.stats.globalSeq = Math.max(this.app.stats.globalSeq, num(ack.globalSeq));
     }
   }
 

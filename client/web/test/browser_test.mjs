@@ -2,10 +2,11 @@
 // against a sculptd this script starts. Usage:
 //   node test/browser_test.mjs --bin BUILD/bin --web-root DIST [--screenshots DIR]
 // Exits non-zero with the failing check's name. Run by ctest (label browser).
-import { spawn } from 'node:child_process';
-import { mkdtempSync, readFileSync, existsSync, rmSync, mkdirSync } from 'node:fs';
+import { execFileSync, spawn } from 'node:child_process';
+import { mkdtempSync, readFileSync, existsSync, rmSync, mkdirSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
-import { join } from 'node:path';
+import { dirname, join } from 'node:path';
+import { fileURLToPath } from 'node:url';
 import { chromiumPath, launchChromium } from './chromium.mjs';
 
 const args = Object.fromEntries(process.argv.slice(2).reduce((acc, a, i, all) =>
@@ -30,7 +31,9 @@ async function waitFor(page, fn, arg, timeout = 20000) {
 
 const dir = mkdtempSync(join(tmpdir(), 'sculpt-browser-'));
 const portFile = join(dir, 'ports');
-const server = spawn(join(bin, 'sculptd'), ['serve', '--data', join(dir, 'data'), '--listen',
+// The scene has a ball skin, contours on and paint materials (scene.toml beside this file).
+const sceneFile = join(dirname(fileURLToPath(import.meta.url)), 'scene.toml');
+const server = spawn(join(bin, 'sculptd'), ['serve', '--config', sceneFile, '--data', join(dir, 'data'), '--listen',
   '127.0.0.1:0', '--http', '127.0.0.1:0', '--port-file', portFile, '--web-root', webRoot],
 { stdio: ['ignore', 'inherit', 'inherit'] });
 // The whole run is bounded: a hung browser must not hold ctest until its own timeout.
@@ -122,6 +125,59 @@ try {
   check('viewer: the sculptor is listed and their tool drawn', listed.includes('alice'), listed);
   if (shots) await viewer.screenshot({ path: join(shots, 'web-client-presence.png') });
 
+  // 4. A skin's contour is drawn with the point count the server sent (the same count the
+  //    C++ skin code gives for these balls: `sculpt skin`), and dragging a ball on the sculptor's
+  //    panel changes the contour on the viewer's.
+  const skinPoints = (balls) => {
+    const file = join(dir, 'balls.json');
+    writeFileSync(file, JSON.stringify({ method: 'hybrid', tolerance: 0.02,
+      balls: balls.map((b) => ({ c: [b.x, b.y], r: b.r, theta: b.theta })) }));
+    return JSON.parse(execFileSync(join(bin, 'sculpt'), ['skin', '--balls', file], { encoding: 'utf8' })).points;
+  };
+  const skinOf = (page) => page.evaluate(() => window.sculpt.contours?.stats().skins[0]);
+  await waitFor(viewer, () => window.sculpt.contours?.stats().skins[0]?.updates > 0);
+  await waitFor(sculptor, () => window.sculpt.contours?.stats().skins[0]?.updates > 0);
+  const sk0 = await skinOf(viewer);
+  const expected0 = skinPoints(sk0.balls);
+  check('viewer: the skin contour is drawn with the point count the server sent',
+    sk0.balls.length === 3 && sk0.sections === 2 && sk0.decodedPoints === expected0 && sk0.drawnPoints === expected0,
+    JSON.stringify({ ...sk0, expected: expected0 }));
+  const grab = await sculptor.evaluate(() => {
+    const p = window.sculpt.contours.skins.get('sketch');
+    const b = p.balls[1];
+    const [cx, cy] = p.frame.toCanvas(b.x, b.y);
+    const r = p.canvas.getBoundingClientRect();
+    const k = r.width / p.canvas.width;
+    return { x: r.left + cx * k, y: r.top + cy * k, scale: p.frame.s * k, y0: b.y };
+  });
+  await sculptor.mouse.move(grab.x, grab.y);
+  await sculptor.mouse.down();
+  for (let i = 1; i <= 10; ++i) { await sculptor.mouse.move(grab.x, grab.y - 2 * i); await sleep(40); }
+  await sculptor.mouse.up();
+  await waitFor(viewer, (v) => window.sculpt.contours.stats().skins[0].version > v, sk0.version);
+  await waitFor(sculptor, () => window.sculpt.pendingSkinEdits.size === 0);
+  await sleep(300);
+  const sk1 = await skinOf(viewer);
+  const mine = await skinOf(sculptor);
+  const expected1 = skinPoints(sk1.balls);
+  const moved = sk1.balls[1].y - sk0.balls[1].y;
+  check('sculptor: ball edits accepted, none refused', mine.editsAccepted > 0 && mine.refused === 0, JSON.stringify(mine));
+  check('viewer: the dragged ball moved up and its contour was redrawn from the server',
+    moved > 1 && Math.abs(moved - 20 / grab.scale) < 0.5 * 20 / grab.scale && sk1.decodedPoints === expected1
+      && sk1.drawnPoints === expected1 && sk1.version === mine.version,
+    JSON.stringify({ moved, expectedMove: 20 / grab.scale, points: sk1.decodedPoints, expected1, version: sk1.version }));
+  // The slice panel: the sphere's cut through its centre is one closed curve of radius ~24.
+  await waitFor(viewer, () => window.sculpt.contours.stats().slice?.updates > 0);
+  const slice = await viewer.evaluate(() => {
+    const lines = window.sculpt.contours.slice.lines;
+    let rmin = Infinity, rmax = 0;
+    for (const l of lines) for (let i = 0; i < l.length; i += 2) { const r = Math.hypot(l[i], l[i + 1]); rmin = Math.min(rmin, r); rmax = Math.max(rmax, r); }
+    return { curves: lines.length, rmin, rmax };
+  });
+  check('viewer: the slice shows the object\'s cut', slice.curves >= 1 && slice.rmin > 20 && slice.rmax < 28,
+    JSON.stringify(slice));
+  if (shots) await viewer.screenshot({ path: join(shots, 'web-client-contours.png') });
+
   // 5. A viewer token cannot sculpt: the refusal is shown.
   const impostor = await open('token=sculpt-dev-viewer&role=sculptor&name=mallory');
   await waitFor(impostor, () => window.sculpt?.stats.errors.length > 0);
@@ -154,6 +210,20 @@ try {
   check('viewer: triangles still equal the server totals after the joint edits',
     ta.faces === ta.serverFaces, JSON.stringify(ta));
   if (shots) await sculptor.screenshot({ path: join(shots, 'web-client-sculptor.png') });
+  // Paint: the scene's materials are offered; a drag with the paint tool is acknowledged.
+  await sculptor.selectOption('#tool-kind', 'paint');
+  await sculptor.selectOption('#tool-material', '1');
+  const versionsBeforePaint = await viewer.evaluate(() => JSON.stringify([...window.sculpt.meshes.versions].sort()));
+  await sculptor.mouse.move(360, 260);
+  await sculptor.mouse.down();
+  for (let i = 0; i <= 12; ++i) { await sculptor.mouse.move(360 + 6 * i, 260 + 4 * i); await sleep(40); }
+  await sculptor.mouse.up();
+  await waitFor(sculptor, () => window.sculpt.stats.paintsSent > 0 && window.sculpt.sculpting.pendingPaints.size === 0);
+  const paints = await sculptor.evaluate(() => ({ sent: window.sculpt.stats.paintsSent, acked: window.sculpt.stats.paintsAcked, errors: window.sculpt.stats.errors }));
+  check('sculptor: paints acknowledged', paints.sent > 0 && paints.acked === paints.sent && paints.errors.length === 0,
+    JSON.stringify(paints));
+  await waitFor(viewer, (before) => JSON.stringify([...window.sculpt.meshes.versions].sort()) !== before, versionsBeforePaint);
+  check('viewer: the paint reached its mesh', true);
   for (const p of [viewer, sculptor, impostor]) {
     const bad = p.logs.filter((l) => l.startsWith('pageerror') || l.includes('Content Security Policy'));
     check(`no page errors or CSP violations (${await p.title()})`, bad.length === 0, bad.join(' | '));

@@ -54,7 +54,7 @@ struct EffectsConfig {
   std::string islands = "remove_small";       // keep | remove_small
   double min_island_volume = 8.0;             // world units^3
   std::vector<std::string> materials;         // use SceneConfig::materials: must be empty
-  bool contours = false;                      // not built yet: must be false
+  bool contours = false;                      // serve skin contours and object slices
 };
 
 struct SceneConfig {

@@ -647,6 +647,13 @@ void Scene::RefreshInfoLocked() {
     o->set_volume(s.volume());
     o->set_reference_volume(s.reference_volume());
   }
+  for (const SkinConfig& k : config_.scene.skins) {
+    v1::SkinInfo* m = info_.add_skins();
+    m->set_name(k.name);
+    *m->mutable_origin() = codec::ToProto(k.origin);
+    *m->mutable_u() = codec::ToProto(k.u);
+    *m->mutable_v() = codec::ToProto(k.v);
+  }
 }
 
 v1::SceneInfo Scene::Info() const {

@@ -43,6 +43,17 @@ std::shared_ptr<const std::string> Frame(const v1::ServerMessage& m) {
   return f;
 }
 
+// The whole chain, so that a contour subscriber can draw the balls and address them by index.
+void SetBalls(const skin::Skin& sk, v1::ContourUpdate* u) {
+  for (const skin::OrientedBall& b : sk.balls()) {
+    v1::SkinBall* m = u->add_balls();
+    m->set_x(b.c.x);
+    m->set_y(b.c.y);
+    m->set_r(b.r);
+    m->set_theta(b.theta);
+  }
+}
+
 Status CheckName(const std::string& field, const std::string& name) {
   if (name.empty() || name.size() > kMaxNameBytes) {
     return InvalidArgument(field + "=" + name + " outside names of 1.." +
@@ -506,6 +517,7 @@ void Scene::EditSkin(uint64_t client_id, v1::SkinBallEdit e,
         u->set_data(std::move(bytes).value());
         u->set_sections(static_cast<uint32_t>(change->changed.size()));
         u->set_skin_version(entry.version);
+        SetBalls(sk, u);
         auto frame = Frame(m);
         for (auto& [id, sink] : entry.subs) sink.send(frame);
       }
@@ -706,6 +718,7 @@ void Scene::SubscribeContours(ReplicaSink sink, v1::ContourSubscribe req,
       u->set_data(std::move(bytes).value());
       u->set_sections(static_cast<uint32_t>(it->second.skin.sections().size()));
       u->set_skin_version(it->second.version);
+      SetBalls(it->second.skin, u);
       sink.send(Frame(m));
       it->second.subs[session] = std::move(sink);
       return;

@@ -238,13 +238,11 @@ void Scene::MesherLoop() {
         cache[key] = f;
       }
       if (!w.full.empty()) {
-        for (const mesh::ChunkKey& key : mesh::AllChunks(*w.copy, mo)) {
-          if (!cache.count(key)) {
-            auto f = encode(key);
-            if (f) cache[key] = f;
-          }
-        }
-        bool dirty_sent_to_new = !w.dirty.empty();
+        // New viewers get what is cached at once, then every missing chunk as soon as it is
+        // encoded (not after the last one): the first pieces of a large object show while the
+        // rest is meshed. Missing chunks are meshed on up to hardware_concurrency threads, each
+        // reading the same immutable copy.
+        const bool dirty_sent_to_new = !w.dirty.empty();
         for (const ReplicaSink& s : w.full) {
           for (const auto& [key, f] : cache) {
             // New viewers already got this update's dirty chunks above.
@@ -255,6 +253,26 @@ void Scene::MesherLoop() {
             s.send(f);
           }
         }
+        std::vector<mesh::ChunkKey> missing;
+        for (const mesh::ChunkKey& key : mesh::AllChunks(*w.copy, mo)) {
+          if (!cache.count(key)) missing.push_back(key);
+        }
+        std::mutex cache_mu;
+        std::atomic<size_t> next{0};
+        auto worker = [&] {
+          for (size_t i; (i = next.fetch_add(1)) < missing.size();) {
+            auto f = encode(missing[i]);
+            if (!f) continue;
+            for (const ReplicaSink& s : w.full) s.send(f);
+            std::lock_guard<std::mutex> lock(cache_mu);
+            cache[missing[i]] = f;
+          }
+        };
+        const size_t threads = std::clamp<size_t>(std::thread::hardware_concurrency(), 1, 4);
+        std::vector<std::thread> helpers;
+        for (size_t t = 1; t < std::min(threads, missing.size()); ++t) helpers.emplace_back(worker);
+        worker();
+        for (std::thread& t : helpers) t.join();
       }
       mesh_stats_.updates++;
     }

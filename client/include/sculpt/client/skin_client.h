@@ -54,6 +54,8 @@ class SkinClient {
 
   /// A copy of a followed skin's view (empty before its snapshot).
   skin::ContourView View(const std::string& skin) const;
+  /// The chain of balls of the skin's newest ContourUpdate (plane coordinates).
+  std::vector<skin::OrientedBall> Balls(const std::string& skin) const;
   /// The sections each ContourUpdate of the skin carried, in arrival order (the snapshot first).
   std::vector<uint32_t> UpdateSections(const std::string& skin) const;
   /// The newest slice of `object`, in its plane's coordinates.
@@ -75,6 +77,7 @@ class SkinClient {
     skin::ContourView view;
     uint64_t version = 0;
     std::vector<uint32_t> sections;
+    std::vector<skin::OrientedBall> balls;
   };
   std::map<std::string, Followed> skins_;
   struct SliceView {

@@ -1,0 +1,668 @@
+// The contour codec's decoder (common/include/sculpt/skin/contour_codec.h): polyline sets, skin
+// snapshots and skin updates, with both residual codings (varints, and Draco's rANS symbol
+// coding as draco::EncodeSymbols writes it, tagged or raw scheme). Plain ES module, no
+// dependencies: bundled into the web client and run by node in the tests.
+//
+// Bytes come off the wire: every read is bounded, counts are capped as the C++ decoder caps
+// them, and anything wrong throws a ContourError naming it. Every message the C++ decoder
+// refuses is refused here; a few it accepts are refused too, all of which no encoder writes:
+// - Draco's tagged scheme reads value bits past the end of the message as zeros, so a message
+//   cut inside its values decodes, wrongly, in C++; here it is "truncated";
+// - a rANS stream must end in the state it started from, having used all its bytes (Draco's
+//   decoder has ans.read_end() but ignores it), which catches most corrupted symbol data;
+// - a rANS stream whose final-state tag claims 4 bytes must have them (Draco reads up to 3 bytes
+//   before the stream);
+// - section ids and versions must be below 2^53 (JavaScript numbers).
+
+/** Thrown for truncated, oversized or malformed input; the message names what is wrong. */
+export class ContourError extends Error {
+  constructor(message) {
+    super(message);
+    this.name = 'ContourError';
+  }
+}
+
+/** Upper bounds on untrusted input, as skin::kMaxContourPoints / kMaxContourPolylines. */
+export const kMaxContourPoints = 2 ** 26;
+export const kMaxContourPolylines = 2 ** 24;
+
+const kMagic = [0x53, 0x4b, 0x43, 0x31];  // "SKC1"
+const kPolylineSet = 0;
+const kSnapshot = 1;
+const kUpdate = 2;
+const kVarint = 0;
+const kRans = 1;
+const kMaxQuantised = 2 ** 52;
+const kExact = 2 ** 53;  // integers up to here are exact doubles
+const kPow2 = Float64Array.from({ length: 33 }, (_, i) => 2 ** i);
+
+function truncated(what) {
+  return new ContourError(`contour: truncated ${what}`);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Integers. A decoded value is a Number when below 2^53 (exact) and a BigInt above, so that a
+// hostile 64-bit value is neither rounded nor mistaken for a small one.
+
+/** Unsigned LEB128 of at most `maxBytes` bytes, reduced modulo 2^`bits`; null if cut short. */
+function readVarint(bytes, pos, end, maxBytes, bits) {
+  let v = 0;
+  let n = 0;
+  for (;;) {
+    if (n === maxBytes || pos + n >= end) return null;
+    const b = bytes[pos + n];
+    n += 1;
+    if (!(b & 0x80)) break;
+  }
+  if (n <= 7) {  // at most 49 bits: exact as a Number
+    for (let i = n - 1; i >= 0; --i) v = v * 128 + (bytes[pos + i] & 0x7f);
+    if (bits < 49) v %= 2 ** bits;
+    return { value: v, size: n };
+  }
+  let big = 0n;
+  for (let i = n - 1; i >= 0; --i) big = (big << 7n) | BigInt(bytes[pos + i] & 0x7f);
+  big = BigInt.asUintN(bits, big);
+  return { value: big < BigInt(kExact) ? Number(big) : big, size: n };
+}
+
+/** Zigzag back to a signed value (Number in, Number out; BigInt in, BigInt out). */
+function unzig(u) {
+  if (typeof u === 'bigint') return (u >> 1n) ^ -(u & 1n);
+  return u % 2 === 0 ? u / 2 : -(u + 1) / 2;
+}
+
+/** Exact a + b of two integers (Numbers or BigInts); a Number when |a + b| <= 2^53. */
+function addExact(a, b) {
+  if (typeof a === 'number' && typeof b === 'number') {
+    const s = a + b;  // exact whenever the true sum is at most 2^53 in magnitude
+    if (Math.abs(s) <= kExact) return s;
+  }
+  const s = BigInt(a) + BigInt(b);
+  return s >= -BigInt(kExact) && s <= BigInt(kExact) ? Number(s) : s;
+}
+
+/** llround: to the nearest integer, halves away from zero. */
+function roundAway(z) {
+  return z < 0 ? -Math.round(-z) : Math.round(z);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Draco's entropy decoding (draco/compression/entropy: symbol_decoding.cc, rans_symbol_decoder.h,
+// ans.h), for the bitstream version >= 2.0 layout (varint sizes), which is what the C++ decoder
+// asks for. A failure throws with the reason; the C++ side only says "do not decode".
+
+/** A position in the message shared by the symbol decoders (DecoderBuffer). */
+class DracoBuffer {
+  constructor(bytes, pos, end) {
+    this.bytes = bytes;
+    this.pos = pos;
+    this.end = end;
+  }
+  remaining() {
+    return this.end - this.pos;
+  }
+  byte(what) {
+    if (this.pos >= this.end) throw symbolError(`truncated ${what}`);
+    return this.bytes[this.pos++];
+  }
+  /** DecodeVarint<uint32_t> (at most 5 bytes) or <uint64_t> (at most 10). */
+  varint(bits, what) {
+    const r = readVarint(this.bytes, this.pos, this.end, bits === 32 ? 5 : 10, bits);
+    if (!r) throw symbolError(`truncated or overlong ${what}`);
+    this.pos += r.size;
+    return r.value;
+  }
+}
+
+function symbolError(why) {
+  return new ContourError(`contour: residual symbols do not decode (${why})`);
+}
+
+/** ComputeRAnsPrecisionFromUniqueSymbolsBitLength: 3/2 of the bit length, clamped to [12, 20]. */
+function ransPrecisionBits(uniqueSymbolsBitLength) {
+  const p = Math.floor((3 * uniqueSymbolsBitLength) / 2);
+  return p < 12 ? 12 : p > 20 ? 20 : p;
+}
+
+/** RAnsSymbolDecoder: a probability table, then a rANS stream decoded back to front. */
+class RansSymbolDecoder {
+  constructor(precisionBits) {
+    this.precisionBits = precisionBits;
+    this.precision = 2 ** precisionBits;
+    this.base = 4 * this.precision;  // l_rans_base: the state stays in [base, base * 256)
+    this.numSymbols = 0;
+  }
+
+  /** Create(): the symbol count and each symbol's probability, which must sum to precision. */
+  readTable(buf) {
+    const n = buf.varint(32, 'rANS symbol count');
+    // A table entry is at least a byte per 64 symbols (runs of zero probabilities).
+    if (Math.floor(n / 64) > buf.remaining()) {
+      throw symbolError(`rANS symbol count ${n} for ${buf.remaining()} bytes`);
+    }
+    this.numSymbols = n;
+    if (n === 0) return;
+    const prob = new Uint32Array(n);
+    for (let i = 0; i < n; ++i) {
+      const first = buf.byte('rANS probability table');
+      const token = first & 3;
+      if (token === 3) {  // a run of offset + 1 zero probabilities
+        const offset = first >> 2;
+        if (i + offset >= n) throw symbolError(`rANS zero run past symbol ${n}`);
+        i += offset;
+      } else {  // 6 bits here, then `token` more bytes
+        let p = first >> 2;
+        for (let b = 0; b < token; ++b) p += buf.byte('rANS probability table') * 2 ** (8 * b + 6);
+        prob[i] = p;
+      }
+    }
+    this.prob = prob;
+    this.cum = new Uint32Array(n);
+    this.lookup = new Uint32Array(this.precision);
+    let cum = 0;
+    for (let i = 0; i < n; ++i) {
+      this.cum[i] = cum;
+      const next = cum + prob[i];
+      if (next > this.precision) {
+        throw symbolError(`rANS probabilities exceed the precision ${this.precision}`);
+      }
+      this.lookup.fill(i, cum, next);
+      cum = next;
+    }
+    if (cum !== this.precision) {
+      throw symbolError(`rANS probabilities sum to ${cum}, not the precision ${this.precision}`);
+    }
+  }
+
+  /** StartDecoding(): the stream's size, then its final state from its last 1 to 4 bytes. */
+  start(buf) {
+    const size = buf.varint(64, 'rANS stream size');
+    if (typeof size === 'bigint' || size > buf.remaining()) {
+      throw symbolError(`rANS stream of ${size} bytes with ${buf.remaining()} left`);
+    }
+    const head = buf.pos;
+    buf.pos += size;
+    if (size < 1) throw symbolError('empty rANS stream');
+    const b = buf.bytes;
+    const last = head + size - 1;
+    const x = b[last] >> 6;
+    let state;
+    if (x === 0) {
+      this.offset = size - 1;
+      state = b[last] & 0x3f;
+    } else if (x === 1) {
+      if (size < 2) throw symbolError('rANS state cut short');
+      this.offset = size - 2;
+      state = (b[last - 1] | (b[last] << 8)) & 0x3fff;
+    } else if (x === 2) {
+      if (size < 3) throw symbolError('rANS state cut short');
+      this.offset = size - 3;
+      state = (b[last - 2] | (b[last - 1] << 8) | (b[last] << 16)) & 0x3fffff;
+    } else {
+      if (size < 4) throw symbolError('rANS state cut short');  // unchecked in Draco
+      this.offset = size - 4;
+      state = (b[last - 3] + b[last - 2] * 2 ** 8 + b[last - 1] * 2 ** 16 + b[last] * 2 ** 24) %
+              2 ** 30;
+    }
+    state += this.base;
+    if (state >= this.base * 256) throw symbolError('rANS initial state out of range');
+    this.state = state;
+    this.head = head;
+    this.bytes = b;
+  }
+
+  /** The encoder starts from the base state: after the last symbol (and the refill that
+   *  undoes the encoder's first renormalisation) the decoder must be back there, every byte
+   *  used. */
+  end() {
+    let s = this.state;
+    while (s < this.base && this.offset > 0) s = s * 256 + this.bytes[this.head + --this.offset];
+    if (s !== this.base || this.offset !== 0) {
+      throw symbolError('rANS stream does not end in its initial state (corrupted)');
+    }
+  }
+
+  /** rans_read(): refill from the back while below base (never before the stream's start). */
+  next() {
+    // The state stays below base * 256 <= 2^30: int32 arithmetic throughout.
+    let s = this.state;
+    while (s < this.base && this.offset > 0) s = (s << 8) | this.bytes[this.head + --this.offset];
+    const rem = s & (this.precision - 1);
+    const quo = s >>> this.precisionBits;
+    const sym = this.lookup[rem];
+    this.state = quo * this.prob[sym] + rem - this.cum[sym];
+    return sym;
+  }
+}
+
+/**
+ * draco::DecodeSymbols(numValues, numComponents, buffer, out): a scheme byte, then the tagged
+ * scheme (rANS-coded bit lengths per group of numComponents values, the values as raw
+ * least-significant-bit-first bits after the rANS data) or the raw scheme (each value a rANS
+ * symbol, the precision from a bit-length byte). Advances buf.pos as Draco does.
+ */
+function decodeSymbols(numValues, numComponents, buf, out) {
+  if (numValues === 0) return { scheme: null };
+  const scheme = buf.byte('symbol scheme');
+  if (scheme === 0) {
+    const tags = new RansSymbolDecoder(ransPrecisionBits(5));
+    tags.readTable(buf);
+    tags.start(buf);
+    if (tags.numSymbols === 0) throw symbolError('tagged scheme without tags');
+    // The values' bits follow the tags' rANS data, least significant first. Draco reads bits
+    // past the end as zeros; a valid message never needs them, so here they mean truncation.
+    const b = buf.bytes;
+    const start = buf.pos;
+    const availBits = (buf.end - start) * 8;
+    let bit = 0;
+    let id = 0;
+    for (let i = 0; i < numValues; i += numComponents) {
+      const length = tags.next();
+      if (length > 32) throw symbolError(`tagged bit length ${length} above 32`);
+      if (bit + numComponents * length > availBits) {
+        throw truncated('residuals (tagged values past the end of the message)');
+      }
+      for (let j = 0; j < numComponents; ++j) {
+        let v = 0;
+        for (let got = 0; got < length;) {  // up to a byte at a time
+          const shift = bit & 7;
+          const take = Math.min(8 - shift, length - got);
+          v += ((b[start + (bit >> 3)] >> shift) & ((1 << take) - 1)) * kPow2[got];
+          got += take;
+          bit += take;
+        }
+        out[id++] = v;
+      }
+    }
+    tags.end();
+    buf.pos = start + Math.ceil(bit / 8);
+    return { scheme: 'tagged', precisionBits: tags.precisionBits };
+  }
+  if (scheme === 1) {
+    const bitLength = buf.byte('raw scheme bit length');
+    if (bitLength < 1 || bitLength > 18) {
+      throw symbolError(`raw scheme bit length ${bitLength} outside [1, 18]`);
+    }
+    const dec = new RansSymbolDecoder(ransPrecisionBits(bitLength));
+    dec.readTable(buf);
+    if (dec.numSymbols === 0) throw symbolError('raw scheme without symbols');
+    dec.start(buf);
+    for (let i = 0; i < numValues; ++i) out[i] = dec.next();
+    dec.end();
+    return { scheme: 'raw', precisionBits: dec.precisionBits, bitLength };
+  }
+  throw symbolError(`scheme ${scheme} outside [0, 1]`);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The contour format.
+
+/** A bounded reader over the message (the C++ Reader). */
+class Reader {
+  constructor(bytes) {
+    this.bytes = bytes;
+    this.pos = 0;
+  }
+  /** A 64-bit varint (at most 10 bytes); null when cut short. */
+  varint() {
+    const r = readVarint(this.bytes, this.pos, this.bytes.length, 10, 64);
+    if (!r) return null;
+    this.pos += r.size;
+    return r.value;
+  }
+}
+
+/** Where line j's prediction context is: the previous line of its side (skins) or the previous
+ *  line (polyline sets). */
+function context(lines, j, kind) {
+  const stride = kind === kPolylineSet ? 1 : 2;
+  return j >= stride ? lines[j - stride] : null;
+}
+
+/**
+ * The prediction of point k (x at out[0], y at out[1]) of quantised line q (interleaved) from its
+ * points 0..k-1: see Predict in contour_codec.cc. Every double operation is the C++ one, in the
+ * same order, so both sides predict the same integers. Results are exact integers, Numbers or
+ * (only for hostile input) BigInts.
+ */
+function predict(q, k, ctx, out) {
+  if (k === 1) {
+    const n = ctx ? ctx.length : 0;
+    if (n >= 4 && ctx[n - 2] === q[0] && ctx[n - 1] === q[1]) {
+      out[0] = addExact(q[0], ctx[n - 2] - ctx[n - 4]);
+      out[1] = addExact(q[1], ctx[n - 1] - ctx[n - 3]);
+    } else {
+      out[0] = q[0];
+      out[1] = q[1];
+    }
+    return;
+  }
+  const p1x = q[2 * k - 2];
+  const p1y = q[2 * k - 1];
+  const ax = p1x - q[2 * k - 4];
+  const ay = p1y - q[2 * k - 3];
+  let zx = ax;
+  let zy = ay;
+  if (k >= 3) {
+    const bx = q[2 * k - 4] - q[2 * k - 6];
+    const by = q[2 * k - 3] - q[2 * k - 5];
+    const bb = bx * bx + by * by;
+    if (bb > 0) {
+      const re = (ax * bx + ay * by) / bb;
+      const im = (ay * bx - ax * by) / bb;
+      const cx = re * ax - im * ay;
+      const cy = re * ay + im * ax;
+      if (cx * cx + cy * cy <= 16 * (ax * ax + ay * ay) && Math.abs(cx) < kMaxQuantised &&
+          Math.abs(cy) < kMaxQuantised) {
+        zx = cx;
+        zy = cy;
+      }
+    }
+  }
+  out[0] = addExact(p1x, roundAway(zx));
+  out[1] = addExact(p1y, roundAway(zy));
+}
+
+/** pred + residual when within [-2^52, 2^52], else a ContourError (AddBounded). */
+function bounded(pred, residual) {
+  const v = addExact(pred, residual);
+  if (typeof v !== 'number' || Math.abs(v) > kMaxQuantised) {
+    throw new ContourError('contour: decoded point outside [-2^52, 2^52] steps');
+  }
+  return v;
+}
+
+/** An id or version as a Number; ids beyond 2^53 (never sent by a real skin) are refused. */
+function exactId(v, field) {
+  if (typeof v === 'bigint') {
+    throw new ContourError(`contour.${field}=${v} outside [0, 2^53) (JavaScript numbers)`);
+  }
+  return v;
+}
+
+/** Parses and decodes a whole message (Parse in contour_codec.cc). */
+function parse(bytes) {
+  if (!(bytes instanceof Uint8Array)) throw new ContourError('contour: bytes must be a Uint8Array');
+  const r = new Reader(bytes);
+  if (bytes.length < 4 || kMagic.some((m, i) => bytes[i] !== m)) {
+    throw new ContourError('contour: bad magic (want SKC1)');
+  }
+  r.pos = 4;
+  if (r.pos >= bytes.length) throw truncated('kind');
+  const kind = bytes[r.pos++];
+  if (kind > kUpdate) throw new ContourError(`contour.kind=${kind} outside [0, 2]`);
+  if (bytes.length - r.pos < 8) throw truncated('step');
+  const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  const step = view.getFloat64(r.pos, true);
+  r.pos += 8;
+  if (!Number.isFinite(step) || !(step > 0)) {
+    throw new ContourError(`contour.step=${step} outside (0, inf)`);
+  }
+  if (r.pos >= bytes.length) throw truncated('coding');
+  const coding = bytes[r.pos++];
+  if (coding > kRans) throw new ContourError(`contour.coding=${coding} outside [0, 1]`);
+
+  const p = { kind, step, coding, scheme: null, sectionCount: 0, spliceAt: 0, removed: 0,
+              inserted: 0, index: [], id: [], version: [], lines: [] };
+  let nlines = 0;
+  if (kind === kPolylineSet) {
+    const n = r.varint();
+    if (n === null) throw truncated('polyline count');
+    if (n > kMaxContourPolylines) {
+      throw new ContourError(`contour.polylines=${n} outside [0, ${kMaxContourPolylines}]`);
+    }
+    nlines = n;
+  } else {
+    const count = r.varint();
+    if (count === null) throw truncated('section count');
+    if (count > kMaxContourPolylines) {
+      throw new ContourError(`contour.sections=${count} outside [0, ${kMaxContourPolylines}]`);
+    }
+    p.sectionCount = count;
+    let entries = count;
+    if (kind === kUpdate) {
+      const spliceAt = r.varint();
+      const removed = spliceAt === null ? null : r.varint();
+      const inserted = removed === null ? null : r.varint();
+      entries = inserted === null ? null : r.varint();
+      if (entries === null) throw truncated('update header');
+      if (entries > count) {
+        throw new ContourError(`contour.changed=${entries} outside [0, ${count}]`);
+      }
+      Object.assign(p, { spliceAt, removed, inserted });
+    }
+    for (let i = 0; i < entries; ++i) {
+      let idx = i;
+      if (kind === kUpdate) {
+        idx = r.varint();
+        if (idx === null) throw truncated('section index');
+      }
+      const id = r.varint();
+      const version = id === null ? null : r.varint();
+      if (version === null) throw truncated('section id');
+      if (idx >= count) {
+        throw new ContourError(`contour.section_index=${idx} outside [0, ${count})`);
+      }
+      p.index.push(idx);
+      p.id.push(exactId(id, 'section_id'));
+      p.version.push(exactId(version, 'section_version'));
+    }
+    nlines = 2 * entries;
+  }
+
+  // Point counts and first points (grown as read: a hostile line count costs no memory until
+  // its bytes are there).
+  const counts = [];
+  const firsts = [];
+  const cap = Math.min(kMaxContourPoints, 65536 + 256 * bytes.length);
+  let total = 0;
+  let nres = 0;
+  for (let i = 0; i < nlines; ++i) {
+    const n = r.varint();
+    if (n === null) throw truncated('point count');
+    total = n > kMaxContourPoints ? n : total + n;
+    // Even entropy-coded, a point costs far more than 1/256 byte: a claim beyond that is a lie
+    // that would only make us allocate.
+    if (total > cap) {
+      throw new ContourError(`contour.points=${total} outside [0, ${cap}] for a ` +
+                             `${bytes.length}-byte message`);
+    }
+    counts.push(n);
+    if (n === 0) {
+      firsts.push(0, 0);
+      continue;
+    }
+    const fx = r.varint();
+    const fy = fx === null ? null : r.varint();
+    if (fy === null) throw truncated('first point');
+    firsts.push(fx, fy);
+    nres += 2 * (n - 1);
+  }
+
+  // The residual stream.
+  let res;
+  let big = null;  // index -> BigInt, for varint residuals of 2^53 and above
+  if (coding === kVarint) {
+    if (nres > bytes.length - r.pos) throw truncated('residuals');  // >= 1 byte each
+    res = new Float64Array(nres);
+    for (let i = 0; i < nres; ++i) {
+      const v = r.varint();
+      if (v === null) throw truncated('residuals');
+      if (typeof v === 'bigint') {
+        (big ??= new Map()).set(i, v);
+      } else {
+        res[i] = v;
+      }
+    }
+  } else {
+    res = allocate(Uint32Array, nres);
+    if (nres > 0) {
+      const buf = new DracoBuffer(bytes, r.pos, bytes.length);
+      const info = decodeSymbols(nres, 2, buf, res);
+      p.scheme = info.scheme;
+      p.precisionBits = info.precisionBits;
+      r.pos = buf.pos;
+    }
+  }
+  if (r.pos !== bytes.length) {
+    throw new ContourError(`contour: ${bytes.length - r.pos} trailing bytes`);
+  }
+
+  // Undo the prediction, line by line, in integer plane coordinates.
+  const q = [];
+  const pred = [0, 0];
+  let next = 0;
+  for (let i = 0; i < nlines; ++i) {
+    const n = counts[i];
+    const line = allocate(Float64Array, 2 * n);
+    q.push(line);
+    if (n === 0) {
+      p.lines.push(line);
+      continue;
+    }
+    const ctx = context(q, i, kind);
+    const fx = ctx && ctx.length ? ctx[ctx.length - 2] : 0;
+    const fy = ctx && ctx.length ? ctx[ctx.length - 1] : 0;
+    line[0] = bounded(fx, unzig(firsts[2 * i]));
+    line[1] = bounded(fy, unzig(firsts[2 * i + 1]));
+    for (let k = 1; k < n; ++k) {
+      predict(line, k, ctx, pred);
+      const dx = big?.get(next) ?? res[next];
+      const dy = big?.get(next + 1) ?? res[next + 1];
+      next += 2;
+      line[2 * k] = bounded(pred[0], unzig(dx));
+      line[2 * k + 1] = bounded(pred[1], unzig(dy));
+    }
+    const out = new Float64Array(2 * n);
+    for (let j = 0; j < 2 * n; ++j) out[j] = line[j] * step;
+    p.lines.push(out);
+  }
+  return p;
+}
+
+/** new Type(n), with a hostile size's RangeError turned into a ContourError. */
+function allocate(Type, n) {
+  try {
+    return new Type(n);
+  } catch (e) {
+    throw new ContourError(`contour: ${n} values do not fit in memory (${e.message})`);
+  }
+}
+
+/**
+ * Decodes a polyline set (EncodeContours' output).
+ * @param {Uint8Array} bytes
+ * @returns {Float64Array[]} each polyline's points as interleaved x, y (plane coordinates)
+ * @throws {ContourError} for truncated, oversized or malformed input, or a skin message
+ */
+export function decodeContours(bytes) {
+  const p = parse(bytes);
+  if (p.kind !== kPolylineSet) {
+    throw new ContourError(`contour.kind=${p.kind} is a skin message, not a polyline set`);
+  }
+  return p.lines;
+}
+
+/**
+ * What a message is and how it was coded, for diagnostics and tests:
+ * {kind, step, coding (0 varints, 1 rANS), scheme ('tagged' | 'raw' | null), precisionBits,
+ *  polylines, points}. Throws ContourError as decodeContours does.
+ */
+export function describeContour(bytes) {
+  const p = parse(bytes);
+  return {
+    kind: p.kind, step: p.step, coding: p.coding, scheme: p.scheme,
+    precisionBits: p.precisionBits ?? null, polylines: p.lines.length,
+    points: p.lines.reduce((s, l) => s + l.length / 2, 0),
+  };
+}
+
+/**
+ * A thin client's copy of a skin's contours (skin::ContourView): apply snapshots and updates in
+ * order. `sections` is [{id, version, plus, minus}], plus/minus interleaved x, y; treat it as
+ * read-only (apply replaces it). Not shared between threads (a value per page).
+ */
+export class ContourView {
+  constructor() {
+    this._sections = [];
+    this._step = 0;
+  }
+
+  get sections() {
+    return this._sections;
+  }
+
+  get step() {
+    return this._step;
+  }
+
+  /**
+   * Applies a snapshot (replaces everything) or an update (splice, then changed sections).
+   * @param {Uint8Array} bytes
+   * @throws {ContourError} for bad bytes, a polyline set, or an update that does not fit the
+   *   view; the view is then unchanged.
+   */
+  apply(bytes) {
+    const p = parse(bytes);
+    if (p.kind === kPolylineSet) {
+      throw new ContourError('contour.kind=0 is a polyline set, not a skin message');
+    }
+    const size = this._sections.length;
+    let next;
+    const filled = [];
+    if (p.kind === kSnapshot) {
+      next = new Array(p.sectionCount).fill(null);
+      for (let k = 0; k < next.length; ++k) filled.push(false);
+    } else {
+      const { spliceAt, removed, inserted } = p;
+      if (spliceAt > size || removed > size - spliceAt) {
+        throw new ContourError(`contour.splice at ${spliceAt} removing ${removed} outside the ` +
+                               `view's ${size} sections`);
+      }
+      if (inserted > p.index.length) {
+        throw new ContourError(`contour.inserted=${inserted} outside [0, ${p.index.length}] ` +
+                               '(the changed sections)');
+      }
+      if (size - removed + inserted !== p.sectionCount) {
+        throw new ContourError(`contour.sections=${p.sectionCount} does not match the view ` +
+                               'after the splice');
+      }
+      next = this._sections.slice(0, spliceAt);
+      for (let k = 0; k < inserted; ++k) next.push(null);
+      next.push(...this._sections.slice(spliceAt + removed));
+      for (let k = 0; k < next.length; ++k) filled.push(next[k] !== null);
+    }
+    for (let e = 0; e < p.index.length; ++e) {
+      next[p.index[e]] = { id: p.id[e], version: p.version[e], plus: p.lines[2 * e],
+                           minus: p.lines[2 * e + 1] };
+      filled[p.index[e]] = true;
+    }
+    const hole = filled.indexOf(false);
+    if (hole >= 0) throw new ContourError(`contour: section ${hole} left without points`);
+    this._sections = next;
+    this._step = p.step;
+  }
+
+  /**
+   * The + (side > 0) or - list of the whole chain, consecutive sections' shared end point once
+   * (skin::ContourView::Chain).
+   * @returns {Float64Array} interleaved x, y
+   */
+  chain(side) {
+    let n = 0;
+    for (const s of this._sections) {
+      const l = side > 0 ? s.plus : s.minus;
+      if (l.length) n += n ? l.length - 2 : l.length;
+    }
+    const out = new Float64Array(n);
+    let at = 0;
+    for (const s of this._sections) {
+      const l = side > 0 ? s.plus : s.minus;
+      if (!l.length) continue;
+      const from = at ? 2 : 0;
+      out.set(l.subarray(from), at);
+      at += l.length - from;
+    }
+    return out;
+  }
+}
