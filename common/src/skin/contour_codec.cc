@@ -16,6 +16,7 @@
 #include <memory>
 #include <optional>
 
+#include "contour_codec_internal.h"
 #include "range_coder.h"
 #include "sculpt/core/check.h"
 
@@ -526,12 +527,13 @@ Status DecodeCurveBody(std::string_view body, size_t message_size, Kind kind, do
       if (!InPlane(p, step)) {  // also catches NaN
         return InvalidArgument("contour: decoded point outside [-2^52, 2^52] steps");
       }
+      // Past the end every bit reads as 0: stop at once rather than run out a claimed count.
+      if (!rc.ok()) return Truncated("points");
       prev_a = a;
       prev_e = e;
       tail.Push(p);
       out[k] = p;
     }
-    if (!rc.ok()) return Truncated("points");
   }
   if (!rc.ok()) return Truncated("curve body");
   if (rc.consumed() != body.size()) {
@@ -697,6 +699,17 @@ StatusOr<std::string> EncodeContours(const std::vector<Polyline2>& polylines, do
   std::string header;
   PutVarint(header, polylines.size());
   return Encode(kPolylineSet, step, header, {}, ptrs, q);
+}
+
+StatusOr<std::string> internal::EncodeContoursSkc1(const std::vector<Polyline2>& polylines,
+                                                   double step) {
+  std::vector<const Polyline2*> ptrs;
+  for (const Polyline2& p : polylines) ptrs.push_back(&p);
+  std::vector<QLine> q;
+  SCULPT_RETURN_IF_ERROR(Quantise(ptrs, step, &q));
+  std::string header;
+  PutVarint(header, polylines.size());
+  return Assemble(kPolylineSet, step, header, q);
 }
 
 StatusOr<std::vector<Polyline2>> DecodeContours(std::string_view bytes) {
