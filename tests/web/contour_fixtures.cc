@@ -347,7 +347,8 @@ int Main(int argc, char** argv) {
       Corruptions("varint", skc1({s.Noise(4, 3), {{1, 2}}, {}}, 1e-3), nullptr, "", 1, 400));
   corrupt.push_back(
       Corruptions("raw", skc1({s.Arc(120, 2, 1, 1, 0.05)}, 1e-3), nullptr, "", 2, 400));
-  corrupt.push_back(Corruptions("arc", skc1({s.Arc(60, 2, 0, 0, 0.05)}, 1e-3), nullptr, "", 6, 200));
+  corrupt.push_back(
+      Corruptions("arc", skc1({s.Arc(60, 2, 0, 0, 0.05)}, 1e-3), nullptr, "", 6, 200));
   corrupt.push_back(Corruptions("tagged", skc1({s.Noise(40, 1000)}, 1e-3), nullptr, "", 3, 400));
   corrupt.push_back(Corruptions("curve", Must(EncodeContours({s.Arc(60, 2, 0, 0, 0.05)}, 1e-3)),
                                 nullptr, "", 7, 400));

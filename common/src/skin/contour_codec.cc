@@ -242,7 +242,9 @@ struct Frame {
   double c = 0;           // parabola n(s) = c s (s + l1) through p3, p2, p1
 };
 
-Frame MakeFrame(const Tail& t) {
+/// `l2` is the length of the step before the last (the previous frame's l1, the same double) or
+/// negative when unknown.
+Frame MakeFrame(const Tail& t, double l2_known = -1) {
   Frame f;
   const Vec2 p1 = t.p[2];
   f.x = p1.x;
@@ -258,8 +260,11 @@ Frame MakeFrame(const Tail& t) {
   f.lp = l1;
   if (t.n < 3) return f;
   const Vec2 p3 = t.p[0];
-  const double c2x = p2.x - p3.x, c2y = p2.y - p3.y;
-  const double l2 = std::sqrt(c2x * c2x + c2y * c2y);
+  double l2 = l2_known;
+  if (l2 < 0) {
+    const double c2x = p2.x - p3.x, c2y = p2.y - p3.y;
+    l2 = std::sqrt(c2x * c2x + c2y * c2y);
+  }
   if (l2 > 0) f.lp = l1 * std::clamp(l1 / l2, kRatioLo, kRatioHi);
   const double dx = p3.x - p1.x, dy = p3.y - p1.y;
   const double x3 = dx * f.ux + dy * f.uy;
@@ -283,7 +288,10 @@ int AlongContext(int k, int64_t prev) {
 }
 int AcrossContext(int k, int64_t prev_e, int64_t a) {
   if (k == 1) return 9;
-  auto small = [](int64_t v) { return static_cast<int>(std::min<uint64_t>(v < 0 ? 0 - static_cast<uint64_t>(v) : static_cast<uint64_t>(v), 2)); };
+  auto small = [](int64_t v) {
+    const uint64_t m = v < 0 ? 0 - static_cast<uint64_t>(v) : static_cast<uint64_t>(v);
+    return static_cast<int>(std::min<uint64_t>(m, 2));
+  };
   return small(prev_e) + 3 * small(a);
 }
 
@@ -427,8 +435,9 @@ std::optional<std::string> CurveBody(Kind kind, double step, const std::vector<E
 /// codes them in its body.
 std::string Encode(Kind kind, double step, const std::string& header,
                    const std::vector<Entry>& entries, const std::vector<const Polyline2*>& lines,
-                   const std::vector<QLine>& q) {
-  std::optional<std::string> body = CurveBody(kind, step, entries, lines);
+                   const std::vector<QLine>& q, bool curve = true) {
+  std::optional<std::string> body;
+  if (curve) body = CurveBody(kind, step, entries, lines);
   if (!body) {
     std::string h = header;
     for (const Entry& e : entries) {
@@ -517,8 +526,10 @@ Status DecodeCurveBody(std::string_view body, size_t message_size, Kind kind, do
     }
     out[0] = tail.p[2];
     int64_t prev_a = 0, prev_e = 0;
+    double l1 = -1;  // the last frame's step length, once the tail holds three points
     for (size_t k = 1; k < out.size(); ++k) {
-      const Frame f = MakeFrame(tail);
+      const Frame f = MakeFrame(tail, tail.n == 3 && l1 > 0 ? l1 : -1);
+      l1 = f.l1;
       const int kk = static_cast<int>(std::min<size_t>(k, 2));
       const int64_t a = rc.Int(models->along[AlongContext(kk, prev_a)]);
       const int64_t e = rc.Int(models->across[AcrossContext(kk, prev_e, a)]);
@@ -718,7 +729,9 @@ StatusOr<std::vector<Polyline2>> DecodeContours(std::string_view bytes) {
   return std::move(p.lines);
 }
 
-StatusOr<std::string> EncodeSkinSnapshot(const Skin& skin, double step) {
+namespace {
+
+StatusOr<std::string> SnapshotMessage(const Skin& skin, double step, bool curve) {
   SCULPT_ASSIGN_OR_RETURN(const double s, SkinStep(skin, step));
   std::string header;
   PutVarint(header, skin.sections().size());
@@ -732,7 +745,17 @@ StatusOr<std::string> EncodeSkinSnapshot(const Skin& skin, double step) {
   }
   std::vector<QLine> q;
   SCULPT_RETURN_IF_ERROR(Quantise(ptrs, s, &q));
-  return Encode(kSnapshot, s, header, entries, ptrs, q);
+  return Encode(kSnapshot, s, header, entries, ptrs, q, curve);
+}
+
+}  // namespace
+
+StatusOr<std::string> EncodeSkinSnapshot(const Skin& skin, double step) {
+  return SnapshotMessage(skin, step, true);
+}
+
+StatusOr<std::string> internal::EncodeSkinSnapshotSkc1(const Skin& skin, double step) {
+  return SnapshotMessage(skin, step, false);
 }
 
 StatusOr<std::string> EncodeSkinUpdate(const Skin& skin, const SkinChange& change, double step) {

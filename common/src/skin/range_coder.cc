@@ -6,10 +6,9 @@
 namespace sculpt::skin::internal {
 namespace {
 
-constexpr int kProbBits = 12;
-constexpr uint32_t kOne = 1u << kProbBits;
-constexpr int kAdapt = 5;
-constexpr uint32_t kTop = 1u << 24;
+constexpr uint32_t kOne = kProbOne;
+constexpr int kAdapt = kProbAdapt;
+constexpr uint32_t kTop = kRangeTop;
 
 }  // namespace
 
@@ -80,38 +79,6 @@ RangeDecoder::RangeDecoder(std::string_view bytes) : in_(bytes) {
   for (int i = 0; i < 4; ++i) code_ = (code_ << 8) | Next();
 }
 
-uint8_t RangeDecoder::Next() {
-  if (pos_ >= in_.size()) {
-    ++overrun_;
-    return 0;
-  }
-  return static_cast<uint8_t>(in_[pos_++]);
-}
-
-void RangeDecoder::Normalize() {
-  while (range_ < kTop) {
-    range_ <<= 8;
-    code_ = (code_ << 8) | Next();
-  }
-}
-
-int RangeDecoder::Bit(BitModel& m) {
-  const uint32_t bound = (range_ >> kProbBits) * m.p;
-  int bit;
-  if (code_ < bound) {
-    range_ = bound;
-    m.p = static_cast<uint16_t>(m.p + ((kOne - m.p) >> kAdapt));
-    bit = 0;
-  } else {
-    code_ -= bound;
-    range_ -= bound;
-    m.p = static_cast<uint16_t>(m.p - (m.p >> kAdapt));
-    bit = 1;
-  }
-  Normalize();
-  return bit;
-}
-
 uint64_t RangeDecoder::Raw(int count) {
   uint64_t v = 0;
   for (int i = 0; i < count; ++i) {
@@ -123,19 +90,6 @@ uint64_t RangeDecoder::Raw(int count) {
     Normalize();
   }
   return v;
-}
-
-int64_t RangeDecoder::Int(IntModel& m) {
-  if (!Bit(m.zero)) return 0;
-  const bool negative = Bit(m.sign);
-  int k = 0;
-  while (k < kMaxIntBucket && Bit(m.length[k])) ++k;
-  uint64_t mag = 1;
-  if (k >= 1) {
-    mag = (uint64_t{2} | static_cast<uint64_t>(Bit(m.top[k]))) << (k - 1);
-    mag |= Raw(k - 1);
-  }
-  return negative ? -static_cast<int64_t>(mag) : static_cast<int64_t>(mag);
 }
 
 }  // namespace sculpt::skin::internal

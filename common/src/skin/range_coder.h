@@ -16,6 +16,11 @@
 
 namespace sculpt::skin::internal {
 
+inline constexpr int kProbBits = 12;
+inline constexpr uint32_t kProbOne = 1u << kProbBits;
+inline constexpr int kProbAdapt = 5;  // a model moves 1/32 of the way to each bit it sees
+inline constexpr uint32_t kRangeTop = 1u << 24;
+
 /// The probability that the next bit is 0, in 1/4096; starts at one half. Value type.
 struct BitModel {
   uint16_t p = 2048;
@@ -60,17 +65,49 @@ class RangeEncoder {
 class RangeDecoder {
  public:
   explicit RangeDecoder(std::string_view bytes);
-  int Bit(BitModel& m);
+  int Bit(BitModel& m) {
+    // Branch-free selection: the bits of a residual are what the data makes them, so a branch
+    // here would be mispredicted often.
+    const uint32_t p = m.p;
+    const uint32_t bound = (range_ >> kProbBits) * p;
+    const int bit = code_ >= bound;
+    const uint32_t sub = bit ? bound : 0;
+    range_ = bit ? range_ - bound : bound;
+    code_ -= sub;
+    m.p = static_cast<uint16_t>(bit ? p - (p >> kProbAdapt) : p + ((kProbOne - p) >> kProbAdapt));
+    if (range_ < kRangeTop) Normalize();
+    return bit;
+  }
   uint64_t Raw(int count);
   /// An integer as RangeEncoder::Int wrote it; |value| <= kMaxCodedMagnitude whatever the input.
-  int64_t Int(IntModel& m);
+  int64_t Int(IntModel& m) {
+    if (!Bit(m.zero)) return 0;
+    const bool negative = Bit(m.sign);
+    int k = 0;
+    while (k < kMaxIntBucket && Bit(m.length[k])) ++k;
+    uint64_t mag = 1;
+    if (k >= 1) {
+      mag = (uint64_t{2} | static_cast<uint64_t>(Bit(m.top[k]))) << (k - 1);
+      if (k >= 2) mag |= Raw(k - 1);
+    }
+    return negative ? -static_cast<int64_t>(mag) : static_cast<int64_t>(mag);
+  }
   bool ok() const { return ok_ && overrun_ == 0; }
   /// Bytes taken from the input so far (including the 5 of the start).
   size_t consumed() const { return pos_; }
 
  private:
-  uint8_t Next();
-  void Normalize();
+  uint8_t Next() {
+    if (pos_ < in_.size()) return static_cast<uint8_t>(in_[pos_++]);
+    ++overrun_;
+    return 0;
+  }
+  void Normalize() {
+    while (range_ < kRangeTop) {
+      range_ <<= 8;
+      code_ = (code_ << 8) | Next();
+    }
+  }
   std::string_view in_;
   size_t pos_ = 0;
   size_t overrun_ = 0;

@@ -290,7 +290,8 @@ TEST(ContourCodecTest, FallsBackToSkc1WhereDoublesRunOutOfBits) {
 
 // A message written by the SKC1 encoder (hand-made: varint coding, two points).
 TEST(ContourCodecTest, DecodesSkc1Messages) {
-  const std::string skc1("SKC1\x00\x00\x00\x00\x00\x00\x00\xf0\x3f\x00\x01\x02\x02\x04\x06\x08", 20);
+  const std::string skc1(
+      "SKC1\x00\x00\x00\x00\x00\x00\x00\xf0\x3f\x00\x01\x02\x02\x04\x06\x08", 20);
   const auto back = DecodeContours(skc1);
   ASSERT_TRUE(back.ok()) << back.status();
   ASSERT_EQ(back->size(), 1u);
