@@ -197,6 +197,12 @@ Json RunSkinBench(bool quick, const std::string& out_dat) {
     doc["contour_skc1_bits_per_point"] = 8.0 * static_cast<double>(skc1->size()) / all.size();
     doc["contour_skc1_ratio_vs_float32"] = static_cast<double>(float32) / skc1->size();
     doc["contour_goal_ratio_vs_float32"] = 12;
+    // The other road (issue 16, optional): the skin as its balls (centre, radius, touching
+    // direction as float64), method byte and tolerance; a receiver with this library rebuilds
+    // the very same points (the web client cannot). Its size, not a codec of its own here.
+    const size_t balls_bytes = 4 + 1 + 8 + 2 + skin->balls().size() * 3 * sizeof(double);
+    doc["skin_as_balls_bytes"] = balls_bytes;
+    doc["skin_as_balls_ratio_vs_float32"] = static_cast<double>(float32) / balls_bytes;
     doc["contour_float32_bytes"] = float32;
     doc["contour_draco_bytes"] = draco.bytes;
     doc["contour_draco_bits"] = draco.bits;

@@ -341,9 +341,9 @@ class RangeDecoder {
   }
   normalize() {
     while (this.range < kTop) {
-      this.range *= 256;
-      // code < range in a valid stream; a corrupt one keeps it below 2^32 as uint32 would.
-      this.code = (this.code * 256 + this.next()) % 4294967296;
+      this.range = (this.range * 256) >>> 0;
+      // code < range in a valid stream; a corrupt one wraps modulo 2^32 as uint32 would.
+      this.code = (this.code * 256 + this.next()) >>> 0;
     }
   }
   /** A bit with the adaptive probability models[i] (of a 0, in 1/4096). */
@@ -368,7 +368,7 @@ class RangeDecoder {
   raw(count) {
     let v = 0;
     for (let i = 0; i < count; ++i) {
-      this.range = Math.floor(this.range / 2);
+      this.range >>>= 1;
       let b = 0;
       if (this.code >= this.range) {
         this.code -= this.range;
