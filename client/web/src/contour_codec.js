@@ -507,20 +507,12 @@ function decodeCurveBody(bytes, pos, p, nentries, nlines) {
     p.lines.push(out);
     if (n === 0) continue;
     const ctx = j >= stride ? p.lines[j - stride] : null;
+    // The tail: the last three decoded points, oldest first (have of them valid).
     let have = 0;
-    const push = (x, y) => {
-      tail[0] = tail[2];
-      tail[1] = tail[3];
-      tail[2] = tail[4];
-      tail[3] = tail[5];
-      tail[4] = x;
-      tail[5] = y;
-      if (have < 3) have += 1;
-    };
     if (ctx && ctx.length && rc.bit(m.join, 0)) {
-      for (let i = Math.max(0, ctx.length / 2 - 3); i < ctx.length / 2; ++i) {
-        push(ctx[2 * i], ctx[2 * i + 1]);
-      }
+      const from = Math.max(0, ctx.length / 2 - 3);
+      have = ctx.length / 2 - from;
+      tail.set(ctx.subarray(2 * from), 6 - 2 * have);
     }
     if (have === 0) {
       let rx = 0;
@@ -532,7 +524,9 @@ function decodeCurveBody(bytes, pos, p, nentries, nlines) {
       const x = rx + rc.int(m.first);
       const y = ry + rc.int(m.first);
       if (Math.abs(x) > kMaxQuantised || Math.abs(y) > kMaxQuantised) throw outside();
-      push(x * step, y * step);
+      tail[4] = x * step;
+      tail[5] = y * step;
+      have = 1;
     }
     out[0] = tail[4];
     out[1] = tail[5];
@@ -551,7 +545,13 @@ function decodeCurveBody(bytes, pos, p, nentries, nlines) {
       if (!rc.ok()) throw truncated('points');
       prevA = a;
       prevE = e;
-      push(x, y);
+      tail[0] = tail[2];
+      tail[1] = tail[3];
+      tail[2] = tail[4];
+      tail[3] = tail[5];
+      tail[4] = x;
+      tail[5] = y;
+      if (have < 3) have += 1;
       out[2 * k] = x;
       out[2 * k + 1] = y;
     }
