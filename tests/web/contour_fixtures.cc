@@ -144,6 +144,11 @@ std::vector<SetCase> PolylineSets() {
   cases.push_back({"two_and_three_points", {{{0, 0}, {1, 1}}, {{1, 1}, {2, 3}, {4, 4}}}, 1e-2});
   cases.push_back({"long_circle", {s.Arc(2000, 7, 0, 0, 0.005)}, 1e-4});
   cases.push_back({"small_circle", {s.Arc(120, 2, 1, 1, 0.05)}, 1e-3});
+  {
+    Polyline2 loop = s.Arc(127, 3, 0, 0, 2 * std::numbers::pi / 126);
+    loop.back() = loop.front();
+    cases.push_back({"closed_loops", {loop, {{1, 1}, {1, 1}}, {{0, 0}, {3, 0}, {0, 0}}}, 1e-3});
+  }
   cases.push_back({"wide_noise", {s.Noise(400, 1000)}, 1e-3});
   cases.push_back({"small_noise", {s.Noise(40, 1000)}, 1e-3});
   cases.push_back({"random_walk", {s.Walk(3000, 1)}, 1e-3});

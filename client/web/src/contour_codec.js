@@ -460,6 +460,7 @@ function decodeCurveBody(bytes, pos, p, nentries, nlines) {
   const m = {
     index: intModel(), id: intModel(), version: intModel(), count: intModel(),
     first: intModel(), join: new Uint16Array(1).fill(kOne / 2),
+    closed: new Uint16Array(1).fill(kOne / 2),
     along: Array.from({ length: kAlongContexts }, intModel),
     across: Array.from({ length: kAcrossContexts }, intModel),
   };
@@ -530,9 +531,11 @@ function decodeCurveBody(bytes, pos, p, nentries, nlines) {
     }
     out[0] = tail[4];
     out[1] = tail[5];
+    const closed = n >= 2 && rc.bit(m.closed, 0) === 1;
+    const coded = closed ? n - 1 : n;
     let prevA = 0;
     let prevE = 0;
-    for (let k = 1; k < n; ++k) {
+    for (let k = 1; k < coded; ++k) {
       makeFrame(tail, have, f);
       const kk = k < 2 ? k : 2;
       const a = rc.int(m.along[alongContext(kk, prevA)]);
@@ -554,6 +557,10 @@ function decodeCurveBody(bytes, pos, p, nentries, nlines) {
       if (have < 3) have += 1;
       out[2 * k] = x;
       out[2 * k + 1] = y;
+    }
+    if (closed) {
+      out[2 * n - 2] = out[0];
+      out[2 * n - 1] = out[1];
     }
   }
   if (!rc.ok()) throw truncated('curve body');

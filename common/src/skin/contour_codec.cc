@@ -307,7 +307,7 @@ constexpr uint64_t kMaxExactId = (1ull << 53) - 1;
 struct CurveModels {
   internal::IntModel index, id, version;
   internal::IntModel count, first;
-  internal::BitModel join;
+  internal::BitModel join, closed;
   internal::IntModel along[kAlongContexts], across[kAcrossContexts];
 };
 
@@ -388,8 +388,12 @@ std::optional<std::string> CurveBody(Kind kind, double step, const std::vector<E
       tail.Push(p);
     }
     out.push_back(tail.p[2]);
+    // A closed line (last point == first, as slice loops come) ends on its decoded first point.
+    const bool closed = in.size() >= 2 && in.back() == in.front();
+    if (in.size() >= 2) rc.Bit(models->closed, closed);
+    const size_t coded = closed ? in.size() - 1 : in.size();
     int64_t prev_a = 0, prev_e = 0;
-    for (size_t k = 1; k < in.size(); ++k) {
+    for (size_t k = 1; k < coded; ++k) {
       const Frame f = MakeFrame(tail);
       const double dx = in[k].x - f.x, dy = in[k].y - f.y;
       const double ta = (dx * f.ux + dy * f.uy - f.lp) / step;
@@ -426,6 +430,7 @@ std::optional<std::string> CurveBody(Kind kind, double step, const std::vector<E
       tail.Push(p);
       out.push_back(p);
     }
+    if (closed) out.push_back(out.front());
   }
   return rc.Finish();
 }
@@ -525,9 +530,11 @@ Status DecodeCurveBody(std::string_view body, size_t message_size, Kind kind, do
       tail.Push({static_cast<double>(x) * step, static_cast<double>(y) * step});
     }
     out[0] = tail.p[2];
+    const bool closed = out.size() >= 2 && rc.Bit(models->closed);
+    const size_t coded = closed ? out.size() - 1 : out.size();
     int64_t prev_a = 0, prev_e = 0;
     double l1 = -1;  // the last frame's step length, once the tail holds three points
-    for (size_t k = 1; k < out.size(); ++k) {
+    for (size_t k = 1; k < coded; ++k) {
       const Frame f = MakeFrame(tail, tail.n == 3 && l1 > 0 ? l1 : -1);
       l1 = f.l1;
       const int kk = static_cast<int>(std::min<size_t>(k, 2));
@@ -545,6 +552,7 @@ Status DecodeCurveBody(std::string_view body, size_t message_size, Kind kind, do
       tail.Push(p);
       out[k] = p;
     }
+    if (closed) out.back() = out.front();
   }
   if (!rc.ok()) return Truncated("curve body");
   if (rc.consumed() != body.size()) {

@@ -326,3 +326,30 @@ TEST(ContourCodecTest, CurveCodingBeatsSkc1OnASkin) {
 
 }  // namespace
 }  // namespace sculpt::skin
+
+namespace sculpt::skin {
+namespace {
+
+// A closed loop (last point == first, as the server sends slice contours) decodes closed: the
+// last point is the decoded first one, exactly.
+TEST(ContourCodecTest, ClosedLoopsStayClosed) {
+  std::vector<Polyline2> lines(3);
+  for (int i = 0; i <= 200; ++i) {
+    lines[0].push_back(Vec2{std::cos(i * 0.0314159), std::sin(i * 0.0314159)} * 24.0);
+  }
+  lines[0].back() = lines[0].front();
+  lines[1] = {{1, 1}, {1, 1}};
+  lines[2] = {{0, 0}, {3, 0}, {3, 4}, {0, 0}};
+  const auto bytes = EncodeContours(lines, 1e-3);
+  ASSERT_TRUE(bytes.ok());
+  ASSERT_TRUE(IsSkc2(*bytes));
+  const auto back = DecodeContours(*bytes);
+  ASSERT_TRUE(back.ok()) << back.status();
+  for (size_t i = 0; i < lines.size(); ++i) {
+    EXPECT_EQ((*back)[i].front(), (*back)[i].back()) << i;
+    EXPECT_LE(MaxError(lines[i], (*back)[i]), 1e-3 * kBound) << i;
+  }
+}
+
+}  // namespace
+}  // namespace sculpt::skin

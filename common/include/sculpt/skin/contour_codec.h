@@ -22,7 +22,8 @@
 ///   - per non-empty polyline: if its context line has points, a flag "starts where the context
 ///     line ends" (then the first point is that decoded point, and the context's last three points
 ///     start the prediction); else the first point as integers x/step, y/step minus the context's
-///     last point rounded likewise (or the origin);
+///     last point rounded likewise (or the origin); then, for two points or more, a flag
+///     "closed" (the last point equals the first: it is not coded, the decoder repeats the first);
 ///   - per later point: two integers a (along) and e (across). From the previous decoded points
 ///     p3, p2, p1 the decoder forms u = unit(p1 - p2), v = u turned left, the step length l1 =
 ///     |p1 - p2| scaled by the previous ratio l1/|p2 - p3| clamped to [0.95, 1/0.95] (lp), and the
