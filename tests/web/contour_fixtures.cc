@@ -380,7 +380,9 @@ int Main(int argc, char** argv) {
   if (!big.ok()) return 1;
   size_t big_points = 0;
   for (const Section& sec : big->sections()) big_points += sec.plus.size() + sec.minus.size();
-  const json bench = {{"bytes", Hex(Must(EncodeSkinSnapshot(*big)))}, {"points", big_points}};
+  const json bench = {{"bytes", Hex(Must(EncodeSkinSnapshot(*big)))},
+                      {"skc1_bytes", Hex(Must(internal::EncodeSkinSnapshotSkc1(*big)))},
+                      {"points", big_points}};
 
   std::ofstream out(argv[1]);
   out << json{{"sets", sets}, {"views", views}, {"corrupt", corrupt}, {"bench", bench}}.dump();

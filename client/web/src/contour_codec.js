@@ -37,7 +37,7 @@ const kRans = 1;
 const kCurve = 2;
 const kMaxQuantised = 2 ** 52;
 const kExact = 2 ** 53;  // integers up to here are exact doubles
-const kPow2 = Float64Array.from({ length: 33 }, (_, i) => 2 ** i);
+const kPow2 = Float64Array.from({ length: 54 }, (_, i) => 2 ** i);
 
 function truncated(what) {
   return new ContourError(`contour: truncated ${what}`);
@@ -387,7 +387,8 @@ class RangeDecoder {
     while (k < kMaxIntBucket && this.bit(m, 2 + k)) ++k;
     let mag = 1;
     if (k >= 1) {
-      mag = (2 + this.bit(m, 2 + kMaxIntBucket + k)) * 2 ** (k - 1) + this.raw(k - 1);
+      mag = (2 + this.bit(m, 2 + kMaxIntBucket + k)) * kPow2[k - 1];
+      if (k >= 2) mag += this.raw(k - 1);
     }
     return negative ? -mag : mag;
   }
