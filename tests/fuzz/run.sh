@@ -8,7 +8,7 @@ set -euo pipefail
 seconds="${1:-${FUZZ_SECONDS:-60}}"
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 build="${SCULPT_FUZZ_BUILD:-$root/build-fuzz}"
-targets=(frame stroke contour model edit_log)
+targets=(frame stroke contour range_coder model edit_log)
 
 cmake -S "$root" -B "$build" -DSCULPT_FUZZ=ON -DSCULPT_BUILD_TESTS=OFF \
   -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ >/dev/null

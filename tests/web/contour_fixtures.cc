@@ -3,6 +3,7 @@
 /// decoder makes of them, and truncated / corrupted variants with the C++ verdict.
 ///
 /// Usage: contour_fixtures OUT.json. Seeded: the same build writes the same file.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -13,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "contour_codec_internal.h"
 #include "sculpt/skin/contour_codec.h"
 #include "sculpt/skin/skin.h"
 
@@ -142,6 +144,11 @@ std::vector<SetCase> PolylineSets() {
   cases.push_back({"two_and_three_points", {{{0, 0}, {1, 1}}, {{1, 1}, {2, 3}, {4, 4}}}, 1e-2});
   cases.push_back({"long_circle", {s.Arc(2000, 7, 0, 0, 0.005)}, 1e-4});
   cases.push_back({"small_circle", {s.Arc(120, 2, 1, 1, 0.05)}, 1e-3});
+  {
+    Polyline2 loop = s.Arc(127, 3, 0, 0, 2 * std::numbers::pi / 126);
+    loop.back() = loop.front();
+    cases.push_back({"closed_loops", {loop, {{1, 1}, {1, 1}}, {{0, 0}, {3, 0}, {0, 0}}}, 1e-3});
+  }
   cases.push_back({"wide_noise", {s.Noise(400, 1000)}, 1e-3});
   cases.push_back({"small_noise", {s.Noise(40, 1000)}, 1e-3});
   cases.push_back({"random_walk", {s.Walk(3000, 1)}, 1e-3});
@@ -173,6 +180,31 @@ std::vector<OrientedBall> Wavy(int n) {
                      20 * kDeg * std::cos(0.7 * i)});
   }
   return balls;
+}
+
+/// The benchmark's chain (tests/bench/skin_bench.cc Chain): radii 0.5-1, gaps 1.1-2 times the
+/// radii, headings within 35 deg, touching directions within 20 deg of the heading.
+std::vector<OrientedBall> BenchChain(size_t n, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<OrientedBall> b;
+  Vec2 c{0, 0};
+  double heading = 0;
+  while (b.size() < n) {
+    const double r = 0.5 + 0.5 * u(rng);
+    Vec2 nc = c;
+    double h = heading;
+    if (!b.empty()) {
+      h = std::clamp(heading + (u(rng) - 0.5) * 40 * kDeg, -35 * kDeg, 35 * kDeg);
+      nc = c + Vec2{std::cos(h), std::sin(h)} * ((b.back().r + r) * (1.1 + 0.9 * u(rng)));
+    }
+    const OrientedBall ball{nc, r, h + (u(rng) - 0.5) * 40 * kDeg};
+    if (!b.empty() && !CheckAdmissiblePair(b.size() - 1, b.back(), ball).ok()) continue;
+    b.push_back(ball);
+    c = nc;
+    heading = h;
+  }
+  return b;
 }
 
 /// Applies `bytes` to `view` and records the verdict and the view after it.
@@ -298,6 +330,13 @@ int Main(int argc, char** argv) {
     if (!back.ok()) return 1;
     sets.push_back(
         {{"name", c.name}, {"bytes", Hex(*bytes)}, {"step", c.step}, {"lines", Lines(*back)}});
+    const std::string old = Must(internal::EncodeContoursSkc1(c.lines, c.step));
+    const auto old_back = DecodeContours(old);
+    if (!old_back.ok()) return 1;
+    sets.push_back({{"name", c.name + "_skc1"},
+                    {"bytes", Hex(old)},
+                    {"step", c.step},
+                    {"lines", Lines(*old_back)}});
   }
   json views = json::array();
   views.push_back(SkinSequence("wavy12_chord_step", 12, 0, 7, 30));
@@ -306,14 +345,21 @@ int Main(int argc, char** argv) {
   // Corruptions of small messages of each coding, and of a skin snapshot and update.
   Shapes s{std::mt19937_64(5)};
   json corrupt = json::array();
-  corrupt.push_back(Corruptions("varint", Must(EncodeContours({s.Noise(4, 3), {{1, 2}}, {}}, 1e-3)),
-                                nullptr, "", 1, 400));
-  corrupt.push_back(Corruptions("raw", Must(EncodeContours({s.Arc(120, 2, 1, 1, 0.05)}, 1e-3)),
-                                nullptr, "", 2, 400));
-  corrupt.push_back(Corruptions("arc", Must(EncodeContours({s.Arc(60, 2, 0, 0, 0.05)}, 1e-3)),
-                                nullptr, "", 6, 200));
+  auto skc1 = [](const std::vector<Polyline2>& lines, double step) {
+    return Must(internal::EncodeContoursSkc1(lines, step));
+  };
   corrupt.push_back(
-      Corruptions("tagged", Must(EncodeContours({s.Noise(40, 1000)}, 1e-3)), nullptr, "", 3, 400));
+      Corruptions("varint", skc1({s.Noise(4, 3), {{1, 2}}, {}}, 1e-3), nullptr, "", 1, 400));
+  corrupt.push_back(
+      Corruptions("raw", skc1({s.Arc(120, 2, 1, 1, 0.05)}, 1e-3), nullptr, "", 2, 400));
+  corrupt.push_back(
+      Corruptions("arc", skc1({s.Arc(60, 2, 0, 0, 0.05)}, 1e-3), nullptr, "", 6, 200));
+  corrupt.push_back(Corruptions("tagged", skc1({s.Noise(40, 1000)}, 1e-3), nullptr, "", 3, 400));
+  corrupt.push_back(Corruptions("curve", Must(EncodeContours({s.Arc(60, 2, 0, 0, 0.05)}, 1e-3)),
+                                nullptr, "", 7, 400));
+  corrupt.push_back(Corruptions(
+      "curve_mixed", Must(EncodeContours({s.Noise(5, 3), {}, s.Walk(40, 0.1), {{2, 2}}}, 1e-3)),
+      nullptr, "", 8, 400));
   auto skin = Skin::Build(Wavy(4));
   if (!skin.ok()) return 1;
   ContourView empty;
@@ -328,8 +374,18 @@ int Main(int argc, char** argv) {
   corrupt.push_back(
       Corruptions("update", Must(EncodeSkinUpdate(*skin, *change)), &view, snap, 5, 120));
 
+  // The benchmark's skin (tests/bench/skin_bench.cc: 1,000 balls, seed 20261122 + 1000) as one
+  // snapshot, for the JS decoder's speed on the same data as `sculpt-bench skin`.
+  auto big = Skin::Build(BenchChain(1000, 20261122 + 1000));
+  if (!big.ok()) return 1;
+  size_t big_points = 0;
+  for (const Section& sec : big->sections()) big_points += sec.plus.size() + sec.minus.size();
+  const json bench = {{"bytes", Hex(Must(EncodeSkinSnapshot(*big)))},
+                      {"skc1_bytes", Hex(Must(internal::EncodeSkinSnapshotSkc1(*big)))},
+                      {"points", big_points}};
+
   std::ofstream out(argv[1]);
-  out << json{{"sets", sets}, {"views", views}, {"corrupt", corrupt}}.dump();
+  out << json{{"sets", sets}, {"views", views}, {"corrupt", corrupt}, {"bench", bench}}.dump();
   return out.good() ? 0 : 1;
 }
 

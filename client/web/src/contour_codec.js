@@ -1,7 +1,9 @@
 // The contour codec's decoder (common/include/sculpt/skin/contour_codec.h): polyline sets, skin
-// snapshots and skin updates, with both residual codings (varints, and Draco's rANS symbol
-// coding as draco::EncodeSymbols writes it, tagged or raw scheme). Plain ES module, no
-// dependencies: bundled into the web client and run by node in the tests.
+// snapshots and skin updates, in SKC2's curve coding (an adaptive binary range coder over
+// residuals of a circle-continuing prediction; every double operation repeats the C++ one, so
+// both decode the same points to the bit) and in SKC1's two residual codings (varints, and
+// Draco's rANS symbol coding as draco::EncodeSymbols writes it, tagged or raw scheme). Plain ES
+// module, no dependencies: bundled into the web client and run by node in the tests.
 //
 // Bytes come off the wire: every read is bounded, counts are capped as the C++ decoder caps
 // them, and anything wrong throws a ContourError naming it. Every message the C++ decoder
@@ -26,15 +28,16 @@ export class ContourError extends Error {
 export const kMaxContourPoints = 2 ** 26;
 export const kMaxContourPolylines = 2 ** 24;
 
-const kMagic = [0x53, 0x4b, 0x43, 0x31];  // "SKC1"
+const kMagic = [0x53, 0x4b, 0x43];  // "SKC", then '1' or '2'
 const kPolylineSet = 0;
 const kSnapshot = 1;
 const kUpdate = 2;
 const kVarint = 0;
 const kRans = 1;
+const kCurve = 2;
 const kMaxQuantised = 2 ** 52;
 const kExact = 2 ** 53;  // integers up to here are exact doubles
-const kPow2 = Float64Array.from({ length: 33 }, (_, i) => 2 ** i);
+const kPow2 = Float64Array.from({ length: 54 }, (_, i) => 2 ** i);
 
 function truncated(what) {
   return new ContourError(`contour: truncated ${what}`);
@@ -295,6 +298,279 @@ function decodeSymbols(numValues, numComponents, buf, out) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// SKC2's curve coding (CurveBody / DecodeCurveBody in contour_codec.cc, the range coder in
+// common/src/skin/range_coder.cc).
+
+const kProbBits = 12;
+const kOne = 1 << kProbBits;
+const kAdapt = 5;
+const kTop = 2 ** 24;
+const kMaxIntBucket = 52;
+const kMaxExactId = 2 ** 53 - 1;
+const kRatioLo = 0.95;
+const kRatioHi = 1 / 0.95;
+const kAlongContexts = 6;
+const kAcrossContexts = 10;
+
+/** RangeDecoder: LZMA's binary range decoding with 12-bit adaptive probabilities. Reads past
+ *  the end see zeros and are counted; all state stays below 2^32 (exact in doubles). */
+class RangeDecoder {
+  constructor(bytes, pos, end) {
+    this.bytes = bytes;
+    this.pos = pos;
+    this.start = pos;
+    this.end = end;
+    this.overrun = 0;
+    this.range = 0xffffffff;
+    this.code = 0;
+    this.firstOk = this.next() === 0;
+    for (let i = 0; i < 4; ++i) this.code = this.code * 256 + this.next();
+  }
+  next() {
+    if (this.pos >= this.end) {
+      this.overrun += 1;
+      return 0;
+    }
+    return this.bytes[this.pos++];
+  }
+  ok() {
+    return this.firstOk && this.overrun === 0;
+  }
+  consumed() {
+    return this.pos - this.start;
+  }
+  normalize() {
+    while (this.range < kTop) {
+      this.range = (this.range * 256) >>> 0;
+      // code < range in a valid stream; a corrupt one wraps modulo 2^32 as uint32 would.
+      this.code = (this.code * 256 + this.next()) >>> 0;
+    }
+  }
+  /** A bit with the adaptive probability models[i] (of a 0, in 1/4096). */
+  bit(models, i) {
+    const p = models[i];
+    const bound = (this.range >>> kProbBits) * p;
+    let b;
+    if (this.code < bound) {
+      this.range = bound;
+      models[i] = p + ((kOne - p) >> kAdapt);
+      b = 0;
+    } else {
+      this.code -= bound;
+      this.range -= bound;
+      models[i] = p - (p >> kAdapt);
+      b = 1;
+    }
+    this.normalize();
+    return b;
+  }
+  /** `count` bits at probability 1/2, most significant first (count <= 51: exact). */
+  raw(count) {
+    let v = 0;
+    for (let i = 0; i < count; ++i) {
+      this.range >>>= 1;
+      let b = 0;
+      if (this.code >= this.range) {
+        this.code -= this.range;
+        b = 1;
+      }
+      v = v * 2 + b;
+      this.normalize();
+    }
+    return v;
+  }
+  /** A signed integer (IntModel: zero, sign, 52 length models, 53 top-bit models), |v| < 2^53. */
+  int(m) {
+    if (!this.bit(m, 0)) return 0;
+    const negative = this.bit(m, 1);
+    let k = 0;
+    while (k < kMaxIntBucket && this.bit(m, 2 + k)) ++k;
+    let mag = 1;
+    if (k >= 1) {
+      mag = (2 + this.bit(m, 2 + kMaxIntBucket + k)) * kPow2[k - 1];
+      if (k >= 2) mag += this.raw(k - 1);
+    }
+    return negative ? -mag : mag;
+  }
+}
+
+/** An IntModel's probabilities: zero, sign, length[52], top[53]. */
+function intModel() {
+  return new Uint16Array(2 + kMaxIntBucket + kMaxIntBucket + 1).fill(kOne / 2);
+}
+
+/** std::clamp(v, lo, hi) (NaN passes through). */
+function clamp(v, lo, hi) {
+  return v < lo ? lo : hi < v ? hi : v;
+}
+
+/**
+ * The prediction frame at the tail's last point (MakeFrame): tail is [x3, y3, x2, y2, x1, y1]
+ * with n valid points, oldest first. Writes {x, y, ux, uy, lp, l1, c} into f.
+ */
+function makeFrame(t, n, f) {
+  f.x = t[4];
+  f.y = t[5];
+  f.ux = 1;
+  f.uy = 0;
+  f.lp = 0;
+  f.l1 = 0;
+  f.c = 0;
+  if (n < 2) return;
+  const c1x = t[4] - t[2];
+  const c1y = t[5] - t[3];
+  const l1 = Math.sqrt(c1x * c1x + c1y * c1y);
+  if (!(l1 > 0) || !Number.isFinite(l1)) return;
+  f.ux = c1x / l1;
+  f.uy = c1y / l1;
+  f.l1 = l1;
+  f.lp = l1;
+  if (n < 3) return;
+  const c2x = t[2] - t[0];
+  const c2y = t[3] - t[1];
+  const l2 = Math.sqrt(c2x * c2x + c2y * c2y);
+  if (l2 > 0) f.lp = l1 * clamp(l1 / l2, kRatioLo, kRatioHi);
+  const dx = t[0] - t[4];
+  const dy = t[1] - t[5];
+  const x3 = dx * f.ux + dy * f.uy;
+  const y3 = dy * f.ux - dx * f.uy;
+  const den = x3 * (x3 + l1);
+  if (den > 0 && Math.abs(y3) <= Math.abs(x3)) f.c = y3 / den;
+}
+
+function alongContext(k, prev) {
+  if (k === 1) return 5;
+  const m = Math.abs(prev);
+  return m === 0 ? 0 : m <= 2 ? 1 : m <= 8 ? 2 : m <= 32 ? 3 : 4;
+}
+
+function acrossContext(k, prevE, a) {
+  if (k === 1) return 9;
+  return Math.min(Math.abs(prevE), 2) + 3 * Math.min(Math.abs(a), 2);
+}
+
+/**
+ * Decodes the curve coding's body, bytes[pos..], into p: the section entries (index, id,
+ * version) of a skin message, then every line's point count (capped by the message size), then
+ * the points. Throws ContourError as DecodeCurveBody returns its errors.
+ */
+function decodeCurveBody(bytes, pos, p, nentries, nlines) {
+  const rc = new RangeDecoder(bytes, pos, bytes.length);
+  const step = p.step;
+  const kind = p.kind;
+  const m = {
+    index: intModel(), id: intModel(), version: intModel(), count: intModel(),
+    first: intModel(), join: new Uint16Array(1).fill(kOne / 2),
+    closed: new Uint16Array(1).fill(kOne / 2),
+    along: Array.from({ length: kAlongContexts }, intModel),
+    across: Array.from({ length: kAcrossContexts }, intModel),
+  };
+  const stride = kind === kPolylineSet ? 1 : 2;
+  let index = -1;
+  let id = -1;
+  let version = 0;
+  for (let e = 0; e < nentries; ++e) {
+    index = kind === kUpdate ? index + 1 + rc.int(m.index) : index + 1;
+    id = id + 1 + rc.int(m.id);
+    version += rc.int(m.version);
+    if (!rc.ok()) throw truncated('section entries');
+    if (index < 0 || index >= p.sectionCount) {
+      throw new ContourError(`contour.section_index=${index} outside [0, ${p.sectionCount})`);
+    }
+    if (id < 0 || id > kMaxExactId || version < 0 || version > kMaxExactId) {
+      throw new ContourError(`contour.section_id/version=${id}/${version} outside [0, 2^53)`);
+    }
+    p.index.push(index);
+    p.id.push(id);
+    p.version.push(version);
+  }
+  const counts = [];
+  let total = 0;
+  const cap = Math.min(kMaxContourPoints, 65536 + 512 * bytes.length);
+  for (let j = 0; j < nlines; ++j) {
+    const prev = j >= stride ? counts[j - stride] : 0;
+    const n = prev + rc.int(m.count);
+    if (!rc.ok()) throw truncated('point counts');
+    if (n < 0) throw new ContourError(`contour.points=${n} for a polyline`);
+    total += n;
+    if (n > cap || total > cap) {
+      throw new ContourError(`contour.points=${total} outside [0, ${cap}] for a ` +
+                             `${bytes.length}-byte message`);
+    }
+    counts.push(n);
+  }
+  const limit = kMaxQuantised * step;
+  const tail = new Float64Array(6);
+  const f = { x: 0, y: 0, ux: 1, uy: 0, lp: 0, l1: 0, c: 0 };
+  const outside = () => new ContourError('contour: decoded point outside [-2^52, 2^52] steps');
+  for (let j = 0; j < nlines; ++j) {
+    const n = counts[j];
+    const out = allocate(Float64Array, 2 * n);
+    p.lines.push(out);
+    if (n === 0) continue;
+    const ctx = j >= stride ? p.lines[j - stride] : null;
+    // The tail: the last three decoded points, oldest first (have of them valid).
+    let have = 0;
+    if (ctx && ctx.length && rc.bit(m.join, 0)) {
+      const from = Math.max(0, ctx.length / 2 - 3);
+      have = ctx.length / 2 - from;
+      tail.set(ctx.subarray(2 * from), 6 - 2 * have);
+    }
+    if (have === 0) {
+      let rx = 0;
+      let ry = 0;
+      if (ctx && ctx.length) {
+        rx = roundAway(ctx[ctx.length - 2] / step);
+        ry = roundAway(ctx[ctx.length - 1] / step);
+      }
+      const x = rx + rc.int(m.first);
+      const y = ry + rc.int(m.first);
+      if (Math.abs(x) > kMaxQuantised || Math.abs(y) > kMaxQuantised) throw outside();
+      tail[4] = x * step;
+      tail[5] = y * step;
+      have = 1;
+    }
+    out[0] = tail[4];
+    out[1] = tail[5];
+    const closed = n >= 2 && rc.bit(m.closed, 0) === 1;
+    const coded = closed ? n - 1 : n;
+    let prevA = 0;
+    let prevE = 0;
+    for (let k = 1; k < coded; ++k) {
+      makeFrame(tail, have, f);
+      const kk = k < 2 ? k : 2;
+      const a = rc.int(m.along[alongContext(kk, prevA)]);
+      const e = rc.int(m.across[acrossContext(kk, prevE, a)]);
+      const s = f.lp + a * step;
+      const nn = f.c * s * (s + f.l1) + e * step;
+      const x = f.x + (f.ux * s - f.uy * nn);
+      const y = f.y + (f.uy * s + f.ux * nn);
+      if (!(Math.abs(x) <= limit) || !(Math.abs(y) <= limit)) throw outside();
+      if (!rc.ok()) throw truncated('points');
+      prevA = a;
+      prevE = e;
+      tail[0] = tail[2];
+      tail[1] = tail[3];
+      tail[2] = tail[4];
+      tail[3] = tail[5];
+      tail[4] = x;
+      tail[5] = y;
+      if (have < 3) have += 1;
+      out[2 * k] = x;
+      out[2 * k + 1] = y;
+    }
+    if (closed) {
+      out[2 * n - 2] = out[0];
+      out[2 * n - 1] = out[1];
+    }
+  }
+  if (!rc.ok()) throw truncated('curve body');
+  if (rc.pos !== bytes.length) {
+    throw new ContourError(`contour: ${bytes.length - rc.pos} trailing bytes`);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
 // The contour format.
 
 /** A bounded reader over the message (the C++ Reader). */
@@ -384,9 +660,11 @@ function exactId(v, field) {
 function parse(bytes) {
   if (!(bytes instanceof Uint8Array)) throw new ContourError('contour: bytes must be a Uint8Array');
   const r = new Reader(bytes);
-  if (bytes.length < 4 || kMagic.some((m, i) => bytes[i] !== m)) {
-    throw new ContourError('contour: bad magic (want SKC1)');
+  if (bytes.length < 4 || kMagic.some((m, i) => bytes[i] !== m) ||
+      (bytes[3] !== 0x31 && bytes[3] !== 0x32)) {
+    throw new ContourError('contour: bad magic (want SKC2 or SKC1)');
   }
+  const skc2 = bytes[3] === 0x32;
   r.pos = 4;
   if (r.pos >= bytes.length) throw truncated('kind');
   const kind = bytes[r.pos++];
@@ -400,7 +678,10 @@ function parse(bytes) {
   }
   if (r.pos >= bytes.length) throw truncated('coding');
   const coding = bytes[r.pos++];
-  if (coding > kRans) throw new ContourError(`contour.coding=${coding} outside [0, 1]`);
+  if (skc2 ? coding !== kCurve : coding > kRans) {
+    throw new ContourError(`contour.coding=${coding} outside ` +
+                           (skc2 ? '[2, 2] for SKC2' : '[0, 1] for SKC1'));
+  }
 
   const p = { kind, step, coding, scheme: null, sectionCount: 0, spliceAt: 0, removed: 0,
               inserted: 0, index: [], id: [], version: [], lines: [] };
@@ -431,7 +712,7 @@ function parse(bytes) {
       }
       Object.assign(p, { spliceAt, removed, inserted });
     }
-    for (let i = 0; i < entries; ++i) {
+    for (let i = 0; i < entries && !skc2; ++i) {
       let idx = i;
       if (kind === kUpdate) {
         idx = r.varint();
@@ -448,6 +729,10 @@ function parse(bytes) {
       p.version.push(exactId(version, 'section_version'));
     }
     nlines = 2 * entries;
+  }
+  if (coding === kCurve) {
+    decodeCurveBody(bytes, r.pos, p, kind === kPolylineSet ? 0 : nlines / 2, nlines);
+    return p;
   }
 
   // Point counts and first points (grown as read: a hostile line count costs no memory until

@@ -1,8 +1,9 @@
 // The web client's contour decoder (src/contour_codec.js) against the C++ codec. The fixtures
-// (tests/web/contour_fixtures.cc) hold messages from the C++ encoder with what the C++ decoder
-// made of them; every one must decode to the same points here (both dequantise the same
-// integers: equal within 1e-9 relative), and every truncated or corrupted variant must get the
-// C++ verdict: a ContourError where C++ refused, the same points where it accepted.
+// (tests/web/contour_fixtures.cc) hold messages from the C++ encoder (SKC2, and SKC1 from the
+// older encoder) with what the C++ decoder made of them; every one must decode to the same
+// points here (identical doubles: both repeat the same operations), and every truncated or
+// corrupted variant must get the C++ verdict: a ContourError where C++ refused, the same points
+// where it accepted. Last, the JS decode speed on the benchmark's 1,000-ball skin.
 //
 // Usage: node contour_codec_test.mjs --fixtures-bin PATH/contour_fixtures --out FIXTURES.json
 //        node contour_codec_test.mjs --json FIXTURES.json      (fixtures written earlier)
@@ -54,7 +55,7 @@ function samePoints(expected, actual, where) {
   for (let i = 0; i < expected.length; ++i) {
     const e = expected[i];
     const a = actual[i];
-    const ok = e === null ? !Number.isFinite(a) : a === e || Math.abs(a - e) <= 1e-9 * Math.abs(e);
+    const ok = e === null ? !Number.isFinite(a) : a === e;
     if (!check(ok, where, `value ${i}: ${a}, C++ decoded ${e}`)) return false;
   }
   return true;
@@ -104,11 +105,11 @@ for (const set of fixtures.sets) {
   set.lines.forEach((l, i) => samePoints(l, lines[i], `${where} polyline ${i}`));
   const d = describeContour(bytes);
   check(d.coding === bytes[13] && d.step === set.step, where, `described as ${JSON.stringify(d)}`);
-  seen.add(d.coding === 0 ? 'varint' : d.scheme);
+  seen.add(d.coding === 0 ? 'varint' : d.coding === 2 ? 'curve' : d.scheme);
   if (d.scheme === 'raw' && d.precisionBits > 12) seen.add('raw, precision > 12');
   if (d.scheme === 'tagged') seen.add(`tagged`);
 }
-for (const want of ['varint', 'raw', 'tagged', 'raw, precision > 12']) {
+for (const want of ['curve', 'varint', 'raw', 'tagged', 'raw, precision > 12']) {
   check(seen.has(want), 'coverage', `no fixture uses ${want} (seen: ${[...seen].join(', ')})`);
 }
 
@@ -181,7 +182,7 @@ for (const c of fixtures.corrupt) {
 
 // The stricter checks do work: on rANS-coded messages they refuse corruptions C++ lets through.
 for (const [name, t] of Object.entries(tally)) {
-  if (name !== 'varint') {
+  if (name === 'raw' || name === 'tagged' || name === 'arc') {
     check(t.jsRefused > t.cxxRefused, `corrupt ${name}`,
           `refused ${t.jsRefused} variants, no more than C++'s ${t.cxxRefused}`);
   }
@@ -224,11 +225,35 @@ check(thrown(() => decodeContours([0x53, 0x4b, 0x43, 0x31]), 'array') !== null, 
 }
 check(slowest < 1000, 'time', `one decode took ${slowest.toFixed(0)} ms`);
 
+// 5. Decode speed on the benchmark's skin, SKC2 and SKC1 alternately in one run (one snapshot
+//    each; best of several runs).
+let speed = '';
+if (fixtures.bench) {
+  const forms = [hex(fixtures.bench.bytes), hex(fixtures.bench.skc1_bytes)];
+  const best = [Infinity, Infinity];
+  let points = 0;
+  for (let run = 0; run < 30; ++run) {
+    forms.forEach((bytes, f) => {
+      const t0 = performance.now();
+      const view = new ContourView();
+      view.apply(bytes);
+      best[f] = Math.min(best[f], performance.now() - t0);
+      points = view.sections.reduce((n, sec) => n + (sec.plus.length + sec.minus.length) / 2, 0);
+      check(points === fixtures.bench.points, 'bench', `${points} points, C++ ${fixtures.bench.points}`);
+    });
+  }
+  const bytes = forms[0];
+  speed = `; bench skin ${points} points in ${bytes.length} bytes ` +
+          `(${(bytes.length * 8 / points).toFixed(2)} bits/point), decode ` +
+          `${best[0].toFixed(2)} ms = ${(points / best[0] / 1000).toFixed(1)} M points/s ` +
+          `(SKC1 ${forms[1].length} bytes: ${(points / best[1] / 1000).toFixed(1)} M points/s)`;
+}
+
 const ms = performance.now() - started;
 console.log(`contour codec: ${fixtures.sets.length} polyline sets (${[...seen].join(', ')}), ` +
             `${fixtures.views.map((v) => v.steps.length).join('+')} view steps, ` +
             `corruptions ${JSON.stringify(tally)}; ${checks} checks in ${ms.toFixed(0)} ms, ` +
-            `slowest decode ${slowest.toFixed(1)} ms`);
+            `slowest decode ${slowest.toFixed(1)} ms${speed}`);
 if (failures) {
   console.error(`${failures} failures`);
   process.exit(1);

@@ -1,4 +1,6 @@
-/// @brief The contour codec: quantise, predict, zigzag, then varints or Draco's entropy coder.
+/// @brief The contour codec: SKC2's curve coding (a circle-continuing prediction in the curve's
+/// own frame, residuals on a rotated lattice, an adaptive range coder), and SKC1's quantise,
+/// predict, zigzag, then varints or Draco's entropy coder.
 #include "sculpt/skin/contour_codec.h"
 
 #include <draco/compression/entropy/symbol_decoding.h>
@@ -11,15 +13,20 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <memory>
+#include <optional>
 
+#include "contour_codec_internal.h"
+#include "range_coder.h"
 #include "sculpt/core/check.h"
 
 namespace sculpt::skin {
 namespace {
 
-constexpr char kMagic[4] = {'S', 'K', 'C', '1'};
+constexpr char kMagic1[4] = {'S', 'K', 'C', '1'};
+constexpr char kMagic2[4] = {'S', 'K', 'C', '2'};
 enum Kind : uint8_t { kPolylineSet = 0, kSnapshot = 1, kUpdate = 2 };
-enum Coding : uint8_t { kVarint = 0, kRans = 1 };
+enum Coding : uint8_t { kVarint = 0, kRans = 1, kCurve = 2 };
 constexpr double kMaxQuantised = 4503599627370496.0;  // 2^52
 
 using Q = std::array<int64_t, 2>;
@@ -169,7 +176,7 @@ std::string Assemble(Kind kind, double step, const std::string& header,
       body.assign(buf.data(), buf.size());
     }
   }
-  std::string out(kMagic, 4);
+  std::string out(kMagic1, 4);
   out.push_back(static_cast<char>(kind));
   char sb[8];
   std::memcpy(sb, &step, 8);  // little-endian hosts only (x86-64, aarch64)
@@ -200,14 +207,370 @@ bool AddBounded(int64_t a, int64_t b, int64_t* out) {
 
 Status Truncated(const char* what) { return DataLoss(std::string("contour: truncated ") + what); }
 
+// ---------------------------------------------------------------------------------------------
+// SKC2's curve coding. Every decoded point is p1 + s u + n v: p1 the previous decoded point, u the
+// direction of the last step and v = u turned left, s = the predicted step length plus a * step,
+// n = the parabola through the last three points evaluated at s plus e * step. The encoder
+// rounds a and e, so the decoded point is within step/2 of the input along u and along v, hence
+// within step/sqrt(2); it checks every point as the decoder will compute it.
+// Only + - * / and sqrt on doubles, in the order written (the JS decoder repeats it; the file
+// is built with -ffp-contract=off so no platform fuses a multiply-add).
+
+constexpr double kRatioLo = 0.95;  // the step-length ratio carried on, clamped to [0.95, 1/0.95]
+constexpr double kRatioHi = 1 / 0.95;
+constexpr int kAlongContexts = 6;
+constexpr int kAcrossContexts = 10;
+
+/// The last three decoded points of a line, oldest first (n of them valid).
+struct Tail {
+  Vec2 p[3];
+  int n = 0;
+  void Push(Vec2 v) {
+    p[0] = p[1];
+    p[1] = p[2];
+    p[2] = v;
+    if (n < 3) ++n;
+  }
+};
+
+/// The prediction frame at the tail's last point.
+struct Frame {
+  double x = 0, y = 0;    // p1
+  double ux = 1, uy = 0;  // unit direction of the last step
+  double lp = 0;          // predicted length of the next step
+  double l1 = 0;          // length of the last step
+  double c = 0;           // parabola n(s) = c s (s + l1) through p3, p2, p1
+};
+
+/// `l2` is the length of the step before the last (the previous frame's l1, the same double) or
+/// negative when unknown.
+Frame MakeFrame(const Tail& t, double l2_known = -1) {
+  Frame f;
+  const Vec2 p1 = t.p[2];
+  f.x = p1.x;
+  f.y = p1.y;
+  if (t.n < 2) return f;
+  const Vec2 p2 = t.p[1];
+  const double c1x = p1.x - p2.x, c1y = p1.y - p2.y;
+  const double l1 = std::sqrt(c1x * c1x + c1y * c1y);
+  if (!(l1 > 0) || !std::isfinite(l1)) return f;
+  f.ux = c1x / l1;
+  f.uy = c1y / l1;
+  f.l1 = l1;
+  f.lp = l1;
+  if (t.n < 3) return f;
+  const Vec2 p3 = t.p[0];
+  double l2 = l2_known;
+  if (l2 < 0) {
+    const double c2x = p2.x - p3.x, c2y = p2.y - p3.y;
+    l2 = std::sqrt(c2x * c2x + c2y * c2y);
+  }
+  if (l2 > 0) f.lp = l1 * std::clamp(l1 / l2, kRatioLo, kRatioHi);
+  const double dx = p3.x - p1.x, dy = p3.y - p1.y;
+  const double x3 = dx * f.ux + dy * f.uy;
+  const double y3 = dy * f.ux - dx * f.uy;
+  const double den = x3 * (x3 + l1);
+  // Only a gentle turn (under 45 degrees) is continued; anything else predicts a straight step.
+  if (den > 0 && std::abs(y3) <= std::abs(x3)) f.c = y3 / den;
+  return f;
+}
+
+/// The along offset s and the across offset n of a point from frame f.
+double AcrossAt(const Frame& f, double s) { return f.c * s * (s + f.l1); }
+Vec2 Place(const Frame& f, double s, double n) {
+  return {f.x + (f.ux * s - f.uy * n), f.y + (f.uy * s + f.ux * n)};
+}
+
+int AlongContext(int k, int64_t prev) {
+  if (k == 1) return 5;
+  const uint64_t m = prev < 0 ? 0 - static_cast<uint64_t>(prev) : static_cast<uint64_t>(prev);
+  return m == 0 ? 0 : m <= 2 ? 1 : m <= 8 ? 2 : m <= 32 ? 3 : 4;
+}
+int AcrossContext(int k, int64_t prev_e, int64_t a) {
+  if (k == 1) return 9;
+  auto small = [](int64_t v) {
+    const uint64_t m = v < 0 ? 0 - static_cast<uint64_t>(v) : static_cast<uint64_t>(v);
+    return static_cast<int>(std::min<uint64_t>(m, 2));
+  };
+  return small(prev_e) + 3 * small(a);
+}
+
+/// A section entry of a skin message: its index (updates only), id and version.
+struct Entry {
+  uint64_t index = 0, id = 0, version = 0;
+};
+
+/// Section ids and versions must be exact JavaScript numbers in SKC2.
+constexpr uint64_t kMaxExactId = (1ull << 53) - 1;
+
+/// The adaptive models of one message.
+struct CurveModels {
+  internal::IntModel index, id, version;
+  internal::IntModel count, first;
+  internal::BitModel join, closed;
+  internal::IntModel along[kAlongContexts], across[kAcrossContexts];
+};
+
+/// The last up-to-three points of `ctx` (which ends at the joint), as a tail.
+Tail TailOf(const Polyline2& ctx) {
+  Tail t;
+  for (size_t i = ctx.size() > 3 ? ctx.size() - 3 : 0; i < ctx.size(); ++i) t.Push(ctx[i]);
+  return t;
+}
+
+/// The rounding of x / step to an integer when it is a plane coordinate of at most 2^52 steps.
+bool StepIndex(double v, double step, int64_t* out) {
+  const double x = v / step;
+  if (!(std::abs(x) <= kMaxQuantised)) return false;
+  *out = static_cast<int64_t>(std::llround(x));
+  return true;
+}
+
+bool Codable(int64_t v) {
+  return v >= -static_cast<int64_t>(internal::kMaxCodedMagnitude) &&
+         v <= static_cast<int64_t>(internal::kMaxCodedMagnitude);
+}
+
+/// A decoded coordinate must be finite and within 2^52 steps (as SKC1's integers are).
+bool InPlane(Vec2 p, double step) {
+  return std::abs(p.x) <= kMaxQuantised * step && std::abs(p.y) <= kMaxQuantised * step;
+}
+
+/// The range-coded body of the curve coding, or nullopt when some point cannot be placed within
+/// step/sqrt(2) in doubles (coordinates so large against the step that rounding eats the margin),
+/// in which case the caller writes SKC1.
+std::optional<std::string> CurveBody(Kind kind, double step, const std::vector<Entry>& entries,
+                                     const std::vector<const Polyline2*>& lines) {
+  const double bound2 = step * step / 2;
+  internal::RangeEncoder rc;
+  auto models = std::make_unique<CurveModels>();
+  const size_t stride = kind == kPolylineSet ? 1 : 2;
+  // Entries as differences from the previous one's index + 1, id + 1 and version.
+  Entry prev{static_cast<uint64_t>(-1), static_cast<uint64_t>(-1), 0};
+  for (const Entry& e : entries) {
+    if (e.id > kMaxExactId || e.version > kMaxExactId) return std::nullopt;
+    if (kind == kUpdate) rc.Int(models->index, static_cast<int64_t>(e.index - (prev.index + 1)));
+    rc.Int(models->id, static_cast<int64_t>(e.id) - static_cast<int64_t>(prev.id + 1));
+    rc.Int(models->version, static_cast<int64_t>(e.version) - static_cast<int64_t>(prev.version));
+    prev = e;
+  }
+  for (size_t j = 0; j < lines.size(); ++j) {
+    const size_t prev = j >= stride ? lines[j - stride]->size() : 0;
+    rc.Int(models->count, static_cast<int64_t>(lines[j]->size()) - static_cast<int64_t>(prev));
+  }
+  std::vector<Polyline2> decoded(lines.size());
+  for (size_t j = 0; j < lines.size(); ++j) {
+    const Polyline2& in = *lines[j];
+    if (in.empty()) continue;
+    Polyline2& out = decoded[j];
+    out.reserve(in.size());
+    const Polyline2* ctx = j >= stride ? &decoded[j - stride] : nullptr;
+    Tail tail;
+    if (ctx && !ctx->empty()) {
+      const Vec2 d = in[0] - ctx->back();
+      const bool join = d.x * d.x + d.y * d.y <= bound2;
+      rc.Bit(models->join, join);
+      if (join) tail = TailOf(*ctx);
+    }
+    if (tail.n == 0) {
+      int64_t rx = 0, ry = 0, x = 0, y = 0;
+      if (ctx && !ctx->empty() &&
+          (!StepIndex(ctx->back().x, step, &rx) || !StepIndex(ctx->back().y, step, &ry))) {
+        return std::nullopt;
+      }
+      if (!StepIndex(in[0].x, step, &x) || !StepIndex(in[0].y, step, &y)) return std::nullopt;
+      if (!Codable(x - rx) || !Codable(y - ry)) return std::nullopt;
+      rc.Int(models->first, x - rx);
+      rc.Int(models->first, y - ry);
+      const Vec2 p{static_cast<double>(x) * step, static_cast<double>(y) * step};
+      const Vec2 d = p - in[0];
+      if (!(d.x * d.x + d.y * d.y <= bound2)) return std::nullopt;
+      tail.Push(p);
+    }
+    out.push_back(tail.p[2]);
+    // A closed line (last point == first, as slice loops come) ends on its decoded first point.
+    const bool closed = in.size() >= 2 && in.back() == in.front();
+    if (in.size() >= 2) rc.Bit(models->closed, closed);
+    const size_t coded = closed ? in.size() - 1 : in.size();
+    int64_t prev_a = 0, prev_e = 0;
+    for (size_t k = 1; k < coded; ++k) {
+      const Frame f = MakeFrame(tail);
+      const double dx = in[k].x - f.x, dy = in[k].y - f.y;
+      const double ta = (dx * f.ux + dy * f.uy - f.lp) / step;
+      if (!(std::abs(ta) < kMaxQuantised)) return std::nullopt;
+      const int64_t a0 = std::llround(ta);
+      bool placed = false;
+      int64_t a = 0, e = 0;
+      Vec2 p;
+      // The rounded offsets nearly always place the point; rounding in the last bits can push it
+      // just outside, and then a neighbour does.
+      for (int64_t da : {0, -1, 1}) {
+        a = a0 + da;
+        const double s = f.lp + static_cast<double>(a) * step;
+        const double np = AcrossAt(f, s);
+        const double te = (dy * f.ux - dx * f.uy - np) / step;
+        if (!(std::abs(te) < kMaxQuantised)) return std::nullopt;
+        const int64_t e0 = std::llround(te);
+        for (int64_t de : {0, -1, 1}) {
+          e = e0 + de;
+          p = Place(f, s, np + static_cast<double>(e) * step);
+          const Vec2 d = p - in[k];
+          if (d.x * d.x + d.y * d.y <= bound2 && InPlane(p, step)) {
+            placed = true;
+            break;
+          }
+        }
+        if (placed) break;
+      }
+      if (!placed) return std::nullopt;
+      rc.Int(models->along[AlongContext(static_cast<int>(std::min<size_t>(k, 2)), prev_a)], a);
+      rc.Int(models->across[AcrossContext(static_cast<int>(std::min<size_t>(k, 2)), prev_e, a)], e);
+      prev_a = a;
+      prev_e = e;
+      tail.Push(p);
+      out.push_back(p);
+    }
+    if (closed) out.push_back(out.front());
+  }
+  return rc.Finish();
+}
+
+/// The message: SKC2 with the curve coding where it places every point, SKC1 otherwise.
+/// `header` holds the kind's counts; SKC1 writes the section entries after it as varints, SKC2
+/// codes them in its body.
+std::string Encode(Kind kind, double step, const std::string& header,
+                   const std::vector<Entry>& entries, const std::vector<const Polyline2*>& lines,
+                   const std::vector<QLine>& q, bool curve = true) {
+  std::optional<std::string> body;
+  if (curve) body = CurveBody(kind, step, entries, lines);
+  if (!body) {
+    std::string h = header;
+    for (const Entry& e : entries) {
+      if (kind == kUpdate) PutVarint(h, e.index);
+      PutVarint(h, e.id);
+      PutVarint(h, e.version);
+    }
+    return Assemble(kind, step, h, q);
+  }
+  std::string out(kMagic2, 4);
+  out.push_back(static_cast<char>(kind));
+  char sb[8];
+  std::memcpy(sb, &step, 8);  // little-endian hosts only (x86-64, aarch64)
+  out.append(sb, 8);
+  out.push_back(static_cast<char>(kCurve));
+  out += header;
+  out += *body;
+  return out;
+}
+
+/// Decodes the curve coding's body (the rest of the message) into `lines`, whose point counts it
+/// reads first and caps by the message size.
+Status DecodeCurveBody(std::string_view body, size_t message_size, Kind kind, double step,
+                       uint64_t nlines, uint64_t section_count, std::vector<Entry>* entries,
+                       std::vector<Polyline2>* lines) {
+  internal::RangeDecoder rc(body);
+  auto models = std::make_unique<CurveModels>();
+  const size_t stride = kind == kPolylineSet ? 1 : 2;
+  int64_t index = -1, id = -1, version = 0;
+  for (Entry& e : *entries) {
+    // Each delta is at most 2^53 in magnitude: no sum below overflows.
+    index = kind == kUpdate ? index + 1 + rc.Int(models->index) : index + 1;
+    id = id + 1 + rc.Int(models->id);
+    version += rc.Int(models->version);
+    if (!rc.ok()) return Truncated("section entries");
+    if (index < 0 || static_cast<uint64_t>(index) >= section_count) {
+      return InvalidArgument("contour.section_index=" + std::to_string(index) + " outside [0, " +
+                             std::to_string(section_count) + ")");
+    }
+    if (id < 0 || static_cast<uint64_t>(id) > kMaxExactId || version < 0 ||
+        static_cast<uint64_t>(version) > kMaxExactId) {
+      return InvalidArgument("contour.section_id/version=" + std::to_string(id) + "/" +
+                             std::to_string(version) + " outside [0, 2^53)");
+    }
+    e = {static_cast<uint64_t>(index), static_cast<uint64_t>(id), static_cast<uint64_t>(version)};
+  }
+  std::vector<uint64_t> counts;
+  uint64_t total = 0;
+  // An adaptive bit costs at least 1/90 bit, a point two bits: a claim beyond this is a lie that
+  // would only make us allocate.
+  const uint64_t cap = std::min<uint64_t>(kMaxContourPoints, 65536 + 512 * message_size);
+  for (uint64_t j = 0; j < nlines; ++j) {
+    const int64_t prev = j >= stride ? static_cast<int64_t>(counts[j - stride]) : 0;
+    const int64_t n = prev + rc.Int(models->count);
+    if (!rc.ok()) return Truncated("point counts");
+    if (n < 0) return InvalidArgument("contour.points=" + std::to_string(n) + " for a polyline");
+    total += static_cast<uint64_t>(n);
+    if (static_cast<uint64_t>(n) > cap || total > cap) {
+      return InvalidArgument("contour.points=" + std::to_string(total) + " outside [0, " +
+                             std::to_string(cap) + "] for a " + std::to_string(message_size) +
+                             "-byte message");
+    }
+    counts.push_back(static_cast<uint64_t>(n));
+  }
+  lines->assign(nlines, {});
+  for (uint64_t j = 0; j < nlines; ++j) {
+    if (counts[j] == 0) continue;
+    Polyline2& out = (*lines)[j];
+    out.resize(counts[j]);
+    const Polyline2* ctx = j >= stride ? &(*lines)[j - stride] : nullptr;
+    Tail tail;
+    if (ctx && !ctx->empty() && rc.Bit(models->join)) tail = TailOf(*ctx);
+    if (tail.n == 0) {
+      int64_t rx = 0, ry = 0;
+      if (ctx && !ctx->empty()) {
+        // The context's last point is within 2^52 steps (checked when it was decoded).
+        rx = static_cast<int64_t>(std::llround(ctx->back().x / step));
+        ry = static_cast<int64_t>(std::llround(ctx->back().y / step));
+      }
+      const int64_t x = rx + rc.Int(models->first), y = ry + rc.Int(models->first);
+      if (std::abs(static_cast<double>(x)) > kMaxQuantised ||
+          std::abs(static_cast<double>(y)) > kMaxQuantised) {
+        return InvalidArgument("contour: decoded point outside [-2^52, 2^52] steps");
+      }
+      tail.Push({static_cast<double>(x) * step, static_cast<double>(y) * step});
+    }
+    out[0] = tail.p[2];
+    const bool closed = out.size() >= 2 && rc.Bit(models->closed);
+    const size_t coded = closed ? out.size() - 1 : out.size();
+    int64_t prev_a = 0, prev_e = 0;
+    double l1 = -1;  // the last frame's step length, once the tail holds three points
+    for (size_t k = 1; k < coded; ++k) {
+      const Frame f = MakeFrame(tail, tail.n == 3 && l1 > 0 ? l1 : -1);
+      l1 = f.l1;
+      const int kk = static_cast<int>(std::min<size_t>(k, 2));
+      const int64_t a = rc.Int(models->along[AlongContext(kk, prev_a)]);
+      const int64_t e = rc.Int(models->across[AcrossContext(kk, prev_e, a)]);
+      const double s = f.lp + static_cast<double>(a) * step;
+      const Vec2 p = Place(f, s, AcrossAt(f, s) + static_cast<double>(e) * step);
+      if (!InPlane(p, step)) {  // also catches NaN
+        return InvalidArgument("contour: decoded point outside [-2^52, 2^52] steps");
+      }
+      // Past the end every bit reads as 0: stop at once rather than run out a claimed count.
+      if (!rc.ok()) return Truncated("points");
+      prev_a = a;
+      prev_e = e;
+      tail.Push(p);
+      out[k] = p;
+    }
+    if (closed) out.back() = out.front();
+  }
+  if (!rc.ok()) return Truncated("curve body");
+  if (rc.consumed() != body.size()) {
+    return DataLoss("contour: " + std::to_string(body.size() - rc.consumed()) + " trailing bytes");
+  }
+  return Status::Ok();
+}
+
 StatusOr<Parsed> Parse(std::string_view bytes) {
   Reader r{bytes};
   char magic[4];
   uint8_t kind = 0, coding = 0;
   Parsed p;
-  if (!r.Bytes(magic, 4) || std::memcmp(magic, kMagic, 4) != 0) {
-    return DataLoss("contour: bad magic (want SKC1)");
+  if (!r.Bytes(magic, 4) ||
+      (std::memcmp(magic, kMagic1, 4) != 0 && std::memcmp(magic, kMagic2, 4) != 0)) {
+    return DataLoss("contour: bad magic (want SKC2 or SKC1)");
   }
+  const bool skc2 = magic[3] == '2';
   if (!r.Bytes(&kind, 1)) return Truncated("kind");
   if (kind > kUpdate) return InvalidArgument("contour.kind=" + std::to_string(kind) + " outside [0, 2]");
   p.kind = static_cast<Kind>(kind);
@@ -216,7 +579,10 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
     return InvalidArgument("contour.step=" + FormatNumber(p.step) + " outside (0, inf)");
   }
   if (!r.Bytes(&coding, 1)) return Truncated("coding");
-  if (coding > kRans) return InvalidArgument("contour.coding=" + std::to_string(coding) + " outside [0, 1]");
+  if (skc2 ? coding != kCurve : coding > kRans) {
+    return InvalidArgument("contour.coding=" + std::to_string(coding) + " outside " +
+                           (skc2 ? "[2, 2] for SKC2" : "[0, 1] for SKC1"));
+  }
   uint64_t nlines = 0;
   if (p.kind == kPolylineSet) {
     if (!r.Varint(&nlines)) return Truncated("polyline count");
@@ -242,7 +608,7 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
                                std::to_string(p.section_count) + "]");
       }
     }
-    for (uint64_t i = 0; i < entries; ++i) {
+    for (uint64_t i = 0; i < entries && !skc2; ++i) {
       uint64_t idx = i, id = 0, ver = 0;
       if (p.kind == kUpdate && !r.Varint(&idx)) return Truncated("section index");
       if (!r.Varint(&id) || !r.Varint(&ver)) return Truncated("section id");
@@ -255,6 +621,19 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
       p.version.push_back(ver);
     }
     nlines = 2 * entries;
+  }
+  if (coding == kCurve) {
+    // Bounded above by the section count (itself capped): no allocation beyond what the header
+    // allows.
+    std::vector<Entry> ent(p.kind == kPolylineSet ? 0 : nlines / 2);
+    SCULPT_RETURN_IF_ERROR(DecodeCurveBody(bytes.substr(r.pos), bytes.size(), p.kind, p.step,
+                                           nlines, p.section_count, &ent, &p.lines));
+    for (const Entry& e : ent) {
+      p.index.push_back(e.index);
+      p.id.push_back(e.id);
+      p.version.push_back(e.version);
+    }
+    return p;
   }
   std::vector<QLine> q(nlines);
   std::vector<std::array<uint64_t, 2>> firsts(nlines);
@@ -338,6 +717,17 @@ StatusOr<std::string> EncodeContours(const std::vector<Polyline2>& polylines, do
   SCULPT_RETURN_IF_ERROR(Quantise(ptrs, step, &q));
   std::string header;
   PutVarint(header, polylines.size());
+  return Encode(kPolylineSet, step, header, {}, ptrs, q);
+}
+
+StatusOr<std::string> internal::EncodeContoursSkc1(const std::vector<Polyline2>& polylines,
+                                                   double step) {
+  std::vector<const Polyline2*> ptrs;
+  for (const Polyline2& p : polylines) ptrs.push_back(&p);
+  std::vector<QLine> q;
+  SCULPT_RETURN_IF_ERROR(Quantise(ptrs, step, &q));
+  std::string header;
+  PutVarint(header, polylines.size());
   return Assemble(kPolylineSet, step, header, q);
 }
 
@@ -347,20 +737,33 @@ StatusOr<std::vector<Polyline2>> DecodeContours(std::string_view bytes) {
   return std::move(p.lines);
 }
 
-StatusOr<std::string> EncodeSkinSnapshot(const Skin& skin, double step) {
+namespace {
+
+StatusOr<std::string> SnapshotMessage(const Skin& skin, double step, bool curve) {
   SCULPT_ASSIGN_OR_RETURN(const double s, SkinStep(skin, step));
   std::string header;
   PutVarint(header, skin.sections().size());
   std::vector<const Polyline2*> ptrs;
-  for (const Section& sec : skin.sections()) {
-    PutVarint(header, sec.id);
-    PutVarint(header, sec.version);
+  std::vector<Entry> entries;
+  for (size_t k = 0; k < skin.sections().size(); ++k) {
+    const Section& sec = skin.section(k);
+    entries.push_back({k, sec.id, sec.version});
     ptrs.push_back(&sec.plus);
     ptrs.push_back(&sec.minus);
   }
   std::vector<QLine> q;
   SCULPT_RETURN_IF_ERROR(Quantise(ptrs, s, &q));
-  return Assemble(kSnapshot, s, header, q);
+  return Encode(kSnapshot, s, header, entries, ptrs, q, curve);
+}
+
+}  // namespace
+
+StatusOr<std::string> EncodeSkinSnapshot(const Skin& skin, double step) {
+  return SnapshotMessage(skin, step, true);
+}
+
+StatusOr<std::string> internal::EncodeSkinSnapshotSkc1(const Skin& skin, double step) {
+  return SnapshotMessage(skin, step, false);
 }
 
 StatusOr<std::string> EncodeSkinUpdate(const Skin& skin, const SkinChange& change, double step) {
@@ -372,21 +775,20 @@ StatusOr<std::string> EncodeSkinUpdate(const Skin& skin, const SkinChange& chang
   PutVarint(header, change.inserted);
   PutVarint(header, change.changed.size());
   std::vector<const Polyline2*> ptrs;
+  std::vector<Entry> entries;
   for (size_t k : change.changed) {
     if (k >= skin.sections().size()) {
       return InvalidArgument("change.changed=" + std::to_string(k) + " outside [0, " +
                              std::to_string(skin.sections().size()) + ")");
     }
     const Section& sec = skin.section(k);
-    PutVarint(header, k);
-    PutVarint(header, sec.id);
-    PutVarint(header, sec.version);
+    entries.push_back({k, sec.id, sec.version});
     ptrs.push_back(&sec.plus);
     ptrs.push_back(&sec.minus);
   }
   std::vector<QLine> q;
   SCULPT_RETURN_IF_ERROR(Quantise(ptrs, s, &q));
-  return Assemble(kUpdate, s, header, q);
+  return Encode(kUpdate, s, header, entries, ptrs, q);
 }
 
 Status ContourView::Apply(std::string_view bytes) {
