@@ -4,6 +4,8 @@
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <cstdlib>
+#include <functional>
 #include <filesystem>
 #include <memory>
 #include <thread>
@@ -12,6 +14,7 @@
 #include "config/server_config.h"
 #include "net/http_server.h"
 #include "net/server.h"
+#include "net/users.h"
 #include "scene/scene.h"
 #include "store/edit_log.h"
 
@@ -36,6 +39,65 @@ bool WritePortFile(const std::string& path, uint16_t tcp_port, uint16_t http_por
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
   return !ec;
+}
+
+// `sculptd user add|remove|list`: the users file is read, changed and written back atomically;
+// a new token is printed once and only its hash is kept.
+int UserCommand(const std::string& verb, const std::string& file, const std::string& name,
+                const std::string& role) {
+  using sculpt::server::UserTable;
+  UserTable table;
+  auto loaded = UserTable::Load(file);
+  if (loaded.ok()) {
+    table = std::move(loaded).value();
+  } else if (verb != "add" || loaded.status().code() != sculpt::Status::Code::kNotFound) {
+    spdlog::error("{}", loaded.status().ToString());
+    return 1;
+  }
+  if (verb == "list") {
+    for (const auto& u : table.users()) {
+      std::printf("%s %s\n", u.name.c_str(), sculpt::server::UserRoleName(u.role));
+    }
+    return 0;
+  }
+  if (const sculpt::Status n = sculpt::server::CheckUserName("NAME", name); !n.ok()) {
+    spdlog::error("{}", n.message());
+    return 2;
+  }
+  if (verb == "remove") {
+    if (!table.Remove(name)) {
+      spdlog::error("{}: no user {}", file, name);
+      return 1;
+    }
+  } else {
+    const std::string token = sculpt::server::NewToken();
+    auto hash = sculpt::server::HashToken(token);
+    if (!hash.ok()) {
+      spdlog::error("{}", hash.status().ToString());
+      return 1;
+    }
+    table.Put({name, role == "sculptor" ? sculpt::server::UserRole::kSculptor
+                                        : sculpt::server::UserRole::kViewer,
+               *hash});
+    if (const sculpt::Status s = table.Save(file); !s.ok()) {
+      spdlog::error("{}", s.ToString());
+      return 1;
+    }
+    std::printf("%s\n", token.c_str());
+    std::fprintf(stderr,
+                 "user %s (%s) saved in %s. The token above is shown this once; give it to the "
+                 "user (the client takes it from a file or the environment). A running sculptd "
+                 "picks the change up on SIGHUP.\n",
+                 name.c_str(), role.c_str(), file.c_str());
+    return 0;
+  }
+  if (const sculpt::Status s = table.Save(file); !s.ok()) {
+    spdlog::error("{}", s.ToString());
+    return 1;
+  }
+  std::fprintf(stderr, "user %s removed from %s (a running sculptd: send SIGHUP)\n", name.c_str(),
+               file.c_str());
+  return 0;
 }
 
 }  // namespace
@@ -65,8 +127,20 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 64));
   serve->add_option("--snapshot-every", snapshot_every, "Snapshot every N edits (default 5000)")
       ->check(CLI::Range(int64_t{0}, int64_t{1} << 40));
-  serve->add_option("--sculptor-token", sculptor_token, "Secret a sculptor presents");
-  serve->add_option("--viewer-token", viewer_token, "Secret a viewer presents");
+  // Accepted only to be refused with directions: a flag's value is visible to every local user
+  // in `ps`.
+  serve->add_option("--sculptor-token", sculptor_token,
+                    "Refused: secrets do not go on the command line (see --users, "
+                    "SCULPT_SCULPTOR_TOKEN)");
+  serve->add_option("--viewer-token", viewer_token,
+                    "Refused: secrets do not go on the command line (see --users, "
+                    "SCULPT_VIEWER_TOKEN)");
+  std::string users_file;
+  serve->add_option("--users", users_file,
+                    "Users file: named users, each with a role and a token hash (see `sculptd user "
+                    "add`); re-read on SIGHUP. Without one, the shared sculptor and viewer tokens "
+                    "(configuration file or SCULPT_SCULPTOR_TOKEN / SCULPT_VIEWER_TOKEN; the "
+                    "development tokens on loopback only)");
   serve->add_option("--port-file", port_file,
                     "Write the bound ports to this file once listening: the TCP port on the first "
                     "line, the HTTP port (0 when off) on the second");
@@ -97,7 +171,28 @@ int main(int argc, char** argv) {
   repair->add_option("--data", repair_dir, "Data directory (its log/ is repaired)")->required();
   repair->add_flag("--dry-run", dry_run, "Only say what would be discarded");
 
+  CLI::App* user = app.add_subcommand("user", "Manage the named users of a users file");
+  user->require_subcommand(1);
+  std::string user_file, user_name, user_role = "sculptor";
+  CLI::App* user_add = user->add_subcommand(
+      "add", "Add a user (or give an existing one a new token): prints the new token once");
+  user_add->add_option("NAME", user_name, "User name: 1 to 64 characters of [A-Za-z0-9._-]")
+      ->required();
+  user_add->add_option("--role", user_role, "sculptor | viewer")
+      ->check(CLI::IsMember({"sculptor", "viewer"}))
+      ->capture_default_str();
+  user_add->add_option("--users", user_file, "Users file (created, mode 0600, if missing)")
+      ->required();
+  CLI::App* user_remove = user->add_subcommand("remove", "Remove a user");
+  user_remove->add_option("NAME", user_name, "User name")->required();
+  user_remove->add_option("--users", user_file, "Users file")->required();
+  CLI::App* user_list = user->add_subcommand("list", "List the users and their roles");
+  user_list->add_option("--users", user_file, "Users file")->required();
+
   CLI11_PARSE(app, argc, argv);
+
+  if (user->parsed()) return UserCommand(user_add->parsed() ? "add" : user_remove->parsed() ? "remove" : "list",
+                                         user_file, user_name, user_role);
 
   if (repair->parsed()) {
     const std::string log_dir = (std::filesystem::path(repair_dir) / "log").string();
@@ -131,8 +226,17 @@ int main(int argc, char** argv) {
   if (group_ms > 0) config.group_commit_ms = group_ms;
   if (io_threads > 0) config.io_threads = io_threads;
   if (snapshot_every >= 0) config.snapshot_every_edits = static_cast<uint64_t>(snapshot_every);
-  if (!sculptor_token.empty()) config.sculptor_token = sculptor_token;
-  if (!viewer_token.empty()) config.viewer_token = viewer_token;
+  if (!sculptor_token.empty() || !viewer_token.empty()) {
+    spdlog::error(
+        "--sculptor-token and --viewer-token are refused: a command line is visible to every "
+        "local user. Put the tokens in the configuration file's [server] section (readable by "
+        "sculptd only), in the environment (SCULPT_SCULPTOR_TOKEN, SCULPT_VIEWER_TOKEN), or use "
+        "named users (--users FILE; `sculptd user add NAME --role sculptor --users FILE`)");
+    return 2;
+  }
+  if (const char* t = std::getenv("SCULPT_SCULPTOR_TOKEN"); t && *t) config.sculptor_token = t;
+  if (const char* t = std::getenv("SCULPT_VIEWER_TOKEN"); t && *t) config.viewer_token = t;
+  if (!users_file.empty()) config.users_file = users_file;
   if (const sculpt::Status s = sculpt::server::ValidateConfig(config); !s.ok()) {
     spdlog::error("configuration: {}", s.ToString());
     return 2;
@@ -184,12 +288,26 @@ int main(int argc, char** argv) {
     spdlog::error("cannot write the port file {}", port_file);
     return 1;
   }
+  // SIGHUP re-reads the users file; a bad file leaves the users in force and says why.
+  sculpt::server::asio::signal_set hangups(io, SIGHUP);
+  std::function<void(const boost::system::error_code&, int)> on_hangup =
+      [&](const boost::system::error_code& ec, int) {
+        if (ec) return;
+        if (config.users_file.empty()) {
+          spdlog::info("SIGHUP: no users file to re-read");
+        } else {
+          (void)server.ReloadUsers();
+        }
+        hangups.async_wait(on_hangup);
+      };
+  hangups.async_wait(on_hangup);
   sculpt::server::asio::signal_set signals(io, SIGINT, SIGTERM);
   signals.async_wait([&](const boost::system::error_code&, int sig) {
     spdlog::info("signal {}: shutting down", sig);
     server.Stop();
     if (http) http->Stop();
     (*scene)->FlushAndSnapshot();
+    hangups.cancel();
     io.stop();
   });
   std::vector<std::thread> threads;

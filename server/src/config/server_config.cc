@@ -103,7 +103,7 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     SCULPT_RETURN_IF_ERROR(CheckKeys(path, *s, "server",
                                      {"listen", "data_dir", "io_threads", "fsync", "group_commit_ms",
                                       "snapshot_every_edits", "snapshot_every_seconds",
-                                      "sculptor_token", "viewer_token", "presence_hz"}));
+                                      "sculptor_token", "viewer_token", "users_file", "presence_hz"}));
     Get(*s, "listen", &c->listen);
     Get(*s, "data_dir", &c->data_dir);
     Get(*s, "io_threads", &c->io_threads);
@@ -115,6 +115,11 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     Get(*s, "snapshot_every_seconds", &c->snapshot_every_seconds);
     Get(*s, "sculptor_token", &c->sculptor_token);
     Get(*s, "viewer_token", &c->viewer_token);
+    Get(*s, "users_file", &c->users_file);
+    if (!c->users_file.empty() && std::filesystem::path(c->users_file).is_relative()) {
+      // Relative to the configuration file, as scene model paths are.
+      c->users_file = (std::filesystem::path(path).parent_path() / c->users_file).string();
+    }
     Get(*s, "presence_hz", &c->presence_hz);
   }
   if (const toml::table* l = root["limits"].as_table()) {
@@ -122,7 +127,8 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
         path, *l, "limits",
         {"max_frame_bytes", "max_poses_per_stroke", "strokes_per_second", "stroke_burst",
          "poses_per_second", "pose_burst", "violations_before_disconnect",
-         "max_clients_per_scene", "auth_timeout_ms", "send_queue_bytes", "max_pending_joins"}));
+         "max_clients_per_scene", "auth_timeout_ms", "auth_backoff_ms",
+         "auth_free_failures", "send_queue_bytes", "max_pending_joins"}));
     int64_t v = c->limits.max_frame_bytes;
     Get(*l, "max_frame_bytes", &v);
     c->limits.max_frame_bytes = static_cast<uint32_t>(std::clamp<int64_t>(v, 0, 1ll << 31));
@@ -138,6 +144,8 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     Get(*l, "max_clients_per_scene", &v);
     c->limits.max_clients_per_scene = static_cast<uint32_t>(std::clamp<int64_t>(v, 0, 1 << 20));
     Get(*l, "auth_timeout_ms", &c->limits.auth_timeout_ms);
+    Get(*l, "auth_backoff_ms", &c->limits.auth_backoff_ms);
+    Get(*l, "auth_free_failures", &c->limits.auth_free_failures);
     v = static_cast<int64_t>(c->limits.send_queue_bytes);
     Get(*l, "send_queue_bytes", &v);
     c->limits.send_queue_bytes = static_cast<size_t>(std::max<int64_t>(0, v));
@@ -287,6 +295,16 @@ Status ValidateConfig(const ServerConfig& c) {
   if (c.sculptor_token == c.viewer_token) {
     return InvalidArgument("sculptor_token equals viewer_token: roles would be indistinguishable");
   }
+  const bool loopback = host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+  const ServerConfig defaults;
+  if (!loopback && c.users_file.empty() &&
+      (c.sculptor_token == defaults.sculptor_token || c.viewer_token == defaults.viewer_token)) {
+    return InvalidArgument(
+        "listen=" + c.listen + " is not a loopback address and the development tokens are in "
+        "force: name a users file (server.users_file; `sculptd user add NAME --role sculptor "
+        "--users FILE` makes one) or set your own sculptor_token and viewer_token in the "
+        "configuration file or in SCULPT_SCULPTOR_TOKEN / SCULPT_VIEWER_TOKEN");
+  }
   SCULPT_RETURN_IF_ERROR(Range("presence_hz", c.presence_hz, 0.1, 120));
   const LimitsConfig& l = c.limits;
   SCULPT_RETURN_IF_ERROR(Range("limits.max_frame_bytes", l.max_frame_bytes, 1024, 64 << 20));
@@ -299,6 +317,8 @@ Status ValidateConfig(const ServerConfig& c) {
       Range("limits.violations_before_disconnect", l.violations_before_disconnect, 1, 1e6));
   SCULPT_RETURN_IF_ERROR(Range("limits.max_clients_per_scene", l.max_clients_per_scene, 1, 1e5));
   SCULPT_RETURN_IF_ERROR(Range("limits.auth_timeout_ms", l.auth_timeout_ms, 10, 600000));
+  SCULPT_RETURN_IF_ERROR(Range("limits.auth_backoff_ms", l.auth_backoff_ms, 0, 60000));
+  SCULPT_RETURN_IF_ERROR(Range("limits.auth_free_failures", l.auth_free_failures, 0, 1000));
   SCULPT_RETURN_IF_ERROR(
       Range("limits.send_queue_bytes", static_cast<double>(l.send_queue_bytes), 64 << 10, 1e10));
   SCULPT_RETURN_IF_ERROR(Range("limits.max_pending_joins", l.max_pending_joins, 1, 1024));

@@ -90,6 +90,10 @@ struct LimitsConfig {
   int violations_before_disconnect = 20;
   uint32_t max_clients_per_scene = 64;
   int auth_timeout_ms = 5000;
+  /// After auth_free_failures failed authentications from one address, its next attempt waits
+  /// auth_backoff_ms, doubling with each failure up to 30 s (a success resets it).
+  int auth_backoff_ms = 250;
+  int auth_free_failures = 5;
   size_t send_queue_bytes = 8u << 20;  // per session; then coalesce, then disconnect
   // Late joins being prepared at once (waiting for the scene's copy or its serialisation, one
   // worker); past it a join is refused with RESOURCE_EXHAUSTED. Bounds the copies held.
@@ -106,6 +110,9 @@ struct ServerConfig {
   double snapshot_every_seconds = 60;
   std::string sculptor_token = "sculpt-dev-sculptor";
   std::string viewer_token = "sculpt-dev-viewer";
+  /// Named users (net/users.h): when set, a Hello names a user of this file and presents that
+  /// user's token; the two shared tokens above are then not accepted.
+  std::string users_file;
   double presence_hz = 10;
   LimitsConfig limits;
   SceneConfig scene;

@@ -12,13 +12,49 @@
 
 namespace sculpt::server {
 
+namespace {
+
+Authenticator::Options AuthOptions(const ServerConfig& c, bool with_users_file) {
+  Authenticator::Options o;
+  if (with_users_file) o.users_file = c.users_file;
+  o.sculptor_token = c.sculptor_token;
+  o.viewer_token = c.viewer_token;
+  o.free_failures = c.limits.auth_free_failures;
+  o.first_backoff = std::chrono::milliseconds(c.limits.auth_backoff_ms);
+  return o;
+}
+
+}  // namespace
+
 Server::Server(asio::io_context& io, const ServerConfig& config, Scene& scene)
-    : io_(io), config_(config), scene_(scene), acceptor_(io), presence_timer_(io) {}
+    : io_(io), config_(config), scene_(scene), acceptor_(io), presence_timer_(io) {
+  // The shared tokens until Start reads the users file (creating this one cannot fail).
+  auto a = Authenticator::Create(AuthOptions(config_, false));
+  if (a.ok()) auth_ = std::move(a).value();
+}
+
+Status Server::ReloadUsers() {
+  if (!auth_) return FailedPrecondition("server not started");
+  const Status s = auth_->Reload();
+  if (s.ok()) {
+    spdlog::info("users file {} reloaded: {} users", config_.users_file, auth_->user_count());
+  } else {
+    spdlog::error("users file not reloaded, the previous users stay: {}", s.ToString());
+  }
+  return s;
+}
 
 Server::~Server() { Stop(); }
 
 StatusOr<uint16_t> Server::Start() {
   if (sodium_init() < 0) return Internal("libsodium failed to initialise");
+  if (!config_.users_file.empty()) {
+    auto a = Authenticator::Create(AuthOptions(config_, true));
+    if (!a.ok()) return a.status();
+    auth_ = std::move(a).value();
+    spdlog::info("named users from {}: {}", config_.users_file, auth_->user_count());
+  }
+  if (!auth_) return Internal("no authenticator");
   std::string host;
   uint16_t port = 0;
   SCULPT_RETURN_IF_ERROR(ParseHostPort(config_.listen, &host, &port));

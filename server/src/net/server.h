@@ -16,6 +16,7 @@
 #include "net/metrics.h"
 #include "net/net.h"
 #include "net/transport.h"
+#include "net/users.h"
 #include "scene/scene.h"
 
 namespace sculpt::server {
@@ -57,6 +58,10 @@ class Server {
   Scene& scene() { return scene_; }
   ServerStats& stats() { return stats_; }
   asio::io_context& io() { return io_; }
+  /// Who may connect (valid after Start).
+  Authenticator& auth() { return *auth_; }
+  /// Re-reads the users file (SIGHUP); the previous users stay in force on error.
+  Status ReloadUsers();
 
   /// Runs a session on a connection another front accepted (the HTTP server's WebSocket
   /// upgrades). False, and the transport closed, after Stop.
@@ -84,6 +89,7 @@ class Server {
   std::atomic<uint64_t> next_session_id_{1};
   std::atomic<bool> stopped_{false};
   ServerStats stats_;
+  std::unique_ptr<Authenticator> auth_;
 };
 
 }  // namespace sculpt::server

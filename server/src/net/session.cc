@@ -28,10 +28,28 @@ constexpr auto kByeGrace = std::chrono::milliseconds(500);
 // How long a client being disconnected for violations waits for its accepted strokes' acks.
 constexpr auto kDrainLimit = std::chrono::seconds(5);
 
-// Constant-time token comparison (no early exit on the first differing byte).
-bool TokenEquals(const std::string& a, const std::string& b) {
-  if (a.size() != b.size()) return false;
-  return sodium_memcmp(a.data(), b.data(), a.size()) == 0;
+// "10.0.0.7:5555" -> "10.0.0.7", "[::1]:5555" -> "::1": failed authentications are counted
+// per address, whatever port a retry comes from.
+std::string SourceAddress(const std::string& remote) {
+  if (!remote.empty() && remote.front() == '[') {
+    const size_t close = remote.find(']');
+    return close == std::string::npos ? remote : remote.substr(1, close - 1);
+  }
+  const size_t colon = remote.rfind(':');
+  return colon == std::string::npos ? remote : remote.substr(0, colon);
+}
+
+// The id a named user's client_id is filed under: 64 bits of BLAKE2b(user, client_id), never 0.
+uint64_t BoundClientId(const std::string& user, uint64_t client_id) {
+  std::string in = user;
+  in.push_back('\0');
+  for (int i = 0; i < 8; ++i) in.push_back(static_cast<char>((client_id >> (8 * i)) & 0xff));
+  unsigned char h[16];
+  crypto_generichash(h, sizeof h, reinterpret_cast<const unsigned char*>(in.data()), in.size(),
+                     nullptr, 0);
+  uint64_t id = 0;
+  for (int i = 0; i < 8; ++i) id |= static_cast<uint64_t>(h[i]) << (8 * i);
+  return id == 0 ? 1 : id;
 }
 
 uint32_t ColorFor(uint64_t id) {
@@ -76,7 +94,9 @@ void Session::Start() {
   const int timeout_ms = server_.config().limits.auth_timeout_ms;
   auth_timer_.expires_after(std::chrono::milliseconds(timeout_ms));
   auth_timer_.async_wait([self = shared_from_this(), timeout_ms](boost::system::error_code ec) {
-    if (ec || self->state_ != State::kAwaitHello) return;
+    if (ec || (self->state_ != State::kAwaitHello && self->state_ != State::kAuthenticating)) {
+      return;
+    }
     self->SendError(ProtocolError(v1::ERROR_CODE_UNAUTHENTICATED, "Hello", "none",
                                   "within " + std::to_string(timeout_ms) + " ms",
                                   "no Hello received in time"));
@@ -353,26 +373,17 @@ void Session::OnHello(const v1::Hello& h) {
                             "once per connection", "already authenticated"));
     return Violation();
   }
-  const ServerConfig& c = server_.config();
   if (h.protocol_version() != kProtocolVersion) {
     SendError(ProtocolError(v1::ERROR_CODE_VERSION_MISMATCH, "Hello.protocol_version",
                             std::to_string(h.protocol_version()), "[1, 1]",
                             "this server speaks protocol version 1; update the client"));
     return Close("protocol version mismatch", true);
   }
-  bool ok = false;
-  if (h.role() == v1::ROLE_SCULPTOR) ok = TokenEquals(h.token(), c.sculptor_token);
-  if (h.role() == v1::ROLE_VIEWER) ok = TokenEquals(h.token(), c.viewer_token);
   if (h.role() != v1::ROLE_SCULPTOR && h.role() != v1::ROLE_VIEWER) {
     SendError(ProtocolError(v1::ERROR_CODE_INVALID_ARGUMENT, "Hello.role",
                             std::to_string(h.role()), "{ROLE_SCULPTOR, ROLE_VIEWER}",
                             "unknown role"));
     return Close("bad role", true);
-  }
-  if (!ok) {
-    SendError(ProtocolError(v1::ERROR_CODE_UNAUTHENTICATED, "Hello.token", "(hidden)",
-                            "the configured token of the requested role", "wrong token"));
-    return Close("wrong token", true);
   }
   if (h.client_id() == 0) {
     // Resends are de-duplicated on (client_id, client_seq) across restarts, so the id must be
@@ -388,18 +399,69 @@ void Session::OnHello(const v1::Hello& h) {
                             "name too long"));
     return Close("bad name", true);
   }
+  if (server_.auth().named_users()) {
+    if (const Status n = CheckUserName("Hello.client_name", h.client_name()); !n.ok()) {
+      SendError(ProtocolError(v1::ERROR_CODE_UNAUTHENTICATED, "Hello.client_name", "(hidden)",
+                              "a user of the users file: 1 to 64 characters of [A-Za-z0-9._-]",
+                              "this server has named users: give your user name"));
+      return Close("bad user name", true);
+    }
+  }
+  state_ = State::kAuthenticating;
+  const UserRole role = h.role() == v1::ROLE_SCULPTOR ? UserRole::kSculptor : UserRole::kViewer;
+  server_.auth().Authenticate(
+      h.client_name(), h.token(), role, SourceAddress(transport_->remote()),
+      [self = shared_from_this(), role = h.role(), client_id = h.client_id(),
+       name = h.client_name()](AuthResult r) mutable {
+        asio::post(self->strand_, [self, r = std::move(r), role, client_id,
+                                   name = std::move(name)]() mutable {
+          self->OnAuthenticated(std::move(r), role, client_id, name);
+        });
+      });
+}
+
+void Session::OnAuthenticated(AuthResult r, v1::Role role, uint64_t client_id,
+                              const std::string& name) {
+  if (state_ != State::kAuthenticating) return;  // closed meanwhile (auth timeout, shutdown)
+  switch (r.outcome) {
+    case AuthResult::Outcome::kOk:
+      break;
+    case AuthResult::Outcome::kPermissionDenied:
+      SendError(ProtocolError(v1::ERROR_CODE_PERMISSION_DENIED, "Hello.role",
+                              v1::Role_Name(role), "the user's role", r.message));
+      return Close("role not allowed", true);
+    case AuthResult::Outcome::kBackoff:
+    case AuthResult::Outcome::kBusy:
+      SendError(ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "Hello", "authentication",
+                              "after earlier failures, wait", r.message));
+      return Close("authentication backoff", true);
+    case AuthResult::Outcome::kUnauthenticated:
+      SendError(ProtocolError(
+          v1::ERROR_CODE_UNAUTHENTICATED, "Hello.token", "(hidden)",
+          server_.auth().named_users() ? "the token of the named user (users file)"
+                                       : "the configured token of the requested role",
+          "wrong token"));
+      return Close("wrong token", true);
+  }
+  const ServerConfig& c = server_.config();
   auth_timer_.cancel();
   state_ = State::kAuthed;
-  role_ = h.role();
+  role_ = role;
   role_flag_ = role_;
-  client_id_ = h.client_id();
+  // With named users, edits are filed under an id bound to the user: another user presenting
+  // the same client_id gets another id, so it can neither pass for this client nor have this
+  // client's strokes taken for resends.
+  client_id_ = r.named ? BoundClientId(r.user, client_id) : client_id;
+  user_ = r.user;
   {
     std::lock_guard<std::mutex> lock(presence_mu_);
     presence_.set_session_id(id_);
-    presence_.set_name(h.client_name().empty() ? "user-" + std::to_string(id_) : h.client_name());
+    presence_.set_name(name.empty() ? "user-" + std::to_string(id_) : name);
     presence_.set_color_rgba(ColorFor(id_));
     presence_.set_role(role_);
   }
+  if (r.named) spdlog::info("session {}: user {} ({}) from {}", id_, r.user,
+                            v1::Role_Name(role), transport_->remote());
   v1::ServerMessage out;
   v1::Welcome* w = out.mutable_welcome();
   w->set_protocol_version(kProtocolVersion);
@@ -409,6 +471,8 @@ void Session::OnHello(const v1::Hello& h) {
   w->set_max_frame_bytes(c.limits.max_frame_bytes);
   w->set_max_poses_per_stroke(c.limits.max_poses_per_stroke);
   w->set_max_strokes_per_second(static_cast<float>(c.limits.strokes_per_second));
+  w->set_client_id(client_id_);
+  w->set_user(r.named ? r.user : std::string());
   Send(out);
 }
 

@@ -17,6 +17,7 @@
 #include "net/net.h"
 #include "net/rate_limiter.h"
 #include "net/transport.h"
+#include "net/users.h"
 #include "scene/scene.h"
 #include "sculpt/v1/sculpt.pb.h"
 
@@ -60,7 +61,7 @@ class Session : public std::enable_shared_from_this<Session> {
   v1::PresenceEntry PresenceEntry() const;
 
  private:
-  enum class State { kAwaitHello, kAuthed, kClosed };
+  enum class State { kAwaitHello, kAuthenticating, kAuthed, kClosed };
 
   // Entry points the scene's callbacks reach (any thread; they get onto the strand).
   void OnStrokeDone(StrokeOutcome out, Clock::time_point received);
@@ -75,6 +76,7 @@ class Session : public std::enable_shared_from_this<Session> {
   void OnRead(ReadResult result);
   void Handle(const std::string& payload);
   void OnHello(const v1::Hello& h);
+  void OnAuthenticated(AuthResult r, v1::Role role, uint64_t client_id, const std::string& name);
   void OnJoin(const v1::JoinScene& j);
   void OnStroke(const v1::Stroke& s, Clock::time_point received);
   void OnHover(const v1::Hover& h);
@@ -130,7 +132,8 @@ class Session : public std::enable_shared_from_this<Session> {
   std::atomic<bool> joined_flag_{false};
   std::atomic<v1::Role> role_flag_{v1::ROLE_UNSPECIFIED};
   v1::Role role_ = v1::ROLE_UNSPECIFIED;
-  uint64_t client_id_ = 0;
+  uint64_t client_id_ = 0;  // the id edits are filed under (bound to the user when named)
+  std::string user_;        // the authenticated user name (named users) or the claimed name
   RateLimiter strokes_;  // strokes and every other edit message
   RateLimiter poses_;    // each pose is an edit: bounds the work one client queues
   int violations_ = 0;
