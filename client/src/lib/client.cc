@@ -656,6 +656,12 @@ StatusOr<v1::Welcome> Client::Hello(const std::string& token, v1::Role role,
                                     const std::string& name, uint64_t client_id) {
   Impl& d = *impl_;
   std::unique_lock<std::mutex> lock(d.mu);
+  if (d.conn && d.conn->closed && d.phase == Impl::Phase::kDisconnected) {
+    // Closed between Connect and Hello: a TLS server refusing the client's certificate (or
+    // its absence) does so after the client's side of the handshake.
+    return Status(Status::Code::kUnavailable,
+                  "connection lost before Hello: " + d.disconnect_reason);
+  }
   if (!d.conn || d.conn->closed || d.phase != Impl::Phase::kConnected) {
     return FailedPrecondition("Hello needs a new connection: call Connect first");
   }

@@ -74,11 +74,15 @@ StatusOr<std::shared_ptr<ssl::context>> MakeServerTlsContext(const TlsConfig& tl
     return InvalidArgument("tls.cert_file=" + tls.cert_file + ": not a PEM certificate (" +
                            TakeOpenSslError("unreadable") + ")");
   }
-  if (SSL_CTX_use_PrivateKey_file(native, tls.key_file.c_str(), SSL_FILETYPE_PEM) != 1) {
-    return InvalidArgument("tls.key_file=" + tls.key_file + ": not an unencrypted PEM private key (" +
-                           TakeOpenSslError("unreadable") + ")");
+  // OpenSSL compares the key with the certificate as it loads it ("key values mismatch").
+  const bool key_loaded =
+      SSL_CTX_use_PrivateKey_file(native, tls.key_file.c_str(), SSL_FILETYPE_PEM) == 1;
+  const std::string key_error = key_loaded ? "" : TakeOpenSslError("unreadable");
+  if (!key_loaded && key_error != "key values mismatch") {
+    return InvalidArgument("tls.key_file=" + tls.key_file +
+                           ": not an unencrypted PEM private key (" + key_error + ")");
   }
-  if (SSL_CTX_check_private_key(native) != 1) {
+  if (!key_loaded || SSL_CTX_check_private_key(native) != 1) {
     return InvalidArgument("tls.key_file=" + tls.key_file +
                            " does not match the certificate in tls.cert_file=" + tls.cert_file +
                            " (" + TakeOpenSslError("key mismatch") + ")");
