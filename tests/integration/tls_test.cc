@@ -7,7 +7,9 @@
 #include <sys/time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -446,6 +448,60 @@ TEST_F(TlsTest, ConfigFileTlsSectionWithPathsFromItsFolder) {
   std::ofstream(dir_ / "typo.toml") << "[tls]\ncert = \"x\"\n";
   const Status s = LoadConfigFile((dir_ / "typo.toml").string(), &c);
   EXPECT_NE(s.message().find("unknown key tls.cert"), std::string::npos) << s;
+}
+
+// Stroke->ack over TLS vs plaintext, one run: two in-process sculptds with the same scene (one
+// with TLS), a sculptor on each, strokes alternating one at a time so both see the same load.
+// A measurement (docs/benchmarks.md, "TLS"), not a test: run with --gtest_also_run_disabled_tests.
+TEST(TlsBench, DISABLED_StrokeAckTlsVsPlaintext) {
+  ASSERT_TRUE(Pki::Get().ok);
+  testing_support::InProcessServer plain("tlsbench_plain"), secure("tlsbench_tls");
+  for (auto* s : {&plain, &secure}) {
+    s->config().limits.strokes_per_second = 1000;
+    s->config().limits.stroke_burst = 1000;
+  }
+  secure.config().tls.cert_file = Pki::Get().File("server.pem");
+  secure.config().tls.key_file = Pki::Get().File("server.key");
+  ASSERT_TRUE(plain.Start());
+  ASSERT_TRUE(secure.Start());
+  client::ClientOptions po;
+  po.skip_state = true;
+  client::ClientOptions so = po;
+  so.tls.enabled = true;
+  so.tls.ca_file = Pki::Get().File("ca.pem");
+  client::Client a(po), b(so);
+  for (auto [c, port] : {std::pair{&a, plain.port()}, std::pair{&b, secure.port()}}) {
+    ASSERT_TRUE(c->Connect("127.0.0.1", port).ok());
+    ASSERT_TRUE(c->Hello(plain.config().sculptor_token, v1::ROLE_SCULPTOR, "bench", 0).ok());
+    ASSERT_TRUE(c->Join().ok());
+  }
+  const int kStrokes = 400;
+  std::vector<double> plain_ms, tls_ms;
+  auto one = [](client::Client& c, int i, std::vector<double>* out) {
+    const auto t0 = Clock::now();
+    ASSERT_TRUE(c.SendStroke(PressArc(0, i, 1)).ok());
+    ASSERT_TRUE(c.WaitAllAcked(std::chrono::seconds(10)));
+    out->push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+  };
+  for (int i = 0; i < kStrokes; ++i) {
+    // Which goes first alternates too.
+    if (i % 2 == 0) {
+      one(a, i, &plain_ms);
+      one(b, i, &tls_ms);
+    } else {
+      one(b, i, &tls_ms);
+      one(a, i, &plain_ms);
+    }
+  }
+  auto pct = [](std::vector<double> v, double q) {
+    std::sort(v.begin(), v.end());
+    return v[static_cast<size_t>(q * (v.size() - 1))];
+  };
+  std::printf("{\"strokes\": %d, \"plain_p50_ms\": %.3f, \"plain_p99_ms\": %.3f, "
+              "\"tls_p50_ms\": %.3f, \"tls_p99_ms\": %.3f, \"added_p50_ms\": %.3f}\n",
+              kStrokes, pct(plain_ms, 0.5), pct(plain_ms, 0.99), pct(tls_ms, 0.5),
+              pct(tls_ms, 0.99), pct(tls_ms, 0.5) - pct(plain_ms, 0.5));
+  EXPECT_EQ(tls_ms.size(), plain_ms.size());
 }
 
 }  // namespace
