@@ -297,6 +297,13 @@ TEST_F(TlsTest, PlaintextOnTheTlsPortsIsClosedAndOthersUnaffected) {
   const double waited_ms =
       std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   EXPECT_LT(waited_ms, config_.limits.auth_timeout_ms + 1000);
+  // The library's own client, without TLS, is told what to do.
+  client::ClientOptions po;
+  po.timeout = std::chrono::seconds(3);
+  client::Client plain_client(po);
+  const Status ps = Enter(plain_client);
+  EXPECT_EQ(ps.code(), Status::Code::kUnavailable);
+  EXPECT_NE(ps.message().find("connect with --tls"), std::string::npos) << ps;
   // The TLS sculptor kept sculpting throughout.
   EXPECT_TRUE(StrokesAcked(sculptor, 20));
   EXPECT_GE(server_->stats().tls_handshake_failures.load(), 2u);

@@ -689,7 +689,11 @@ StatusOr<v1::Welcome> Client::Hello(const std::string& token, v1::Role role,
   }
   if (d.phase != Impl::Phase::kAuthed) {
     return Status(Status::Code::kUnavailable,
-                  "connection lost before Welcome: " + d.disconnect_reason);
+                  "connection lost before Welcome: " + d.disconnect_reason +
+                      (d.options.tls.enabled
+                           ? ""
+                           : " (a server with TLS closes plaintext clients: connect with --tls "
+                             "or ClientOptions::tls)"));
   }
   return d.welcome;
 }

@@ -318,8 +318,8 @@ class HttpServer::BasicConnection final
   void Upgrade(Request req) {
     Lowest().expires_never();
     std::string remote = Remote();
-    using Transport = BasicWsTransport<Stream>;
-    auto ws = std::make_unique<typename Transport::Stream>(std::move(stream_));
+    using Ws = BasicWsTransport<Stream>;
+    auto ws = std::make_unique<typename Ws::Stream>(std::move(stream_));
     ws->set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
     websocket::permessage_deflate pmd;
     pmd.server_enable = false;
@@ -328,7 +328,7 @@ class HttpServer::BasicConnection final
     ws->set_option(websocket::stream_base::decorator(
         [](websocket::response_type& res) { res.set(http::field::server, "sculptd"); }));
     auto request = std::make_shared<Request>(std::move(req));
-    typename Transport::Stream* raw = ws.get();
+    typename Ws::Stream* raw = ws.get();
     raw->async_accept(*request, [self = this->shared_from_this(), request, ws = std::move(ws),
                                  remote = std::move(remote)](beast::error_code ec) mutable {
       if (ec) {
@@ -337,7 +337,7 @@ class HttpServer::BasicConnection final
       }
       self->stats_->websocket_upgrades++;
       self->owner_.CountResponse(101);
-      auto transport = std::make_shared<Transport>(
+      auto transport = std::make_shared<Ws>(
           std::move(ws), std::move(remote), self->owner_.server_.config().limits.max_frame_bytes,
           std::move(self->slot_));
       self->owner_.server_.Adopt(self->strand_, std::move(transport));
