@@ -85,7 +85,8 @@ StatusOr<std::shared_ptr<ssl::context>> MakeServerTlsContext(const TlsConfig& tl
   if (!key_loaded || SSL_CTX_check_private_key(native) != 1) {
     return InvalidArgument("tls.key_file=" + tls.key_file +
                            " does not match the certificate in tls.cert_file=" + tls.cert_file +
-                           " (" + TakeOpenSslError("key mismatch") + ")");
+                           " (" + (key_error.empty() ? TakeOpenSslError("key mismatch") : key_error) +
+                           ")");
   }
   if (X509* cert = SSL_CTX_get0_certificate(native)) {
     if (X509_cmp_current_time(X509_get0_notAfter(cert)) < 0) {
