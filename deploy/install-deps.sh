@@ -12,6 +12,7 @@ PACKAGES=(
   libassimp-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libxxhash-dev libsodium-dev libzstd-dev
+  libssl-dev openssl
   gnuplot-nox
   chromium
   python3-prometheus-client

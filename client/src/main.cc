@@ -17,6 +17,7 @@
 #include "sculpt/mesh/glb_writer.h"
 #include "sculpt/mesh/mesh_stats.h"
 #include "skin_cmd.h"
+#include "tls_flags.h"
 #include "thesis_cmd.h"
 
 namespace {
@@ -32,8 +33,10 @@ std::string Hex(uint64_t v) {
 }
 
 /// `sculpt info --server`: the scene as a viewer sees it on joining, as JSON.
-int RemoteInfo(const std::string& server, const std::string& token, const std::string& scene) {
-  auto joined = sculpt::client::FetchScene(server, token, sculpt::v1::ROLE_VIEWER, scene);
+int RemoteInfo(const std::string& server, const std::string& token, const std::string& scene,
+               const sculpt::client::ClientTlsOptions& tls) {
+  auto joined = sculpt::client::FetchScene(server, token, sculpt::v1::ROLE_VIEWER, scene,
+                                           std::chrono::seconds(30), tls);
   if (!joined.ok()) {
     spdlog::error("{}: {}", server, joined.status().ToString());
     return 1;
@@ -72,6 +75,7 @@ int RemoteInfo(const std::string& server, const std::string& token, const std::s
 struct ExportArgs {
   std::string in, out, format, server, token = "sculpt-dev-viewer", object, scene;
   double adaptivity = 0.0;
+  sculpt::client::ClientTlsOptions tls;
 };
 
 /// `sculpt export`: a .vdb file or a server's current state, written as .vdb, .obj, .ply or .glb
@@ -110,7 +114,8 @@ int Export(const ExportArgs& a) {
     }
     sculpture.emplace(std::move(s).value());
   } else {
-    auto joined = sculpt::client::FetchScene(a.server, a.token, sculpt::v1::ROLE_VIEWER, a.scene);
+    auto joined = sculpt::client::FetchScene(a.server, a.token, sculpt::v1::ROLE_VIEWER, a.scene,
+                                             std::chrono::seconds(30), a.tls);
     if (!joined.ok()) {
       spdlog::error("{}: {}", a.server, joined.status().ToString());
       return 1;
@@ -186,6 +191,8 @@ int main(int argc, char** argv) {
   info_cmd->add_option("--server", info_server, "sculptd address HOST:PORT (joins as a viewer)");
   info_cmd->add_option("--token", info_token, "Viewer secret")->capture_default_str();
   info_cmd->add_option("--scene", info_scene, "Scene (default: the server's)");
+  sculpt::client::ClientTlsOptions info_tls;
+  sculpt::client::AddTlsFlags(*info_cmd, &info_tls);
   bool info_mesh_stats = false;
   info_cmd->add_flag("--mesh-stats", info_mesh_stats,
                      "With a .vdb file: also mesh it as viewers see it and print its topology "
@@ -207,6 +214,7 @@ int main(int argc, char** argv) {
   export_cmd->add_option("--token", ex.token, "Viewer secret")->capture_default_str();
   export_cmd->add_option("--object", ex.object, "Object to export (default: the scene's first)");
   export_cmd->add_option("--scene", ex.scene, "Scene (default: the server's)");
+  sculpt::client::AddTlsFlags(*export_cmd, &ex.tls);
 
   sculpt::client::PlayOptions play;
   CLI::App* play_cmd = app.add_subcommand(
@@ -230,6 +238,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.001, 1e6))
       ->capture_default_str();
   sculpt::client::AddPlayHapticsOptions(*play_cmd, play);
+  sculpt::client::AddTlsFlags(*play_cmd, &play.tls);
 
   CLI::App* thesis_cmd = app.add_subcommand(
       "thesis", "Rerun the thesis's 2D carve and compensation experiments; print JSON");
@@ -260,7 +269,7 @@ int main(int argc, char** argv) {
       spdlog::error("info: give either a .vdb file or --server HOST:PORT (not both)");
       return 2;
     }
-    if (!info_server.empty()) return RemoteInfo(info_server, info_token, info_scene);
+    if (!info_server.empty()) return RemoteInfo(info_server, info_token, info_scene, info_tls);
     auto s = sculpt::levelset::Sculpture::LoadVdb(vdb_path);
     if (!s.ok()) {
       spdlog::error("{}", s.status().ToString());

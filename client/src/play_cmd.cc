@@ -324,6 +324,7 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
   }
 
   ClientOptions co;
+  co.tls = options.tls;
   co.timeout = std::chrono::milliseconds(static_cast<int64_t>(options.timeout_s * 1000));
   co.skip_state = true;  // the replica loads its region through Subscribe
   Client client(co);
@@ -681,6 +682,7 @@ int RunPlay(const PlayOptions& options) {
   }
 
   ClientOptions co;
+  co.tls = options.tls;
   co.timeout = std::chrono::milliseconds(static_cast<int64_t>(options.timeout_s * 1000));
   Client client(co);
   const auto fail = [&](const std::string& stage, const Status& s) {

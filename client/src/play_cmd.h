@@ -6,6 +6,8 @@
 
 #include <string>
 
+#include "sculpt/client/client.h"
+
 namespace CLI {
 class App;
 }  // namespace CLI
@@ -33,6 +35,7 @@ struct PlayOptions {
   std::string server;  // HOST:PORT
   std::string script;  // path of the JSON stroke script
   std::string token = "sculpt-dev-sculptor";
+  ClientTlsOptions tls;
   std::string name = "sculpt-play";
   std::string scene;      // empty: the script's "scene", else the server's default
   std::string object;     // empty: the script's "object", else the scene's first object

@@ -15,6 +15,7 @@
 #include "net/http_server.h"
 #include "net/server.h"
 #include "net/users.h"
+#include "net/tls.h"
 #include "scene/scene.h"
 #include "store/edit_log.h"
 
@@ -164,6 +165,19 @@ int main(int argc, char** argv) {
                     "Close an HTTP connection that sends no request for this long (default 15000)")
       ->check(CLI::Range(100, 3600000));
 
+  std::string tls_cert, tls_key, tls_client_ca;
+  bool allow_plaintext = false;
+  serve->add_option("--tls-cert", tls_cert,
+                    "PEM certificate chain: TLS on the TCP port and HTTPS/WSS on the HTTP port "
+                    "(config tls.cert_file)");
+  serve->add_option("--tls-key", tls_key, "PEM private key of --tls-cert (config tls.key_file)");
+  serve->add_option("--tls-client-ca", tls_client_ca,
+                    "PEM CA file: the TCP port then requires client certificates it signed "
+                    "(server-to-server traffic; config tls.client_ca_file)");
+  serve->add_flag("--allow-plaintext", allow_plaintext,
+                  "Listen beyond loopback without TLS (config tls.allow_plaintext; logged as a "
+                  "warning)");
+
   CLI::App* repair = app.add_subcommand(
       "repair", "Make a damaged edit log start again, saying exactly which edits it gives up");
   std::string repair_dir;
@@ -237,9 +251,21 @@ int main(int argc, char** argv) {
   if (const char* t = std::getenv("SCULPT_SCULPTOR_TOKEN"); t && *t) config.sculptor_token = t;
   if (const char* t = std::getenv("SCULPT_VIEWER_TOKEN"); t && *t) config.viewer_token = t;
   if (!users_file.empty()) config.users_file = users_file;
+  if (!tls_cert.empty()) config.tls.cert_file = tls_cert;
+  if (!tls_key.empty()) config.tls.key_file = tls_key;
+  if (!tls_client_ca.empty()) config.tls.client_ca_file = tls_client_ca;
+  if (allow_plaintext) config.tls.allow_plaintext = true;
   if (const sculpt::Status s = sculpt::server::ValidateConfig(config); !s.ok()) {
     spdlog::error("configuration: {}", s.ToString());
     return 2;
+  }
+  if (config.tls.enabled()) {
+    // The files are read now, so a bad one stops start-up before the scene is opened.
+    auto tls = sculpt::server::MakeServerTlsContext(config.tls, true);
+    if (!tls.ok()) {
+      spdlog::error("configuration: {}", tls.status().ToString());
+      return 2;
+    }
   }
 
   auto scene = sculpt::server::Scene::Open(config);
@@ -256,7 +282,11 @@ int main(int argc, char** argv) {
     spdlog::error("{}", port.status().ToString());
     return 1;
   }
-  spdlog::info("listening on {} (port {}), data {}, fsync {}", config.listen, *port,
+  spdlog::info("listening on {} (port {}{}), data {}, fsync {}", config.listen, *port,
+               config.tls.enabled() ? config.tls.client_ca_file.empty()
+                                          ? ", TLS"
+                                          : ", TLS with client certificates"
+                                    : "",
                config.data_dir, config.fsync);
 
   std::unique_ptr<sculpt::server::HttpServer> http;
@@ -281,7 +311,8 @@ int main(int argc, char** argv) {
       return 1;
     }
     http_port = *hp;
-    spdlog::info("http on {} (port {}): open http://{}:{}/ ; web root {}", hc.listen, http_port,
+    spdlog::info("http on {} (port {}): open {}://{}:{}/ ; web root {}", hc.listen, http_port,
+                 config.tls.enabled() ? "https" : "http",
                  hc.listen.substr(0, hc.listen.rfind(':')), http_port, hc.web_root.string());
   }
   if (!port_file.empty() && !WritePortFile(port_file, *port, http_port)) {

@@ -12,6 +12,10 @@
 #include <random>
 #include <thread>
 
+#include <openssl/err.h>
+#include <openssl/ssl.h>
+#include <openssl/x509v3.h>
+
 #include "lib/net.h"
 #include "sculpt/codec/frame.h"
 
@@ -40,12 +44,25 @@ IoThread::~IoThread() {
 
 namespace {
 
-/// One TCP connection. The socket, `reader`, `buf` and `writing` are touched only on the I/O
-/// thread; the rest is guarded by Client::Impl::mu.
+/// One TCP connection, in clear or over TLS (`tls` wraps `socket`). The socket, `tls`,
+/// `reader`, `buf` and `writing` are touched only on the I/O thread; the rest is guarded by
+/// Client::Impl::mu.
 struct Conn {
   Conn(asio::io_context& io, uint32_t max_frame_bytes) : socket(io), reader(max_frame_bytes) {}
 
+  template <class Handler>
+  void AsyncReadSome(asio::mutable_buffer b, Handler&& h) {
+    if (tls) return tls->async_read_some(b, std::forward<Handler>(h));
+    socket.async_read_some(b, std::forward<Handler>(h));
+  }
+  template <class Handler>
+  void AsyncWrite(asio::const_buffer b, Handler&& h) {
+    if (tls) return asio::async_write(*tls, b, std::forward<Handler>(h));
+    asio::async_write(socket, b, std::forward<Handler>(h));
+  }
+
   tcp::socket socket;
+  std::unique_ptr<ssl::stream<tcp::socket&>> tls;
   codec::FrameReader reader;
   std::array<char, 64 * 1024> buf{};
   std::string writing;
@@ -60,6 +77,61 @@ struct Conn {
 };
 
 std::string Ms(std::chrono::milliseconds ms) { return std::to_string(ms.count()) + " ms"; }
+
+std::string TakeOpenSslError() {
+  unsigned long last = 0;
+  while (unsigned long e = ERR_get_error()) last = e;
+  const char* reason = last ? ERR_reason_error_string(last) : nullptr;
+  return reason ? reason : "unreadable";
+}
+
+// TLS 1.2+ with forward-secret AEAD suites only, as sculptd offers.
+StatusOr<std::shared_ptr<ssl::context>> MakeClientTlsContext(const ClientTlsOptions& o) {
+  ERR_clear_error();
+  auto ctx = std::make_shared<ssl::context>(ssl::context::tls_client);
+  SSL_CTX* native = ctx->native_handle();
+  SSL_CTX_set_min_proto_version(native, TLS1_2_VERSION);
+  SSL_CTX_set_options(native, SSL_OP_NO_COMPRESSION | SSL_OP_NO_RENEGOTIATION);
+  SSL_CTX_set_cipher_list(native,
+                          "ECDHE-ECDSA-AES128-GCM-SHA256:ECDHE-RSA-AES128-GCM-SHA256:"
+                          "ECDHE-ECDSA-AES256-GCM-SHA384:ECDHE-RSA-AES256-GCM-SHA384:"
+                          "ECDHE-ECDSA-CHACHA20-POLY1305:ECDHE-RSA-CHACHA20-POLY1305");
+  boost::system::error_code ec;
+  if (o.ca_file.empty()) {
+    ctx->set_default_verify_paths(ec);
+  } else if (SSL_CTX_load_verify_locations(native, o.ca_file.c_str(), nullptr) != 1) {
+    return InvalidArgument("tls.ca_file=" + o.ca_file + ": not a readable PEM CA file (" +
+                           TakeOpenSslError() + ")");
+  }
+  if (o.cert_file.empty() != o.key_file.empty()) {
+    return InvalidArgument("a client certificate needs both tls.cert_file and tls.key_file");
+  }
+  if (!o.cert_file.empty()) {
+    if (SSL_CTX_use_certificate_chain_file(native, o.cert_file.c_str()) != 1) {
+      return InvalidArgument("tls.cert_file=" + o.cert_file + ": not a readable PEM certificate (" +
+                             TakeOpenSslError() + ")");
+    }
+    if (SSL_CTX_use_PrivateKey_file(native, o.key_file.c_str(), SSL_FILETYPE_PEM) != 1 ||
+        SSL_CTX_check_private_key(native) != 1) {
+      return InvalidArgument("tls.key_file=" + o.key_file + ": not the PEM key of tls.cert_file=" +
+                             o.cert_file + " (" + TakeOpenSslError() + ")");
+    }
+  }
+  ctx->set_verify_mode(ssl::verify_peer);
+  return ctx;
+}
+
+// Why a handshake failed, with the certificate check's own reason when that was it.
+std::string HandshakeFailure(const boost::system::error_code& ec, SSL* ssl) {
+  std::string text = ec.message();
+  const long verify = ssl ? SSL_get_verify_result(ssl) : X509_V_OK;
+  if (verify != X509_V_OK) {
+    text += std::string(": ") + X509_verify_cert_error_string(verify);
+  } else if (ec == asio::error::eof || ec == ssl::error::stream_truncated) {
+    text += " (is the server's port TLS?)";
+  }
+  return text;
+}
 
 }  // namespace
 
@@ -89,11 +161,13 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
 
   void StartRead(const std::shared_ptr<Conn>& c) {
     auto self = shared_from_this();
-    c->socket.async_read_some(
+    c->AsyncReadSome(
         asio::buffer(c->buf), [self, c](boost::system::error_code ec, size_t n) {
           if (ec) {
-            self->Lost(c, ec == asio::error::eof ? "server closed the connection"
-                                                 : "read: " + ec.message());
+            // A TLS server that closes without close_notify ends the stream as EOF does.
+            self->Lost(c, ec == asio::error::eof || ec == ssl::error::stream_truncated
+                              ? "server closed the connection"
+                              : "read: " + ec.message());
             return;
           }
           c->reader.Feed(c->buf.data(), n);
@@ -319,7 +393,7 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
     c->writing_active = true;
     lock.unlock();
     auto self = shared_from_this();
-    asio::async_write(c->socket, asio::buffer(c->writing),
+    c->AsyncWrite(asio::buffer(c->writing),
                       [self, c](boost::system::error_code ec, size_t n) {
                         c->writing.clear();
                         {
@@ -427,6 +501,7 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
   std::condition_variable cv;
   Phase phase = Phase::kIdle;
   std::shared_ptr<Conn> conn;
+  std::shared_ptr<ssl::context> tls_context;  // built at the first Connect with options.tls
   std::string disconnect_reason;
 
   std::string host;
@@ -479,25 +554,67 @@ Status Client::Connect(const std::string& host, uint16_t port) {
     std::lock_guard<std::mutex> lock(impl_->mu);
     if (impl_->conn) impl_->CloseConnLocked(impl_->conn, "reconnecting");
   }
+  const ClientTlsOptions& tls = impl_->options.tls;
+  if (tls.enabled && !impl_->tls_context) {
+    auto ctx = MakeClientTlsContext(tls);
+    if (!ctx.ok()) return ctx.status();
+    impl_->tls_context = std::move(ctx).value();
+  }
   auto c = std::make_shared<Conn>(impl_->io, impl_->options.max_frame_bytes);
+  if (tls.enabled) {
+    c->tls = std::make_unique<ssl::stream<tcp::socket&>>(c->socket, *impl_->tls_context);
+    const std::string name = tls.server_name.empty() ? host : tls.server_name;
+    SSL* native = c->tls->native_handle();
+    boost::system::error_code not_ip;
+    asio::ip::make_address(name, not_ip);
+    if (not_ip) SSL_set_tlsext_host_name(native, name.c_str());  // SNI takes names only
+    if (tls.verify_server_name) {
+      X509_VERIFY_PARAM* param = SSL_get0_param(native);
+      if (!not_ip) {
+        X509_VERIFY_PARAM_set1_ip_asc(param, name.c_str());
+      } else {
+        X509_VERIFY_PARAM_set_hostflags(param, X509_CHECK_FLAG_NO_PARTIAL_WILDCARDS);
+        X509_VERIFY_PARAM_set1_host(param, name.c_str(), 0);
+      }
+    }
+  }
+  // What failed: the connection, or (`handshake`) the TLS handshake after it.
+  struct Outcome {
+    boost::system::error_code ec;
+    bool handshake = false;
+    std::string detail;
+  };
   auto resolver = std::make_shared<tcp::resolver>(impl_->io);
-  auto done = std::make_shared<std::promise<boost::system::error_code>>();
+  auto done = std::make_shared<std::promise<Outcome>>();
   auto result = done->get_future();
   asio::post(impl_->io, [c, resolver, done, host, port] {
     resolver->async_resolve(
         host, std::to_string(port),
         [c, resolver, done](boost::system::error_code ec, tcp::resolver::results_type results) {
           if (ec) {
-            done->set_value(ec);
+            done->set_value({ec});
             return;
           }
           asio::async_connect(c->socket, results,
                               [c, done](boost::system::error_code ec, const tcp::endpoint&) {
-                                if (!ec) {
-                                  boost::system::error_code ignored;
-                                  c->socket.set_option(tcp::no_delay(true), ignored);
+                                if (ec || !c->tls) {
+                                  if (!ec) {
+                                    boost::system::error_code ignored;
+                                    c->socket.set_option(tcp::no_delay(true), ignored);
+                                  }
+                                  done->set_value({ec});
+                                  return;
                                 }
-                                done->set_value(ec);
+                                boost::system::error_code ignored;
+                                c->socket.set_option(tcp::no_delay(true), ignored);
+                                c->tls->async_handshake(
+                                    ssl::stream_base::client,
+                                    [c, done](boost::system::error_code ec) {
+                                      done->set_value(
+                                          {ec, true,
+                                           ec ? HandshakeFailure(ec, c->tls->native_handle())
+                                              : ""});
+                                    });
                               });
         });
   });
@@ -511,8 +628,17 @@ Status Client::Connect(const std::string& host, uint16_t port) {
     return Status(Status::Code::kUnavailable,
                   "connect to " + where + ": no answer within " + Ms(impl_->options.timeout));
   }
-  if (const boost::system::error_code ec = result.get()) {
-    return Status(Status::Code::kUnavailable, "connect to " + where + ": " + ec.message());
+  const Outcome outcome = result.get();
+  if (outcome.ec) {
+    if (outcome.handshake) {
+      asio::post(impl_->io, [c] {
+        boost::system::error_code ignored;
+        c->socket.close(ignored);
+      });
+      return Status(Status::Code::kUnavailable,
+                    "TLS handshake with " + where + " failed: " + outcome.detail);
+    }
+    return Status(Status::Code::kUnavailable, "connect to " + where + ": " + outcome.ec.message());
   }
   {
     std::lock_guard<std::mutex> lock(impl_->mu);
@@ -530,6 +656,12 @@ StatusOr<v1::Welcome> Client::Hello(const std::string& token, v1::Role role,
                                     const std::string& name, uint64_t client_id) {
   Impl& d = *impl_;
   std::unique_lock<std::mutex> lock(d.mu);
+  if (d.conn && d.conn->closed && d.phase == Impl::Phase::kDisconnected) {
+    // Closed between Connect and Hello: a TLS server refusing the client's certificate (or
+    // its absence) does so after the client's side of the handshake.
+    return Status(Status::Code::kUnavailable,
+                  "connection lost before Hello: " + d.disconnect_reason);
+  }
   if (!d.conn || d.conn->closed || d.phase != Impl::Phase::kConnected) {
     return FailedPrecondition("Hello needs a new connection: call Connect first");
   }
@@ -557,7 +689,11 @@ StatusOr<v1::Welcome> Client::Hello(const std::string& token, v1::Role role,
   }
   if (d.phase != Impl::Phase::kAuthed) {
     return Status(Status::Code::kUnavailable,
-                  "connection lost before Welcome: " + d.disconnect_reason);
+                  "connection lost before Welcome: " + d.disconnect_reason +
+                      (d.options.tls.enabled
+                           ? ""
+                           : " (a server with TLS closes plaintext clients: connect with --tls "
+                             "or ClientOptions::tls)"));
   }
   return d.welcome;
 }
@@ -879,12 +1015,13 @@ Status ParseServerAddress(const std::string& text, std::string* host, uint16_t* 
 
 StatusOr<JoinedScene> FetchScene(const std::string& address, const std::string& token,
                                  v1::Role role, const std::string& scene,
-                                 std::chrono::milliseconds timeout) {
+                                 std::chrono::milliseconds timeout, const ClientTlsOptions& tls) {
   std::string host;
   uint16_t port = 0;
   SCULPT_RETURN_IF_ERROR(ParseServerAddress(address, &host, &port));
   ClientOptions options;
   options.timeout = timeout;
+  options.tls = tls;
   Client client(options);
   SCULPT_RETURN_IF_ERROR(client.Connect(host, port));
   auto welcome = client.Hello(token, role, "sculpt-cli", 0);

@@ -3,11 +3,14 @@
 #ifndef SCULPT_CLIENT_LIB_NET_H_
 #define SCULPT_CLIENT_LIB_NET_H_
 
-#include <boost/asio.hpp>
 #include <utility>
+
+#include <boost/asio.hpp>
+#include <boost/asio/ssl.hpp>
 
 namespace sculpt::client {
 namespace asio = boost::asio;
+namespace ssl = boost::asio::ssl;
 using tcp = boost::asio::ip::tcp;
 }  // namespace sculpt::client
 

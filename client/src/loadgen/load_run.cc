@@ -166,6 +166,7 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
     const size_t index = c.sculptor ? i : i - static_cast<size_t>(o.sculptors);
     c.name = (c.sculptor ? "sculptor-" : "viewer-") + std::to_string(index);
     ClientOptions co;
+    co.tls = o.tls;
     co.io = io[i % io.size()];
     c.client = std::make_unique<Client>(co);
     c.client->SetEventHandler(MakeHandler(c.seen));
@@ -203,6 +204,7 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
     c.name = std::string(c.mode == v1::REPLICA_MODE_REPLAY ? "replay-" : "leafdelta-") +
              std::to_string(i);
     ClientOptions co;
+    co.tls = o.tls;
     co.io = io[i % io.size()];
     co.skip_state = true;
     c.client = std::make_unique<Client>(co);
@@ -274,6 +276,7 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
     publisher = std::make_unique<haptics::SnapshotPublisher>();
     feed = std::make_unique<haptics::SculptureFeed>(publisher.get(), /*seal=*/false);
     ClientOptions co;
+    co.tls = o.tls;
     co.io = io[0];
     co.skip_state = true;
     haptic_conn = std::make_unique<Client>(co);
@@ -612,6 +615,7 @@ StatusOr<nlohmann::ordered_json> RunLateJoin(const LoadOptions& o) {
   SCULPT_RETURN_IF_ERROR(ParseServerAddress(o.server, &host, &port));
   const auto t0 = Clock::now();
   ClientOptions co;
+  co.tls = o.tls;
   co.skip_state = true;
   co.timeout = std::chrono::seconds(60);
   Client client(co);

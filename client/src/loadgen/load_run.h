@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "sculpt/client/client.h"
 #include "sculpt/core/status.h"
 
 namespace sculpt::client {
@@ -21,6 +22,7 @@ struct LoadOptions {
   uint64_t seed = 1;         // trajectories only; client ids are always fresh
   std::string sculptor_token = "sculpt-dev-sculptor";
   std::string viewer_token = "sculpt-dev-viewer";
+  ClientTlsOptions tls;       // every client's TLS settings (off: plain TCP)
   std::string scene;          // empty: the server's default
   std::string object;         // empty: the scene's first object
   double tool_radius = 2.5;   // sphere tool, world units

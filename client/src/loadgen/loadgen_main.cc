@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "loadgen/load_run.h"
+#include "tls_flags.h"
 
 int main(int argc, char** argv) {
   sculpt::client::LoadOptions o;
@@ -33,6 +34,7 @@ int main(int argc, char** argv) {
   app.add_option("--sculptor-token", o.sculptor_token, "Sculptor secret")->capture_default_str();
   app.add_option("--viewer-token", o.viewer_token, "Viewer secret")->capture_default_str();
   app.add_option("--scene", o.scene, "Scene to join (default: the server's)");
+  sculpt::client::AddTlsFlags(app, &o.tls);
   app.add_option("--object", o.object, "Object to sculpt (default: the scene's first)");
   app.add_option("--tool-radius", o.tool_radius, "Sphere tool radius, world units")
       ->capture_default_str();

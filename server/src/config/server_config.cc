@@ -12,6 +12,8 @@
 #include <sstream>
 #include <toml++/toml.h>
 
+#include <boost/asio/ip/address.hpp>
+
 namespace sculpt::server {
 namespace {
 
@@ -98,7 +100,22 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
        << e.source().begin.column << ": " << e.description();
     return InvalidArgument(os.str());
   }
-  SCULPT_RETURN_IF_ERROR(CheckKeys(path, root, "", {"server", "limits", "scene"}));
+  SCULPT_RETURN_IF_ERROR(CheckKeys(path, root, "", {"server", "limits", "scene", "tls"}));
+  if (const toml::table* t = root["tls"].as_table()) {
+    SCULPT_RETURN_IF_ERROR(CheckKeys(path, *t, "tls",
+                                     {"cert_file", "key_file", "client_ca_file", "allow_plaintext"}));
+    // Relative paths are taken from the config file's folder, as objects' model files are.
+    auto get_path = [&](const char* key, std::string* out) {
+      Get(*t, key, out);
+      if (!out->empty() && std::filesystem::path(*out).is_relative()) {
+        *out = (std::filesystem::path(path).parent_path() / *out).lexically_normal().string();
+      }
+    };
+    get_path("cert_file", &c->tls.cert_file);
+    get_path("key_file", &c->tls.key_file);
+    get_path("client_ca_file", &c->tls.client_ca_file);
+    Get(*t, "allow_plaintext", &c->tls.allow_plaintext);
+  }
   if (const toml::table* s = root["server"].as_table()) {
     SCULPT_RETURN_IF_ERROR(CheckKeys(path, *s, "server",
                                      {"listen", "data_dir", "io_threads", "fsync", "group_commit_ms",
@@ -281,10 +298,37 @@ Status ParseHostPort(const std::string& text, std::string* host, uint16_t* port)
   return Status::Ok();
 }
 
+bool IsLoopbackListen(const std::string& listen) {
+  std::string host;
+  uint16_t port = 0;
+  if (!ParseHostPort(listen, &host, &port).ok()) return false;
+  if (host == "localhost") return true;
+  boost::system::error_code ec;
+  const auto address = boost::asio::ip::make_address(host, ec);
+  return !ec && address.is_loopback();
+}
+
 Status ValidateConfig(const ServerConfig& c) {
   std::string host;
   uint16_t port = 0;
   SCULPT_RETURN_IF_ERROR(ParseHostPort(c.listen, &host, &port));
+  const TlsConfig& tls = c.tls;
+  if (tls.enabled() != !tls.key_file.empty()) {
+    return InvalidArgument(tls.enabled() ? "tls.key_file is empty but tls.cert_file=" +
+                                               tls.cert_file + " is set: TLS needs both"
+                                         : "tls.cert_file is empty but tls.key_file=" +
+                                               tls.key_file + " is set: TLS needs both");
+  }
+  if (!tls.enabled() && !tls.client_ca_file.empty()) {
+    return InvalidArgument("tls.client_ca_file=" + tls.client_ca_file +
+                           " is set without tls.cert_file and tls.key_file");
+  }
+  if (!tls.enabled() && !tls.allow_plaintext && !IsLoopbackListen(c.listen)) {
+    return InvalidArgument("listen=" + c.listen +
+                           " is beyond loopback without TLS: set tls.cert_file and tls.key_file "
+                           "(--tls-cert, --tls-key), or tls.allow_plaintext = true "
+                           "(--allow-plaintext) to send tokens and strokes in clear");
+  }
   if (c.data_dir.empty()) return InvalidArgument("data_dir is empty");
   SCULPT_RETURN_IF_ERROR(Range("io_threads", c.io_threads, 1, 64));
   SCULPT_RETURN_IF_ERROR(OneOf("fsync", c.fsync, {"always", "group"}));

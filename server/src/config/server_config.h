@@ -100,6 +100,17 @@ struct LimitsConfig {
   uint32_t max_pending_joins = 8;
 };
 
+/// TLS on the TCP port and the HTTP port (HTTPS, WSS). Off while cert_file is empty; then only
+/// loopback addresses may be listened on unless allow_plaintext is set.
+struct TlsConfig {
+  std::string cert_file;       // PEM: the server's certificate, then any intermediates
+  std::string key_file;        // PEM: its private key (unencrypted)
+  std::string client_ca_file;  // PEM: CAs whose client certificates the TCP port requires;
+                               // empty: no client certificate is asked for
+  bool allow_plaintext = false;  // listen beyond loopback without TLS (logged as a warning)
+  bool enabled() const { return !cert_file.empty(); }
+};
+
 struct ServerConfig {
   std::string listen = "127.0.0.1:7420";
   std::string data_dir = "./sculpt-data";
@@ -116,6 +127,7 @@ struct ServerConfig {
   double presence_hz = 10;
   LimitsConfig limits;
   SceneConfig scene;
+  TlsConfig tls;
 };
 
 /// Reads a TOML file into `config` (keys not present keep their values). InvalidArgument naming
@@ -127,6 +139,9 @@ Status ValidateConfig(const ServerConfig& config);
 
 /// The kernel settings the scene's effects call for.
 levelset::EditSettings EditSettingsFor(const SceneConfig& scene);
+
+/// True when HOST of "HOST:PORT" is a loopback address (127.0.0.0/8, ::1, localhost).
+bool IsLoopbackListen(const std::string& listen);
 
 /// Splits "HOST:PORT". InvalidArgument for a malformed address.
 Status ParseHostPort(const std::string& text, std::string* host, uint16_t* port);

@@ -6,9 +6,11 @@
 #include <unistd.h>
 
 #include <optional>
+#include <type_traits>
 
 #include "net/beast.h"
 #include "net/metrics.h"
+#include "net/tls.h"
 #include "net/ws_transport.h"
 #include "store/recovery.h"
 
@@ -55,38 +57,85 @@ bool OriginAllowed(std::string_view origin, std::string_view host,
   return origin.substr(sep + 3) == host;
 }
 
-/// One HTTP connection until it closes or becomes a WebSocket session. Every member is touched
-/// only on its strand.
-class HttpServer::Connection : public std::enable_shared_from_this<Connection> {
+/// An HTTP connection as the server's list of open ones sees it.
+class HttpServer::Connection {
  public:
-  Connection(HttpServer& owner, Strand strand, tcp::socket socket, std::shared_ptr<void> slot)
+  virtual ~Connection() = default;
+  /// Closes the connection (from any thread).
+  virtual void Stop() = 0;
+};
+
+/// One HTTP connection until it closes or becomes a WebSocket session; `Stream` is a
+/// beast::tcp_stream or a beast::ssl_stream over one (HTTPS). Every member is touched only on
+/// its strand.
+template <class Stream>
+class HttpServer::BasicConnection final
+    : public HttpServer::Connection,
+      public std::enable_shared_from_this<HttpServer::BasicConnection<Stream>> {
+ public:
+  static constexpr bool kTls = !std::is_same_v<Stream, beast::tcp_stream>;
+
+  BasicConnection(HttpServer& owner, Strand strand, Stream stream, std::shared_ptr<void> slot)
       : owner_(owner),
         strand_(std::move(strand)),
-        stream_(std::move(socket)),
+        stream_(std::move(stream)),
         slot_(std::move(slot)),
         stats_(owner.stats_) {}
 
   void Start() {
-    asio::dispatch(strand_, [self = shared_from_this()] { self->DoRead(); });
+    asio::dispatch(strand_, [self = this->shared_from_this()] {
+      if constexpr (kTls) {
+        self->Handshake();
+      } else {
+        self->DoRead();
+      }
+    });
   }
 
-  /// Closes the connection (from any thread).
-  void Stop() {
-    asio::post(strand_, [self = shared_from_this()] {
+  void Stop() override {
+    asio::post(strand_, [self = this->shared_from_this()] {
       beast::error_code ec;
-      self->stream_.socket().shutdown(tcp::socket::shutdown_both, ec);
-      self->stream_.close();
+      self->Lowest().socket().shutdown(tcp::socket::shutdown_both, ec);
+      self->Lowest().close();
     });
   }
 
  private:
+  beast::tcp_stream& Lowest() { return beast::get_lowest_layer(stream_); }
+
+  // HTTPS: the handshake first, bounded by the authentication timeout (a peer that never
+  // completes it, or speaks plain HTTP, is closed).
+  void Handshake() {
+    const int timeout_ms = owner_.server_.config().limits.auth_timeout_ms;
+    Lowest().expires_after(std::chrono::milliseconds(timeout_ms));
+    stream_.async_handshake(
+        ssl::stream_base::server,
+        [self = this->shared_from_this(), timeout_ms](beast::error_code ec) {
+          if (ec) {
+            self->stats_->tls_handshake_failures++;
+            spdlog::info("http {}: TLS handshake: {}", self->Remote(),
+                         ec == beast::error::timeout
+                             ? "not complete within " + std::to_string(timeout_ms) + " ms"
+                             : DescribeHandshakeError(ec));
+            return self->Lowest().close();
+          }
+          self->DoRead();
+        });
+  }
+
+  std::string Remote() {
+    boost::system::error_code ec;
+    const auto ep = Lowest().socket().remote_endpoint(ec);
+    return ec ? "?" : ep.address().to_string() + ":" + std::to_string(ep.port());
+  }
+
   void DoRead() {
     parser_.emplace();
     parser_->header_limit(owner_.config_.max_header_bytes);
     parser_->body_limit(kMaxRequestBodyBytes);
-    stream_.expires_after(std::chrono::milliseconds(owner_.config_.idle_timeout_ms));
+    Lowest().expires_after(std::chrono::milliseconds(owner_.config_.idle_timeout_ms));
     http::async_read(stream_, buffer_, *parser_,
-                     [self = shared_from_this()](beast::error_code ec, size_t) {
+                     [self = this->shared_from_this()](beast::error_code ec, size_t) {
                        self->OnRead(ec);
                      });
   }
@@ -223,8 +272,8 @@ class HttpServer::Connection : public std::enable_shared_from_this<Connection> {
     res.prepare_payload();
     owner_.CountResponse(static_cast<int>(res.result_int()));
     auto sp = std::make_shared<Response>(std::move(res));
-    stream_.expires_after(kLingerTime);
-    http::async_write(stream_, *sp, [self = shared_from_this(), sp](beast::error_code ec, size_t) {
+    Lowest().expires_after(kLingerTime);
+    http::async_write(stream_, *sp, [self = this->shared_from_this(), sp](beast::error_code ec, size_t) {
       if (ec) return self->Shutdown();
       self->Linger();
     });
@@ -232,9 +281,9 @@ class HttpServer::Connection : public std::enable_shared_from_this<Connection> {
 
   template <class Message>
   void Write(std::shared_ptr<Message> msg, bool close) {
-    stream_.expires_after(std::chrono::milliseconds(owner_.config_.idle_timeout_ms));
+    Lowest().expires_after(std::chrono::milliseconds(owner_.config_.idle_timeout_ms));
     http::async_write(stream_, *msg,
-                      [self = shared_from_this(), msg, close](beast::error_code ec, size_t) {
+                      [self = this->shared_from_this(), msg, close](beast::error_code ec, size_t) {
                         if (ec || close) return self->Shutdown();
                         self->DoRead();
                       });
@@ -244,34 +293,33 @@ class HttpServer::Connection : public std::enable_shared_from_this<Connection> {
   // linger time passes, so an error response is not lost to a reset.
   void Linger() {
     beast::error_code ec;
-    stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
-    stream_.expires_after(kLingerTime);
+    Lowest().socket().shutdown(tcp::socket::shutdown_send, ec);
+    Lowest().expires_after(kLingerTime);
     stream_.async_read_some(asio::buffer(drain_),
-                            [self = shared_from_this()](beast::error_code ec, size_t) {
-                              if (ec) return self->stream_.close();
+                            [self = this->shared_from_this()](beast::error_code ec, size_t) {
+                              if (ec) return self->Lowest().close();
                               self->LingerMore();
                             });
   }
   void LingerMore() {
     stream_.async_read_some(asio::buffer(drain_),
-                            [self = shared_from_this()](beast::error_code ec, size_t) {
-                              if (ec) return self->stream_.close();
+                            [self = this->shared_from_this()](beast::error_code ec, size_t) {
+                              if (ec) return self->Lowest().close();
                               self->LingerMore();
                             });
   }
 
   void Shutdown() {
     beast::error_code ec;
-    stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
-    stream_.close();
+    Lowest().socket().shutdown(tcp::socket::shutdown_send, ec);
+    Lowest().close();
   }
 
   void Upgrade(Request req) {
-    stream_.expires_never();
-    boost::system::error_code ec;
-    const auto ep = stream_.socket().remote_endpoint(ec);
-    std::string remote = ec ? "?" : ep.address().to_string() + ":" + std::to_string(ep.port());
-    auto ws = std::make_unique<WsTransport::Stream>(std::move(stream_));
+    Lowest().expires_never();
+    std::string remote = Remote();
+    using Ws = BasicWsTransport<Stream>;
+    auto ws = std::make_unique<typename Ws::Stream>(std::move(stream_));
     ws->set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
     websocket::permessage_deflate pmd;
     pmd.server_enable = false;
@@ -280,8 +328,8 @@ class HttpServer::Connection : public std::enable_shared_from_this<Connection> {
     ws->set_option(websocket::stream_base::decorator(
         [](websocket::response_type& res) { res.set(http::field::server, "sculptd"); }));
     auto request = std::make_shared<Request>(std::move(req));
-    WsTransport::Stream* raw = ws.get();
-    raw->async_accept(*request, [self = shared_from_this(), request, ws = std::move(ws),
+    typename Ws::Stream* raw = ws.get();
+    raw->async_accept(*request, [self = this->shared_from_this(), request, ws = std::move(ws),
                                  remote = std::move(remote)](beast::error_code ec) mutable {
       if (ec) {
         spdlog::info("websocket upgrade from {} failed: {}", remote, ec.message());
@@ -289,7 +337,7 @@ class HttpServer::Connection : public std::enable_shared_from_this<Connection> {
       }
       self->stats_->websocket_upgrades++;
       self->owner_.CountResponse(101);
-      auto transport = std::make_shared<WsTransport>(
+      auto transport = std::make_shared<Ws>(
           std::move(ws), std::move(remote), self->owner_.server_.config().limits.max_frame_bytes,
           std::move(self->slot_));
       self->owner_.server_.Adopt(self->strand_, std::move(transport));
@@ -298,7 +346,7 @@ class HttpServer::Connection : public std::enable_shared_from_this<Connection> {
 
   HttpServer& owner_;
   Strand strand_;
-  beast::tcp_stream stream_;
+  Stream stream_;
   std::shared_ptr<void> slot_;
   std::shared_ptr<HttpStats> stats_;
   beast::flat_buffer buffer_;
@@ -319,6 +367,18 @@ StatusOr<uint16_t> HttpServer::Start() {
   std::string host;
   uint16_t port = 0;
   SCULPT_RETURN_IF_ERROR(ParseHostPort(config_.listen, &host, &port));
+  tls_ = server_.http_tls_context();
+  if (!tls_ && !IsLoopbackListen(config_.listen)) {
+    if (!server_.config().tls.allow_plaintext) {
+      return InvalidArgument("http listen=" + config_.listen +
+                             " is beyond loopback without TLS: set tls.cert_file and "
+                             "tls.key_file (--tls-cert, --tls-key), or tls.allow_plaintext = true "
+                             "(--allow-plaintext)");
+    }
+    spdlog::warn("http on {} beyond loopback WITHOUT TLS (tls.allow_plaintext): tokens and "
+                 "strokes cross the network in clear",
+                 config_.listen);
+  }
   boost::system::error_code ec;
   const auto address = asio::ip::make_address(host == "localhost" ? "127.0.0.1" : host, ec);
   if (ec) return InvalidArgument("http host=" + host + " is not an IP address");
@@ -379,7 +439,21 @@ void HttpServer::Accept() {
       std::shared_ptr<void> slot(nullptr, [open = open_](void*) { open->fetch_sub(1); });
       boost::system::error_code nd;
       socket.set_option(tcp::no_delay(true), nd);
-      auto c = std::make_shared<Connection>(*this, strand, std::move(socket), std::move(slot));
+      std::shared_ptr<Connection> c;
+      std::function<void()> start;
+      if (tls_) {
+        auto tc = std::make_shared<BasicConnection<beast::ssl_stream<beast::tcp_stream>>>(
+            *this, strand,
+            beast::ssl_stream<beast::tcp_stream>(beast::tcp_stream(std::move(socket)), *tls_),
+            std::move(slot));
+        c = tc;
+        start = [tc] { tc->Start(); };
+      } else {
+        auto pc = std::make_shared<BasicConnection<beast::tcp_stream>>(
+            *this, strand, beast::tcp_stream(std::move(socket)), std::move(slot));
+        c = pc;
+        start = [pc] { pc->Start(); };
+      }
       {
         std::lock_guard<std::mutex> lock(connections_mu_);
         // Forget connections that have ended, so the map stays as small as the open set.
@@ -388,7 +462,7 @@ void HttpServer::Accept() {
         }
         connections_[next_connection_++] = c;
       }
-      c->Start();
+      start();
     }
     if (!stopped_) Accept();
   });
@@ -512,6 +586,12 @@ std::string HttpServer::MetricsText() {
             static_cast<double>(stats_->connections_refused.load()));
   w.Counter("sculpt_http_idle_timeouts_total", "HTTP connections closed for idleness",
             static_cast<double>(stats_->idle_timeouts.load()));
+  w.Counter("sculpt_tls_handshake_failures_total",
+            "TLS handshakes that failed or timed out (plaintext, bad certificates)",
+            static_cast<double>(s.tls_handshake_failures.load()), {{"port", "tcp"}});
+  w.Counter("sculpt_tls_handshake_failures_total",
+            "TLS handshakes that failed or timed out (plaintext, bad certificates)",
+            static_cast<double>(stats_->tls_handshake_failures.load()), {{"port", "http"}});
   {
     std::lock_guard<std::mutex> lock(stats_->responses_mu);
     for (const auto& [code, n] : stats_->responses) {

@@ -50,6 +50,7 @@ struct HttpStats {
   std::atomic<uint64_t> connections_refused{0};
   std::atomic<uint64_t> idle_timeouts{0};
   std::atomic<uint64_t> websocket_upgrades{0};
+  std::atomic<uint64_t> tls_handshake_failures{0};
   std::mutex responses_mu;
   std::map<int, uint64_t> responses;  // by status code
 };
@@ -62,8 +63,10 @@ class HttpServer {
   HttpServer(const HttpServer&) = delete;
   HttpServer& operator=(const HttpServer&) = delete;
 
-  /// Binds and listens on config.listen. Returns the bound port; InvalidArgument for a bad
-  /// address, Unavailable when it cannot listen.
+  /// Binds and listens on config.listen, over TLS (HTTPS, WSS) when the Server has a TLS
+  /// configuration (its Start must have run). Returns the bound port; InvalidArgument for a bad
+  /// address or a non-loopback address without TLS or tls.allow_plaintext, Unavailable when it
+  /// cannot listen.
   StatusOr<uint16_t> Start();
   /// Closes the acceptor and the HTTP connections (WebSocket sessions close with the Server).
   void Stop();
@@ -84,6 +87,8 @@ class HttpServer {
 
  private:
   class Connection;
+  template <class Stream>
+  class BasicConnection;
   void Accept();
   void CountResponse(int code);
 
@@ -92,6 +97,7 @@ class HttpServer {
   Server& server_;
   StaticFiles files_;
   tcp::acceptor acceptor_;
+  std::shared_ptr<boost::asio::ssl::context> tls_;  // null: plain HTTP
   std::atomic<bool> stopped_{false};
   // Shared with the connection slots, which may outlive this object in queued handlers.
   std::shared_ptr<std::atomic<int64_t>> open_ = std::make_shared<std::atomic<int64_t>>(0);

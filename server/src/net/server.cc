@@ -8,6 +8,7 @@
 
 #include "net/session.h"
 #include "net/tcp_transport.h"
+#include "net/tls.h"
 #include "sculpt/codec/frame.h"
 
 namespace sculpt::server {
@@ -55,6 +56,18 @@ StatusOr<uint16_t> Server::Start() {
     spdlog::info("named users from {}: {}", config_.users_file, auth_->user_count());
   }
   if (!auth_) return Internal("no authenticator");
+  if (config_.tls.enabled()) {
+    auto tcp_ctx = MakeServerTlsContext(config_.tls, /*require_client_certs=*/true);
+    if (!tcp_ctx.ok()) return tcp_ctx.status();
+    auto http_ctx = MakeServerTlsContext(config_.tls, /*require_client_certs=*/false);
+    if (!http_ctx.ok()) return http_ctx.status();
+    tls_ = std::move(tcp_ctx).value();
+    http_tls_ = std::move(http_ctx).value();
+  } else if (!IsLoopbackListen(config_.listen)) {
+    spdlog::warn("listening on {} beyond loopback WITHOUT TLS (tls.allow_plaintext): tokens and "
+                 "strokes cross the network in clear",
+                 config_.listen);
+  }
   std::string host;
   uint16_t port = 0;
   SCULPT_RETURN_IF_ERROR(ParseHostPort(config_.listen, &host, &port));
@@ -98,7 +111,24 @@ void Server::Accept() {
     }
     boost::system::error_code nd;
     socket.set_option(tcp::no_delay(true), nd);
-    Adopt(strand, std::make_shared<TcpTransport>(std::move(socket), config_.limits.max_frame_bytes));
+    if (!tls_) {
+      Adopt(strand,
+            std::make_shared<TcpTransport>(std::move(socket), config_.limits.max_frame_bytes));
+    } else {
+      // The session starts once the handshake is done; a handshake that never completes
+      // (plaintext, a silent peer) is cut at the authentication timeout.
+      auto t = std::make_shared<TlsTcpTransport>(ssl::stream<tcp::socket>(std::move(socket), *tls_),
+                                                 config_.limits.max_frame_bytes);
+      t->AsyncHandshake(std::chrono::milliseconds(config_.limits.auth_timeout_ms),
+                        [this, strand, t](Status st) {
+                          if (!st.ok()) {
+                            stats_.tls_handshake_failures++;
+                            spdlog::info("tcp {}: {}", t->remote(), st.message());
+                            return;
+                          }
+                          Adopt(strand, t);
+                        });
+    }
     if (!stopped_) Accept();
   });
 }

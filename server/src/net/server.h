@@ -19,6 +19,10 @@
 #include "net/users.h"
 #include "scene/scene.h"
 
+namespace boost::asio::ssl {
+class context;
+}  // namespace boost::asio::ssl
+
 namespace sculpt::server {
 
 class Session;
@@ -32,6 +36,8 @@ struct ServerStats {
   std::atomic<uint64_t> disconnects_for_cause{0};
   /// Mesh chunk frames replaced, unsent, by a newer version of the same chunk.
   std::atomic<uint64_t> frames_superseded{0};
+  /// TLS handshakes that failed or timed out (plaintext on a TLS port, bad certificates).
+  std::atomic<uint64_t> tls_handshake_failures{0};
   std::array<std::atomic<uint64_t>, kTransportKinds> bytes_in{};
   std::array<std::atomic<uint64_t>, kTransportKinds> bytes_out{};
   std::array<std::atomic<uint64_t>, kTransportKinds> messages_in{};
@@ -49,7 +55,8 @@ class Server {
   Server(asio::io_context& io, const ServerConfig& config, Scene& scene);
   ~Server();
 
-  /// Binds and listens on config.listen. Returns the bound port (useful with port 0).
+  /// Loads the TLS files (config.tls), binds and listens on config.listen. Returns the bound
+  /// port (useful with port 0); InvalidArgument naming the key and file of a bad TLS setting.
   StatusOr<uint16_t> Start();
   /// Closes the acceptor and every session with a Bye.
   void Stop();
@@ -62,6 +69,9 @@ class Server {
   Authenticator& auth() { return *auth_; }
   /// Re-reads the users file (SIGHUP); the previous users stay in force on error.
   Status ReloadUsers();
+  /// The HTTP port's TLS context (no client certificates asked), null when TLS is off. Set by
+  /// Start.
+  std::shared_ptr<boost::asio::ssl::context> http_tls_context() const { return http_tls_; }
 
   /// Runs a session on a connection another front accepted (the HTTP server's WebSocket
   /// upgrades). False, and the transport closed, after Stop.
@@ -83,6 +93,8 @@ class Server {
   ServerConfig config_;
   Scene& scene_;
   tcp::acceptor acceptor_;
+  std::shared_ptr<boost::asio::ssl::context> tls_;       // the TCP port's; null: plaintext
+  std::shared_ptr<boost::asio::ssl::context> http_tls_;  // the HTTP port's
   asio::steady_timer presence_timer_;
   std::mutex sessions_mu_;
   std::set<std::shared_ptr<Session>> sessions_;

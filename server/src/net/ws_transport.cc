@@ -1,19 +1,24 @@
 /// @brief WsTransport: one sculpt.v1 message per WebSocket binary message.
 #include "net/ws_transport.h"
 
+#include <boost/beast/websocket/ssl.hpp>
+
 #include "sculpt/codec/frame.h"
 
 namespace sculpt::server {
 
-struct WsTransport::WriteOp {
+template <class NextLayer>
+struct BasicWsTransport<NextLayer>::WriteOp {
   std::vector<Frame> frames;
   size_t next = 0;
   uint64_t bytes = 0;
   WriteHandler done;
 };
 
-WsTransport::WsTransport(std::unique_ptr<Stream> ws, std::string remote,
-                         uint32_t max_message_bytes, std::shared_ptr<void> hold)
+template <class NextLayer>
+BasicWsTransport<NextLayer>::BasicWsTransport(std::unique_ptr<Stream> ws, std::string remote,
+                                              uint32_t max_message_bytes,
+                                              std::shared_ptr<void> hold)
     : ws_(std::move(ws)),
       remote_(std::move(remote)),
       max_message_bytes_(max_message_bytes),
@@ -23,8 +28,9 @@ WsTransport::WsTransport(std::unique_ptr<Stream> ws, std::string remote,
   ws_->read_message_max(max_message_bytes_);
 }
 
-void WsTransport::AsyncRead(ReadHandler done) {
-  ws_->async_read(buffer_, [self = shared_from_this(), done = std::move(done)](
+template <class NextLayer>
+void BasicWsTransport<NextLayer>::AsyncRead(ReadHandler done) {
+  ws_->async_read(buffer_, [self = this->shared_from_this(), done = std::move(done)](
                                beast::error_code ec, size_t n) {
     ReadResult r;
     r.bytes = n;
@@ -47,7 +53,8 @@ void WsTransport::AsyncRead(ReadHandler done) {
   });
 }
 
-void WsTransport::AsyncWrite(std::vector<Frame> frames, WriteHandler done) {
+template <class NextLayer>
+void BasicWsTransport<NextLayer>::AsyncWrite(std::vector<Frame> frames, WriteHandler done) {
   auto op = std::make_shared<WriteOp>();
   op->frames = std::move(frames);
   op->done = std::move(done);
@@ -55,7 +62,8 @@ void WsTransport::AsyncWrite(std::vector<Frame> frames, WriteHandler done) {
   WriteNext(std::move(op));
 }
 
-void WsTransport::WriteNext(std::shared_ptr<WriteOp> op) {
+template <class NextLayer>
+void BasicWsTransport<NextLayer>::WriteNext(std::shared_ptr<WriteOp> op) {
   if (op->next == op->frames.size()) {
     writing_ = false;
     return op->done(Status::Ok(), op->bytes);
@@ -64,7 +72,7 @@ void WsTransport::WriteNext(std::shared_ptr<WriteOp> op) {
   // The message is the frame without its length prefix: the WebSocket frames it.
   const size_t skip = std::min(f->size(), codec::kFrameHeaderBytes);
   ws_->async_write(asio::buffer(f->data() + skip, f->size() - skip),
-                   [self = shared_from_this(), op](beast::error_code ec, size_t n) mutable {
+                   [self = this->shared_from_this(), op](beast::error_code ec, size_t n) mutable {
                      op->bytes += n;
                      if (ec) {
                        self->writing_ = false;
@@ -75,7 +83,8 @@ void WsTransport::WriteNext(std::shared_ptr<WriteOp> op) {
                    });
 }
 
-void WsTransport::Close() {
+template <class NextLayer>
+void BasicWsTransport<NextLayer>::Close() {
   if (closed_) return;
   closed_ = true;
   if (writing_ || !ws_->is_open()) {
@@ -87,7 +96,10 @@ void WsTransport::Close() {
   }
   // The close handshake; its own timeout (the stream's handshake timeout) bounds it.
   ws_->async_close(websocket::close_code::normal,
-                   [self = shared_from_this()](beast::error_code) {});
+                   [self = this->shared_from_this()](beast::error_code) {});
 }
+
+template class BasicWsTransport<beast::tcp_stream>;
+template class BasicWsTransport<beast::ssl_stream<beast::tcp_stream>>;
 
 }  // namespace sculpt::server

@@ -37,6 +37,20 @@ class IoThread {
   std::unique_ptr<Impl> impl_;
 };
 
+/// TLS to a sculptd whose configuration has tls.cert_file (its TCP port then speaks only TLS).
+struct ClientTlsOptions {
+  bool enabled = false;
+  /// PEM CA certificates the server's certificate must chain to; empty: the system's store.
+  std::string ca_file;
+  /// Check that the certificate names the server (a DNS name or an IP address).
+  bool verify_server_name = true;
+  /// The name to check and to send as SNI; empty: the host given to Connect.
+  std::string server_name;
+  /// A client certificate and its key (PEM), for servers with tls.client_ca_file.
+  std::string cert_file;
+  std::string key_file;
+};
+
 struct ClientOptions {
   /// Shared I/O thread; null: the client starts its own.
   std::shared_ptr<IoThread> io;
@@ -50,6 +64,8 @@ struct ClientOptions {
   uint32_t max_frame_bytes = 4u << 20;
   /// Join without the objects' .vdb state (a replica loads its region through Subscribe).
   bool skip_state = false;
+  /// TLS on the connection (off: plain TCP).
+  ClientTlsOptions tls;
 };
 
 /// A stroke as the caller describes it; SendStroke packs the poses (proto/README.md, "Packed
@@ -139,8 +155,11 @@ class Client {
   Client(const Client&) = delete;
   Client& operator=(const Client&) = delete;
 
-  /// Opens a TCP connection (closing any previous one). Unavailable when the host does not
-  /// resolve, the connection is refused, or the timeout passes.
+  /// Opens a TCP connection (closing any previous one), with a TLS handshake when options.tls
+  /// is enabled. Unavailable when the host does not resolve, the connection is refused, the
+  /// handshake fails (the text names the reason: "certificate has expired", "hostname
+  /// mismatch", ...) or the timeout passes; InvalidArgument naming the option for a TLS file
+  /// that cannot be loaded.
   Status Connect(const std::string& host, uint16_t port);
   /// Authenticates. Returns the Welcome, or the server's Error as a Status (ErrorToStatus: the
   /// code name, field, value, allowed range and message in the text), Unavailable when the
@@ -223,11 +242,12 @@ uint64_t NewClientId();
 /// Splits "HOST:PORT" (IPv6 as "[::1]:7420"). InvalidArgument naming the text otherwise.
 Status ParseServerAddress(const std::string& text, std::string* host, uint16_t* port);
 
-/// Connects, joins as `role` and returns the scene's current state, then says Bye. Errors as
-/// Connect, Hello and Join.
+/// Connects (over TLS with `tls`), joins as `role` and returns the scene's current state, then
+/// says Bye. Errors as Connect, Hello and Join.
 StatusOr<JoinedScene> FetchScene(const std::string& address, const std::string& token,
                                  v1::Role role = v1::ROLE_VIEWER, const std::string& scene = "",
-                                 std::chrono::milliseconds timeout = std::chrono::seconds(30));
+                                 std::chrono::milliseconds timeout = std::chrono::seconds(30),
+                                 const ClientTlsOptions& tls = {});
 
 }  // namespace sculpt::client
 
