@@ -156,4 +156,14 @@ Vec3 SculptureSnapshot::Gradient(const Vec3& p) const {
   return {gw.x(), gw.y(), gw.z()};
 }
 
+void SculptureSnapshot::PhiAndGradient(const Vec3& p, double* phi, Vec3* gradient) const {
+  const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
+  const auto& xform = grid.transform();
+  Accessor& acc = AccessorFor(id_, grid.tree());
+  const Corners c = ReadCorners(acc, xform, p);
+  *phi = Interpolate(c.v, c.tx, c.ty, c.tz);
+  const openvdb::Vec3d gw = xform.baseMap()->applyIJT(CentralIndexGradient(acc, c, c.origin));
+  *gradient = {gw.x(), gw.y(), gw.z()};
+}
+
 }  // namespace sculpt::haptics

@@ -30,6 +30,8 @@ class SculptureSnapshot : public SdfSampler {
 
   double Phi(const Vec3& p) const override;
   Vec3 Gradient(const Vec3& p) const override;
+  /// One read of the gradient's 32-corner stencil gives the value too (its inner 8 corners).
+  void PhiAndGradient(const Vec3& p, double* phi, Vec3* gradient) const override;
   double cell_size() const override { return voxel_size_; }
 
   const levelset::Sculpture& sculpture() const { return *sculpture_; }
