@@ -50,6 +50,13 @@ struct HapticSettings {
   /// The proxy keeps its centre on phi = proxy_radius (0: a point proxy on the surface). It
   /// must stay below the narrow band's half-width minus one voxel, where phi is not clamped.
   double proxy_radius = 0.0;
+  /// Per-tick time budget in microseconds (0: none). The renderer visits the tool's samples
+  /// coarse to fine and stops when the budget is spent, returning the force from the samples it
+  /// has (HapticRenderer::Tick); the next tick resumes where it stopped.
+  double tick_budget_us = 200.0;
+  /// The same budget as a count of samples evaluated per tick (0: none): deterministic, for
+  /// tests and for hardware with a known cost per sample.
+  int tick_budget_samples = 0;
 };
 
 inline constexpr double kMaxStiffness = 1e6;
@@ -59,6 +66,7 @@ inline constexpr double kMinRateHz = 100;
 inline constexpr double kMaxRateHz = 10000;
 inline constexpr double kMaxToolRadius = 1e4;
 inline constexpr int kMaxToolSamples = 4096;
+inline constexpr double kMaxTickBudgetUs = 1e6;
 
 /// Ok, or InvalidArgument naming the field, the value and the allowed range
 /// (e.g. "HapticSettings.damping=0 outside [0.0005, 1e+06]").
