@@ -116,8 +116,10 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
     if (!std::isnan(anchor_phi_[k])) {
       // phi >= anchor_phi - L |p - anchor| along a -> x: the distance to the anchor is convex
       // along the segment, so its largest value is at an end.
-      const double da = (a - anchor_[k]).Length(), dx = (x - anchor_[k]).Length();
-      if (anchor_phi_[k] - kSkipLipschitz * std::max(da, dx) > range) {
+      // Compared squared: no square root for the samples skipped, most of them.
+      const double margin = anchor_phi_[k] - range;
+      const double da2 = (a - anchor_[k]).LengthSqr(), dx2 = (x - anchor_[k]).LengthSqr();
+      if (margin > 0 && margin * margin > kSkipLipschitz * kSkipLipschitz * std::max(da2, dx2)) {
         term_[k] = SampleForce{};
         known_[k] = 1;
         from_[k] = x;
@@ -125,8 +127,8 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
         continue;
       }
       // A lower bound is a safe start for the sweep's steps only while it says "free".
-      const double bound = anchor_phi_[k] - kSkipLipschitz * da;
-      if (da == 0 || bound > 0) phi_a = da == 0 ? anchor_phi_[k] : bound;
+      const double bound = anchor_phi_[k] - kSkipLipschitz * std::sqrt(da2);
+      if (da2 == 0 || bound > 0) phi_a = da2 == 0 ? anchor_phi_[k] : bound;
     }
     if (evaluated > 0 && OutOfBudget(evaluated, start_us)) {
       stopped = true;

@@ -45,6 +45,16 @@ struct Corners {
   double tx, ty, tz;
 };
 
+inline double Interpolate(const double (&v)[2][2][2], double tx, double ty, double tz) {
+  const double x00 = v[0][0][0] + tx * (v[1][0][0] - v[0][0][0]);
+  const double x10 = v[0][1][0] + tx * (v[1][1][0] - v[0][1][0]);
+  const double x01 = v[0][0][1] + tx * (v[1][0][1] - v[0][0][1]);
+  const double x11 = v[0][1][1] + tx * (v[1][1][1] - v[0][1][1]);
+  const double y0 = x00 + ty * (x10 - x00);
+  const double y1 = x01 + ty * (x11 - x01);
+  return y0 + tz * (y1 - y0);
+}
+
 // p's cell and its fractional position, without reading values.
 Corners Locate(const openvdb::math::Transform& xform, const Vec3& p) {
   const openvdb::Vec3d u = xform.worldToIndex(openvdb::Vec3d(p.x, p.y, p.z));
@@ -70,18 +80,8 @@ void FillCorners(const Get& get, Corners* c) {
   }
 }
 
-double Interpolate(const double (&v)[2][2][2], double tx, double ty, double tz);
 
 
-double Interpolate(const double (&v)[2][2][2], double tx, double ty, double tz) {
-  const double x00 = v[0][0][0] + tx * (v[1][0][0] - v[0][0][0]);
-  const double x10 = v[0][1][0] + tx * (v[1][1][0] - v[0][1][0]);
-  const double x01 = v[0][0][1] + tx * (v[1][0][1] - v[0][0][1]);
-  const double x11 = v[0][1][1] + tx * (v[1][1][1] - v[0][1][1]);
-  const double y0 = x00 + ty * (x10 - x00);
-  const double y1 = x01 + ty * (x11 - x01);
-  return y0 + tz * (y1 - y0);
-}
 
 // Central differences of the trilinear interpolant one voxel either side of p, in index units,
 // read as one stencil: p's 8 corners plus the 24 outer corners of the cells one voxel away along
@@ -91,38 +91,38 @@ double Interpolate(const double (&v)[2][2][2], double tx, double ty, double tz) 
 template <typename Get>
 openvdb::Vec3d CentralIndexGradient(const Get& get, const Corners& c, const openvdb::Coord& o) {
   const auto& v = c.v;
+  // Per axis, the cell one voxel below (lo) and above (hi): the outer corners read here, the
+  // inner ones are p's own. Written out per axis (not through index arrays): this runs for
+  // every touching sample and the generic form cost several times the reads.
   double lo[2][2][2], hi[2][2][2];
   double g[3];
-  for (int axis = 0; axis < 3; ++axis) {
-    for (int a = 0; a < 2; ++a) {
-      for (int b = 0; b < 2; ++b) {
-        // (a, b) index the two axes other than `axis`, in increasing order.
-        int ijk_lo[3], ijk_hi[3], ijk0[3], ijk1[3];
-        int other = 0;
-        for (int d = 0; d < 3; ++d) {
-          if (d == axis) continue;
-          const int w = other++ == 0 ? a : b;
-          ijk_lo[d] = ijk_hi[d] = ijk0[d] = ijk1[d] = w;
-        }
-        ijk_lo[axis] = -1;
-        ijk_hi[axis] = 2;
-        ijk0[axis] = 0;
-        ijk1[axis] = 1;
-        const double outer_lo = get(o.offsetBy(ijk_lo[0], ijk_lo[1], ijk_lo[2]));
-        const double outer_hi = get(o.offsetBy(ijk_hi[0], ijk_hi[1], ijk_hi[2]));
-        const double in0 = v[ijk0[0]][ijk0[1]][ijk0[2]];
-        const double in1 = v[ijk1[0]][ijk1[1]][ijk1[2]];
-        // The cell one voxel below along `axis` spans (outer_lo, in0); the one above (in1, outer_hi).
-        ijk0[axis] = 0;
-        ijk1[axis] = 1;
-        lo[ijk0[0]][ijk0[1]][ijk0[2]] = outer_lo;
-        lo[ijk1[0]][ijk1[1]][ijk1[2]] = in0;
-        hi[ijk0[0]][ijk0[1]][ijk0[2]] = in1;
-        hi[ijk1[0]][ijk1[1]][ijk1[2]] = outer_hi;
-      }
+  for (int a = 0; a < 2; ++a) {
+    for (int b = 0; b < 2; ++b) {
+      lo[0][a][b] = get(o.offsetBy(-1, a, b));
+      lo[1][a][b] = v[0][a][b];
+      hi[0][a][b] = v[1][a][b];
+      hi[1][a][b] = get(o.offsetBy(2, a, b));
     }
-    g[axis] = (Interpolate(hi, c.tx, c.ty, c.tz) - Interpolate(lo, c.tx, c.ty, c.tz)) / 2;
   }
+  g[0] = (Interpolate(hi, c.tx, c.ty, c.tz) - Interpolate(lo, c.tx, c.ty, c.tz)) / 2;
+  for (int a = 0; a < 2; ++a) {
+    for (int b = 0; b < 2; ++b) {
+      lo[a][0][b] = get(o.offsetBy(a, -1, b));
+      lo[a][1][b] = v[a][0][b];
+      hi[a][0][b] = v[a][1][b];
+      hi[a][1][b] = get(o.offsetBy(a, 2, b));
+    }
+  }
+  g[1] = (Interpolate(hi, c.tx, c.ty, c.tz) - Interpolate(lo, c.tx, c.ty, c.tz)) / 2;
+  for (int a = 0; a < 2; ++a) {
+    for (int b = 0; b < 2; ++b) {
+      lo[a][b][0] = get(o.offsetBy(a, b, -1));
+      lo[a][b][1] = v[a][b][0];
+      hi[a][b][0] = v[a][b][1];
+      hi[a][b][1] = get(o.offsetBy(a, b, 2));
+    }
+  }
+  g[2] = (Interpolate(hi, c.tx, c.ty, c.tz) - Interpolate(lo, c.tx, c.ty, c.tz)) / 2;
   return {g[0], g[1], g[2]};
 }
 
