@@ -283,6 +283,7 @@ const TickOutput& HapticRenderer::Tick(const std::shared_ptr<const SdfSampler>& 
   have_previous_ = true;
   previous_time_ = sample.time;
   previous_snapshot_ = sdf;
+  previous_snapshot_ref_ = snapshot;
   previous_colliding_ = out.colliding;
   out_ = out;
   return out_;

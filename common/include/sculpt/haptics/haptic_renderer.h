@@ -113,6 +113,9 @@ class HapticRenderer {
   bool have_previous_ = false;
   double previous_time_ = 0;
   const SdfSampler* previous_snapshot_ = nullptr;
+  // Keeps the previous snapshot alive, so a new one can never reuse its address and be taken for
+  // it: the samples' phi bounds outlive many ticks and are only valid on their own snapshot.
+  std::shared_ptr<const SdfSampler> previous_snapshot_ref_;
   int previous_colliding_ = 0;
   Vec3 last_normal_{0, 0, 1};
   Vec3 blend_from_;
