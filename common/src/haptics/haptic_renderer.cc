@@ -22,9 +22,10 @@ constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
 // nodes differ by at most a cell per cell changes by at most sqrt(3) per unit length; 2 leaves
 // room for edits that steepen the field a little.
 constexpr double kSkipLipschitz = 2.0;
-// The time budget reads the clock once every this many evaluated samples (a clock read costs
-// about as much as a lookup); a tick overshoots by at most that many samples' cost.
-constexpr int kClockEvery = 4;
+// The time budget reads the clock once every this many evaluated samples (a steady_clock read
+// costs a fraction of a sample's lookups); a tick overshoots by at most that many samples' cost
+// plus its fixed tail (adding up the terms, the blend).
+constexpr int kClockEvery = 2;
 
 class SteadyTickClock : public TickClock {
  public:
@@ -121,6 +122,7 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
       const double da2 = (a - anchor_[k]).LengthSqr(), dx2 = (x - anchor_[k]).LengthSqr();
       if (margin > 0 && margin * margin > kSkipLipschitz * kSkipLipschitz * std::max(da2, dx2)) {
         term_[k] = SampleForce{};
+        known_count_ += known_[k] ? 0 : 1;
         known_[k] = 1;
         from_[k] = x;
         ++skipped;
@@ -172,6 +174,7 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
       phi = sdf.Phi(x);
     }
     term_[k] = f;
+    known_count_ += known_[k] ? 0 : 1;
     known_[k] = 1;
     from_[k] = x;
     anchor_[k] = x;
@@ -204,6 +207,7 @@ const TickOutput& HapticRenderer::Tick(const std::shared_ptr<const SdfSampler>& 
   if (sdf != previous_snapshot_) {
     std::fill(anchor_phi_.begin(), anchor_phi_.end(), kNan);
     std::fill(known_.begin(), known_.end(), 0);
+    known_count_ = 0;
     cursor_ = 0;
   }
   if (settings_.model == ForceModel::kProxy) {
@@ -222,7 +226,7 @@ const TickOutput& HapticRenderer::Tick(const std::shared_ptr<const SdfSampler>& 
   } else {
     for (size_t k = 0; k < local_.size(); ++k) from_[k] = sample.position + local_[k];
   }
-  for (uint8_t known : known_) out.samples_known += known;
+  out.samples_known = known_count_;
 
   bool contact_set_changed = false;
   if (settings_.model == ForceModel::kPenalty) {

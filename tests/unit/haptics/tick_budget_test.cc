@@ -148,9 +148,9 @@ TEST(TickBudgetTest, ForcedOverrunOnAnInjectedClockReturnsWithinTheBudget) {
     const Vec3 c{0.01 * i, 0, 1.2 - 0.002 * i};  // pressing in while sliding
     const TickOutput& o = r->Tick(floor, DeviceSample{i * kDt, c, {}});
     const uint64_t used = floor->lookups.load() - before;
-    // The clock is read every 4 evaluated samples; on a floor a sample takes at most 3 lookups
-    // (phi along its short path, phi and gradient at its end), so a tick ends at most 12 past
-    // its budget.
+    // The clock is read every 2 evaluated samples. On a floor a sample takes at most 6 lookups:
+    // phi at its end, 4 bisections of its 0.01-long path where it crosses (to 1e-3 of a cell)
+    // and phi with the gradient; so a tick ends at most 12 past its budget.
     EXPECT_LE(used, 40u + 12u) << i;
     over += o.over_budget ? 1 : 0;
     EXPECT_GT(o.force.z, 0) << i;

@@ -110,6 +110,7 @@ class HapticRenderer {
   std::vector<double> anchor_phi_;
   std::vector<SampleForce> term_;
   std::vector<uint8_t> known_;
+  int known_count_ = 0;
   bool have_previous_ = false;
   double previous_time_ = 0;
   const SdfSampler* previous_snapshot_ = nullptr;
