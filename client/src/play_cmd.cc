@@ -314,6 +314,7 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
   hs.max_force = ho.max_force;
   hs.tool_radius = ho.tool_radius > 0 ? ho.tool_radius : stroke_template.tool_size.x;
   hs.tool_samples = ho.tool_samples;
+  hs.tick_budget_us = haptics::kLoopTickBudgetUs;
   if (const Status s = haptics::ValidateHapticSettings(hs); !s.ok()) {
     spdlog::error("play --haptics: {}", s.message());
     return 2;

@@ -140,8 +140,8 @@ Json LoopRun(const std::shared_ptr<const haptics::SdfSampler>& a,
   haptics::SnapshotPublisher pub;
   pub.Publish(a);
   haptics::ScriptedDevice device(PathAt);
-  // The loop runs with the scene's default budget, as `sculpt play --haptics` does.
-  HapticSettings settings = Settings(ForceModel::kProxy, 128, HapticSettings{}.tick_budget_us);
+  // The loop runs with the loop's budget, as `sculpt play --haptics` does.
+  HapticSettings settings = Settings(ForceModel::kProxy, 128, haptics::kLoopTickBudgetUs);
   auto loop = haptics::HapticLoop::Create(settings, &pub, &device);
   if (!loop.ok()) return Json{{"error", loop.status().ToString()}};
   std::atomic<bool> stop{false};

@@ -311,6 +311,7 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
       return top + Vec3{0, 0, 1.0 - 2.5 * (0.5 - 0.5 * std::cos(2 * M_PI * t))};
     });
     haptics::HapticSettings hs;
+    hs.tick_budget_us = haptics::kLoopTickBudgetUs;
     auto l = haptics::HapticLoop::Create(hs, publisher.get(), device.get());
     if (!l.ok()) return l.status();
     loop = std::move(l).value();
