@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -65,6 +66,10 @@ const char kPlayScriptHelp[] =
     "haptic_torn_ticks with --verify-snapshots, force_max, ...).";
 
 namespace {
+
+// The dense window around the haptic tool: its radius plus this many voxels, so the tool's
+// stencils stay inside while it moves between snapshots.
+constexpr double kWindowMarginVoxels = 6;
 
 using Clock = std::chrono::steady_clock;
 using nlohmann::json;
@@ -309,6 +314,7 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
   hs.max_force = ho.max_force;
   hs.tool_radius = ho.tool_radius > 0 ? ho.tool_radius : stroke_template.tool_size.x;
   hs.tool_samples = ho.tool_samples;
+  hs.tick_budget_us = haptics::kLoopTickBudgetUs;
   if (const Status s = haptics::ValidateHapticSettings(hs); !s.ok()) {
     spdlog::error("play --haptics: {}", s.message());
     return 2;
@@ -366,8 +372,18 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
     // sculpting left it: the first region is the column down to the object's bottom.
     if (points.empty()) ro.interest->min.z = lo.z;
   }
+  // Declared before the replica, whose thread reads them: the haptic loop's CPU once it has
+  // one; the replay thread moves off it at its next snapshot.
+  std::atomic<int> haptic_cpu{-1};
+  std::atomic<bool> replica_pinned{false};
+  bool replica_pin_tried = false;  // the replica's thread only
   Replica replica(client, ro);
-  replica.SetSnapshotHandler([&feed](std::shared_ptr<const levelset::Sculpture> s, uint64_t seq) {
+  replica.SetSnapshotHandler([&feed, &haptic_cpu, &replica_pinned, &replica_pin_tried](
+                                 std::shared_ptr<const levelset::Sculpture> s, uint64_t seq) {
+    if (!replica_pin_tried && haptic_cpu.load() >= 0) {
+      replica_pin_tried = true;
+      replica_pinned = haptics::PinThreadAwayFromCpu(haptic_cpu.load());
+    }
     feed.Publish(std::move(s), seq);
   });
   if (Status s = replica.Start(); !s.ok()) return fail("subscribe", s);
@@ -403,6 +419,7 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
     }
     device = std::make_unique<haptics::RecordedDevice>(std::move(recorded).value());
   }
+  const double voxel = first->voxel_size();
   first.reset();
   haptics::MonitoredDevice monitor(device.get(), &publisher);
   auto loop = haptics::HapticLoop::Create(hs, &publisher, &monitor);
@@ -410,6 +427,17 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
     spdlog::error("play --haptics: {}", loop.status().message());
     return 2;
   }
+  haptic_cpu = (*loop)->cpu();
+  // Each snapshot carries the band around the tool densely (filled on the replica's thread), so
+  // the loop's lookups are array reads, the first tick after a swap included.
+  const double window_radius = hs.tool_radius + kWindowMarginVoxels * voxel;
+  feed.SetWindow([l = loop->get()] { return l->SamplePose().position; }, window_radius);
+  // The window reads the loop's pose: detach it before the loop goes, on every way out (the
+  // replica, declared earlier, outlives the loop and may still publish).
+  struct WindowDetach {
+    haptics::SculptureFeed& feed;
+    ~WindowDetach() { feed.SetWindow(nullptr, 0); }
+  } window_detach{feed};
 
   std::mutex mu;
   json errors = json::array();
@@ -465,6 +493,7 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
     } else {
       send();
     }
+    feed.RecentreWindow();  // the tool left its window and no edit brought a new copy
     if (ho.interest_radius > 0 && std::isfinite(pose.position.x)) {
       // Move the box once the tool has crossed half of its half-size: the server sends the
       // new region while the tool is still well inside the old one.
@@ -511,6 +540,13 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
                        {"haptic_tick_cost_p50_us", Round3(ls.tick_cost_p50_us)},
                        {"haptic_tick_cost_p99_us", Round3(ls.tick_cost_p99_us)},
                        {"haptic_tick_cost_max_us", Round3(ls.tick_cost_max_us)},
+                       {"haptic_tick_budget_us", hs.tick_budget_us},
+                       {"haptic_ticks_over_budget", ls.ticks_over_budget},
+                       {"haptic_scheduling", ls.scheduling},
+                       {"haptic_priority", ls.priority},
+                       {"haptic_mlockall", ls.memory_locked},
+                       {"haptic_cpu", ls.cpu},
+                       {"replica_pinned_off_haptic_cpu", replica_pinned.load()},
                        {"haptic_period_err_p50_us", Round3(ls.period_err_p50_us)},
                        {"haptic_period_err_p99_us", Round3(ls.period_err_p99_us)},
                        {"haptic_period_err_max_us", Round3(ls.period_err_max_us)},
@@ -527,6 +563,10 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
                        {"snapshots_sealed_checked", feed_stats.checked},
                        {"snapshots_changed_after_publish", feed_stats.changed},
                        {"snapshots_seal_ms", Round3(feed_stats.seal_ms)},
+                       {"snapshot_windows", feed_stats.windows},
+                       {"snapshot_windows_recentred", feed_stats.recentred},
+                       {"snapshot_window_ms", Round3(feed_stats.window_ms)},
+                       {"snapshot_window_radius", Round3(window_radius)},
                        {"force_max", Round3(fs.max_force)},
                        {"force_mean_in_contact", Round3(fs.mean_contact_force)},
                        {"force_contact_ticks", fs.contact_ticks},
@@ -550,7 +590,8 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
     std::printf(
         "haptics: %s model, stiffness %g, tool radius %g, %s trajectory, %.2f s\n"
         "loop: %llu ticks at %.1f Hz; tick cost p50 %.1f us, p99 %.1f us, max %.1f us; period "
-        "error p99 %.1f us, max %.1f us; %llu missed deadlines, %llu periods over 2 ms\n"
+        "error p99 %.1f us, max %.1f us; %llu missed deadlines, %llu periods over 2 ms; %s%s, "
+        "%s, %llu ticks over a %g us budget\n"
         "snapshots: %llu published, %llu seen by the loop, lag p99 %.3f ms; %s torn ticks "
         "(%llu of %llu seals changed)\n"
         "force: max %.3f, mean in contact %.3f over %llu ticks, first contact at %.3f s\n"
@@ -561,7 +602,10 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
         static_cast<unsigned long long>(ls.ticks), ls.rate_hz, ls.tick_cost_p50_us,
         ls.tick_cost_p99_us, ls.tick_cost_max_us, ls.period_err_p99_us, ls.period_err_max_us,
         static_cast<unsigned long long>(ls.missed_deadlines),
-        static_cast<unsigned long long>(ls.ticks_over_2ms),
+        static_cast<unsigned long long>(ls.ticks_over_2ms), ls.scheduling.c_str(),
+        ls.cpu >= 0 ? (" on CPU " + std::to_string(ls.cpu)).c_str() : "",
+        ls.memory_locked ? "memory locked" : "memory not locked",
+        static_cast<unsigned long long>(ls.ticks_over_budget), hs.tick_budget_us,
         static_cast<unsigned long long>(feed_stats.published),
         static_cast<unsigned long long>(ls.snapshots_seen), ls.snapshot_lag_p99_ms,
         ho.verify_snapshots ? std::to_string(torn_ticks).c_str() : "unchecked",

@@ -24,6 +24,7 @@ constexpr double kSphereRadius = 128;  // voxels (voxel size 1)
 constexpr double kToolRadius = 4;
 constexpr double kPenetration = 1;
 constexpr double kSpeed = 20;  // voxels per second along the surface
+constexpr double kWindowMargin = 6;  // voxels of dense window beyond the tool's radius
 
 // The tool centre sliding along a great circle of the sphere, kPenetration deep.
 Vec3 PathAt(double t) {
@@ -32,9 +33,11 @@ Vec3 PathAt(double t) {
   return Vec3{r * std::cos(a), r * std::sin(a) * 0.6, r * std::sin(a) * 0.8};
 }
 
-HapticSettings Settings(ForceModel model, int samples) {
+HapticSettings Settings(ForceModel model, int samples, double budget_us = 0) {
   HapticSettings s;
   s.model = model;
+  // The tick-cost runs measure the whole tick: no budget unless asked for.
+  s.tick_budget_us = budget_us;
   s.tool_radius = kToolRadius;
   s.tool_samples = samples;
   // The proxy keeps the tool sphere's centre on phi = tool radius (inside the 6-voxel band).
@@ -42,37 +45,104 @@ HapticSettings Settings(ForceModel model, int samples) {
   return s;
 }
 
-Json TickCost(const std::shared_ptr<const haptics::SdfSampler>& sdf, ForceModel model, int samples,
-              int ticks) {
-  auto r = HapticRenderer::Create(Settings(model, samples));
+// `swap_every` > 0: alternate between `sdf` and `other` every that many ticks, as a replica
+// publishing at 120 Hz does to a 1 kHz loop (the first tick after a swap knows no phi).
+Json TickCost(const std::shared_ptr<const haptics::SdfSampler>& sdf,
+              const std::shared_ptr<const haptics::SdfSampler>& other, ForceModel model,
+              int samples, int ticks, double budget_us = 0, int swap_every = 0) {
+  auto r = HapticRenderer::Create(Settings(model, samples, budget_us));
   if (!r.ok()) return Json{{"error", r.status().ToString()}};
-  Samples us;
-  int contact = 0;
+  Samples us, swap_us;
+  int contact = 0, over_budget = 0;
+  double evaluated = 0, skipped = 0;
   for (int i = -200; i < ticks; ++i) {  // 200 untimed ticks reach steady contact
     const double t = (i + 200) * 1e-3;
     const DeviceSample d{t, PathAt(t), {}};
+    const bool swapped = swap_every > 0 && (i + 200) % swap_every == 0;
+    const auto& field = swap_every > 0 && ((i + 200) / swap_every) % 2 ? other : sdf;
     const auto t0 = Clock::now();
-    const haptics::TickOutput& o = r->Tick(sdf, d);
+    const haptics::TickOutput& o = r->Tick(field, d);
     const double cost = std::chrono::duration<double, std::micro>(Clock::now() - t0).count();
     if (i < 0) continue;
     us.Add(cost);
+    if (swapped) swap_us.Add(cost);
     contact += o.contact ? 1 : 0;
+    over_budget += o.over_budget ? 1 : 0;
+    evaluated += o.samples_evaluated;
+    skipped += o.samples_skipped;
   }
   Json j = us.Summary();
   j["p999"] = us.P(0.999);
   j["contact_fraction"] = static_cast<double>(contact) / ticks;
+  j["samples_evaluated_mean"] = evaluated / ticks;
+  j["samples_skipped_mean"] = skipped / ticks;
+  if (budget_us > 0) {
+    j["budget_us"] = budget_us;
+    j["ticks_over_budget"] = over_budget;
+    j["max_over_budget_us"] = std::max(0.0, us.P(1.0) - budget_us);
+  }
+  if (swap_every > 0) {
+    j["swap_every_ticks"] = swap_every;
+    j["swap_tick"] = swap_us.Summary();
+  }
+  return j;
+}
+
+// As a replica feeding the loop does: a new snapshot of the same sculpture every `swap_every`
+// ticks, each with a dense window of the band around the tool where the tick starts (filled
+// untimed, as the replica's thread does; its cost is reported apart).
+Json WindowTickCost(const std::shared_ptr<const levelset::Sculpture>& sculpture, ForceModel model,
+                    int samples, int ticks, int swap_every, double budget_us = 0) {
+  auto r = HapticRenderer::Create(Settings(model, samples, budget_us));
+  if (!r.ok()) return Json{{"error", r.status().ToString()}};
+  Samples us, swap_us, fill_ms;
+  int over_budget = 0;
+  std::shared_ptr<const haptics::SdfSampler> snap;
+  for (int i = -200; i < ticks; ++i) {
+    const double t = (i + 200) * 1e-3;
+    const bool swapped = (i + 200) % swap_every == 0;
+    if (swapped) {
+      const auto f0 = Clock::now();
+      snap = std::make_shared<const haptics::SculptureSnapshot>(sculpture, PathAt(t),
+                                                                kToolRadius + kWindowMargin);
+      fill_ms.Add(MsSince(f0));
+    }
+    const auto t0 = Clock::now();
+    const haptics::TickOutput& o = r->Tick(snap, DeviceSample{t, PathAt(t), {}});
+    const double cost = std::chrono::duration<double, std::micro>(Clock::now() - t0).count();
+    if (i < 0) continue;
+    us.Add(cost);
+    if (swapped) swap_us.Add(cost);
+    over_budget += o.over_budget ? 1 : 0;
+  }
+  Json j = us.Summary();
+  j["p999"] = us.P(0.999);
+  j["swap_every_ticks"] = swap_every;
+  j["swap_tick"] = swap_us.Summary();
+  j["window_fill_ms"] = fill_ms.Summary();
+  if (budget_us > 0) {
+    j["budget_us"] = budget_us;
+    j["ticks_over_budget"] = over_budget;
+    j["max_over_budget_us"] = std::max(0.0, us.P(1.0) - budget_us);
+    j["p99_over_budget_us"] = std::max(0.0, us.P(0.99) - budget_us);
+  }
   return j;
 }
 
 // The real thread for `seconds`, following the same path, while another thread publishes a
 // snapshot (alternating two prepared ones) at `publish_hz`, as replica updates would arrive.
+// `sculpture` non-null: each published snapshot is a new one of it with a dense window around
+// the loop's current pose (as SculptureFeed::SetWindow does), instead of alternating a and b.
 Json LoopRun(const std::shared_ptr<const haptics::SdfSampler>& a,
              const std::shared_ptr<const haptics::SdfSampler>& b, double seconds,
-             double publish_hz) {
+             double publish_hz,
+             const std::shared_ptr<const levelset::Sculpture>& sculpture = nullptr) {
   haptics::SnapshotPublisher pub;
   pub.Publish(a);
   haptics::ScriptedDevice device(PathAt);
-  auto loop = haptics::HapticLoop::Create(Settings(ForceModel::kProxy, 128), &pub, &device);
+  // The loop runs with the loop's budget, as `sculpt play --haptics` does.
+  HapticSettings settings = Settings(ForceModel::kProxy, 128, haptics::kLoopTickBudgetUs);
+  auto loop = haptics::HapticLoop::Create(settings, &pub, &device);
   if (!loop.ok()) return Json{{"error", loop.status().ToString()}};
   std::atomic<bool> stop{false};
   std::thread publisher([&] {
@@ -81,7 +151,12 @@ Json LoopRun(const std::shared_ptr<const haptics::SdfSampler>& a,
     for (int i = 0; !stop.load(); ++i) {
       next += std::chrono::duration_cast<Clock::duration>(period);
       std::this_thread::sleep_until(next);
-      pub.Publish(i % 2 ? a : b);
+      if (sculpture) {
+        pub.Publish(std::make_shared<const haptics::SculptureSnapshot>(
+            sculpture, (*loop)->SamplePose().position, kToolRadius + kWindowMargin));
+      } else {
+        pub.Publish(i % 2 ? a : b);
+      }
     }
   });
   if (Status s = (*loop)->Start(); !s.ok()) {
@@ -96,6 +171,13 @@ Json LoopRun(const std::shared_ptr<const haptics::SdfSampler>& a,
   const haptics::HapticLoopStats s = (*loop)->stats();
   return Json{{"seconds", seconds},
               {"publish_hz", publish_hz},
+              {"dense_window", sculpture != nullptr},
+              {"scheduling", s.scheduling},
+              {"priority", s.priority},
+              {"mlockall", s.memory_locked},
+              {"cpu", s.cpu},
+              {"tick_budget_us", settings.tick_budget_us},
+              {"ticks_over_budget", s.ticks_over_budget},
               {"ticks", s.ticks},
               {"haptic_rate_hz", s.rate_hz},
               {"tick_cost_p50_us", s.tick_cost_p50_us},
@@ -124,8 +206,9 @@ Json RunHapticsBench(bool quick) {
   Progress("haptics: building a radius-%g sphere", kSphereRadius);
   auto sphere = levelset::Sculpture::MakeSphere(o, {0, 0, 0}, kSphereRadius);
   if (!sphere.ok()) return Json{{"error", sphere.status().ToString()}};
-  auto a = std::make_shared<const haptics::SculptureSnapshot>(*sphere);
-  auto b = std::make_shared<const haptics::SculptureSnapshot>(std::move(sphere).value());
+  auto shared = std::make_shared<const levelset::Sculpture>(std::move(sphere).value());
+  auto a = std::make_shared<const haptics::SculptureSnapshot>(*shared);
+  auto b = std::make_shared<const haptics::SculptureSnapshot>(shared);
 
   Json doc{{"sphere_radius_voxels", kSphereRadius}, {"tool_radius_voxels", kToolRadius},
            {"penetration_voxels", kPenetration},    {"speed_voxels_per_s", kSpeed},
@@ -134,7 +217,7 @@ Json RunHapticsBench(bool quick) {
   for (ForceModel model : {ForceModel::kPenalty, ForceModel::kProxy}) {
     for (int n : {32, 128, 512}) {
       Progress("haptics: %s, %d samples, %d ticks", haptics::ForceModelName(model), n, ticks);
-      Json c = TickCost(a, model, n, ticks);
+      Json c = TickCost(a, b, model, n, ticks);
       const std::string key = std::string(haptics::ForceModelName(model)) + "_";
       doc[key + "p50_us_" + std::to_string(n)] = c["p50"];
       doc[key + "p99_us_" + std::to_string(n)] = c["p99"];
@@ -145,8 +228,47 @@ Json RunHapticsBench(bool quick) {
     }
   }
   doc["configurations"] = std::move(configs);
+  // Snapshot swaps every 8 ticks (120 Hz at 1 kHz): the cost of the tick right after a swap.
+  Progress("haptics: penalty, 128 samples, snapshot swapped every 8 ticks");
+  doc["penalty_128_swap_every_8"] = TickCost(a, b, ForceModel::kPenalty, 128, ticks, 0, 8);
+  // As the replica feeds the loop: a new snapshot every 8 ticks with a dense window around
+  // the tool (the production path of `sculpt play --haptics`).
+  for (ForceModel model : {ForceModel::kPenalty, ForceModel::kProxy}) {
+    for (int n : {128, 512}) {
+      Progress("haptics: %s, %d samples, windowed snapshots every 8 ticks",
+               haptics::ForceModelName(model), n);
+      Json c = WindowTickCost(shared, model, n, ticks, 8);
+      const std::string key = std::string("window_") + haptics::ForceModelName(model) + "_";
+      doc[key + "p50_us_" + std::to_string(n)] = c["p50"];
+      doc[key + "p99_us_" + std::to_string(n)] = c["p99"];
+      doc[key + "swap_tick_p99_us_" + std::to_string(n)] = c["swap_tick"]["p99"];
+      doc[key + "detail_" + std::to_string(n)] = std::move(c);
+    }
+  }
+  // A budget that binds: the tick stops when it is spent; how far past it a tick ends.
+  for (double budget : {5.0, 10.0}) {
+    Progress("haptics: penalty, 512 samples, budget %g us, windowed swaps every 8 ticks", budget);
+    doc["penalty_512_budget_" + std::to_string(static_cast<int>(budget)) + "us"] =
+        WindowTickCost(shared, ForceModel::kPenalty, 512, ticks, 8, budget);
+  }
+  // The goals (tick cost without a budget, as measured above).
+  const auto p99 = [&](const char* key) { return doc[key].get<double>(); };
+  doc["goals"] = Json{
+      {"tick_p99_us_128", 10},
+      {"tick_p99_us_512", 40},
+      {"penalty_128_met", p99("penalty_p99_us_128") <= 10},
+      {"proxy_128_met", p99("proxy_p99_us_128") <= 10},
+      {"penalty_512_met", p99("penalty_p99_us_512") <= 40},
+      {"proxy_512_met", p99("proxy_p99_us_512") <= 40},
+      {"window_penalty_128_met", p99("window_penalty_p99_us_128") <= 10},
+      {"window_proxy_128_met", p99("window_proxy_p99_us_128") <= 10},
+      {"window_penalty_512_met", p99("window_penalty_p99_us_512") <= 40},
+      {"window_proxy_512_met", p99("window_proxy_p99_us_512") <= 40},
+      {"max_over_budget_us_goal", 5}};
   Progress("haptics: the loop thread for %.1f s with snapshots swapped at 120 Hz", loop_seconds);
   doc["loop"] = LoopRun(a, b, loop_seconds, 120.0);
+  Progress("haptics: the loop thread for %.1f s with windowed snapshots at 120 Hz", loop_seconds);
+  doc["loop_window"] = LoopRun(a, b, loop_seconds, 120.0, shared);
   return doc;
 }
 

@@ -213,9 +213,15 @@ TEST_F(HapticsReplicaTest, PlayHapticsJsonPrintsLoopAndForceStatistics) {
     EXPECT_LT(r["haptic_rate_hz"].get<double>(), 1010.0) << extra;
     for (const char* key :
          {"haptic_period_err_p99_us", "haptic_ticks_over_2ms", "haptic_snapshot_lag_p99_ms",
-          "haptic_missed_deadlines", "haptic_tick_cost_p99_us"}) {
+          "haptic_missed_deadlines", "haptic_tick_cost_p99_us", "haptic_tick_cost_p50_us",
+          "haptic_period_err_p50_us", "haptic_ticks_over_budget", "haptic_cpu",
+          "snapshot_windows"}) {
       EXPECT_TRUE(r.contains(key) && r[key].is_number()) << extra << " " << key;
     }
+    // What the loop got from the OS is reported, whichever it was.
+    const std::string sched = r.value("haptic_scheduling", "");
+    EXPECT_TRUE(sched == "SCHED_FIFO" || sched == "SCHED_OTHER") << extra << " " << sched;
+    EXPECT_TRUE(r.contains("haptic_mlockall") && r["haptic_mlockall"].is_boolean()) << extra;
     EXPECT_EQ(r["haptic_torn_ticks"].get<int>(), 0) << extra;
     EXPECT_EQ(r["snapshots_changed_after_publish"].get<int>(), 0) << extra;
     EXPECT_GT(r["force_max"].get<double>(), 0.0) << extra << ": the built-in path presses in";

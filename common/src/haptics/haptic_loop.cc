@@ -1,9 +1,18 @@
 /// @brief The haptic loop thread, its lock-free statistics and the pose seqlock.
 #include "sculpt/haptics/haptic_loop.h"
 
+#include <pthread.h>
+#include <sched.h>
+#include <sys/mman.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <array>
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <thread>
 #include <vector>
 
@@ -51,7 +60,55 @@ class AtomicHistogram {
   std::atomic<double> max_{0};
 };
 
+// Each kind of refusal is logged once per process, not once per loop.
+std::atomic<bool> g_logged_sched{false}, g_logged_mlock{false}, g_logged_cpu{false};
+
+void LogOnce(std::atomic<bool>& logged, const std::string& message) {
+  if (!logged.exchange(true)) std::fprintf(stderr, "haptic loop: %s\n", message.c_str());
+}
+
+// mlockall is a property of the process: tried once, its result shared by every loop. Only
+// where the limit cannot bite later: with MCL_FUTURE and a finite RLIMIT_MEMLOCK, an allocation
+// that would pass the limit fails instead of being made. MCL_ONFAULT locks pages as they are
+// touched; without it MCL_FUTURE would fault in every new mapping whole (thread stacks,
+// allocator arenas) when it is made.
+int LockMemoryOnce() {
+  static const int result = [] {
+    rlimit limit{};
+    const bool unlimited =
+        getrlimit(RLIMIT_MEMLOCK, &limit) == 0 && limit.rlim_cur == RLIM_INFINITY;
+    if (!unlimited && geteuid() != 0) return EPERM;
+    int flags = MCL_CURRENT | MCL_FUTURE;
+#ifdef MCL_ONFAULT
+    flags |= MCL_ONFAULT;
+#endif
+    return mlockall(flags) == 0 ? 0 : errno;
+  }();
+  return result;
+}
+
+int ChooseCpu(int requested) {
+  if (requested != HapticLoopOptions::kAutoCpu) return std::max(requested, -1);
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof(set), &set) != 0 || CPU_COUNT(&set) < 2) return -1;
+  for (int c = CPU_SETSIZE - 1; c >= 0; --c) {
+    if (CPU_ISSET(c, &set)) return c;
+  }
+  return -1;
+}
+
 }  // namespace
+
+bool PinThreadAwayFromCpu(int cpu) {
+  if (cpu < 0 || cpu >= CPU_SETSIZE) return false;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof(set), &set) != 0) return false;
+  CPU_CLR(cpu, &set);
+  if (CPU_COUNT(&set) == 0) return false;
+  return pthread_setaffinity_np(pthread_self(), sizeof(set), &set) == 0;
+}
 
 SnapshotPublisher::SnapshotPublisher() : current_(std::make_shared<const Snapshot>()) {}
 
@@ -65,8 +122,11 @@ void SnapshotPublisher::Publish(std::shared_ptr<const SdfSampler> sdf) {
 }
 
 struct HapticLoop::Impl {
-  Impl(const HapticSettings& s, HapticRenderer r, SnapshotPublisher* p, HapticDevice* d)
+  Impl(const HapticSettings& s, HapticRenderer r, SnapshotPublisher* p, HapticDevice* d,
+       const HapticLoopOptions& o)
       : settings(s),
+        options(o),
+        cpu(ChooseCpu(o.cpu)),
         renderer(std::move(r)),
         publisher(p),
         device(d),
@@ -75,9 +135,13 @@ struct HapticLoop::Impl {
         lag_ms(0.01, 10000) {}
 
   void Run();
+  // On the loop thread, before the first tick: affinity, scheduling class, memory lock.
+  void SetUpThread();
   void PublishPose(const DeviceSample& s, const TickOutput& out);
 
   HapticSettings settings;
+  HapticLoopOptions options;
+  int cpu;  // chosen at Create, so a replica can keep off it before the loop starts
   HapticRenderer renderer;
   SnapshotPublisher* publisher;
   HapticDevice* device;
@@ -87,7 +151,10 @@ struct HapticLoop::Impl {
 
   AtomicHistogram cost_us, period_err_us, lag_ms;
   std::atomic<uint64_t> ticks{0}, overruns{0}, missed{0}, over_2ms{0}, nan_samples{0},
-      snapshots_seen{0};
+      snapshots_seen{0}, over_budget{0};
+  // What SetUpThread got; set once on the loop thread before the first tick.
+  std::atomic<bool> set_up{false}, fifo{false}, memory_locked{false};
+  std::atomic<int> priority{0}, pinned_cpu{-1};
   std::atomic<int64_t> start_ns{0}, last_tick_ns{0};
 
   // Seqlock over the latest pose and force: the loop is the only writer; readers retry while
@@ -109,7 +176,46 @@ void HapticLoop::Impl::PublishPose(const DeviceSample& s, const TickOutput& out)
   seq.store(v + 2, std::memory_order_release);
 }
 
+void HapticLoop::Impl::SetUpThread() {
+  if (cpu >= 0) {
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    CPU_SET(cpu, &set);
+    const int err = pthread_setaffinity_np(pthread_self(), sizeof(set), &set);
+    if (err == 0) {
+      pinned_cpu.store(cpu);
+    } else {
+      LogOnce(g_logged_cpu, "cannot pin to CPU " + std::to_string(cpu) + " (" +
+                                std::strerror(err) + "); running unpinned");
+    }
+  }
+  if (options.realtime) {
+    sched_param param{};
+    param.sched_priority = std::clamp(options.priority, sched_get_priority_min(SCHED_FIFO),
+                                      sched_get_priority_max(SCHED_FIFO));
+    const int err = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
+    if (err == 0) {
+      fifo.store(true);
+      priority.store(param.sched_priority);
+    } else {
+      LogOnce(g_logged_sched, std::string("SCHED_FIFO refused (") + std::strerror(err) +
+                                  "); running at SCHED_OTHER, its period will follow the load");
+    }
+  }
+  if (options.lock_memory) {
+    const int err = LockMemoryOnce();
+    if (err == 0) {
+      memory_locked.store(true);
+    } else {
+      LogOnce(g_logged_mlock, std::string("mlockall not done (") + std::strerror(err) +
+                                  "); pages may be faulted in during a tick");
+    }
+  }
+  set_up.store(true);
+}
+
 void HapticLoop::Impl::Run() {
+  SetUpThread();
   const auto period = std::chrono::duration_cast<Clock::duration>(
       std::chrono::duration<double>(1.0 / settings.rate_hz));
   const double period_us = Seconds(period) * 1e6;
@@ -142,6 +248,7 @@ void HapticLoop::Impl::Run() {
     DeviceSample sample = device->Read(t);
     const TickOutput& out = renderer.Tick(snap->sdf, sample);
     device->ApplyForce(out.force, t);
+    if (out.over_budget) over_budget.fetch_add(1, std::memory_order_relaxed);
     if (out.nan_ignored) {
       nan_samples.fetch_add(1, std::memory_order_relaxed);
       sample = last_good;  // the stroke sender keeps the last real pose
@@ -169,13 +276,14 @@ void HapticLoop::Impl::Run() {
 
 StatusOr<std::unique_ptr<HapticLoop>> HapticLoop::Create(const HapticSettings& settings,
                                                          SnapshotPublisher* publisher,
-                                                         HapticDevice* device) {
+                                                         HapticDevice* device,
+                                                         const HapticLoopOptions& options) {
   if (publisher == nullptr) return InvalidArgument("HapticLoop.publisher is null");
   if (device == nullptr) return InvalidArgument("HapticLoop.device is null");
   auto renderer = HapticRenderer::Create(settings);
   if (!renderer.ok()) return renderer.status();
   return std::unique_ptr<HapticLoop>(new HapticLoop(
-      std::make_unique<Impl>(settings, std::move(renderer).value(), publisher, device)));
+      std::make_unique<Impl>(settings, std::move(renderer).value(), publisher, device, options)));
 }
 
 HapticLoop::HapticLoop(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -222,6 +330,13 @@ HapticLoopStats HapticLoop::stats() const {
   s.snapshot_lag_p50_ms = m.lag_ms.Quantile(0.5);
   s.snapshot_lag_p99_ms = m.lag_ms.Quantile(0.99);
   s.snapshot_lag_max_ms = m.lag_ms.Max();
+  s.ticks_over_budget = m.over_budget.load(std::memory_order_relaxed);
+  if (m.set_up.load()) {
+    s.scheduling = m.fifo.load() ? "SCHED_FIFO" : "SCHED_OTHER";
+    s.priority = m.priority.load();
+    s.memory_locked = m.memory_locked.load();
+    s.cpu = m.pinned_cpu.load();
+  }
   for (;;) {
     const uint64_t v0 = m.seq.load(std::memory_order_acquire);
     if (v0 & 1) continue;
@@ -234,6 +349,8 @@ HapticLoopStats HapticLoop::stats() const {
   }
   return s;
 }
+
+int HapticLoop::cpu() const { return impl_->cpu; }
 
 DeviceSample HapticLoop::SamplePose() const {
   const Impl& m = *impl_;

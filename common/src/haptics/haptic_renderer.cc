@@ -2,7 +2,9 @@
 #include "sculpt/haptics/haptic_renderer.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <limits>
 
 #include "sculpt/levelset/tool.h"
 
@@ -13,8 +15,59 @@ StatusOr<HapticRenderer> HapticRenderer::Create(const HapticSettings& settings) 
   return HapticRenderer(settings);
 }
 
+namespace {
+
+constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
+// Bound on |grad phi| used to skip far samples without a lookup. Trilinear phi of a field whose
+// nodes differ by at most a cell per cell changes by at most sqrt(3) per unit length; 2 leaves
+// room for edits that steepen the field a little.
+constexpr double kSkipLipschitz = 2.0;
+// The time budget reads the clock once every this many evaluated samples (a steady_clock read
+// costs a fraction of a sample's lookups); a tick overshoots by at most that many samples' cost
+// plus its fixed tail (adding up the terms, the blend).
+constexpr int kClockEvery = 2;
+
+class SteadyTickClock : public TickClock {
+ public:
+  double NowUs() override {
+    return std::chrono::duration<double, std::micro>(
+               std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+  }
+};
+SteadyTickClock g_steady_clock;
+
+// Farthest-point order: each next sample is the one farthest from all chosen so far, so every
+// prefix is spread over the tool (coarse to fine). O(n^2) once per renderer.
+std::vector<uint32_t> SpreadOrder(const std::vector<Vec3>& points) {
+  const size_t n = points.size();
+  std::vector<uint32_t> order;
+  order.reserve(n);
+  std::vector<double> nearest(n, std::numeric_limits<double>::infinity());
+  std::vector<uint8_t> chosen(n, 0);
+  size_t current = 0;
+  for (size_t i = 0; i < n; ++i) {
+    order.push_back(static_cast<uint32_t>(current));
+    chosen[current] = 1;
+    size_t next = current;
+    double farthest = -1;
+    for (size_t j = 0; j < n; ++j) {
+      if (chosen[j]) continue;
+      nearest[j] = std::min(nearest[j], (points[j] - points[current]).LengthSqr());
+      if (nearest[j] > farthest) {
+        farthest = nearest[j];
+        next = j;
+      }
+    }
+    current = next;
+  }
+  return order;
+}
+
+}  // namespace
+
 HapticRenderer::HapticRenderer(const HapticSettings& s)
-    : settings_(s), proxy_(s.stiffness, s.damping, s.proxy_radius) {
+    : settings_(s), proxy_(s.stiffness, s.damping, s.proxy_radius), clock_(&g_steady_clock) {
   if (s.tool_radius > 0) {
     local_ = levelset::ToolSurfaceSamples(levelset::ToolShape::Sphere({0, 0, 0}, s.tool_radius),
                                           s.tool_samples);
@@ -23,11 +76,115 @@ HapticRenderer::HapticRenderer(const HapticSettings& s)
   } else {
     local_ = {Vec3{0, 0, 0}};
   }
+  if (s.area_weighted && sample_area_ > 0) rho_ = std::sqrt(sample_area_ / M_PI);
   blend_ticks_ = static_cast<int>(std::lround(s.blend_ms * 1e-3 * s.rate_hz));
-  previous_.resize(local_.size());
-  current_.resize(local_.size());
-  previous_phi_.assign(local_.size(), std::nan(""));
-  current_phi_.assign(local_.size(), std::nan(""));
+  order_ = SpreadOrder(local_);
+  from_.resize(local_.size());
+  anchor_.resize(local_.size());
+  anchor_phi_.assign(local_.size(), kNan);
+  term_.resize(local_.size());
+  known_.assign(local_.size(), 0);
+}
+
+void HapticRenderer::set_clock(TickClock* clock) {
+  clock_ = clock != nullptr ? clock : &g_steady_clock;
+}
+
+bool HapticRenderer::OutOfBudget(int evaluated, double start_us) const {
+  if (settings_.tick_budget_samples > 0 && evaluated >= settings_.tick_budget_samples) return true;
+  return settings_.tick_budget_us > 0 && evaluated % kClockEvery == 0 &&
+         clock_->NowUs() - start_us >= settings_.tick_budget_us;
+}
+
+void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, double start_us,
+                                  TickOutput* out) {
+  const size_t n = local_.size();
+  const bool penalty = settings_.model == ForceModel::kPenalty;
+  const bool area = penalty && rho_ > 0;
+  // Above this phi a sample neither touches (sweep, iso 0) nor adds force.
+  const double range = area ? PenaltyContactRange(rho_) : 0.0;
+  SweptContact& c = out->swept;
+  int evaluated = 0, skipped = 0;
+  size_t visited = 0;
+  bool stopped = false;
+  for (; visited < n; ++visited) {
+    size_t at = cursor_ + visited;
+    if (at >= n) at -= n;
+    const size_t k = order_[at];
+    const Vec3 x = centre + local_[k];
+    const Vec3 a = have_previous_ ? from_[k] : x;
+    double phi_a = kNan;
+    if (!std::isnan(anchor_phi_[k])) {
+      // phi >= anchor_phi - L |p - anchor| along a -> x: the distance to the anchor is convex
+      // along the segment, so its largest value is at an end.
+      // Compared squared: no square root for the samples skipped, most of them.
+      const double margin = anchor_phi_[k] - range;
+      const double da2 = (a - anchor_[k]).LengthSqr(), dx2 = (x - anchor_[k]).LengthSqr();
+      if (margin > 0 && margin * margin > kSkipLipschitz * kSkipLipschitz * std::max(da2, dx2)) {
+        term_[k] = SampleForce{};
+        known_count_ += known_[k] ? 0 : 1;
+        known_[k] = 1;
+        from_[k] = x;
+        ++skipped;
+        continue;
+      }
+      // A lower bound is a safe start for the sweep's steps only while it says "free".
+      const double bound = anchor_phi_[k] - kSkipLipschitz * std::sqrt(da2);
+      if (da2 == 0 || bound > 0) phi_a = da2 == 0 ? anchor_phi_[k] : bound;
+    }
+    if (evaluated > 0 && OutOfBudget(evaluated, start_us)) {
+      stopped = true;
+      break;
+    }
+    ++evaluated;
+    double phi = kNan;
+    bool hit = false;
+    if (have_previous_) {
+      const SegmentHit h = SweepSegment(sdf, a, x, 0.0, phi_a, &phi);
+      hit = h.hit;
+      // Ties go to the lowest index, whatever the visiting order.
+      const int index = static_cast<int>(k);
+      if (h.hit && (!c.hit || h.time < c.time || (h.time == c.time && index < c.sample))) {
+        c.hit = true;
+        c.time = h.time;
+        c.sample = index;
+        c.point = a + (x - a) * h.time;
+      }
+    }
+    SampleForce f;
+    if (penalty) {
+      Vec3 g;
+      bool have_g = false;
+      if (std::isnan(phi)) {
+        if (hit) {
+          // Touching: the gradient is needed; one stencil gives both.
+          sdf.PhiAndGradient(x, &phi, &g);
+          have_g = true;
+        } else {
+          phi = sdf.Phi(x);
+        }
+      }
+      if (area ? phi < rho_ : phi <= 0) {
+        if (!have_g) g = sdf.Gradient(x);
+        f = area ? AreaWeightedSampleForce(x, phi, g, rho_, settings_.stiffness, centre,
+                                           last_normal_)
+                 : PenaltySampleForce(phi, g, settings_.stiffness, last_normal_);
+      }
+    } else if (std::isnan(phi)) {
+      phi = sdf.Phi(x);
+    }
+    term_[k] = f;
+    known_count_ += known_[k] ? 0 : 1;
+    known_[k] = 1;
+    from_[k] = x;
+    anchor_[k] = x;
+    anchor_phi_[k] = phi;
+  }
+  // Resume after the last sample visited; a complete tick starts the next at the coarsest.
+  cursor_ = stopped ? (cursor_ + visited) % n : 0;
+  out->over_budget = stopped;
+  out->samples_evaluated = evaluated;
+  out->samples_skipped = skipped;
 }
 
 const TickOutput& HapticRenderer::Tick(const std::shared_ptr<const SdfSampler>& snapshot,
@@ -38,32 +195,64 @@ const TickOutput& HapticRenderer::Tick(const std::shared_ptr<const SdfSampler>& 
     out_.nan_ignored = true;  // force, contact and proxy stay as they were
     return out_;
   }
+  const double start_us = settings_.tick_budget_us > 0 ? clock_->NowUs() : 0.0;
   const double period = 1.0 / settings_.rate_hz;
   double dt = have_previous_ ? sample.time - previous_time_ : period;
   if (!(dt > 0) || dt > 10 * period) dt = period;  // a stalled or reset device clock
 
-  for (size_t k = 0; k < local_.size(); ++k) current_[k] = sample.position + local_[k];
   const SdfSampler* sdf = snapshot.get();
-
   TickOutput out;
-  // phi carried over is only valid on the same snapshot.
-  if (sdf != previous_snapshot_) std::fill(previous_phi_.begin(), previous_phi_.end(), std::nan(""));
-  std::fill(current_phi_.begin(), current_phi_.end(), std::nan(""));
-  if (sdf != nullptr && have_previous_) {
-    // Both models report the tool surface's first contact; the proxy also sweeps its own
-    // centre inside ProxyModel.
-    out.swept = FindFirstContact(*sdf, previous_, current_, 0.0, previous_phi_, &current_phi_);
+  // Everything known about the samples belongs to one snapshot; a new one starts the order
+  // afresh, so a tick cut short after a swap still has samples spread over the tool.
+  if (sdf != previous_snapshot_) {
+    std::fill(anchor_phi_.begin(), anchor_phi_.end(), kNan);
+    std::fill(known_.begin(), known_.end(), 0);
+    known_count_ = 0;
+    cursor_ = 0;
   }
+  if (settings_.model == ForceModel::kProxy) {
+    // The proxy's force is the output: it runs first, whatever the samples' budget leaves.
+    const ProxyState& p = proxy_.Update(sdf, sample.position, dt);
+    out.model_force = p.force;
+    out.contact = p.contact;
+    out.colliding = p.contact ? 1 : 0;
+    out.proxy = p.proxy;
+    out.normal_fallback = p.normal_fallback;
+  }
+  if (sdf != nullptr) {
+    // Both models report the tool surface's first contact (the proxy also sweeps its own
+    // centre inside ProxyModel).
+    VisitSamples(*sdf, sample.position, start_us, &out);
+  } else {
+    for (size_t k = 0; k < local_.size(); ++k) from_[k] = sample.position + local_[k];
+  }
+  out.samples_known = known_count_;
 
   bool contact_set_changed = false;
   if (settings_.model == ForceModel::kPenalty) {
     out.proxy = sample.position;
     if (sdf != nullptr) {
-      const PenaltyForce f =
-          settings_.area_weighted && sample_area_ > 0
-              ? ComputeAreaWeightedPenaltyForce(*sdf, current_, sample_area_, settings_.stiffness,
-                                                sample.position, last_normal_, &current_phi_)
-              : ComputePenaltyForce(*sdf, current_, settings_.stiffness, last_normal_);
+      // The terms of every sample known on this snapshot, added in index order (as
+      // ComputeAreaWeightedPenaltyForce adds them, so a complete tick gives the same bits).
+      // A tick cut short before every sample is known sums a spread subset: scaled by
+      // n / known, sum and area are estimates of the whole tool's, and their ratio, the
+      // force, needs no scaling at all.
+      PenaltyForce f;
+      double covered = 0;
+      for (size_t k = 0; k < local_.size(); ++k) {
+        if (!known_[k]) continue;
+        const SampleForce& t = term_[k];
+        f.colliding += t.colliding ? 1 : 0;
+        if (rho_ > 0 && t.inside <= 0) continue;
+        covered += t.inside;
+        f.without_normal += t.without_normal ? 1 : 0;
+        f.sum += t.force;
+      }
+      if (rho_ > 0) {
+        if (covered > 0) f.average = f.sum / covered;
+      } else if (f.colliding > 0) {
+        f.average = f.sum / f.colliding;
+      }
       out.model_force = f.average;
       out.colliding = f.colliding;
       out.normal_fallback = f.without_normal > 0;
@@ -72,13 +261,6 @@ const TickOutput& HapticRenderer::Tick(const std::shared_ptr<const SdfSampler>& 
     }
     out.contact = out.colliding > 0 || out.swept.hit;
     contact_set_changed = out.colliding != previous_colliding_;
-  } else {
-    const ProxyState& p = proxy_.Update(sdf, sample.position, dt);
-    out.model_force = p.force;
-    out.contact = p.contact;
-    out.colliding = p.contact ? 1 : 0;
-    out.proxy = p.proxy;
-    out.normal_fallback = p.normal_fallback;
   }
 
   // A new snapshot, or a sample entering or leaving the penalty's colliding set, would step the
@@ -102,11 +284,10 @@ const TickOutput& HapticRenderer::Tick(const std::shared_ptr<const SdfSampler>& 
   }
   out.force = f;
 
-  std::swap(previous_, current_);
-  std::swap(previous_phi_, current_phi_);
   have_previous_ = true;
   previous_time_ = sample.time;
   previous_snapshot_ = sdf;
+  previous_snapshot_ref_ = snapshot;
   previous_colliding_ = out.colliding;
   out_ = out;
   return out_;

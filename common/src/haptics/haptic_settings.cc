@@ -39,6 +39,10 @@ Status ValidateHapticSettings(const HapticSettings& s) {
       CheckRange("HapticSettings.tool_samples", s.tool_samples, 1, kMaxToolSamples));
   SCULPT_RETURN_IF_ERROR(
       CheckRange("HapticSettings.proxy_radius", s.proxy_radius, 0, kMaxToolRadius));
+  SCULPT_RETURN_IF_ERROR(
+      CheckRange("HapticSettings.tick_budget_us", s.tick_budget_us, 0, kMaxTickBudgetUs));
+  SCULPT_RETURN_IF_ERROR(CheckRange("HapticSettings.tick_budget_samples", s.tick_budget_samples, 0,
+                                    kMaxToolSamples));
   return Status::Ok();
 }
 

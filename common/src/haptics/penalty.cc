@@ -92,22 +92,68 @@ PenaltyForce ComputePenaltyForce(const SdfSampler& sdf, const std::vector<Vec3>&
   return ComputePenaltyForce(sdf, samples, kappa, Vec3{});
 }
 
+SampleForce PenaltySampleForce(double phi, const Vec3& g, double kappa,
+                               const Vec3& fallback_normal) {
+  SampleForce f;
+  if (phi > 0) return f;
+  f.colliding = true;
+  const double n = g.Length();
+  // Eq. 3.3 with the digest's correction (errata 1): kappa |phi| times the outward normal.
+  if (n < kMinGradient) {
+    f.without_normal = true;  // medial axis or beyond the band: no defined normal here
+    f.force = fallback_normal * (kappa * std::abs(phi));
+    return f;
+  }
+  f.force = g * (kappa * std::abs(phi) / n);
+  return f;
+}
+
+SampleForce AreaWeightedSampleForce(const Vec3& x, double phi, const Vec3& g, double rho,
+                                    double kappa, const Vec3& tool_centre,
+                                    const Vec3& fallback_normal) {
+  SampleForce f;
+  if (phi >= rho) return f;  // |grad phi| <= 1: no part of the patch can be inside
+  f.colliding = phi <= 0;
+  const double n = g.Length();
+  // Over the patch (a disc of radius rho on the tool's surface) phi changes by the gradient's
+  // component along the tool surface: a spread of +-s around phi.
+  Vec3 m = x - tool_centre;
+  const double ml = m.Length();
+  m = ml > 0 ? m / ml : Vec3{};
+  const double s = rho * (g - m * g.Dot(m)).Length();
+  double inside, depth;
+  if (s < 1e-9 * rho) {
+    inside = phi <= 0 ? 1.0 : 0.0;
+    depth = phi <= 0 ? -phi : 0.0;
+  } else {
+    // phi + s y with y distributed over the disc, density (2/pi) sqrt(1 - y^2) on [-1, 1]:
+    // inside for y < b = -phi / s.
+    const double b = std::clamp(-phi / s, -1.0, 1.0);
+    const double root = std::sqrt(1 - b * b);
+    inside = (b * root + std::asin(b) + M_PI / 2) / M_PI;
+    depth = -phi * inside + s * (2.0 / (3.0 * M_PI)) * root * root * root;
+  }
+  if (inside <= 0) return f;
+  f.inside = inside;
+  if (n < kMinGradient) {
+    f.without_normal = true;
+    f.force = fallback_normal * (kappa * depth);
+    return f;
+  }
+  f.force = g * (kappa * depth / n);
+  return f;
+}
+
 PenaltyForce ComputePenaltyForce(const SdfSampler& sdf, const std::vector<Vec3>& samples,
                                  double kappa, const Vec3& fallback_normal) {
   PenaltyForce f;
   for (const Vec3& x : samples) {
     const double phi = sdf.Phi(x);
     if (phi > 0) continue;
+    const SampleForce k = PenaltySampleForce(phi, sdf.Gradient(x), kappa, fallback_normal);
     ++f.colliding;
-    const Vec3 g = sdf.Gradient(x);
-    const double n = g.Length();
-    // Eq. 3.3 with the digest's correction (errata 1): kappa |phi| times the outward normal.
-    if (n < kMinGradient) {
-      ++f.without_normal;  // medial axis or beyond the band: no defined normal here
-      f.sum += fallback_normal * (kappa * std::abs(phi));
-      continue;
-    }
-    f.sum += g * (kappa * std::abs(phi) / n);
+    f.without_normal += k.without_normal ? 1 : 0;
+    f.sum += k.force;
   }
   if (f.colliding > 0) f.average = f.sum / f.colliding;
   return f;
@@ -126,36 +172,14 @@ PenaltyForce ComputeAreaWeightedPenaltyForce(const SdfSampler& sdf,
   for (size_t i = 0; i < samples.size(); ++i) {
     const Vec3& x = samples[i];
     const double phi = known != nullptr && !std::isnan((*known)[i]) ? (*known)[i] : sdf.Phi(x);
-    if (phi >= rho) continue;  // |grad phi| <= 1: no part of the patch can be inside
-    if (phi <= 0) ++f.colliding;
-    const Vec3 g = sdf.Gradient(x);
-    const double n = g.Length();
-    // Over the patch (a disc of radius rho on the tool's surface) phi changes by the gradient's
-    // component along the tool surface: a spread of +-s around phi.
-    Vec3 m = x - tool_centre;
-    const double ml = m.Length();
-    m = ml > 0 ? m / ml : Vec3{};
-    const double s = rho * (g - m * g.Dot(m)).Length();
-    double inside, depth;
-    if (s < 1e-9 * rho) {
-      inside = phi <= 0 ? 1.0 : 0.0;
-      depth = phi <= 0 ? -phi : 0.0;
-    } else {
-      // phi + s y with y distributed over the disc, density (2/pi) sqrt(1 - y^2) on [-1, 1]:
-      // inside for y < b = -phi / s.
-      const double b = std::clamp(-phi / s, -1.0, 1.0);
-      const double root = std::sqrt(1 - b * b);
-      inside = (b * root + std::asin(b) + M_PI / 2) / M_PI;
-      depth = -phi * inside + s * (2.0 / (3.0 * M_PI)) * root * root * root;
-    }
-    if (inside <= 0) continue;
-    covered += inside;
-    if (n < kMinGradient) {
-      ++f.without_normal;
-      f.sum += fallback_normal * (kappa * depth);
-      continue;
-    }
-    f.sum += g * (kappa * depth / n);
+    if (phi >= rho) continue;
+    const SampleForce k =
+        AreaWeightedSampleForce(x, phi, sdf.Gradient(x), rho, kappa, tool_centre, fallback_normal);
+    f.colliding += k.colliding ? 1 : 0;
+    if (k.inside <= 0) continue;
+    covered += k.inside;
+    f.without_normal += k.without_normal ? 1 : 0;
+    f.sum += k.force;
   }
   if (covered > 0) f.average = f.sum / covered;
   return f;

@@ -31,7 +31,7 @@ void SculptureFeed::Publish(std::shared_ptr<const levelset::Sculpture> sculpture
     h.hash = sculpture->StateHash();
     stats_.seal_ms += MsSince(t0);
   }
-  publisher_->Publish(std::make_shared<const SculptureSnapshot>(std::move(sculpture)));
+  PublishLocked(std::move(sculpture));
   h.version = publisher_->Current()->version;
   ++stats_.published;
   stats_.last_seq = seq;
@@ -42,6 +42,45 @@ void SculptureFeed::Publish(std::shared_ptr<const levelset::Sculpture> sculpture
     CheckLocked(held_.front());
     held_.pop_front();
   }
+}
+
+void SculptureFeed::PublishLocked(std::shared_ptr<const levelset::Sculpture> sculpture) {
+  if (!window_centre_) {
+    publisher_->Publish(std::make_shared<const SculptureSnapshot>(std::move(sculpture)));
+    return;
+  }
+  const auto t0 = Clock::now();
+  last_centre_ = window_centre_();
+  auto snapshot =
+      std::make_shared<const SculptureSnapshot>(std::move(sculpture), last_centre_, window_radius_);
+  stats_.window_ms += MsSince(t0);
+  if (snapshot->window_values() > 0) ++stats_.windows;
+  publisher_->Publish(std::move(snapshot));
+}
+
+void SculptureFeed::SetWindow(std::function<Vec3()> centre, double radius) {
+  std::lock_guard<std::mutex> lock(mu_);
+  window_centre_ = std::move(centre);
+  window_radius_ = radius;
+}
+
+bool SculptureFeed::RecentreWindow() {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (!window_centre_ || held_.empty()) return false;
+  const Vec3 now = window_centre_();
+  if (!now.IsFinite() || (now - last_centre_).Length() <= 0.25 * window_radius_) return false;
+  // The same copy again: its seal is the one taken when it was first published.
+  Held h = held_.back();
+  PublishLocked(h.sculpture);
+  h.version = publisher_->Current()->version;
+  stats_.last_version = h.version;
+  ++stats_.recentred;
+  held_.push_back(std::move(h));
+  while (held_.size() > kHeld) {
+    CheckLocked(held_.front());
+    held_.pop_front();
+  }
+  return true;
 }
 
 void SculptureFeed::CheckLocked(const Held& h) {

@@ -45,33 +45,7 @@ struct Corners {
   double tx, ty, tz;
 };
 
-Corners ReadCorners(Accessor& acc, const openvdb::math::Transform& xform, const Vec3& p) {
-  const openvdb::Vec3d u = xform.worldToIndex(openvdb::Vec3d(p.x, p.y, p.z));
-  const double fx = std::floor(u.x()), fy = std::floor(u.y()), fz = std::floor(u.z());
-  Corners c;
-  c.tx = u.x() - fx;
-  c.ty = u.y() - fy;
-  c.tz = u.z() - fz;
-  const openvdb::Coord o(static_cast<int>(fx), static_cast<int>(fy), static_cast<int>(fz));
-  c.origin = o;
-  for (int k = 0; k < 2; ++k) {
-    for (int j = 0; j < 2; ++j) {
-      for (int i = 0; i < 2; ++i) {
-        c.v[i][j][k] = acc.getValue(o.offsetBy(i, j, k));
-      }
-    }
-  }
-  return c;
-}
-
-double Interpolate(const double (&v)[2][2][2], double tx, double ty, double tz);
-
-double Trilinear(Accessor& acc, const openvdb::math::Transform& xform, const Vec3& p) {
-  const Corners c = ReadCorners(acc, xform, p);
-  return Interpolate(c.v, c.tx, c.ty, c.tz);
-}
-
-double Interpolate(const double (&v)[2][2][2], double tx, double ty, double tz) {
+inline double Interpolate(const double (&v)[2][2][2], double tx, double ty, double tz) {
   const double x00 = v[0][0][0] + tx * (v[1][0][0] - v[0][0][0]);
   const double x10 = v[0][1][0] + tx * (v[1][1][0] - v[0][1][0]);
   const double x01 = v[0][0][1] + tx * (v[1][0][1] - v[0][0][1]);
@@ -81,45 +55,74 @@ double Interpolate(const double (&v)[2][2][2], double tx, double ty, double tz) 
   return y0 + tz * (y1 - y0);
 }
 
+// p's cell and its fractional position, without reading values.
+Corners Locate(const openvdb::math::Transform& xform, const Vec3& p) {
+  const openvdb::Vec3d u = xform.worldToIndex(openvdb::Vec3d(p.x, p.y, p.z));
+  const double fx = std::floor(u.x()), fy = std::floor(u.y()), fz = std::floor(u.z());
+  Corners c;
+  c.tx = u.x() - fx;
+  c.ty = u.y() - fy;
+  c.tz = u.z() - fz;
+  c.origin = openvdb::Coord(static_cast<int>(fx), static_cast<int>(fy), static_cast<int>(fz));
+  return c;
+}
+
+// `get(coord)` reads one grid value: through the accessor, or from the dense window.
+template <typename Get>
+void FillCorners(const Get& get, Corners* c) {
+  const openvdb::Coord& o = c->origin;
+  for (int k = 0; k < 2; ++k) {
+    for (int j = 0; j < 2; ++j) {
+      for (int i = 0; i < 2; ++i) {
+        c->v[i][j][k] = get(o.offsetBy(i, j, k));
+      }
+    }
+  }
+}
+
+
+
+
 // Central differences of the trilinear interpolant one voxel either side of p, in index units,
 // read as one stencil: p's 8 corners plus the 24 outer corners of the cells one voxel away along
 // each axis (32 distinct values and one world-to-index transform, where six separate trilinear
 // lookups read 48 values through six transforms). Same value as the six lookups, so the normal
 // stays continuous across cell faces (the analytic gradient of one cell's interpolant does not).
-openvdb::Vec3d CentralIndexGradient(Accessor& acc, const Corners& c, const openvdb::Coord& o) {
+template <typename Get>
+openvdb::Vec3d CentralIndexGradient(const Get& get, const Corners& c, const openvdb::Coord& o) {
   const auto& v = c.v;
+  // Per axis, the cell one voxel below (lo) and above (hi): the outer corners read here, the
+  // inner ones are p's own. Written out per axis (not through index arrays): this runs for
+  // every touching sample and the generic form cost several times the reads.
   double lo[2][2][2], hi[2][2][2];
   double g[3];
-  for (int axis = 0; axis < 3; ++axis) {
-    for (int a = 0; a < 2; ++a) {
-      for (int b = 0; b < 2; ++b) {
-        // (a, b) index the two axes other than `axis`, in increasing order.
-        int ijk_lo[3], ijk_hi[3], ijk0[3], ijk1[3];
-        int other = 0;
-        for (int d = 0; d < 3; ++d) {
-          if (d == axis) continue;
-          const int w = other++ == 0 ? a : b;
-          ijk_lo[d] = ijk_hi[d] = ijk0[d] = ijk1[d] = w;
-        }
-        ijk_lo[axis] = -1;
-        ijk_hi[axis] = 2;
-        ijk0[axis] = 0;
-        ijk1[axis] = 1;
-        const double outer_lo = acc.getValue(o.offsetBy(ijk_lo[0], ijk_lo[1], ijk_lo[2]));
-        const double outer_hi = acc.getValue(o.offsetBy(ijk_hi[0], ijk_hi[1], ijk_hi[2]));
-        const double in0 = v[ijk0[0]][ijk0[1]][ijk0[2]];
-        const double in1 = v[ijk1[0]][ijk1[1]][ijk1[2]];
-        // The cell one voxel below along `axis` spans (outer_lo, in0); the one above (in1, outer_hi).
-        ijk0[axis] = 0;
-        ijk1[axis] = 1;
-        lo[ijk0[0]][ijk0[1]][ijk0[2]] = outer_lo;
-        lo[ijk1[0]][ijk1[1]][ijk1[2]] = in0;
-        hi[ijk0[0]][ijk0[1]][ijk0[2]] = in1;
-        hi[ijk1[0]][ijk1[1]][ijk1[2]] = outer_hi;
-      }
+  for (int a = 0; a < 2; ++a) {
+    for (int b = 0; b < 2; ++b) {
+      lo[0][a][b] = get(o.offsetBy(-1, a, b));
+      lo[1][a][b] = v[0][a][b];
+      hi[0][a][b] = v[1][a][b];
+      hi[1][a][b] = get(o.offsetBy(2, a, b));
     }
-    g[axis] = (Interpolate(hi, c.tx, c.ty, c.tz) - Interpolate(lo, c.tx, c.ty, c.tz)) / 2;
   }
+  g[0] = (Interpolate(hi, c.tx, c.ty, c.tz) - Interpolate(lo, c.tx, c.ty, c.tz)) / 2;
+  for (int a = 0; a < 2; ++a) {
+    for (int b = 0; b < 2; ++b) {
+      lo[a][0][b] = get(o.offsetBy(a, -1, b));
+      lo[a][1][b] = v[a][0][b];
+      hi[a][0][b] = v[a][1][b];
+      hi[a][1][b] = get(o.offsetBy(a, 2, b));
+    }
+  }
+  g[1] = (Interpolate(hi, c.tx, c.ty, c.tz) - Interpolate(lo, c.tx, c.ty, c.tz)) / 2;
+  for (int a = 0; a < 2; ++a) {
+    for (int b = 0; b < 2; ++b) {
+      lo[a][b][0] = get(o.offsetBy(a, b, -1));
+      lo[a][b][1] = v[a][b][0];
+      hi[a][b][0] = v[a][b][1];
+      hi[a][b][1] = get(o.offsetBy(a, b, 2));
+    }
+  }
+  g[2] = (Interpolate(hi, c.tx, c.ty, c.tz) - Interpolate(lo, c.tx, c.ty, c.tz)) / 2;
   return {g[0], g[1], g[2]};
 }
 
@@ -137,23 +140,105 @@ SculptureSnapshot::SculptureSnapshot(std::shared_ptr<const levelset::Sculpture> 
       voxel_size_(sculpture_->voxel_size()),
       id_(g_next_id.fetch_add(1, std::memory_order_relaxed)) {}
 
+SculptureSnapshot::SculptureSnapshot(std::shared_ptr<const levelset::Sculpture> sculpture,
+                                     const Vec3& window_centre, double window_radius)
+    : SculptureSnapshot(std::move(sculpture)) {
+  if (!window_centre.IsFinite() || !(window_radius > 0) || !std::isfinite(window_radius)) return;
+  const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
+  const openvdb::Vec3d u =
+      grid.transform().worldToIndex(openvdb::Vec3d(window_centre.x, window_centre.y, window_centre.z));
+  const double r = std::min(window_radius / voxel_size_, static_cast<double>(kMaxWindowHalf));
+  int lo[3], n[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = static_cast<int>(std::floor(u[a] - r));
+    n[a] = static_cast<int>(std::ceil(u[a] + r)) - lo[a] + 1;
+  }
+  window_lo_ = {lo[0], lo[1], lo[2]};
+  window_n_ = {n[0], n[1], n[2]};
+  window_.resize(static_cast<size_t>(n[0]) * n[1] * n[2]);
+  // One accessor walk over the box, x fastest: neighbouring reads share leaf nodes.
+  Accessor acc(grid.tree());
+  size_t at = 0;
+  for (int k = 0; k < n[2]; ++k) {
+    for (int j = 0; j < n[1]; ++j) {
+      for (int i = 0; i < n[0]; ++i) {
+        window_[at++] = acc.getValue(openvdb::Coord(lo[0] + i, lo[1] + j, lo[2] + k));
+      }
+    }
+  }
+}
+
 SculptureSnapshot::~SculptureSnapshot() = default;
+
+namespace {
+
+// Reads the dense window: the caller checked that every coordinate read lies inside.
+struct WindowGet {
+  const float* values;
+  int lo[3];
+  int nx, nxy;
+  double operator()(const openvdb::Coord& c) const {
+    return values[(c.x() - lo[0]) + (c.y() - lo[1]) * nx + static_cast<size_t>(c.z() - lo[2]) * nxy];
+  }
+};
+
+}  // namespace
+
+// Whether the cells origin + [from, to] on every axis lie inside the window.
+bool SculptureSnapshot::InWindow(const int (&origin)[3], int from, int to) const {
+  if (window_.empty()) return false;
+  const int n[3] = {window_n_.x, window_n_.y, window_n_.z};
+  const int lo[3] = {window_lo_.x, window_lo_.y, window_lo_.z};
+  for (int a = 0; a < 3; ++a) {
+    if (origin[a] + from < lo[a] || origin[a] + to >= lo[a] + n[a]) return false;
+  }
+  return true;
+}
 
 double SculptureSnapshot::Phi(const Vec3& p) const {
   const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
-  return Trilinear(AccessorFor(id_, grid.tree()), grid.transform(), p);
+  Corners c = Locate(grid.transform(), p);
+  const int o[3] = {c.origin.x(), c.origin.y(), c.origin.z()};
+  if (InWindow(o, 0, 1)) {
+    FillCorners(WindowGet{window_.data(), {window_lo_.x, window_lo_.y, window_lo_.z}, window_n_.x,
+                          window_n_.x * window_n_.y},
+                &c);
+  } else {
+    Accessor& acc = AccessorFor(id_, grid.tree());
+    FillCorners([&acc](const openvdb::Coord& ijk) { return acc.getValue(ijk); }, &c);
+  }
+  return Interpolate(c.v, c.tx, c.ty, c.tz);
 }
 
-Vec3 SculptureSnapshot::Gradient(const Vec3& p) const {
+void SculptureSnapshot::PhiAndGradient(const Vec3& p, double* phi, Vec3* gradient) const {
   const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
   const auto& xform = grid.transform();
-  Accessor& acc = AccessorFor(id_, grid.tree());
-  const Corners c = ReadCorners(acc, xform, p);
-  const openvdb::Vec3d gi = CentralIndexGradient(acc, c, c.origin);
+  Corners c = Locate(xform, p);
+  const int o[3] = {c.origin.x(), c.origin.y(), c.origin.z()};
+  openvdb::Vec3d gi;
+  if (InWindow(o, -1, 2)) {
+    const WindowGet get{window_.data(), {window_lo_.x, window_lo_.y, window_lo_.z}, window_n_.x,
+                        window_n_.x * window_n_.y};
+    FillCorners(get, &c);
+    gi = CentralIndexGradient(get, c, c.origin);
+  } else {
+    Accessor& acc = AccessorFor(id_, grid.tree());
+    const auto get = [&acc](const openvdb::Coord& ijk) { return acc.getValue(ijk); };
+    FillCorners(get, &c);
+    gi = CentralIndexGradient(get, c, c.origin);
+  }
+  *phi = Interpolate(c.v, c.tx, c.ty, c.tz);
   // World gradient: the index gradient through the inverse transpose of the index-to-world map
   // (for the uniform scale of a level set, divided by the voxel size).
   const openvdb::Vec3d gw = xform.baseMap()->applyIJT(gi);
-  return {gw.x(), gw.y(), gw.z()};
+  *gradient = {gw.x(), gw.y(), gw.z()};
+}
+
+Vec3 SculptureSnapshot::Gradient(const Vec3& p) const {
+  double phi;
+  Vec3 g;
+  PhiAndGradient(p, &phi, &g);
+  return g;
 }
 
 }  // namespace sculpt::haptics

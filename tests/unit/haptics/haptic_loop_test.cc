@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <pthread.h>
+#include <sched.h>
+
 #include <chrono>
 #include <cmath>
 #include <thread>
@@ -76,6 +79,63 @@ TEST(HapticLoopTest, TicksRendersAndCountsOnItsOwnThread) {
   EXPECT_TRUE(pose.position.IsFinite());
   EXPECT_NEAR(pose.position.z, -1, 1e-12);
   EXPECT_GT(dev.last_force().z, 0);
+}
+
+// The loop reports what it got from the OS: SCHED_FIFO where it may (root here), SCHED_OTHER
+// when it does not ask; pinned to the last allowed CPU when there are two or more.
+TEST(HapticLoopTest, ReportsSchedulingClassMemoryLockAndCpu) {
+  cpu_set_t allowed;
+  CPU_ZERO(&allowed);
+  ASSERT_EQ(sched_getaffinity(0, sizeof(allowed), &allowed), 0);
+  int last = -1;
+  for (int c = 0; c < CPU_SETSIZE; ++c) {
+    if (CPU_ISSET(c, &allowed)) last = c;
+  }
+  for (bool realtime : {true, false}) {
+    SnapshotPublisher pub;
+    pub.Publish(testing::Floor(0));
+    ScriptedDevice dev([](double) { return Vec3{0, 0, 1}; });
+    HapticLoopOptions o;
+    o.realtime = realtime;
+    auto loop = HapticLoop::Create(HapticSettings{}, &pub, &dev, o);
+    ASSERT_TRUE(loop.ok()) << loop.status();
+    EXPECT_EQ((*loop)->cpu(), CPU_COUNT(&allowed) >= 2 ? last : -1);
+    EXPECT_TRUE((*loop)->stats().scheduling.empty());  // not started yet
+    ASSERT_TRUE((*loop)->Start().ok());
+    std::this_thread::sleep_for(30ms);
+    (*loop)->Stop();
+    const HapticLoopStats st = (*loop)->stats();
+    if (realtime) {
+      EXPECT_TRUE(st.scheduling == "SCHED_FIFO" || st.scheduling == "SCHED_OTHER")
+          << st.scheduling;
+      if (st.scheduling == "SCHED_FIFO") EXPECT_GT(st.priority, 0);
+    } else {
+      EXPECT_EQ(st.scheduling, "SCHED_OTHER");
+    }
+    EXPECT_EQ(st.cpu, (*loop)->cpu());
+    EXPECT_EQ(st.ticks_over_budget, 0u);  // no budget set: never cut short
+  }
+}
+
+TEST(HapticLoopTest, PinThreadAwayFromCpuLeavesTheLoopsCpuOut) {
+  EXPECT_FALSE(PinThreadAwayFromCpu(-1));
+  cpu_set_t allowed;
+  CPU_ZERO(&allowed);
+  ASSERT_EQ(sched_getaffinity(0, sizeof(allowed), &allowed), 0);
+  int first = -1;
+  for (int c = 0; c < CPU_SETSIZE && first < 0; ++c) {
+    if (CPU_ISSET(c, &allowed)) first = c;
+  }
+  // On a thread of its own, so the test's thread keeps its affinity.
+  std::thread t([&] {
+    const bool pinned = PinThreadAwayFromCpu(first);
+    EXPECT_EQ(pinned, CPU_COUNT(&allowed) >= 2);
+    cpu_set_t now;
+    CPU_ZERO(&now);
+    ASSERT_EQ(pthread_getaffinity_np(pthread_self(), sizeof(now), &now), 0);
+    EXPECT_EQ(CPU_ISSET(first, &now) != 0, !pinned);
+  });
+  t.join();
 }
 
 }  // namespace

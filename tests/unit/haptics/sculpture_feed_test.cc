@@ -37,6 +37,34 @@ TEST(SculptureFeedTest, PublishesTheCopyItselfWithTheProducersSequence) {
   EXPECT_EQ(st.last_version, 1u);
 }
 
+// With a window, each snapshot carries the tool's neighbourhood densely; when the tool leaves
+// it between copies, the latest copy is published again around the tool's new place.
+TEST(SculptureFeedTest, WindowFollowsTheToolAndIsRecentredWithoutANewCopy) {
+  SnapshotPublisher publisher;
+  SculptureFeed feed(&publisher, /*seal=*/false);
+  Vec3 tool{6, 0, 0};
+  feed.SetWindow([&tool] { return tool; }, 2.0);
+  EXPECT_FALSE(feed.RecentreWindow());  // nothing published yet
+  const auto s = Sphere(6);
+  feed.Publish(s, 1);
+  const auto* snap = dynamic_cast<const SculptureSnapshot*>(publisher.Current()->sdf.get());
+  ASSERT_NE(snap, nullptr);
+  EXPECT_GT(snap->window_values(), 8u * 8 * 8);
+  tool = {6.2, 0, 0};  // within a quarter of the radius: nothing to do
+  EXPECT_FALSE(feed.RecentreWindow());
+  tool = {0, 6, 0};
+  EXPECT_TRUE(feed.RecentreWindow());
+  ASSERT_EQ(publisher.Current()->version, 2u);
+  const auto* moved = dynamic_cast<const SculptureSnapshot*>(publisher.Current()->sdf.get());
+  ASSERT_NE(moved, nullptr);
+  EXPECT_EQ(&moved->sculpture(), s.get()) << "the same copy again";
+  EXPECT_EQ(moved->Phi({0, 6, 0}), snap->Phi({0, 6, 0}));
+  const SculptureFeed::Stats st = feed.stats();
+  EXPECT_EQ(st.windows, 2u);
+  EXPECT_EQ(st.recentred, 1u);
+  EXPECT_EQ(st.last_version, 2u);
+}
+
 TEST(SculptureFeedTest, CopyEditedAfterPublicationIsCountedAndItsTicksFound) {
   SnapshotPublisher publisher;
   SculptureFeed feed(&publisher, /*seal=*/true);

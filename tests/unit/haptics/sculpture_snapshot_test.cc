@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <random>
 #include <thread>
 
 namespace sculpt::haptics {
@@ -20,6 +21,34 @@ TEST(SculptureSnapshotTest, MatchesTheSculptureSampler) {
     const Vec3 g = snap.Gradient(p), r = reference.Gradient(p);
     EXPECT_NEAR((g - r).Length(), 0, 1e-5) << p.x;
   }
+}
+
+// The dense window holds the tree's own values: phi and the gradient read through it are the
+// same bits as through the tree, inside the window, across its border and outside it.
+TEST(SculptureSnapshotTest, DenseWindowGivesTheTreesBits) {
+  levelset::SculptureOptions o;
+  o.voxel_size = 0.5;
+  auto s = levelset::Sculpture::MakeSphere(o, {1, 2, 3}, 8.0);
+  ASSERT_TRUE(s.ok());
+  auto shared = std::make_shared<const levelset::Sculpture>(std::move(s).value());
+  const Vec3 centre{9, 2, 3};  // on the surface
+  const SculptureSnapshot tree(shared), window(shared, centre, 3.0);
+  EXPECT_EQ(tree.window_values(), 0u);
+  EXPECT_GT(window.window_values(), 12u * 12 * 12);
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(-5.0, 5.0);  // past the 3-unit window
+  for (int i = 0; i < 2000; ++i) {
+    const Vec3 p = centre + Vec3{u(rng), u(rng), u(rng)};
+    ASSERT_EQ(window.Phi(p), tree.Phi(p)) << i;
+    ASSERT_EQ(window.Gradient(p), tree.Gradient(p)) << i;
+    double phi;
+    Vec3 g;
+    window.PhiAndGradient(p, &phi, &g);
+    ASSERT_EQ(phi, tree.Phi(p)) << i;
+    ASSERT_EQ(g, tree.Gradient(p)) << i;
+  }
+  EXPECT_EQ(SculptureSnapshot(shared, centre, 0).window_values(), 0u);
+  EXPECT_EQ(SculptureSnapshot(shared, Vec3{NAN, 0, 0}, 3).window_values(), 0u);
 }
 
 TEST(SculptureSnapshotTest, IdsAreUniqueAndTheCopyIsIndependent) {

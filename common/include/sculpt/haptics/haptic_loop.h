@@ -9,6 +9,7 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <string>
 
 #include "sculpt/core/status.h"
 #include "sculpt/haptics/haptic_device.h"
@@ -67,7 +68,37 @@ struct HapticLoopStats {
   double snapshot_lag_p50_ms = 0, snapshot_lag_p99_ms = 0, snapshot_lag_max_ms = 0;
   Vec3 last_force;
   bool contact = false;
+  /// Ticks the renderer cut short at HapticSettings' budget (TickOutput::over_budget).
+  uint64_t ticks_over_budget = 0;
+  /// What the loop thread got: "SCHED_FIFO" (with `priority`) or "SCHED_OTHER"; whether
+  /// mlockall succeeded; the CPU it is pinned to (-1: not pinned). Empty before Start.
+  std::string scheduling;
+  int priority = 0;
+  bool memory_locked = false;
+  int cpu = -1;
 };
+
+/// How the loop thread asks the OS for timing. Each request that is refused is logged once per
+/// process on stderr and the loop runs as it would without it.
+struct HapticLoopOptions {
+  /// SCHED_FIFO at `priority` (clamped to the policy's range) through pthread_setschedparam.
+  bool realtime = true;
+  int priority = 80;
+  /// mlockall(MCL_CURRENT | MCL_FUTURE | MCL_ONFAULT) for the process: pages, once touched, are
+  /// never paged out under the loop. Attempted only where it cannot fail later allocations
+  /// (RLIMIT_MEMLOCK unlimited, or root).
+  bool lock_memory = true;
+  /// kAutoCpu: the last CPU the process may run on, when it may run on at least 2 (the replica
+  /// keeps off it with PinThreadAwayFromCpu); kNoCpu: not pinned; else that CPU.
+  static constexpr int kAutoCpu = -2;
+  static constexpr int kNoCpu = -1;
+  int cpu = kAutoCpu;
+};
+
+/// Restricts the calling thread to the CPUs the process may use other than `cpu` (the haptic
+/// loop's), so a busy thread such as the replica's replay never competes with the loop for its
+/// core. False (and nothing changed) for cpu < 0 or when no other CPU is left.
+bool PinThreadAwayFromCpu(int cpu);
 
 /// The haptic loop: a dedicated thread that wakes every 1 / rate_hz seconds (sleep_until on
 /// steady_clock, deadlines advanced by the period, not by the wake-up time), loads the current
@@ -78,7 +109,8 @@ class HapticLoop {
   /// InvalidArgument for bad settings or a null publisher or device. Both must outlive the loop.
   static StatusOr<std::unique_ptr<HapticLoop>> Create(const HapticSettings& settings,
                                                       SnapshotPublisher* publisher,
-                                                      HapticDevice* device);
+                                                      HapticDevice* device,
+                                                      const HapticLoopOptions& options = {});
   ~HapticLoop();
   HapticLoop(const HapticLoop&) = delete;
   HapticLoop& operator=(const HapticLoop&) = delete;
@@ -90,6 +122,8 @@ class HapticLoop {
   bool running() const;
 
   HapticLoopStats stats() const;
+  /// The CPU the loop thread is (or will be, once started) pinned to; -1 if none.
+  int cpu() const;
   /// The stroke sampler hook: the device pose of the latest tick (time in loop seconds), for the
   /// stroke sender to call at stroke rate. Wait-free for the loop, never blocks the caller for
   /// longer than a concurrent pose write.

@@ -35,10 +35,36 @@ struct TickOutput {
   bool blending = false;         // the output is between the previous force and the model's
   bool clamped = false;          // the output hit HapticSettings::max_force
   bool normal_fallback = false;  // some direction came from the last valid normal
+  /// The tick reached HapticSettings' budget before visiting every tool sample: the force is
+  /// estimated from the samples known so far, and the next tick resumes after the last visited.
+  bool over_budget = false;
+  int samples_evaluated = 0;  // samples that took a field lookup this tick
+  int samples_skipped = 0;    // samples a distance bound showed too far to touch: no lookup
+  /// Samples whose term (for the current snapshot) the force is made of, this tick's or an
+  /// earlier one's; the tool's sample count when no tick since the last swap stopped early.
+  int samples_known = 0;
+};
+
+/// Where the renderer reads the time for its per-tick budget (microseconds, any origin). The
+/// default reads std::chrono::steady_clock; a test injects one to force an overrun.
+/// Thread safety: called from the renderer's thread only.
+class TickClock {
+ public:
+  virtual ~TickClock() = default;
+  virtual double NowUs() = 0;
 };
 
 /// Runs the per-tick pipeline on whatever snapshot it is given. Its state (previous samples,
 /// proxy, blend, last valid normal) belongs to one tool.
+///
+/// Cost: the tool's samples are visited in a fixed order in which every prefix is spread over the
+/// tool (farthest-point order). A sample whose last known phi, less twice the distance it moved
+/// since, still exceeds the contact range cannot touch (trilinear phi changes by at most sqrt(3)
+/// per unit length) and costs no lookup; a sample near the surface reads phi and its gradient
+/// from one stencil. With a budget (HapticSettings::tick_budget_us / tick_budget_samples) a tick
+/// stops when it is spent; samples not visited keep their term from their last visit on the
+/// same snapshot, and each one's path is swept from where it was last visited, so no contact is
+/// missed, only felt a tick or two later.
 /// Thread safety: not thread-safe; the haptic loop's thread owns it.
 class HapticRenderer {
  public:
@@ -56,6 +82,8 @@ class HapticRenderer {
   uint64_t nan_samples() const { return nan_samples_; }
   uint64_t ticks() const { return ticks_; }
   const TickOutput& last() const { return out_; }
+  /// Reads time for the budget from `clock` (not owned; null: steady_clock).
+  void set_clock(TickClock* clock);
   /// The tool's samples relative to its centre.
   const std::vector<Vec3>& tool_samples() const { return local_; }
 
@@ -68,13 +96,27 @@ class HapticRenderer {
   int blend_ticks_ = 0;
   ProxyModel proxy_;
 
-  std::vector<Vec3> previous_, current_;
-  // phi at each sample on the previous and current tick (NaN: not known), so each sample's phi
-  // is sampled once per tick, by the sweep, and reused by the force.
-  std::vector<double> previous_phi_, current_phi_;
+  // Visits samples from order_[cursor_] on, updating their state; stops at the budget.
+  void VisitSamples(const SdfSampler& sdf, const Vec3& centre, double start_us, TickOutput* out);
+  bool OutOfBudget(int evaluated, double start_us) const;
+
+  double rho_ = 0;  // area-weighted patch radius; 0 for the plain penalty average
+  TickClock* clock_;
+  std::vector<uint32_t> order_;  // farthest-point visiting order
+  size_t cursor_ = 0;            // where in order_ the next tick starts
+  // Per sample: where its path was last swept to; the last point phi was read at and that phi
+  // (NaN: unknown on this snapshot); its force term and whether that term is for this snapshot.
+  std::vector<Vec3> from_, anchor_;
+  std::vector<double> anchor_phi_;
+  std::vector<SampleForce> term_;
+  std::vector<uint8_t> known_;
+  int known_count_ = 0;
   bool have_previous_ = false;
   double previous_time_ = 0;
   const SdfSampler* previous_snapshot_ = nullptr;
+  // Keeps the previous snapshot alive, so a new one can never reuse its address and be taken for
+  // it: the samples' phi bounds outlive many ticks and are only valid on their own snapshot.
+  std::shared_ptr<const SdfSampler> previous_snapshot_ref_;
   int previous_colliding_ = 0;
   Vec3 last_normal_{0, 0, 1};
   Vec3 blend_from_;

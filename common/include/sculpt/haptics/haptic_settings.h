@@ -50,6 +50,15 @@ struct HapticSettings {
   /// The proxy keeps its centre on phi = proxy_radius (0: a point proxy on the surface). It
   /// must stay below the narrow band's half-width minus one voxel, where phi is not clamped.
   double proxy_radius = 0.0;
+  /// Per-tick time budget in microseconds (0: none). The renderer visits the tool's samples
+  /// coarse to fine and stops when the budget is spent, returning the force from the samples it
+  /// has (HapticRenderer::Tick); the next tick resumes where it stopped. Off by default, so a
+  /// renderer driven by a test or a recording gives the same forces however it is scheduled;
+  /// the real-time callers (sculpt play, the load generator) set kLoopTickBudgetUs.
+  double tick_budget_us = 0.0;
+  /// The same budget as a count of samples evaluated per tick (0: none): deterministic, for
+  /// tests and for hardware with a known cost per sample.
+  int tick_budget_samples = 0;
 };
 
 inline constexpr double kMaxStiffness = 1e6;
@@ -59,6 +68,9 @@ inline constexpr double kMinRateHz = 100;
 inline constexpr double kMaxRateHz = 10000;
 inline constexpr double kMaxToolRadius = 1e4;
 inline constexpr int kMaxToolSamples = 4096;
+inline constexpr double kMaxTickBudgetUs = 1e6;
+/// The budget the 1 kHz loop's callers use: a fifth of the period.
+inline constexpr double kLoopTickBudgetUs = 200.0;
 
 /// Ok, or InvalidArgument naming the field, the value and the allowed range
 /// (e.g. "HapticSettings.damping=0 outside [0.0005, 1e+06]").

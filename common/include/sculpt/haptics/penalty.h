@@ -19,6 +19,12 @@ class SdfSampler {
   virtual double Phi(const Vec3& p) const = 0;
   /// Not necessarily unit length; zero where phi has no direction (medial axis, beyond the band).
   virtual Vec3 Gradient(const Vec3& p) const = 0;
+  /// Both at once, equal to Phi(p) and Gradient(p); samplers whose gradient reads the value's
+  /// own corners override it to read them once.
+  virtual void PhiAndGradient(const Vec3& p, double* phi, Vec3* gradient) const {
+    *phi = Phi(p);
+    *gradient = Gradient(p);
+  }
   /// Grid spacing in world units: continuous contact detection steps at most half of it.
   virtual double cell_size() const = 0;
 };
@@ -90,6 +96,25 @@ PenaltyForce ComputeAreaWeightedPenaltyForce(const SdfSampler& sdf,
                                              double kappa, const Vec3& tool_centre,
                                              const Vec3& fallback_normal = {},
                                              const std::vector<double>* phi = nullptr);
+
+/// One sample's term of the sums above, from phi and the gradient at the sample: what
+/// ComputePenaltyForce (`rho` 0) or ComputeAreaWeightedPenaltyForce (`rho` = sqrt(area / pi))
+/// adds for it, bit for bit, so a caller may keep each sample's term and add them up itself.
+struct SampleForce {
+  Vec3 force;           // added to PenaltyForce::sum
+  double inside = 0;    // added to the area-weighted denominator (0 for the plain model)
+  bool colliding = false;
+  bool without_normal = false;
+};
+/// The largest phi at which a sample can still contribute: rho for the area-weighted model
+/// (samples up to a patch radius outside count), 0 for the plain one. A sample whose phi is
+/// known to be above it contributes nothing and needs no gradient.
+inline double PenaltyContactRange(double rho) { return rho > 0 ? rho : 0.0; }
+SampleForce PenaltySampleForce(double phi, const Vec3& gradient, double kappa,
+                               const Vec3& fallback_normal);
+SampleForce AreaWeightedSampleForce(const Vec3& x, double phi, const Vec3& gradient, double rho,
+                                    double kappa, const Vec3& tool_centre,
+                                    const Vec3& fallback_normal);
 
 /// The thesis's circle tool samples (App. A.1): k + 1 points r (cos 2 pi i/k, sin 2 pi i/k) + c,
 /// i = 0..k, in the z = c.z plane (the last repeats the first, as the MATLAB code does).

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -33,6 +34,9 @@ class SculptureFeed {
     uint64_t last_seq = 0;   // the producer's sequence of the latest snapshot
     uint64_t last_version = 0;
     double seal_ms = 0;  // time spent hashing, on the caller's threads
+    uint64_t windows = 0;     // snapshots published with a dense window
+    uint64_t recentred = 0;   // of those, republished copies for a tool that left its window
+    double window_ms = 0;     // time spent filling windows, on the caller's threads
   };
 
   /// `publisher` must outlive the feed. `seal` off: no hashing (then `changed` stays 0).
@@ -43,6 +47,15 @@ class SculptureFeed {
 
   /// Publishes `sculpture` (taken at the producer's sequence `seq`); a null pointer is ignored.
   void Publish(std::shared_ptr<const levelset::Sculpture> sculpture, uint64_t seq);
+  /// From now on each snapshot carries a dense window (SculptureSnapshot) of `radius` world units
+  /// around `centre()` (the haptic tool's position; the loop's SamplePose is wait-free), filled
+  /// on the publishing thread. A null `centre` stops it.
+  void SetWindow(std::function<Vec3()> centre, double radius);
+  /// When the tool has moved more than a quarter of the radius from the latest window's centre
+  /// and no new copy came meanwhile, publishes the latest copy again with a window around it
+  /// (no copy, no hash). Call from a thread other than the loop's, at a few hundred Hz at most.
+  /// True if it republished.
+  bool RecentreWindow();
   /// Checks the seals of the copies still held and lets them go (call when the loop stops).
   void CheckHeld();
   Stats stats() const;
@@ -56,6 +69,7 @@ class SculptureFeed {
     uint64_t hash = 0;
   };
   void CheckLocked(const Held& h);
+  void PublishLocked(std::shared_ptr<const levelset::Sculpture> sculpture);
 
   SnapshotPublisher* publisher_;
   bool seal_;
@@ -63,6 +77,9 @@ class SculptureFeed {
   std::deque<Held> held_;
   Stats stats_;
   std::vector<uint64_t> changed_;
+  std::function<Vec3()> window_centre_;
+  double window_radius_ = 0;
+  Vec3 last_centre_;
 };
 
 }  // namespace sculpt::haptics

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "sculpt/haptics/penalty.h"
 #include "sculpt/levelset/sculpture.h"
@@ -26,15 +27,28 @@ class SculptureSnapshot : public SdfSampler {
   /// further copy. Whoever made it must never edit it again. A null pointer is refused by
   /// dereference: callers check it first.
   explicit SculptureSnapshot(std::shared_ptr<const levelset::Sculpture> sculpture);
+  /// As above, with a dense copy of the grid's values within `window_radius` (world units, at
+  /// most kMaxWindowHalf voxels) of `window_centre`, made here, on the publisher's thread: a
+  /// lookup whose whole stencil lies inside reads it instead of the tree, so the haptic tool's
+  /// lookups cost an array read, also on the first tick after a swap (no node cache to warm).
+  /// The values are the tree's, so results are the same bits. A non-finite centre or a
+  /// non-positive radius makes no window.
+  SculptureSnapshot(std::shared_ptr<const levelset::Sculpture> sculpture, const Vec3& window_centre,
+                    double window_radius);
   ~SculptureSnapshot() override;
+  static constexpr int kMaxWindowHalf = 32;
 
   double Phi(const Vec3& p) const override;
   Vec3 Gradient(const Vec3& p) const override;
+  /// One read of the gradient's 32-corner stencil gives the value too (its inner 8 corners).
+  void PhiAndGradient(const Vec3& p, double* phi, Vec3* gradient) const override;
   double cell_size() const override { return voxel_size_; }
 
   const levelset::Sculpture& sculpture() const { return *sculpture_; }
   /// A process-unique id (never reused), distinct for every snapshot constructed.
   uint64_t id() const { return id_; }
+  /// Values in the dense window (0: none).
+  size_t window_values() const { return window_.size(); }
 
  private:
   std::shared_ptr<const levelset::Sculpture> sculpture_;
@@ -43,6 +57,10 @@ class SculptureSnapshot : public SdfSampler {
   const void* grid_;
   double voxel_size_;
   uint64_t id_;
+  // The dense window: values on index box window_lo_ + [0, window_n_), x fastest.
+  bool InWindow(const int (&origin)[3], int from, int to) const;
+  levelset::Int3 window_lo_{0, 0, 0}, window_n_{0, 0, 0};
+  std::vector<float> window_;
 };
 
 }  // namespace sculpt::haptics
