@@ -101,6 +101,7 @@ struct EditBenchOptions {
   double penetration = 2;   // voxels
   uint64_t seed = 20240601;
   bool skip_strokes = false;
+  std::vector<std::string> kinds;  // edit kinds to run (press, add, ...); empty: all
 };
 
 /// Options of `sculpt-bench accuracy`.

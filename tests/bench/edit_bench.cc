@@ -198,7 +198,8 @@ Json RunRadius(double R, const EditBenchOptions& o, Json* naive_out) {
   // Each kind starts from the fresh sphere. "press_equal_work" is the press with a looser
   // absolute compensation tolerance of 1 voxel^3 (the default is 0.25 voxel^3). It was added when
   // the tolerance was relative and let presses on large objects skip compensation; it is kept as
-  // a second size-independence check at a different tolerance.
+  // a second size-independence check at a different tolerance. Inflate and deflate move the
+  // surface by the request's default amount, 1 world unit (2 voxels), under the tool.
   struct Run {
     const char* name;
     EditKind kind;
@@ -209,12 +210,18 @@ Json RunRadius(double R, const EditBenchOptions& o, Json* naive_out) {
   const Run runs[] = {{"press", EditKind::kPress, settings},
                       {"add", EditKind::kAdd, settings},
                       {"subtract", EditKind::kSubtract, settings},
-                      {"press_equal_work", EditKind::kPress, equal_work}};
+                      {"press_equal_work", EditKind::kPress, equal_work},
+                      {"inflate", EditKind::kInflate, settings},
+                      {"deflate", EditKind::kDeflate, settings}};
   out["press_equal_work_compensation_tolerance_voxels3"] = equal_work.compensation_tolerance_voxels;
   out["default_compensation_tolerance_voxels3"] =
       settings.compensation_tolerance_voxels;
   Json after = Json::object();
   for (const Run& run : runs) {
+    if (!o.kinds.empty() &&
+        std::find(o.kinds.begin(), o.kinds.end(), std::string(run.name)) == o.kinds.end()) {
+      continue;
+    }
     Progress("edit: r=%g: %d warm-up + %d timed %s edits (on a fresh copy)", R, o.warmup, o.edits,
              run.name);
     Sculpture work = s.Clone();
@@ -372,7 +379,8 @@ Json RunEditBench(const EditBenchOptions& o) {
     ratios["size_independence_p99_ratio"] = ratio("press", "wall_ms", "p99");
     ratios["size_independence_radii"] = Json::array({num, den});
     Json per_kind;
-    for (const char* kind : {"press", "add", "subtract", "press_equal_work"}) {
+    for (const char* kind :
+         {"press", "add", "subtract", "press_equal_work", "inflate", "deflate"}) {
       per_kind[kind] = Json{{"wall_p50", ratio(kind, "wall_ms", "p50")},
                             {"wall_p99", ratio(kind, "wall_ms", "p99")},
                             {"in_call_p50", ratio(kind, "edit_ms", "p50")},

@@ -46,7 +46,7 @@ double Num(const Json& j, const char* a, const char* b = nullptr) {
 void PrintEditSummary(const Json& d) {
   std::printf("%-8s %-17s %10s %10s %10s\n", "radius", "kind", "p50 ms", "p99 ms", "mean ms");
   for (const Json& r : d["radii"]) {
-    for (const char* k : {"press", "add", "subtract", "press_equal_work"}) {
+    for (const char* k : {"press", "add", "subtract", "press_equal_work", "inflate", "deflate"}) {
       if (!r.contains(k)) continue;
       std::printf("%-8g %-17s %10.3f %10.3f %10.3f\n", r["radius_voxels"].get<double>(), k,
                   Num(r[k], "wall_ms", "p50"), Num(r[k], "wall_ms", "p99"),
@@ -92,6 +92,9 @@ int main(int argc, char** argv) {
   edit->add_option("--warmup", eo.warmup, "untimed edits per kind per radius")->check(CLI::Range(0, 1000));
   edit->add_option("--naive-radii", eo.naive_radii, "radii for the naive pipeline")->delimiter(',');
   edit->add_option("--naive-edits", eo.naive_edits, "naive edits per radius (0: skip)")->check(CLI::Range(0, 1000));
+  edit->add_option("--kinds", eo.kinds,
+                   "edit kinds to run: press, add, subtract, press_equal_work, inflate, deflate "
+                   "(default: all)");
   edit->add_option("--strokes", eo.strokes, "press strokes of the volume-drift run (0: skip)")->check(CLI::Range(0, 10000000));
   edit->add_option("--stroke-radius", eo.stroke_radius, "sphere radius of the volume-drift run");
   edit->add_option("--checkpoint-every", eo.checkpoint_every, "volume checkpoint interval (strokes)")->check(CLI::Range(1, 10000000));

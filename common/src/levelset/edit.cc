@@ -3,12 +3,14 @@
 #include "sculpt/levelset/edit.h"
 
 #include <algorithm>
-#include <limits>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 #include "sculpt/core/check.h"
+#include "sculpt/levelset/fast_march.h"
+#include "sculpt/levelset/invariants.h"
 #include "sculpture_impl.h"
 
 namespace sculpt::levelset {
@@ -18,6 +20,7 @@ namespace {
 // below stays at least this far from the block border.
 constexpr int kStencilMargin = 3;
 constexpr int kBlockPad = kStencilMargin + 2;
+constexpr int kBandRepairRounds = 4;
 
 std::string Num(double v) { return FormatNumber(v); }
 
@@ -145,6 +148,9 @@ BlockPlan PlanBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>&
   p.shell_outer = std::max(3 * dx, s.shell_radii * p.scale) + 1.5 * dx;
   p.reach = (p.compensate && s.compensation == CompensationRegion::kShell ? p.shell_outer : 0) +
             2 * dx + (kind == EditKind::kAdd || kind == EditKind::kSubtract ? impl.background() : 0);
+  // The surface moves at most to the tool's rim (2 voxels); the band around it, which the
+  // band repair rebuilds, must lie inside the written interior.
+  p.reach = std::max(p.reach, impl.background() + 2 * dx);
   return p;
 }
 
@@ -236,22 +242,291 @@ bool GammaHoldsMaterial(const Block& b, const VoxelList& gamma) {
   return false;
 }
 
-// Moves the interface by normal speed F = scale * weight for time `time` on `active`, in CFL
-// substeps. Returns the number of substeps.
-int MoveNormal(Block& b, const std::vector<float>& weight, const VoxelList& active, double scale,
-               double time, const EditSettings& s) {
-  if (active.empty() || scale == 0 || time <= 0) return 0;
-  double wmax = 0;
-  for (uint32_t idx : active) wmax = std::max(wmax, static_cast<double>(std::abs(weight[idx])));
-  const double vmax = std::abs(scale) * wmax;
-  if (vmax == 0) return 0;
-  const int n = static_cast<int>(std::ceil(vmax * time / (s.cfl * b.dx) - 1e-9));
-  const int steps = std::max(1, n);
-  std::vector<float> speed(b.phi.size(), 0.f);
-  for (uint32_t idx : active) speed[idx] = static_cast<float>(scale * weight[idx]);
-  const double dt = time / steps;
-  for (int i = 0; i < steps; ++i) NormalMotionStep(b.phi, speed, active, dt, b.dx, s.motion);
-  return steps;
+// Grows the band of the block's field out to `limit` (world units) by fast marching from the
+// voxels inside it, so that an offset by up to limit - background still finds distances where
+// the band had clamped them (an inflate or deflate by more than the band's half-width would
+// otherwise read a flat +-background and move nothing there). Only voxels off the band within
+// two voxels of the tool take part (the offset reads no others) and take their distance; the
+// band itself is kept as it is.
+void ExtendBand(Block& b, double limit) {
+  std::vector<MarchState> state(b.phi.size(), MarchState::kKnown);
+  const auto& data = b.phi.data();
+  const double near_tool = 2 * b.dx;
+  for (size_t idx = 0; idx < data.size(); ++idx) {
+    if (std::abs(data[idx]) < b.bg) continue;
+    state[idx] = b.tool_sdf[idx] < near_tool ? MarchState::kFree : MarchState::kIgnored;
+  }
+  MarchDistance(b.phi, state, b.dx, limit);
+}
+
+// Material one sample thick along some direction (both neighbours outside, along an axis, a
+// face diagonal or a body diagonal): a sheet or fibre the grid cannot resolve, which the next
+// edit or the mesher turns into holes, tunnels and open edges, and around which no band has a
+// unit gradient. Such voxels are emptied (repeatedly: emptying one can thin its neighbour) on
+// the block's written interior. Returns the voxels emptied; `touched` marks them for the band
+// repair.
+size_t RemoveThinMaterial(Block& b, std::vector<uint8_t>& touched) {
+  const Int3 d = b.phi.dims();
+  auto& data = b.phi.data();
+  const size_t stride[3] = {1, static_cast<size_t>(d.x), static_cast<size_t>(d.x) * d.y};
+  // One offset per pair of opposite neighbours: the 13 directions of the 26-neighbourhood.
+  ptrdiff_t dirs[13];
+  int nd = 0;
+  for (int dk = -1; dk <= 1; ++dk) {
+    for (int dj = -1; dj <= 1; ++dj) {
+      for (int di = -1; di <= 1; ++di) {
+        const ptrdiff_t o =
+            di + dj * static_cast<ptrdiff_t>(stride[1]) + dk * static_cast<ptrdiff_t>(stride[2]);
+        if (o > 0) dirs[nd++] = o;
+      }
+    }
+  }
+  double lengths[13];
+  for (int n = 0; n < nd; ++n) {
+    const ptrdiff_t o = dirs[n];
+    // Decode the offset back into its axis steps for its length.
+    int steps = 0;
+    for (int dk = -1; dk <= 1; ++dk) {
+      for (int dj = -1; dj <= 1; ++dj) {
+        for (int di = -1; di <= 1; ++di) {
+          if (di + dj * static_cast<ptrdiff_t>(stride[1]) +
+                  dk * static_cast<ptrdiff_t>(stride[2]) ==
+              o) {
+            steps = di * di + dj * dj + dk * dk;
+          }
+        }
+      }
+    }
+    lengths[n] = b.dx * std::sqrt(static_cast<double>(steps));
+  }
+  auto thin = [&](size_t idx) {
+    if (!(data[idx] < 0.f)) return false;
+    for (int n = 0; n < nd; ++n) {
+      if (ThinMaterialThickness(data[idx], data[idx - dirs[n]], data[idx + dirs[n]], lengths[n]) <
+          b.dx) {
+        return true;
+      }
+    }
+    return false;
+  };
+  std::vector<uint32_t> work;
+  for (int k = kStencilMargin; k < d.z - kStencilMargin; ++k) {
+    for (int j = kStencilMargin; j < d.y - kStencilMargin; ++j) {
+      for (int i = kStencilMargin; i < d.x - kStencilMargin; ++i) {
+        const size_t idx = b.phi.Index(i, j, k);
+        if (data[idx] < 0.f && data[idx] > -b.bg && thin(idx)) {
+          work.push_back(static_cast<uint32_t>(idx));
+        }
+      }
+    }
+  }
+  size_t removed = 0;
+  // Emptied just outside, so that the surface moves no further than the voxel's own depth (a
+  // voxel the surface grazes stays where it was); the band repair then gives the neighbourhood
+  // its distances.
+  const float outside = static_cast<float>(1e-3 * b.dx);
+  for (size_t w = 0; w < work.size(); ++w) {
+    const size_t idx = work[w];
+    if (!thin(idx)) continue;
+    data[idx] = outside;
+    touched[idx] = 1;
+    ++removed;
+    const int c[3] = {static_cast<int>(idx % d.x), static_cast<int>((idx / d.x) % d.y),
+                      static_cast<int>(idx / stride[2])};
+    for (int dk = -1; dk <= 1; ++dk) {
+      for (int dj = -1; dj <= 1; ++dj) {
+        for (int di = -1; di <= 1; ++di) {
+          if (!b.Interior(c[0] + di, c[1] + dj, c[2] + dk)) continue;
+          const size_t nb = b.phi.Index(c[0] + di, c[1] + dj, c[2] + dk);
+          if (thin(nb)) work.push_back(static_cast<uint32_t>(nb));
+        }
+      }
+    }
+  }
+  return removed;
+}
+
+// |grad phi| as the slope of steepest descent: the largest |phi(n) - phi(v)| / |n - v| over the
+// 26 neighbours (invariants.h explains why not a one-sided norm).
+float SteepestSlope(const float* p, size_t idx, const ptrdiff_t offsets[26],
+                    const float inv_lengths[26]) {
+  const float v = p[idx];
+  float g = 0.f;
+  for (int n = 0; n < 26; ++n) g = std::max(g, std::abs(p[idx + offsets[n]] - v) * inv_lengths[n]);
+  return g;
+}
+
+// Keeps the narrow band valid where the edit left it broken: an interface voxel with a voxel at
+// the band's edge among its 26 neighbours (the zero crossing about to leave the band, the source
+// of the holes inflate left), or a band voxel whose |grad phi| is far from one, marks its
+// surroundings (the band's half-width plus one voxel) for rebuilding. There the voxels that
+// bracket the interface take their Russo-Smereka distance (the crossing stays where it is) and
+// every other voxel its distance by fast marching. Voxels `touched` marks are rebuilt too.
+// Returns the number of voxels rebuilt.
+size_t RepairBand(Block& b, const std::vector<uint8_t>& touched) {
+  const Int3 d = b.phi.dims();
+  const size_t n = b.phi.size();
+  auto& data = b.phi.data();
+  const float* p = data.data();
+  const size_t stride[3] = {1, static_cast<size_t>(d.x), static_cast<size_t>(d.x) * d.y};
+  const float bg = b.bg;
+  const float band_inner = static_cast<float>(b.bg - b.dx);
+  ptrdiff_t offsets[26];
+  float inv_lengths[26];
+  int no = 0;
+  for (int dk = -1; dk <= 1; ++dk) {
+    for (int dj = -1; dj <= 1; ++dj) {
+      for (int di = -1; di <= 1; ++di) {
+        if (!di && !dj && !dk) continue;
+        offsets[no] =
+            di + dj * static_cast<ptrdiff_t>(stride[1]) + dk * static_cast<ptrdiff_t>(stride[2]);
+        inv_lengths[no++] = static_cast<float>(
+            1.0 / (b.dx * std::sqrt(static_cast<double>(di * di + dj * dj + dk * dk))));
+      }
+    }
+  }
+  std::vector<uint8_t> bad(n, 0);
+  size_t nbad = 0;
+  for (int k = kStencilMargin; k < d.z - kStencilMargin; ++k) {
+    for (int j = kStencilMargin; j < d.y - kStencilMargin; ++j) {
+      for (int i = kStencilMargin; i < d.x - kStencilMargin; ++i) {
+        const size_t idx = b.phi.Index(i, j, k);
+        if (touched[idx]) {
+          bad[idx] = 1;
+          ++nbad;
+          continue;
+        }
+        const float v = p[idx];
+        const bool inside = v < 0.f;
+        bool interface = false;
+        for (int a = 0; a < 3 && !interface; ++a) {
+          interface = (p[idx - stride[a]] < 0.f) != inside || (p[idx + stride[a]] < 0.f) != inside;
+        }
+        if (!interface && !(std::abs(v) < band_inner)) continue;
+        bool broken = false;
+        if (interface) {
+          for (int dk = -1; dk <= 1 && !broken; ++dk) {
+            for (int dj = -1; dj <= 1 && !broken; ++dj) {
+              for (int di = -1; di <= 1 && !broken; ++di) {
+                const float w = p[b.phi.Index(i + di, j + dj, k + dk)];
+                broken = !(std::abs(w) < bg);
+              }
+            }
+          }
+        }
+        if (!broken && std::abs(v) < band_inner) {
+          const float g = SteepestSlope(p, idx, offsets, inv_lengths);
+          broken = g < 0.6f || g > 1.4f;
+        }
+        if (broken) {
+          bad[idx] = 1;
+          ++nbad;
+        }
+      }
+    }
+  }
+  if (nbad == 0) return 0;
+  // The region: bad voxels dilated by the half-width plus one voxel (a box filter per axis),
+  // kept to the written interior.
+  const int reach = static_cast<int>(std::ceil(b.bg / b.dx)) + 1;
+  std::vector<uint8_t> region = bad;
+  std::vector<uint8_t> tmp(n);
+  const int dims[3] = {d.x, d.y, d.z};
+  for (int a = 0; a < 3; ++a) {
+    tmp.assign(n, 0);
+    for (size_t idx = 0; idx < n; ++idx) {
+      if (!region[idx]) continue;
+      const int c = static_cast<int>(a == 0   ? idx % d.x
+                                     : a == 1 ? (idx / d.x) % d.y
+                                              : idx / stride[2]);
+      const int lo = std::max(0, c - reach), hi = std::min(dims[a] - 1, c + reach);
+      for (int cc = lo; cc <= hi; ++cc) tmp[idx + (cc - c) * static_cast<ptrdiff_t>(stride[a])] = 1;
+    }
+    region.swap(tmp);
+  }
+  std::vector<MarchState> state(n, MarchState::kKnown);
+  std::vector<std::pair<uint32_t, float>> interface_values;
+  size_t rebuilt = 0;
+  for (int k = kStencilMargin; k < d.z - kStencilMargin; ++k) {
+    for (int j = kStencilMargin; j < d.y - kStencilMargin; ++j) {
+      for (int i = kStencilMargin; i < d.x - kStencilMargin; ++i) {
+        const size_t idx = b.phi.Index(i, j, k);
+        if (!region[idx]) continue;
+        ++rebuilt;
+        const float v = p[idx];
+        const bool inside = v < 0.f;
+        bool interface = false;
+        for (int a = 0; a < 3 && !interface; ++a) {
+          interface = (p[idx - stride[a]] < 0.f) != inside || (p[idx + stride[a]] < 0.f) != inside;
+        }
+        if (interface) {
+          interface_values.push_back({static_cast<uint32_t>(idx),
+                                      static_cast<float>(InterfaceDistance(b.phi, i, j, k, b.dx))});
+        } else {
+          state[idx] = MarchState::kFree;
+        }
+      }
+    }
+  }
+  // Each interface voxel's distance comes from its own axis crossings, so two voxels across the
+  // surface along a diagonal can claim more distance between them than the diagonal is long (a
+  // cliff the next round would find again). The surface crosses the segment between them, so
+  // |D(v)| + |D(n)| is at most its length: scale such pairs down together, which keeps the
+  // crossing on the segment where it was. Two Jacobi passes settle the corners seen here.
+  std::vector<float> next(data.size());
+  for (int pass = 0; pass < 2; ++pass) {
+    std::copy(data.begin(), data.end(), next.begin());
+    for (auto& [idx, v] : interface_values) next[idx] = v;
+    for (auto& [idx, v] : interface_values) {
+      const bool inside = v < 0.f;
+      float f = 1.f;
+      for (int o = 0; o < 26; ++o) {
+        const float w = next[idx + offsets[o]];
+        if ((w < 0.f) == inside) continue;
+        const float sum = (std::abs(v) + std::abs(w)) * inv_lengths[o];
+        if (sum > 1.f) f = std::min(f, 1.f / sum);
+      }
+      v *= f;
+    }
+  }
+  // All interface distances are read from the field before any is written.
+  for (const auto& [idx, v] : interface_values) data[idx] = v;
+  MarchDistance(b.phi, state, b.dx, b.bg);
+  return rebuilt;
+}
+
+// Empties material thinner than a voxel and repairs the band where it is broken, so that
+// nothing the edit leaves behind is a sliver or a torn band. The band repair changes distances,
+// by which thinness is judged, so the two alternate until neither has anything left to do (a
+// rebuilt interface voxel takes its distance from its neighbours' old values: next to a
+// voxel-scale corner a second round settles the pair across the surface). Where they keep
+// trading (a groove whose corners sit between samples) the rounds are bounded and a last pass
+// empties what the last repair thinned, so no sliver survives either way. Unless
+// `always_repair` (inflate and deflate, which rewrite the band wholesale), the band is repaired
+// only where something was emptied or marked in `repair`: after a press, a smooth or a CSG
+// edit the reinitialisation has already straightened it, and scanning the block for a torn
+// band would cost more than the edit. Returns whether anything changed.
+bool Resolve(Block& b, std::vector<uint8_t>& repair, bool always_repair) {
+  bool changed = false;
+  bool settled = false;
+  for (int round = 0; round < kBandRepairRounds && !settled; ++round) {
+    const size_t thin = RemoveThinMaterial(b, repair);
+    if (round == 0 && !always_repair && thin == 0 &&
+        std::find(repair.begin(), repair.end(), uint8_t{1}) == repair.end()) {
+      settled = true;
+      break;
+    }
+    const size_t rebuilt = RepairBand(b, repair);
+    std::fill(repair.begin(), repair.end(), 0);
+    settled = thin == 0 && rebuilt == 0;
+    changed = changed || !settled;
+  }
+  if (!settled) {
+    changed = RemoveThinMaterial(b, repair) > 0 || changed;
+    std::fill(repair.begin(), repair.end(), 0);
+  }
+  b.ClampToBand();
+  return changed;
 }
 
 struct IslandReport {
@@ -837,19 +1112,33 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
     }
     case EditKind::kInflate:
     case EditKind::kDeflate: {
-      std::vector<float> w(b.phi.size(), 0.f);
-      for (uint32_t idx : gamma) {
-        w[idx] = std::clamp(static_cast<float>(-b.tool_sdf[idx] / (2 * dx)), 0.f, 1.f);
-      }
+      if (req.amount <= 0) break;
+      // A normal offset of a signed distance field by a is phi - a (|grad phi| = 1): done in one
+      // pass, weighted by the tool's 2-voxel ramp, on a field whose band was first grown to
+      // reach the offset surface. (Moving the front by normal speed instead needed a substep
+      // per half voxel and ran the interface out of the band beyond the band's half-width.)
+      ExtendBand(b, req.amount + b.bg + dx);
       const double sign = req.kind == EditKind::kInflate ? 1.0 : -1.0;
-      res.substeps += MoveNormal(b, w, gamma, sign, req.amount, s);
-      touched = touched || req.amount > 0;
+      for (uint32_t idx : gamma) {
+        const double w = std::clamp(-b.tool_sdf[idx] / (2 * dx), 0.0, 1.0);
+        b.phi.data()[idx] = static_cast<float>(b.phi.data()[idx] - sign * req.amount * w);
+      }
+      ++res.substeps;
+      touched = true;
       break;
     }
   }
   }  // for each request
   if (reqs.size() > 1) b.tool_sdf = std::move(union_sdf);
   b.ClampToBand();
+  // Voxels the band repair must rebuild (emptied slivers, removed islands).
+  std::vector<uint8_t> repair(b.phi.size(), 0);
+  const bool offset_kind = kind == EditKind::kInflate || kind == EditKind::kDeflate;
+  // Slivers the operators left are emptied now. After an inflate or deflate the band repair
+  // rebuilds around them; after the other kinds the reinitialisation below straightens them
+  // with the rest of the edited band (a rebuild would cost more than the edit).
+  std::vector<uint8_t> emptied(b.phi.size(), 0);
+  if (touched) RemoveThinMaterial(b, offset_kind ? repair : emptied);
 
   double reference = impl.reference_volume;
   VoxelList reinit_extra;
@@ -860,6 +1149,12 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
     res.island_volume_removed = islands.removed_inside_voxels * dx3;
     reference -= res.island_volume_removed;  // re-baseline: that clay is gone on purpose
     reinit_extra = std::move(islands.zone);
+  }
+  const size_t island_zone = reinit_extra.size();  // rebuilt by the band repair too
+  if (!offset_kind) {
+    for (size_t idx = 0; idx < emptied.size(); ++idx) {
+      if (emptied[idx]) reinit_extra.push_back(static_cast<uint32_t>(idx));
+    }
   }
 
   // Shell compensation first: its weighted offset bends |grad phi| in the shell, which the
@@ -900,6 +1195,14 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
     }
   }
 
+  // Slivers emptied and the band rebuilt where the operators, the islands policy, the
+  // compensation or the reinitialisation left it broken, before the last compensation restores
+  // the volume that took.
+  if (touched) {
+    for (size_t n = 0; n < island_zone; ++n) repair[reinit_extra[n]] = 1;
+    Resolve(b, repair, offset_kind);
+  }
+
   // Compensation once more: the reinitialisation moved the interface slightly (by far less
   // than a voxel), so this pass is a small correction whose offset barely bends the field.
   if (touched && compensate && s.compensation == CompensationRegion::kShell) {
@@ -907,6 +1210,22 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
     res.compensation_iterations += c.iterations;
     res.compensation_failed = res.compensation_failed || c.failed;
     res.substeps += c.substeps;
+  }
+
+  // Again after the second compensation, whose offset may have flipped a sample next to a thin
+  // spot or bent the band somewhere; usually there is nothing left to do. When there was, a
+  // last compensation restores the volume that took (a small correction in the shell). What
+  // slivers that regrows along the tool's sharp edges (it would regrow them again) are emptied
+  // without a band repair, and like removed islands that clay is gone on purpose: the
+  // reference volume is re-baselined by it.
+  if (touched && Resolve(b, repair, offset_kind) && compensate &&
+      s.compensation == CompensationRegion::kShell) {
+    CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s);
+    res.compensation_iterations += c.iterations;
+    res.compensation_failed = res.compensation_failed || c.failed;
+    res.substeps += c.substeps;
+    const double inside_before = b.InsideChange();
+    if (RemoveThinMaterial(b, repair) > 0) reference += (b.InsideChange() - inside_before) * dx3;
   }
 
   SpliceBack(impl, b, base_volume, &res);
