@@ -420,6 +420,9 @@ TEST_F(TlsTest, PlaintextOnlyOnLoopbackUnlessAllowed) {
   ServerConfig c;
   EXPECT_TRUE(ValidateConfig(c).ok());  // the embedded default: plaintext on 127.0.0.1
   c.listen = "0.0.0.0:7420";
+  // Beyond loopback the development tokens are refused too (NamedUsersConfigTest): own ones.
+  c.sculptor_token = "a-long-sculptor-secret";
+  c.viewer_token = "a-long-viewer-secret";
   const Status s = ValidateConfig(c);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.message().find("allow_plaintext"), std::string::npos) << s;

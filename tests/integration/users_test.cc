@@ -346,6 +346,7 @@ TEST_F(NamedUsersTest, ReloadAddsAndRemovesUsersAndKeepsThemOnABadFile) {
 TEST(NamedUsersConfigTest, DevelopmentTokensStayOnLoopback) {
   ServerConfig c;
   c.listen = "0.0.0.0:7420";
+  c.tls.allow_plaintext = true;  // the TLS rule aside (TlsTest)
   const Status s = ValidateConfig(c);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.message().find("development tokens"), std::string::npos) << s;

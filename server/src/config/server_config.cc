@@ -339,9 +339,8 @@ Status ValidateConfig(const ServerConfig& c) {
   if (c.sculptor_token == c.viewer_token) {
     return InvalidArgument("sculptor_token equals viewer_token: roles would be indistinguishable");
   }
-  const bool loopback = host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
   const ServerConfig defaults;
-  if (!loopback && c.users_file.empty() &&
+  if (!IsLoopbackListen(c.listen) && c.users_file.empty() &&
       (c.sculptor_token == defaults.sculptor_token || c.viewer_token == defaults.viewer_token)) {
     return InvalidArgument(
         "listen=" + c.listen + " is not a loopback address and the development tokens are in "
