@@ -1134,11 +1134,18 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   // Voxels the band repair must rebuild (emptied slivers, removed islands).
   std::vector<uint8_t> repair(b.phi.size(), 0);
   const bool offset_kind = kind == EditKind::kInflate || kind == EditKind::kDeflate;
+  // Slivers come from offsets that rewrite the band and from the box's sharp edges (ribs). A
+  // smooth tool's press, smooth or CSG edit leaves none the reinitialisation does not
+  // straighten, and scanning for them doubled a press's cost (and halved the server's edit
+  // throughput), so those skip the sliver and band-repair passes.
+  bool resolve = offset_kind;
+  for (const EditRequest& req : reqs) resolve = resolve || req.tool.kind == ToolKind::kBox;
+  const bool resolve_slivers = touched && resolve;
   // Slivers the operators left are emptied now. After an inflate or deflate the band repair
   // rebuilds around them; after the other kinds the reinitialisation below straightens them
   // with the rest of the edited band (a rebuild would cost more than the edit).
   std::vector<uint8_t> emptied(b.phi.size(), 0);
-  if (touched) RemoveThinMaterial(b, offset_kind ? repair : emptied);
+  if (resolve_slivers) RemoveThinMaterial(b, offset_kind ? repair : emptied);
 
   double reference = impl.reference_volume;
   VoxelList reinit_extra;
@@ -1198,7 +1205,7 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   // Slivers emptied and the band rebuilt where the operators, the islands policy, the
   // compensation or the reinitialisation left it broken, before the last compensation restores
   // the volume that took.
-  if (touched) {
+  if (resolve_slivers) {
     for (size_t n = 0; n < island_zone; ++n) repair[reinit_extra[n]] = 1;
     Resolve(b, repair, offset_kind);
   }
@@ -1218,7 +1225,7 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   // slivers that regrows along the tool's sharp edges (it would regrow them again) are emptied
   // without a band repair, and like removed islands that clay is gone on purpose: the
   // reference volume is re-baselined by it.
-  if (touched && Resolve(b, repair, offset_kind) && compensate &&
+  if (resolve_slivers && Resolve(b, repair, offset_kind) && compensate &&
       s.compensation == CompensationRegion::kShell) {
     CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s);
     res.compensation_iterations += c.iterations;
