@@ -116,7 +116,10 @@ try {
     s.sent > 0 && s.acks === s.sent && s.seq > seqBefore && s.errors.length === 0, JSON.stringify(s));
   await waitFor(viewer, (before) => JSON.stringify([...window.sculpt.meshes.versions]) !== before, versionsBefore);
   await waitFor(viewer, (seq) => window.sculpt.stats.globalSeq >= seq, s.seq);
-  check('viewer: the drag reached its mesh', true);
+  const versionsAfter = await viewer.evaluate(() => JSON.stringify([...window.sculpt.meshes.versions]));
+  const seqAfter = await viewer.evaluate(() => window.sculpt.stats.globalSeq);
+  check('viewer: the drag reached its mesh', versionsAfter !== versionsBefore && seqAfter >= s.seq,
+    `seq ${seqAfter} of ${s.seq}`);
 
   // 3. The viewer sees the sculptor's tool in presence while it hovers.
   for (let i = 0; i < 8; ++i) { await sculptor.mouse.move(400 + 3 * i, 320); await sleep(60); }
@@ -223,7 +226,8 @@ try {
   check('sculptor: paints acknowledged', paints.sent > 0 && paints.acked === paints.sent && paints.errors.length === 0,
     JSON.stringify(paints));
   await waitFor(viewer, (before) => JSON.stringify([...window.sculpt.meshes.versions].sort()) !== before, versionsBeforePaint);
-  check('viewer: the paint reached its mesh', true);
+  const versionsAfterPaint = await viewer.evaluate(() => JSON.stringify([...window.sculpt.meshes.versions].sort()));
+  check('viewer: the paint reached its mesh', versionsAfterPaint !== versionsBeforePaint);
   for (const p of [viewer, sculptor, impostor]) {
     const bad = p.logs.filter((l) => l.startsWith('pageerror') || l.includes('Content Security Policy'));
     check(`no page errors or CSP violations (${await p.title()})`, bad.length === 0, bad.join(' | '));

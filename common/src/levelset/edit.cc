@@ -269,35 +269,21 @@ size_t RemoveThinMaterial(Block& b, std::vector<uint8_t>& touched) {
   const Int3 d = b.phi.dims();
   auto& data = b.phi.data();
   const size_t stride[3] = {1, static_cast<size_t>(d.x), static_cast<size_t>(d.x) * d.y};
-  // One offset per pair of opposite neighbours: the 13 directions of the 26-neighbourhood.
+  // One offset per pair of opposite neighbours: the 13 directions of the 26-neighbourhood, each
+  // with its length.
   ptrdiff_t dirs[13];
+  double lengths[13];
   int nd = 0;
   for (int dk = -1; dk <= 1; ++dk) {
     for (int dj = -1; dj <= 1; ++dj) {
       for (int di = -1; di <= 1; ++di) {
         const ptrdiff_t o =
             di + dj * static_cast<ptrdiff_t>(stride[1]) + dk * static_cast<ptrdiff_t>(stride[2]);
-        if (o > 0) dirs[nd++] = o;
+        if (o <= 0) continue;
+        dirs[nd] = o;
+        lengths[nd++] = b.dx * std::sqrt(static_cast<double>(di * di + dj * dj + dk * dk));
       }
     }
-  }
-  double lengths[13];
-  for (int n = 0; n < nd; ++n) {
-    const ptrdiff_t o = dirs[n];
-    // Decode the offset back into its axis steps for its length.
-    int steps = 0;
-    for (int dk = -1; dk <= 1; ++dk) {
-      for (int dj = -1; dj <= 1; ++dj) {
-        for (int di = -1; di <= 1; ++di) {
-          if (di + dj * static_cast<ptrdiff_t>(stride[1]) +
-                  dk * static_cast<ptrdiff_t>(stride[2]) ==
-              o) {
-            steps = di * di + dj * dj + dk * dk;
-          }
-        }
-      }
-    }
-    lengths[n] = b.dx * std::sqrt(static_cast<double>(steps));
   }
   auto thin = [&](size_t idx) {
     if (!(data[idx] < 0.f)) return false;
