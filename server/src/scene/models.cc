@@ -15,6 +15,7 @@
 #include <future>
 #include <sstream>
 
+#include "net/wire_error.h"
 #include "scene/answer_once.h"
 #include "scene/log_payload.h"
 #include "scene/scene.h"
@@ -50,20 +51,10 @@ Status Rename(const Status& s) {
 }
 
 v1::ModelAck Refused(const Status& st, uint64_t client_seq) {
-  const codec::FieldError fe = codec::SplitFieldError(st);
   v1::ModelAck a;
   a.set_client_seq(client_seq);
   a.set_accepted(false);
-  v1::Error* e = a.mutable_error();
-  e->set_code(st.code() == Status::Code::kNotFound             ? v1::ERROR_CODE_NOT_FOUND
-              : st.code() == Status::Code::kInvalidArgument    ? v1::ERROR_CODE_INVALID_ARGUMENT
-              : st.code() == Status::Code::kFailedPrecondition ? v1::ERROR_CODE_FAILED_PRECONDITION
-                                                               : v1::ERROR_CODE_INTERNAL);
-  e->set_field(fe.field);
-  e->set_value(fe.value);
-  e->set_allowed_range(fe.allowed_range);
-  e->set_message(fe.message);
-  e->set_client_seq(client_seq);
+  *a.mutable_error() = ToWireError(st, client_seq);
   return a;
 }
 
@@ -141,13 +132,9 @@ uint64_t ModelHash(const hetero::CompositeModel& model) {
 // ---------------------------------------------------------------------------------------------
 // Model intents in the edit log; model files beside the snapshots
 
-bool IsModelPayload(const std::string& payload) { return HasLogTag(payload, LogTag::kModel); }
 
 std::string ModelPayload(const v1::ModelRecord& r) { return TaggedPayload(LogTag::kModel, r); }
 
-StatusOr<v1::ModelRecord> ParseModelPayload(uint64_t seq, const std::string& payload) {
-  return ParseTaggedPayload<v1::ModelRecord>(LogTag::kModel, seq, payload, "a model intent");
-}
 
 Status SaveModelFile(const std::string& path, uint64_t seq, uint64_t version,
                      const hetero::CompositeModel& model) {
@@ -202,6 +189,7 @@ struct Scene::ModelState {
   hetero::CompositeModel model;
   hetero::ValidityChecker checker;
   uint64_t version = 0;
+  uint64_t file_seq = 0;  // the model file held the log up to this seq at start-up
 };
 
 namespace {
@@ -211,7 +199,6 @@ std::string ModelFilePath(const std::string& data_dir, const std::string& object
 }  // namespace
 
 Status Scene::OpenModels() {
-  std::map<std::string, uint64_t> from;  // per object: log records after this seq are replayed
   for (const ObjectConfig& o : config_.scene.objects) {
     if (o.primitive != "model") continue;
     auto st = std::make_shared<ModelState>();
@@ -219,7 +206,7 @@ Status Scene::OpenModels() {
     if (saved.ok()) {
       st->model = std::move(saved->model);
       st->version = saved->version;
-      from[o.name] = saved->seq;
+      st->file_seq = saved->seq;
     } else if (saved.status().code() == Status::Code::kNotFound) {
       auto m = hetero::LoadModel(o.model);
       if (!m.ok()) {
@@ -227,31 +214,25 @@ Status Scene::OpenModels() {
                                              m.status().message());
       }
       st->model = std::move(m).value();
-      from[o.name] = 0;
     } else {
       return saved.status();
     }
     models_[o.name] = std::move(st);
   }
-  if (models_.empty()) return Status::Ok();
-  // Replay the logged intents the model files do not hold, as the live server applied them.
-  return log_->ForEachFrom(0, [&](const store::LogRecord& lr) -> Status {
-    if (!IsModelPayload(lr.payload)) return Status::Ok();
-    SCULPT_ASSIGN_OR_RETURN(v1::ModelRecord r, ParseModelPayload(lr.seq, lr.payload));
-    uint64_t& last = last_model_seq_[r.client_id()];
-    last = std::max(last, r.intent().client_seq());
-    auto it = models_.find(r.intent().object());
-    if (it == models_.end() || lr.seq <= from[it->first]) return Status::Ok();
-    ModelState& st = *it->second;
-    auto out = hetero::ApplyIntent(&st.model, &st.checker, IntentFromMessage(r.intent()));
-    if (!out.ok() || !out->applied) {
-      spdlog::warn("model intent at seq {} refused on replay: {}", lr.seq,
-                   out.ok() ? out->rejection.ToString() : out.status().ToString());
-      return Status::Ok();
-    }
-    st.version = r.model_version();
-    return Status::Ok();
-  });
+  return Status::Ok();
+}
+
+void Scene::ReplayModelIntent(uint64_t seq, const v1::ModelRecord& r) {
+  auto it = models_.find(r.intent().object());
+  if (it == models_.end() || seq <= it->second->file_seq) return;
+  ModelState& st = *it->second;
+  auto out = hetero::ApplyIntent(&st.model, &st.checker, IntentFromMessage(r.intent()));
+  if (!out.ok() || !out->applied) {
+    spdlog::warn("model intent at seq {} refused on replay: {}", seq,
+                 out.ok() ? out->rejection.ToString() : out.status().ToString());
+    return;
+  }
+  st.version = r.model_version();
 }
 
 bool Scene::SaveModels(uint64_t seq) {
@@ -292,91 +273,116 @@ StatusOr<ModelSummary> Scene::ModelInfo(const std::string& object) {
   return p.get_future().get();
 }
 
+// A model intent: corner and cell checked against the model, then expanded by the library and
+// checked for validity on a copy of the model (a rejection is answered with its reason, nothing
+// logged); Apply puts the copy in place. The voxelised sculpture is not re-voxelised.
+struct Scene::ModelOp final : EditOp {
+  ModelOp(uint64_t client, v1::ModelIntent m, std::function<void(v1::ModelAck)> d)
+      : client(client), intent(std::move(m)), done(std::move(d)) {}
+  const char* operation() const override { return "model intent"; }
+  ResendStream stream() const override { return ResendStream::kModels; }
+  uint64_t client_id() const override { return client; }
+  uint64_t client_seq() const override { return intent.client_seq(); }
+
+  Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
+    auto it = scene.models_.find(intent.object());
+    if (it == scene.models_.end()) {
+      return NotFound("ModelIntent.object=" + intent.object() +
+                      " outside the scene's model objects");
+    }
+    state = it->second;
+    const hetero::CompositeModel& model = state->model;
+    if (intent.corner() >= model.coefficient_count()) {
+      return InvalidArgument("ModelIntent.corner=" + std::to_string(intent.corner()) +
+                             " outside [0, " + std::to_string(model.coefficient_count() - 1) + "]");
+    }
+    if (intent.cell() >= static_cast<int64_t>(model.cell_count())) {
+      return InvalidArgument("ModelIntent.cell=" + std::to_string(intent.cell()) +
+                             " outside [-1, " + std::to_string(model.cell_count() - 1) + "]");
+    }
+    next_model = state->model;
+    next_checker = state->checker;
+    auto out = hetero::ApplyIntent(&next_model, &next_checker, IntentFromMessage(intent));
+    if (!out.ok()) return Rename(out.status());
+    if (!out->applied) {
+      rejection = out->rejection;
+      Describe(*state);
+      return FailedPrecondition("ModelIntent=" + rejection->ToString() +
+                                " outside intents that keep the model valid");
+    }
+    moved = out->moves.size();
+    v1::ModelRecord rec;
+    rec.set_global_seq(first_seq);
+    rec.set_client_id(client);
+    *rec.mutable_intent() = intent;
+    rec.set_model_version(state->version + 1);
+    records->push_back(ModelPayload(rec));
+    return Status::Ok();
+  }
+
+  Applied Apply(Scene&) override {
+    state->model = std::move(next_model);
+    state->checker = std::move(next_checker);
+    ++state->version;
+    Describe(*state);
+    return Applied{};  // the voxels are not re-voxelised
+  }
+
+  void Duplicate(Scene& scene) override {
+    auto it = scene.models_.find(intent.object());
+    if (it != scene.models_.end()) Describe(*it->second);
+  }
+
+  // The model as the answer reports it, taken on the compute thread.
+  void Describe(const ModelState& st) {
+    version = st.version;
+    hash = ModelHash(st.model);
+  }
+
+  void Answer(const CommitOutcome& o) override {
+    v1::ModelAck ack;
+    if (rejection) {
+      const hetero::Rejection& r = *rejection;
+      ack.set_client_seq(o.client_seq);
+      ack.set_accepted(false);
+      ack.set_reason(hetero::ReasonName(r.reason));
+      ack.set_cell(r.cell);
+      ack.set_direction(r.direction);
+      ack.set_span(r.span);
+      ack.set_detail(r.ToString());
+    } else if (!o.status.ok()) {
+      ack = Refused(o.status, o.client_seq);
+    } else {
+      ack.set_client_seq(o.client_seq);
+      ack.set_accepted(true);
+      ack.set_duplicate(o.duplicate);
+      if (!o.duplicate) {
+        ack.set_global_seq(o.global_seq_first);
+        ack.set_moved_coefficients(static_cast<uint32_t>(moved));
+      }
+    }
+    if (version > 0 || hash != 0) {
+      ack.set_model_version(version);
+      ack.set_model_hash(hash);
+    }
+    done(ack);
+  }
+
+  uint64_t client;
+  v1::ModelIntent intent;
+  std::function<void(v1::ModelAck)> done;
+  std::shared_ptr<ModelState> state;
+  hetero::CompositeModel next_model;
+  hetero::ValidityChecker next_checker;
+  std::optional<hetero::Rejection> rejection;
+  size_t moved = 0;
+  uint64_t version = 0;
+  uint64_t hash = 0;
+};
+
 void Scene::EditModel(uint64_t client_id, v1::ModelIntent m,
                       std::function<void(v1::ModelAck)> done) {
-  auto once = AnswerOnce(std::move(done));
-  auto cb = std::make_shared<std::function<void(v1::ModelAck)>>(once);
-  auto fail = [once, seq = m.client_seq()](const Status& st) { once(Refused(st, seq)); };
-  Post("model intent", fail, [this, client_id, m = std::move(m), cb] {
-    auto it = models_.find(m.object());
-    if (it == models_.end()) {
-      return (*cb)(Refused(NotFound("ModelIntent.object=" + m.object() +
-                                    " outside the scene's model objects"),
-                           m.client_seq()));
-    }
-    ModelState& st = *it->second;
-    uint64_t& last = last_model_seq_[client_id];
-    v1::ModelAck ack;
-    ack.set_client_seq(m.client_seq());
-    uint64_t seq = next_seq_ - 1;
-    if (m.client_seq() <= last) {
-      // Already applied: acknowledged once everything logged so far is durable.
-      ack.set_accepted(true);
-      ack.set_duplicate(true);
-    } else {
-      const hetero::CompositeModel& model = st.model;
-      if (m.corner() >= model.coefficient_count()) {
-        return (*cb)(Refused(InvalidArgument("ModelIntent.corner=" + std::to_string(m.corner()) +
-                                             " outside [0, " +
-                                             std::to_string(model.coefficient_count() - 1) + "]"),
-                             m.client_seq()));
-      }
-      if (m.cell() >= static_cast<int64_t>(model.cell_count())) {
-        return (*cb)(Refused(InvalidArgument("ModelIntent.cell=" + std::to_string(m.cell()) +
-                                             " outside [-1, " +
-                                             std::to_string(model.cell_count() - 1) + "]"),
-                             m.client_seq()));
-      }
-      // Kept to undo an edit the log cannot take (the checker's cache then goes too: the
-      // restored cells' versions would be reissued to other geometry).
-      hetero::CompositeModel before = st.model;
-      // Expanded deterministically and validated after ordering, on the compute thread.
-      auto out = hetero::ApplyIntent(&st.model, &st.checker, IntentFromMessage(m));
-      if (!out.ok()) return (*cb)(Refused(Rename(out.status()), m.client_seq()));
-      if (!out->applied) {
-        const hetero::Rejection& r = out->rejection;
-        ack.set_accepted(false);
-        ack.set_model_version(st.version);
-        ack.set_model_hash(ModelHash(st.model));
-        ack.set_reason(hetero::ReasonName(r.reason));
-        ack.set_cell(r.cell);
-        ack.set_direction(r.direction);
-        ack.set_span(r.span);
-        ack.set_detail(r.ToString());
-        return (*cb)(ack);  // nothing logged, nothing changed
-      }
-      seq = next_seq_++;
-      v1::ModelRecord rec;
-      rec.set_global_seq(seq);
-      rec.set_client_id(client_id);
-      *rec.mutable_intent() = m;
-      rec.set_model_version(st.version + 1);
-      if (const Status a = log_->Append(seq, ModelPayload(rec)); !a.ok()) {
-        spdlog::critical("edit log append failed at seq {}: {}", seq, a.ToString());
-        st.model = std::move(before);
-        st.checker.Clear();
-        return (*cb)(Refused(a, m.client_seq()));
-      }
-      st.version = rec.model_version();
-      applied_seq_ = seq;
-      ++edits_since_snapshot_;
-      last = m.client_seq();
-      ack.set_accepted(true);
-      ack.set_global_seq(seq);
-      ack.set_moved_coefficients(static_cast<uint32_t>(out->moves.size()));
-      std::lock_guard<std::mutex> lock(info_mu_);
-      RefreshInfoLocked();
-    }
-    ack.set_model_version(st.version);
-    ack.set_model_hash(ModelHash(st.model));
-    {
-      // Acknowledged once durable, in order with the strokes.
-      std::lock_guard<std::mutex> lock(pending_mu_);
-      pending_.push_back({seq, StrokeOutcome{}, [cb, ack](const StrokeOutcome&) { (*cb)(ack); }});
-    }
-    ReleaseDurable(log_->durable_seq());
-    MaybeSnapshot();
-  });
+  Commit(std::make_shared<ModelOp>(client_id, std::move(m), AnswerOnce(std::move(done))));
 }
 
 }  // namespace sculpt::server

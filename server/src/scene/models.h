@@ -28,12 +28,8 @@ hetero::EditIntent IntentFromMessage(const v1::ModelIntent& intent);
 /// cells' pool indices, corner flags); cell versions are not content and are left out.
 uint64_t ModelHash(const hetero::CompositeModel& model);
 
-/// True for an edit-log payload holding a model intent.
-bool IsModelPayload(const std::string& payload);
-/// The edit-log payload of a model record.
+/// The edit-log payload of a model record (read back by DecodeLogRecord, commit.h).
 std::string ModelPayload(const v1::ModelRecord& record);
-/// A logged model intent; DataLoss naming the sequence when it does not parse.
-StatusOr<v1::ModelRecord> ParseModelPayload(uint64_t seq, const std::string& payload);
 
 /// A model as saved beside the snapshots: the edit-log sequence it includes, its version and
 /// the model itself (model_io's JSON).

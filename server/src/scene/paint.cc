@@ -7,6 +7,7 @@
 
 #include <cmath>
 
+#include "net/wire_error.h"
 #include "scene/answer_once.h"
 #include "scene/log_payload.h"
 #include "scene/scene.h"
@@ -25,20 +26,10 @@ constexpr size_t kMaxNameBytes = 64;
 Vec3 V(const v1::Vec3f& v) { return {v.x(), v.y(), v.z()}; }
 
 v1::PaintAck Refused(const Status& st, uint64_t client_seq) {
-  const codec::FieldError fe = codec::SplitFieldError(st);
   v1::PaintAck a;
   a.set_client_seq(client_seq);
   a.set_accepted(false);
-  v1::Error* e = a.mutable_error();
-  e->set_code(st.code() == Status::Code::kNotFound             ? v1::ERROR_CODE_NOT_FOUND
-              : st.code() == Status::Code::kInvalidArgument    ? v1::ERROR_CODE_INVALID_ARGUMENT
-              : st.code() == Status::Code::kFailedPrecondition ? v1::ERROR_CODE_FAILED_PRECONDITION
-                                                               : v1::ERROR_CODE_INTERNAL);
-  e->set_field(fe.field);
-  e->set_value(fe.value);
-  e->set_allowed_range(fe.allowed_range);
-  e->set_message(fe.message);
-  e->set_client_seq(client_seq);
+  *a.mutable_error() = ToWireError(st, client_seq);
   return a;
 }
 
@@ -119,17 +110,9 @@ StatusOr<levelset::MaterialEditResult> ApplyPaint(levelset::Sculpture& sculpture
 // ---------------------------------------------------------------------------------------------
 // Paints in the edit log
 
-bool IsPaintPayload(const std::string& payload) { return HasLogTag(payload, LogTag::kPaint); }
-
 std::string PaintPayload(const v1::PaintRecord& r) { return TaggedPayload(LogTag::kPaint, r); }
 
-StatusOr<v1::PaintRecord> ParsePaintPayload(uint64_t seq, const std::string& payload) {
-  return ParseTaggedPayload<v1::PaintRecord>(LogTag::kPaint, seq, payload, "a paint");
-}
-
-Status ReplayPaintPayload(levelset::Sculpture& sculpture, uint64_t seq,
-                          const std::string& payload) {
-  SCULPT_ASSIGN_OR_RETURN(v1::PaintRecord r, ParsePaintPayload(seq, payload));
+Status ReplayPaint(levelset::Sculpture& sculpture, uint64_t seq, const v1::PaintRecord& r) {
   auto res = ApplyPaint(sculpture, r.edit());
   if (!res.ok())
     spdlog::warn("paint at seq {} refused on replay: {}", seq, res.status().ToString());
@@ -139,114 +122,72 @@ Status ReplayPaintPayload(levelset::Sculpture& sculpture, uint64_t seq,
 // ---------------------------------------------------------------------------------------------
 // The scene's paint path
 
-void Scene::ReplicateLeaves(const std::string& object, const levelset::Sculpture& sculpture,
-                            const std::vector<levelset::Int3>& dirty, uint64_t seq,
-                            uint64_t client_id, uint64_t client_seq) {
-  const levelset::LeafVersions& versions = versions_[object];
-  const levelset::ReplayState after = levelset::CaptureReplayState(sculpture);
-  std::shared_ptr<const std::string> whole;  // shared by every whole-object replica
-  auto frame = [&](const std::vector<levelset::Int3>& cells) {
-    v1::ServerMessage m;
-    v1::LeafDelta* d = m.mutable_leaf_delta();
-    d->set_object(object);
-    d->set_global_seq(seq);
-    d->set_records(levelset::EncodeLeafRecords(sculpture, cells, &versions));
-    d->set_record_count(static_cast<uint32_t>(cells.size()));
-    d->set_volume(after.volume);
-    d->set_reference_volume(after.reference_volume);
-    d->set_edits_since_reinit(after.edits_since_reinit);
-    d->set_client_id(client_id);
-    d->set_client_seq(client_seq);
-    auto f = std::make_shared<std::string>();
-    codec::AppendMessage(m, f.get());
-    repl_stats_.leaf_deltas++;
-    repl_stats_.leaf_delta_bytes += f->size();
-    return std::shared_ptr<const std::string>(std::move(f));
-  };
-  for (auto& [id, sub] : subs_) {
-    if (sub.object != object) continue;
-    if (sub.whole) {
-      if (!whole) whole = frame(dirty);
-      sub.sink.send(whole);
-      continue;
+// A paint: checked against the object (its material count) before anything reaches the log,
+// applied from the logged message exactly as recovery applies it, replicated as changed leaves
+// (it has no replay form).
+struct Scene::PaintOp final : EditOp {
+  PaintOp(uint64_t client, v1::PaintEdit e, std::function<void(v1::PaintAck)> d)
+      : client(client), edit(std::move(e)), done(std::move(d)) {}
+  const char* operation() const override { return "paint"; }
+  ResendStream stream() const override { return ResendStream::kPaints; }
+  uint64_t client_id() const override { return client; }
+  uint64_t client_seq() const override { return edit.client_seq(); }
+
+  Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
+    auto obj = scene.sculptures_.find(edit.object());
+    if (obj == scene.sculptures_.end()) {
+      return NotFound("PaintEdit.object=" + edit.object() + " outside the scene's objects");
     }
-    std::vector<levelset::Int3> cells;
-    for (const levelset::Int3& c : dirty) {
-      const levelset::VoxelBox cb{c,
-                                  {c.x + levelset::kLeafDim - 1, c.y + levelset::kLeafDim - 1,
-                                   c.z + levelset::kLeafDim - 1}};
-      if (sub.held.Intersects(cb)) cells.push_back(c);
+    if (levelset::MaterialCount(obj->second) == 0) {
+      return FailedPrecondition("PaintEdit.object=" + edit.object() +
+                                " outside objects with materials");
     }
-    if (!cells.empty()) sub.sink.send(frame(cells));
+    record.set_global_seq(first_seq);
+    record.set_client_id(client);
+    *record.mutable_edit() = edit;
+    records->push_back(PaintPayload(record));
+    return Status::Ok();
   }
-}
+
+  Applied Apply(Scene& scene) override {
+    Applied a;
+    a.object = edit.object();
+    auto res = ApplyPaint(scene.sculptures_.at(edit.object()), record.edit());
+    if (!res.ok()) {
+      a.status = res.status();
+      return a;
+    }
+    changed_voxels = res->changed_voxels;
+    a.dirty_leaves = std::move(res->dirty_leaves);
+    dirty_leaves = a.dirty_leaves.size();
+    return a;
+  }
+
+  void Answer(const CommitOutcome& o) override {
+    v1::PaintAck ack;
+    if (!o.status.ok()) {
+      ack = Refused(o.status, o.client_seq);
+    } else {
+      ack.set_client_seq(o.client_seq);
+      ack.set_accepted(true);
+      ack.set_duplicate(o.duplicate);
+      ack.set_changed_voxels(static_cast<uint32_t>(changed_voxels));
+      ack.set_dirty_leaves(static_cast<uint32_t>(dirty_leaves));
+    }
+    if (o.records > 0) ack.set_global_seq(o.global_seq_first);
+    done(ack);
+  }
+
+  uint64_t client;
+  v1::PaintEdit edit;
+  std::function<void(v1::PaintAck)> done;
+  v1::PaintRecord record;
+  uint64_t changed_voxels = 0;
+  size_t dirty_leaves = 0;
+};
 
 void Scene::Paint(uint64_t client_id, v1::PaintEdit e, std::function<void(v1::PaintAck)> done) {
-  auto once = AnswerOnce(std::move(done));
-  auto cb = std::make_shared<std::function<void(v1::PaintAck)>>(once);
-  auto fail = [once, seq = e.client_seq()](const Status& st) { once(Refused(st, seq)); };
-  Post("paint", fail, [this, client_id, e = std::move(e), cb] {
-    auto obj = sculptures_.find(e.object());
-    if (obj == sculptures_.end()) {
-      return (*cb)(
-          Refused(NotFound("PaintEdit.object=" + e.object() + " outside the scene's objects"),
-                  e.client_seq()));
-    }
-    levelset::Sculpture& sculpture = obj->second;
-    uint64_t& last = last_paint_seq_[client_id];
-    v1::PaintAck ack;
-    ack.set_client_seq(e.client_seq());
-    uint64_t seq = next_seq_ - 1;
-    if (e.client_seq() <= last) {
-      // Already applied: acknowledged once everything logged so far is durable.
-      ack.set_accepted(true);
-      ack.set_duplicate(true);
-    } else {
-      // The object's own check (its material count) before anything reaches the log.
-      if (levelset::MaterialCount(sculpture) == 0) {
-        return (*cb)(Refused(FailedPrecondition("PaintEdit.object=" + e.object() +
-                                                " outside objects with materials"),
-                             e.client_seq()));
-      }
-      seq = next_seq_++;
-      v1::PaintRecord rec;
-      rec.set_global_seq(seq);
-      rec.set_client_id(client_id);
-      *rec.mutable_edit() = e;
-      if (const Status a = log_->Append(seq, PaintPayload(rec)); !a.ok()) {
-        spdlog::critical("edit log append failed at seq {}: {}", seq, a.ToString());
-        return (*cb)(Refused(a, e.client_seq()));
-      }
-      // Applied from the logged message, exactly as recovery will.
-      auto res = ApplyPaint(sculpture, rec.edit());
-      applied_seq_ = seq;
-      ++edits_since_snapshot_;
-      last = e.client_seq();
-      ack.set_global_seq(seq);
-      if (res.ok()) {
-        versions_[e.object()].Record(res->dirty_leaves, seq);
-        if (!viewers_.empty()) MarkDirtyChunks(e.object(), res->dirty_leaves);
-        if (!subs_.empty()) {
-          ReplicateLeaves(e.object(), sculpture, res->dirty_leaves, seq, client_id, e.client_seq());
-        }
-        ack.set_accepted(true);
-        ack.set_changed_voxels(static_cast<uint32_t>(res->changed_voxels));
-        ack.set_dirty_leaves(static_cast<uint32_t>(res->dirty_leaves.size()));
-      } else {
-        ack = Refused(res.status(), e.client_seq());
-        ack.set_global_seq(seq);
-      }
-      std::lock_guard<std::mutex> lock(info_mu_);
-      RefreshInfoLocked();
-    }
-    {
-      // Acknowledged once durable, in order with the strokes.
-      std::lock_guard<std::mutex> lock(pending_mu_);
-      pending_.push_back({seq, StrokeOutcome{}, [cb, ack](const StrokeOutcome&) { (*cb)(ack); }});
-    }
-    ReleaseDurable(log_->durable_seq());
-    MaybeSnapshot();
-  });
+  Commit(std::make_shared<PaintOp>(client_id, std::move(e), AnswerOnce(std::move(done))));
 }
 
 }  // namespace sculpt::server

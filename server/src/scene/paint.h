@@ -31,15 +31,11 @@ levelset::ToolShape ToolFromPaint(const v1::PaintEdit& edit);
 StatusOr<levelset::MaterialEditResult> ApplyPaint(levelset::Sculpture& sculpture,
                                                   const v1::PaintEdit& edit);
 
-/// True for an edit-log payload holding a paint.
-bool IsPaintPayload(const std::string& payload);
-/// The edit-log payload of a paint record.
+/// The edit-log payload of a paint record (read back by DecodeLogRecord, commit.h).
 std::string PaintPayload(const v1::PaintRecord& record);
-/// A logged paint; DataLoss naming the sequence when it does not parse.
-StatusOr<v1::PaintRecord> ParsePaintPayload(uint64_t seq, const std::string& payload);
-/// Recovery: applies a logged paint as the live server did. DataLoss when it does not parse; a
-/// paint the kernel refuses is refused identically (Ok, nothing applied), as live.
-Status ReplayPaintPayload(levelset::Sculpture& sculpture, uint64_t seq, const std::string& payload);
+/// Recovery: applies a logged paint as the live server did. A paint the kernel refuses is
+/// refused identically (Ok, nothing applied), as live.
+Status ReplayPaint(levelset::Sculpture& sculpture, uint64_t seq, const v1::PaintRecord& record);
 
 }  // namespace sculpt::server
 

@@ -27,9 +27,6 @@
 namespace sculpt::server {
 namespace {
 
-// Streams of the resend table (store::ResendTable): one per edit kind with its own client_seq.
-enum ResendStream : uint8_t { kStrokes = 0, kPaints = 1, kModels = 2, kBallEdits = 3, kSweeps = 4 };
-
 // A recovery that replayed half of min(this, snapshot_every_edits) records, or took this long,
 // snapshots at once (in the background), so repeated crashes cannot stack up replay time.
 constexpr uint64_t kPromptSnapshotAfterReplay = 1000;
@@ -130,28 +127,17 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
     return NotFound("object " + name);
   };
   auto route = [&sc](const store::LogRecord& rec) -> StatusOr<std::string> {
-    if (IsSweepPayload(rec.payload)) return SweepPayloadObject(rec.seq, rec.payload);
-    if (IsSkinEditPayload(rec.payload)) {
-      // A ball edit changes no object (Scene::OpenSkins replays it); any object lets it pass.
+    SCULPT_ASSIGN_OR_RETURN(LoggedEdit e, DecodeLogRecord(rec.seq, rec.payload));
+    if (auto* m = std::get_if<v1::ModelRecord>(&e.record)) return m->intent().object();
+    if (e.object.empty()) {
+      // A ball edit changes no object (its skin is replayed below); any object lets it pass.
       if (sc.objects.empty()) {
         return FailedPrecondition("edit log record seq " + std::to_string(rec.seq) +
                                   " (a ball edit) in a scene without objects");
       }
       return sc.objects.front().name;
     }
-    if (IsPaintPayload(rec.payload)) {
-      SCULPT_ASSIGN_OR_RETURN(v1::PaintRecord p, ParsePaintPayload(rec.seq, rec.payload));
-      return p.edit().object();
-    }
-    if (IsModelPayload(rec.payload)) {
-      SCULPT_ASSIGN_OR_RETURN(v1::ModelRecord m, ParseModelPayload(rec.seq, rec.payload));
-      return m.intent().object();
-    }
-    v1::EditRecord r;
-    if (!r.ParseFromString(rec.payload)) {
-      return DataLoss("edit log record " + std::to_string(rec.seq) + " does not parse");
-    }
-    return r.object();
+    return e.object;
   };
   const levelset::EditSettings settings = scene->settings_;
   // The live server applies a stroke's poses as one batch once all are logged; replay gathers
@@ -160,34 +146,20 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   std::vector<levelset::EditRequest> batch;
   auto apply = [&settings, &batch](levelset::Sculpture& s,
                                    const store::LogRecord& rec) -> Status {
-    if (IsSweepPayload(rec.payload)) {
+    SCULPT_ASSIGN_OR_RETURN(LoggedEdit e, DecodeLogRecord(rec.seq, rec.payload));
+    const auto* r = std::get_if<v1::EditRecord>(&e.record);
+    if (!r) batch.clear();
+    if (auto* w = std::get_if<v1::SkinSweepRecord>(&e.record)) return ReplaySweep(s, rec.seq, *w);
+    if (auto* p = std::get_if<v1::PaintRecord>(&e.record)) return ReplayPaint(s, rec.seq, *p);
+    if (!r) return Status::Ok();  // a model's or a skin's (replayed after recovery, below)
+    if (r->pose_count() <= 1) {
       batch.clear();
-      return ReplaySweepPayload(s, rec.seq, rec.payload);
-    }
-    if (IsPaintPayload(rec.payload)) {
-      batch.clear();
-      return ReplayPaintPayload(s, rec.seq, rec.payload);
-    }
-    if (IsModelPayload(rec.payload)) {
-      batch.clear();
-      return Status::Ok();  // the model's, not the sculpture's (Scene::OpenModels replays it)
-    }
-    if (IsSkinEditPayload(rec.payload)) {
-      batch.clear();
-      return Status::Ok();  // the skin's, not the sculpture's (Scene::OpenSkins replays it)
-    }
-    v1::EditRecord r;
-    if (!r.ParseFromString(rec.payload)) {
-      return DataLoss("edit log record " + std::to_string(rec.seq) + " does not parse");
-    }
-    if (r.pose_count() <= 1) {
-      batch.clear();
-      (void)levelset::ApplyEdit(s, codec::EditFromRecord(r), settings);
+      (void)levelset::ApplyEdit(s, codec::EditFromRecord(*r), settings);
       return Status::Ok();
     }
-    if (r.pose_index() == 0) batch.clear();
-    batch.push_back(codec::EditFromRecord(r));
-    if (r.pose_index() + 1 == r.pose_count()) {
+    if (r->pose_index() == 0) batch.clear();
+    batch.push_back(codec::EditFromRecord(*r));
+    if (r->pose_index() + 1 == r->pose_count()) {
       // An edit the live server refused after logging it is refused identically here.
       (void)levelset::ApplyEdits(s, batch, settings);
       batch.clear();
@@ -203,28 +175,6 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   scene->next_seq_ = rec.last_seq + 1;
   scene->applied_seq_ = rec.last_seq;
   scene->versions_floor_ = rec.last_seq;
-  // Resends after a restart are recognised by the newest client sequence of each client.
-  Status s = scene->log_->ForEachFrom(0, [&](const store::LogRecord& lr) {
-    if (IsModelPayload(lr.payload)) return Status::Ok();  // OpenModels
-    if (IsSkinEditPayload(lr.payload) || IsSweepPayload(lr.payload)) return Status::Ok();  // OpenSkins
-    if (IsPaintPayload(lr.payload)) {
-      auto p = ParsePaintPayload(lr.seq, lr.payload);
-      if (p.ok()) {
-        uint64_t& last = scene->last_paint_seq_[p->client_id()];
-        last = std::max(last, p->edit().client_seq());
-      }
-      return Status::Ok();
-    }
-    v1::EditRecord r;
-    // Only a complete stroke makes a resend a duplicate (logs written before strokes were
-    // grouped may end in part of one).
-    if (r.ParseFromString(lr.payload) && r.pose_index() + 1 >= r.pose_count()) {
-      uint64_t& last = scene->last_client_seq_[r.client_id()];
-      last = std::max(last, r.client_seq());
-    }
-    return Status::Ok();
-  });
-  SCULPT_RETURN_IF_ERROR(s);
   // Snapshots carry the fraction grids; a data directory written under other materials would
   // give replicas and viewers a declaration the objects do not hold.
   for (auto& [name, sculpture] : scene->sculptures_) {
@@ -259,22 +209,22 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
       ") in " + std::to_string(NowSeconds() - t0) + " s";
   SCULPT_RETURN_IF_ERROR(scene->OpenSkins());
   SCULPT_RETURN_IF_ERROR(scene->OpenModels());
+  // One pass over the log: the newest client sequence of every complete edit (resends after a
+  // restart are recognised), and the ball edits and model intents past their files.
+  SCULPT_RETURN_IF_ERROR(scene->log_->ForEachFrom(0, [&](const store::LogRecord& lr) -> Status {
+    SCULPT_ASSIGN_OR_RETURN(LoggedEdit e, DecodeLogRecord(lr.seq, lr.payload));
+    if (e.completes) scene->resend_.Record(e.stream, e.client_id, e.client_seq);
+    if (auto* b = std::get_if<v1::SkinEditRecord>(&e.record)) scene->ReplayBallEdit(lr.seq, *b);
+    if (auto* m = std::get_if<v1::ModelRecord>(&e.record)) scene->ReplayModelIntent(lr.seq, *m);
+    return Status::Ok();
+  }));
   // Resends of edits whose records were dropped with the log before the last snapshot.
   const std::string table_path =
       (std::filesystem::path(config.data_dir) / store::kResendTableFile).string();
   if (auto table = store::LoadResendTable(table_path); table.ok()) {
     for (const auto& [key, client_seq] : table->last) {
-      std::map<uint64_t, uint64_t>* m = nullptr;
-      switch (key.first) {
-        case kStrokes: m = &scene->last_client_seq_; break;
-        case kPaints: m = &scene->last_paint_seq_; break;
-        case kModels: m = &scene->last_model_seq_; break;
-        case kBallEdits: m = &scene->last_skin_seq_; break;
-        case kSweeps: m = &scene->last_sweep_seq_; break;
-        default: continue;
-      }
-      uint64_t& last = (*m)[key.second];
-      last = std::max(last, client_seq);
+      if (key.first > static_cast<uint8_t>(ResendStream::kSweeps)) continue;
+      scene->resend_.Record(static_cast<ResendStream>(key.first), key.second, client_seq);
     }
   } else if (table.status().code() != Status::Code::kNotFound) {
     spdlog::error("{}; resends of edits before seq {} may be applied again",
@@ -416,104 +366,81 @@ void Scene::Run() {
   }
 }
 
-void Scene::Submit(uint64_t client_id, codec::DecodedStroke stroke, StrokeDone done) {
-  const uint64_t client_seq = stroke.client_seq;
-  StrokeDone once = AnswerOnce(std::move(done));
-  auto shared = std::make_shared<codec::DecodedStroke>(std::move(stroke));
-  auto cb = std::make_shared<StrokeDone>(once);
-  auto fail = [once, client_seq](const Status& st) {
-    StrokeOutcome out;
-    out.status = st;
-    out.client_seq = client_seq;
-    once(out);
-  };
-  Post("stroke", fail, [this, client_id, shared, cb] { ApplyStroke(client_id, *shared, *cb); });
-}
+// A stroke: its poses' records are built and checked against the object first, so a stroke is
+// refused whole before anything reaches the log; then they are applied as one batch (one block,
+// one compensation, one reinitialisation), from the records, exactly as recovery and replicas
+// apply them.
+struct Scene::StrokeOp final : EditOp {
+  StrokeOp(uint64_t client, codec::DecodedStroke s, StrokeDone d)
+      : client(client), stroke(std::move(s)), done(std::move(d)) {}
+  const char* operation() const override { return "stroke"; }
+  ResendStream stream() const override { return ResendStream::kStrokes; }
+  uint64_t client_id() const override { return client; }
+  uint64_t client_seq() const override { return stroke.client_seq; }
 
-void Scene::ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, StrokeDone& done) {
-  StrokeOutcome out;
-  out.client_seq = stroke.client_seq;
-  auto it = sculptures_.find(stroke.object);
-  if (it == sculptures_.end()) {
-    out.status = NotFound("Stroke.object=" + stroke.object + " outside the scene's objects");
-    done(out);
-    return;
-  }
-  levelset::Sculpture& sculpture = it->second;
-  uint64_t& last = last_client_seq_[client_id];
-  if (stroke.client_seq <= last) {
-    // Already applied: acknowledge once everything logged so far is durable, never re-apply.
-    out.duplicate = true;
-    std::lock_guard<std::mutex> lock(pending_mu_);
-    pending_.push_back({next_seq_ - 1, out, std::move(done)});
-  } else {
-    // Build every pose's record first and check it against the object as it is, so a stroke
-    // is refused whole, before anything reaches the log.
-    std::vector<v1::EditRecord> records;
-    records.reserve(stroke.edits.size());
-    for (size_t i = 0; i < stroke.edits.size(); ++i) {
-      records.push_back(MakeRecord(client_id, stroke.client_seq, static_cast<uint32_t>(i),
-                                   stroke.object, stroke.edits[i]));
-      const Status v = levelset::ValidateEditRequest(
-          sculpture, codec::EditFromRecord(records.back()), settings_);
-      if (!v.ok()) {
-        out.status = v;
-        done(out);
-        return;
-      }
+  Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
+    auto it = scene.sculptures_.find(stroke.object);
+    if (it == scene.sculptures_.end()) {
+      return NotFound("Stroke.object=" + stroke.object + " outside the scene's objects");
     }
-    out.global_seq_first = next_seq_;
-    std::vector<std::string> payloads(records.size());
-    std::vector<levelset::EditRequest> batch;
-    batch.reserve(records.size());
-    for (size_t i = 0; i < records.size(); ++i) {
-      v1::EditRecord& r = records[i];
-      r.set_global_seq(next_seq_ + i);
-      r.set_pose_count(static_cast<uint32_t>(records.size()));
-      r.SerializeToString(&payloads[i]);
+    const uint32_t n = static_cast<uint32_t>(stroke.edits.size());
+    batch.reserve(n);
+    for (uint32_t i = 0; i < n; ++i) {
+      v1::EditRecord r = MakeRecord(client, stroke.client_seq, i, stroke.object, stroke.edits[i]);
+      r.set_global_seq(first_seq + i);
+      r.set_pose_count(n);
       batch.push_back(codec::EditFromRecord(r));
+      SCULPT_RETURN_IF_ERROR(levelset::ValidateEditRequest(it->second, batch.back(),
+                                                           scene.settings_));
+      records->push_back(r.SerializeAsString());
     }
-    // The poses go to the log as one group: recovery sees the whole stroke or none of it, so
-    // a crash between two poses cannot leave part of a stroke applied and its resend refused.
-    const Status a = log_->AppendGroup(next_seq_, payloads);
-    if (!a.ok()) {
-      spdlog::critical("edit log append failed at seq {}: {}", next_seq_, a.ToString());
-      out.status = a;
-      done(out);
-      return;
-    }
-    next_seq_ += records.size();
-    // The stroke's poses as one batch: one block, one compensation, one reinitialisation.
-    const levelset::ReplayState before = levelset::CaptureReplayState(sculpture);
-    const levelset::EditFootprint footprint = levelset::FootprintOf(sculpture, batch, settings_);
-    const double apply_t0 = NowSeconds();
-    auto res = records.size() == 1 ? levelset::ApplyEdit(sculpture, batch.front(), settings_)
-                                    : levelset::ApplyEdits(sculpture, batch, settings_);
-    tail_apply_s_ += NowSeconds() - apply_t0;
-    if (res.ok()) {
-      // Leaf versions always (cheap), so a replica subscribing later resyncs by version.
-      versions_[stroke.object].Record(res->dirty_leaves, next_seq_ - 1);
-      if (!viewers_.empty()) MarkDirtyChunks(stroke.object, res->dirty_leaves);
-      if (!subs_.empty()) Replicate(stroke.object, sculpture, records, stroke.source, before, footprint, *res);
-      out.last = std::move(res).value();
-    }
-    out.edits = static_cast<uint32_t>(records.size());
-    applied_seq_ = next_seq_ - 1;
-    edits_since_snapshot_ += records.size();
-    last = stroke.client_seq;
-    {
-      std::lock_guard<std::mutex> lock(info_mu_);
-      auto& b = bounds_[stroke.object];
-      const levelset::Aabb nb = sculpture.WorldBounds();
-      b = nb;
-      RefreshInfoLocked();
-    }
-    std::lock_guard<std::mutex> lock(pending_mu_);
-    pending_.push_back({next_seq_ - 1, out, std::move(done)});
+    return Status::Ok();
   }
-  ReleaseDurable(log_->durable_seq());
-  MaybeSnapshot();
-  if (out.edits > 0) SendSlices(stroke.object, out.last.dirty_leaves);
+
+  Applied Apply(Scene& scene) override {
+    levelset::Sculpture& sculpture = scene.sculptures_.at(stroke.object);
+    Applied a;
+    a.object = stroke.object;
+    a.bounds_may_change = true;
+    Applied::Replay replay;
+    replay.source = &stroke.source;
+    replay.before = levelset::CaptureReplayState(sculpture);
+    replay.footprint = levelset::FootprintOf(sculpture, batch, scene.settings_);
+    auto res = batch.size() == 1 ? levelset::ApplyEdit(sculpture, batch.front(), scene.settings_)
+                                 : levelset::ApplyEdits(sculpture, batch, scene.settings_);
+    if (res.ok()) {
+      result = std::move(res).value();
+      a.dirty_leaves = result.dirty_leaves;
+      a.replay = replay;
+    } else {
+      // Logged and refused by the kernel, as recovery will refuse it: nothing changed.
+      a.status = res.status();
+    }
+    return a;
+  }
+
+  void Answer(const CommitOutcome& o) override {
+    StrokeOutcome out;
+    out.client_seq = o.client_seq;
+    out.duplicate = o.duplicate;
+    out.global_seq_first = o.global_seq_first;
+    out.edits = o.records;
+    // A stroke the kernel refused after logging counts as applied, as it always has: the log is
+    // the truth and replays it identically.
+    if (o.records == 0) out.status = o.status;
+    out.last = std::move(result);
+    done(out);
+  }
+
+  uint64_t client;
+  codec::DecodedStroke stroke;
+  StrokeDone done;
+  std::vector<levelset::EditRequest> batch;
+  levelset::EditResult result;
+};
+
+void Scene::Submit(uint64_t client_id, codec::DecodedStroke stroke, StrokeDone done) {
+  Commit(std::make_shared<StrokeOp>(client_id, std::move(stroke), AnswerOnce(std::move(done))));
 }
 
 size_t Scene::acks_awaiting_durability() const {
@@ -532,7 +459,7 @@ void Scene::ReleaseDurable(uint64_t durable_seq) {
       pending_.pop_front();
     }
   }
-  for (Pending& p : ready) p.done(p.outcome);
+  for (Pending& p : ready) p.answer();
 }
 
 void Scene::MaybeSnapshot(bool force) {
@@ -582,13 +509,8 @@ void Scene::MaybeSnapshot(bool force) {
 bool Scene::SaveResendTable(uint64_t seq) {
   store::ResendTable table;
   table.seq = seq;
-  const std::pair<ResendStream, const std::map<uint64_t, uint64_t>*> streams[] = {
-      {kStrokes, &last_client_seq_}, {kPaints, &last_paint_seq_},   {kModels, &last_model_seq_},
-      {kBallEdits, &last_skin_seq_}, {kSweeps, &last_sweep_seq_}};
-  for (const auto& [stream, m] : streams) {
-    for (const auto& [client, client_seq] : *m) {
-      if (client_seq > 0) table.last[{stream, client}] = client_seq;
-    }
+  for (const auto& [key, client_seq] : resend_.entries()) {
+    if (client_seq > 0) table.last[key] = client_seq;
   }
   const std::string path =
       (std::filesystem::path(config_.data_dir) / store::kResendTableFile).string();

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "config/server_config.h"
+#include "scene/commit.h"
 #include "sculpt/codec/stroke.h"
 #include "sculpt/core/latency_histogram.h"
 #include "sculpt/core/status.h"
@@ -217,6 +218,19 @@ class Scene {
   /// a hook that throws fails that task as an exception from OpenVDB would. Null removes it.
   void InjectTaskFaultForTesting(std::function<void(const std::string& operation)> hook);
 
+  /// Tests only: `observer` hears each step of the commit pipeline for every edit, with the edit
+  /// log's last appended and durable sequences at that moment: "appended" (its records are in
+  /// the log), "applied" (the scene changed) and "answered" (the requester is told). Called on
+  /// the compute thread or the log's durability thread; null removes it.
+  struct CommitEvent {
+    std::string step;
+    const char* operation = "";
+    uint64_t seq = 0;  // the edit's last record
+    uint64_t log_last_seq = 0;
+    uint64_t log_durable_seq = 0;
+  };
+  void ObserveCommitsForTesting(std::function<void(const CommitEvent&)> observer);
+
   /// What recovery found at start-up.
   const std::string& recovery_summary() const { return recovery_summary_; }
 
@@ -234,7 +248,20 @@ class Scene {
     Post(operation, nullptr, std::move(run));
   }
   void JoinLoop();
-  void ApplyStroke(uint64_t client_id, codec::DecodedStroke& stroke, StrokeDone& done);
+  // The commit pipeline (commit.h, commit.cc): every edit kind is an EditOp, nested here so
+  // that it reaches the parts of the scene it edits.
+  struct StrokeOp;    // scene.cc
+  struct PaintOp;     // paint.cc
+  struct SweepOp;     // skins.cc
+  struct BallEditOp;  // skins.cc
+  struct ModelOp;     // models.cc
+  void Commit(std::shared_ptr<EditOp> op);
+  void RunCommit(const std::shared_ptr<EditOp>& op);
+  // Queues `answer` until the log is durable up to `seq` (in sequence order with every other).
+  void AnswerWhenDurable(uint64_t seq, std::function<void()> answer);
+  // Recovery: replays a logged ball edit or model intent past the state their files hold.
+  void ReplayBallEdit(uint64_t seq, const v1::SkinEditRecord& record);
+  void ReplayModelIntent(uint64_t seq, const v1::ModelRecord& record);
   void MaybeSnapshot(bool force = false);
   void ReleaseDurable(uint64_t durable_seq);
   void RefreshInfoLocked();
@@ -250,34 +277,26 @@ class Scene {
                                        const char* field) const;
   void SendRegion(Sub& sub, const levelset::Sculpture& sculpture, uint64_t have_seq,
                   bool replace);
+  // Sends the leaves an edit changed to the object's replicas: an EditBroadcast to replay
+  // replicas holding its footprint when it has a `replay` form, else the changed leaves inside
+  // each replica's region.
   void Replicate(const std::string& object, const levelset::Sculpture& sculpture,
-                 const std::vector<v1::EditRecord>& records, const std::string& source,
-                 const levelset::ReplayState& before,
-                 const levelset::EditFootprint& footprint, const levelset::EditResult& result);
+                 const std::vector<levelset::Int3>& dirty, uint64_t first_seq, uint64_t last_seq,
+                 uint64_t client_id, uint64_t client_seq, const Applied::Replay* replay);
   // Ball skins and contour subscriptions (skins.cc), compute thread only; saved under
-  // data_dir/skins at each snapshot, the logged ball edits replayed past them at start. The
-  // newest ball-edit and sweep client_seq of each client tell resends apart.
+  // data_dir/skins at each snapshot, the logged ball edits replayed past them at start.
   struct SkinState;
   Status OpenSkins();
   bool SaveSkins(uint64_t seq);  // false if a skin file was not saved
-  std::map<uint64_t, uint64_t> last_skin_seq_;
-  std::map<uint64_t, uint64_t> last_sweep_seq_;
   // Re-sends the object's slices whose plane crosses the leaves an edit changed.
   void SendSlices(const std::string& object, const std::vector<levelset::Int3>& changed);
   std::shared_ptr<SkinState> skins_;
-  // Paints (paint.cc), compute thread only: the newest paint client_seq of each client, and the
-  // leaf deltas of an edit that has no replay form.
-  std::map<uint64_t, uint64_t> last_paint_seq_;
   // Hyperpatch models of `model` objects (models.cc), compute thread only; saved under
   // data_dir/models at each snapshot, the log replayed past them at start.
   struct ModelState;
   std::map<std::string, std::shared_ptr<ModelState>> models_;
-  std::map<uint64_t, uint64_t> last_model_seq_;
   Status OpenModels();
   bool SaveModels(uint64_t seq);  // false if a model file was not saved
-  void ReplicateLeaves(const std::string& object, const levelset::Sculpture& sculpture,
-                       const std::vector<levelset::Int3>& dirty, uint64_t seq, uint64_t client_id,
-                       uint64_t client_seq);
   std::map<uint64_t, Sub> subs_;                              // compute thread only
   std::map<std::string, levelset::LeafVersions> versions_;    // compute thread only
   uint64_t versions_floor_ = 0;  // leaf versions are known only for edits after this sequence
@@ -310,7 +329,8 @@ class Scene {
   std::map<std::string, levelset::Sculpture> sculptures_;  // compute thread only
   std::unique_ptr<store::EditLog> log_;
   std::unique_ptr<store::SnapshotStore> snapshots_;
-  std::map<uint64_t, uint64_t> last_client_seq_;  // compute thread only
+  // The newest client_seq of every (edit kind, client): resends are acknowledged, not applied.
+  ResendFilter resend_;  // compute thread only
   uint64_t next_seq_ = 1;                          // compute thread only
   uint64_t edits_since_snapshot_ = 0;
   double tail_apply_s_ = 0;  // stroke apply time since the last snapshot (compute thread)
@@ -332,8 +352,7 @@ class Scene {
   mutable std::mutex pending_mu_;
   struct Pending {
     uint64_t seq;
-    StrokeOutcome outcome;
-    StrokeDone done;
+    std::function<void()> answer;
   };
   std::deque<Pending> pending_;
 
@@ -358,6 +377,9 @@ class Scene {
     std::function<void(const Status&)> fail;
   };
   std::function<void(const std::string&)> fault_hook_;  // guarded by jobs_mu_
+  std::mutex observer_mu_;
+  std::function<void(const CommitEvent&)> commit_observer_;  // guarded by observer_mu_
+  void Observe(const char* step, const char* operation, uint64_t seq);
   std::mutex jobs_mu_;
   std::condition_variable jobs_cv_;
   std::deque<Job> jobs_;

@@ -17,6 +17,7 @@
 #include <future>
 #include <iterator>
 
+#include "net/wire_error.h"
 #include "scene/answer_once.h"
 #include "scene/log_payload.h"
 #include "scene/scene.h"
@@ -64,26 +65,11 @@ Status CheckName(const std::string& field, const std::string& name) {
 
 Vec3 V(const v1::Vec3f& v) { return {v.x(), v.y(), v.z()}; }
 
-v1::Error ErrorFrom(const Status& st, uint64_t client_seq) {
-  const codec::FieldError fe = codec::SplitFieldError(st);
-  v1::Error e;
-  e.set_code(st.code() == Status::Code::kNotFound ? v1::ERROR_CODE_NOT_FOUND
-             : st.code() == Status::Code::kInvalidArgument
-                 ? v1::ERROR_CODE_INVALID_ARGUMENT
-                 : v1::ERROR_CODE_INTERNAL);
-  e.set_field(fe.field);
-  e.set_value(fe.value);
-  e.set_allowed_range(fe.allowed_range);
-  e.set_message(fe.message);
-  e.set_client_seq(client_seq);
-  return e;
-}
-
 v1::SkinAck Refused(const Status& st, uint64_t client_seq) {
   v1::SkinAck a;
   a.set_client_seq(client_seq);
   a.set_accepted(false);
-  *a.mutable_error() = ErrorFrom(st, client_seq);
+  *a.mutable_error() = ToWireError(st, client_seq);
   return a;
 }
 
@@ -222,20 +208,8 @@ Status ValidateContourSubscribe(const v1::ContourSubscribe& c) {
 // ---------------------------------------------------------------------------------------------
 // Sweeps in the edit log
 
-bool IsSweepPayload(const std::string& payload) { return HasLogTag(payload, LogTag::kSweep); }
-
 std::string SweepPayload(const v1::SkinSweepRecord& r) { return TaggedPayload(LogTag::kSweep, r); }
 
-namespace {
-StatusOr<v1::SkinSweepRecord> ParseSweep(uint64_t seq, const std::string& payload) {
-  return ParseTaggedPayload<v1::SkinSweepRecord>(LogTag::kSweep, seq, payload, "a sweep");
-}
-}  // namespace
-
-StatusOr<std::string> SweepPayloadObject(uint64_t seq, const std::string& payload) {
-  SCULPT_ASSIGN_OR_RETURN(v1::SkinSweepRecord r, ParseSweep(seq, payload));
-  return r.object();
-}
 
 StatusOr<levelset::SweepRequest> SweepFromRecord(const v1::SkinSweepRecord& r) {
   levelset::SweepRequest q;
@@ -266,8 +240,7 @@ StatusOr<levelset::SweepRequest> SweepFromRecord(const v1::SkinSweepRecord& r) {
   return q;
 }
 
-Status ReplaySweepPayload(levelset::Sculpture& sculpture, uint64_t seq, const std::string& payload) {
-  SCULPT_ASSIGN_OR_RETURN(v1::SkinSweepRecord r, ParseSweep(seq, payload));
+Status ReplaySweep(levelset::Sculpture& sculpture, uint64_t seq, const v1::SkinSweepRecord& r) {
   auto q = SweepFromRecord(r);
   if (!q.ok()) {
     spdlog::warn("sweep at seq {} not replayed: {}", seq, q.status().ToString());
@@ -280,17 +253,10 @@ Status ReplaySweepPayload(levelset::Sculpture& sculpture, uint64_t seq, const st
 // ---------------------------------------------------------------------------------------------
 // Ball edits in the edit log; skin files beside the snapshots
 
-bool IsSkinEditPayload(const std::string& payload) {
-  return HasLogTag(payload, LogTag::kSkinEdit);
-}
-
 std::string SkinEditPayload(const v1::SkinEditRecord& r) {
   return TaggedPayload(LogTag::kSkinEdit, r);
 }
 
-StatusOr<v1::SkinEditRecord> ParseSkinEditPayload(uint64_t seq, const std::string& payload) {
-  return ParseTaggedPayload<v1::SkinEditRecord>(LogTag::kSkinEdit, seq, payload, "a ball edit");
-}
 
 Status SaveSkinFile(const std::string& path, const v1::SavedSkin& saved) {
   const std::string bytes = saved.SerializeAsString();
@@ -339,6 +305,7 @@ struct Scene::SkinState {
     skin::Skin skin;
     uint64_t version = 0;
     std::map<uint64_t, ReplicaSink> subs;  // session -> sink
+    uint64_t file_seq = 0;  // the skin file held the log up to this seq at start-up
   };
   struct SliceSub {
     ReplicaSink sink;
@@ -350,26 +317,26 @@ struct Scene::SkinState {
 
 Status Scene::OpenSkins() {
   skins_ = std::make_shared<SkinState>();
-  std::map<std::string, uint64_t> from;  // per skin: log records after this seq are replayed
   for (const SkinConfig& c : config_.scene.skins) {
     std::vector<skin::OrientedBall> balls;
     uint64_t version = 0;
+    uint64_t file_seq = 0;
     auto saved = LoadSkinFile(SkinFilePath(config_.data_dir, c.name));
     if (saved.ok()) {
       for (const v1::SkinBall& b : saved->balls()) balls.push_back({{b.x(), b.y()}, b.r(), b.theta()});
       version = saved->version();
-      from[c.name] = saved->seq();
+      file_seq = saved->seq();
+      // Files written before the resend table held every edit kind carry their own.
       for (const auto& [id, seq] : saved->last_edit_seq()) {
-        last_skin_seq_[id] = std::max(last_skin_seq_[id], seq);
+        resend_.Record(ResendStream::kBallEdits, id, seq);
       }
       for (const auto& [id, seq] : saved->last_sweep_seq()) {
-        last_sweep_seq_[id] = std::max(last_sweep_seq_[id], seq);
+        resend_.Record(ResendStream::kSweeps, id, seq);
       }
-    } else if (saved.status().code() == Status::Code::kNotFound) {
-      for (const auto& b : c.balls) balls.push_back({{b[0], b[1]}, b[2], b[3]});
-      from[c.name] = 0;
-    } else {
+    } else if (saved.status().code() != Status::Code::kNotFound) {
       return saved.status();
+    } else {
+      for (const auto& b : c.balls) balls.push_back({{b[0], b[1]}, b[2], b[3]});
     }
     skin::SkinOptions opt;
     SCULPT_ASSIGN_OR_RETURN(opt.method, skin::ParseMethod(c.method));
@@ -378,39 +345,29 @@ Status Scene::OpenSkins() {
     if (!built.ok()) {
       return InvalidArgument("scene.skins " + c.name + ": " + built.status().message());
     }
-    skins_->skins.emplace(
-        c.name, SkinState::Entry{{c.origin, c.u, c.v}, std::move(built).value(), version, {}});
+    SkinState::Entry entry{{c.origin, c.u, c.v}, std::move(built).value(), version, {}};
+    entry.file_seq = file_seq;
+    skins_->skins.emplace(c.name, std::move(entry));
   }
-  // Replay the logged ball edits the skin files do not hold, as the live server applied them,
-  // and learn each client's newest ball edit and sweep so that resends are recognised.
-  return log_->ForEachFrom(0, [&](const store::LogRecord& lr) -> Status {
-    if (IsSweepPayload(lr.payload)) {
-      SCULPT_ASSIGN_OR_RETURN(v1::SkinSweepRecord r, ParseSweep(lr.seq, lr.payload));
-      uint64_t& last = last_sweep_seq_[r.client_id()];
-      last = std::max(last, r.client_seq());
-      return Status::Ok();
-    }
-    if (!IsSkinEditPayload(lr.payload)) return Status::Ok();
-    SCULPT_ASSIGN_OR_RETURN(v1::SkinEditRecord r, ParseSkinEditPayload(lr.seq, lr.payload));
-    uint64_t& last = last_skin_seq_[r.client_id()];
-    last = std::max(last, r.edit().client_seq());
-    auto it = skins_->skins.find(r.edit().skin());
-    if (it == skins_->skins.end()) {
-      spdlog::warn("ball edit at seq {} names skin {}, which the scene does not define", lr.seq,
-                   r.edit().skin());
-      return Status::Ok();
-    }
-    if (lr.seq <= from[it->first]) return Status::Ok();
-    SkinState::Entry& entry = it->second;
-    Status st = CheckBallIndex(entry.skin, r.edit());
-    if (st.ok()) st = ApplyBallEdit(entry.skin, r.edit()).status();
-    if (!st.ok()) {
-      spdlog::warn("ball edit at seq {} refused on replay: {}", lr.seq, st.ToString());
-      return Status::Ok();
-    }
-    entry.version = r.skin_version();
-    return Status::Ok();
-  });
+  return Status::Ok();
+}
+
+void Scene::ReplayBallEdit(uint64_t seq, const v1::SkinEditRecord& r) {
+  auto it = skins_->skins.find(r.edit().skin());
+  if (it == skins_->skins.end()) {
+    spdlog::warn("ball edit at seq {} names skin {}, which the scene does not define", seq,
+                 r.edit().skin());
+    return;
+  }
+  SkinState::Entry& entry = it->second;
+  if (seq <= entry.file_seq) return;  // the skin file holds it
+  Status st = CheckBallIndex(entry.skin, r.edit());
+  if (st.ok()) st = ApplyBallEdit(entry.skin, r.edit()).status();
+  if (!st.ok()) {
+    spdlog::warn("ball edit at seq {} refused on replay: {}", seq, st.ToString());
+    return;
+  }
+  entry.version = r.skin_version();
 }
 
 bool Scene::SaveSkins(uint64_t seq) {
@@ -422,12 +379,6 @@ bool Scene::SaveSkins(uint64_t seq) {
     v1::SavedSkin saved;
     saved.set_seq(seq);
     saved.set_version(entry.version);
-    for (const auto& [id, last] : last_skin_seq_) {
-      if (last > 0) (*saved.mutable_last_edit_seq())[id] = last;
-    }
-    for (const auto& [id, last] : last_sweep_seq_) {
-      if (last > 0) (*saved.mutable_last_sweep_seq())[id] = last;
-    }
     for (const skin::OrientedBall& o : entry.skin.balls()) {
       v1::SkinBall* b = saved.add_balls();
       b->set_x(o.c.x);
@@ -444,144 +395,134 @@ bool Scene::SaveSkins(uint64_t seq) {
   return saved_all;
 }
 
-void Scene::EditSkin(uint64_t client_id, v1::SkinBallEdit e,
-                     std::function<void(v1::SkinAck)> done) {
-  auto once = AnswerOnce(std::move(done));
-  auto cb = std::make_shared<std::function<void(v1::SkinAck)>>(once);
-  auto fail = [once, seq = e.client_seq()](const Status& st) { once(Refused(st, seq)); };
-  Post("ball edit", fail, [this, client_id, e = std::move(e), cb] {
-    auto it = skins_->skins.find(e.skin());
-    if (it == skins_->skins.end()) {
-      return (*cb)(Refused(NotFound("SkinBallEdit.skin=" + e.skin() + " outside the scene's skins"),
-                           e.client_seq()));
+// A ball edit: Prepare checks it on a copy of the skin (admissibility is only known by building
+// the changed sections), Apply puts the copy in place and sends the skin's contour subscribers
+// the sections that changed. Nothing changes before the record is in the log.
+struct Scene::BallEditOp final : EditOp {
+  BallEditOp(uint64_t client, v1::SkinBallEdit e, std::function<void(v1::SkinAck)> d)
+      : client(client), edit(std::move(e)), done(std::move(d)) {}
+  const char* operation() const override { return "ball edit"; }
+  ResendStream stream() const override { return ResendStream::kBallEdits; }
+  uint64_t client_id() const override { return client; }
+  uint64_t client_seq() const override { return edit.client_seq(); }
+
+  Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
+    auto it = scene.skins_->skins.find(edit.skin());
+    if (it == scene.skins_->skins.end()) {
+      return NotFound("SkinBallEdit.skin=" + edit.skin() + " outside the scene's skins");
     }
     SkinState::Entry& entry = it->second;
-    skin::Skin& sk = entry.skin;
-    uint64_t& last = last_skin_seq_[client_id];
-    if (e.client_seq() <= last) {
-      // Already applied: acknowledged once everything logged so far is durable, never re-applied.
-      v1::SkinAck a;
-      a.set_client_seq(e.client_seq());
-      a.set_accepted(true);
-      a.set_duplicate(true);
-      a.set_balls(static_cast<uint32_t>(sk.balls().size()));
-      {
-        std::lock_guard<std::mutex> lock(pending_mu_);
-        pending_.push_back({next_seq_ - 1, StrokeOutcome{}, [cb, a](const StrokeOutcome&) { (*cb)(a); }});
-      }
-      ReleaseDurable(log_->durable_seq());
-      return;
+    balls = entry.skin.balls().size();
+    SCULPT_RETURN_IF_ERROR(CheckBallIndex(entry.skin, edit));
+    next.emplace(entry.skin);
+    auto c = ApplyBallEdit(*next, edit);
+    if (!c.ok()) {
+      // The skin names the inadmissible pair (digest Def 2.6); the refusal names the ball.
+      const v1::SkinBall& b = edit.ball();
+      return Status(c.status().code(),
+                    "SkinBallEdit.ball=(" + FormatNumber(b.x()) + ", " + FormatNumber(b.y()) +
+                        ", r " + FormatNumber(b.r()) + ", theta " + FormatNumber(b.theta()) +
+                        ") at index " + std::to_string(edit.index()) +
+                        " outside balls admissible with their neighbours (no contact point "
+                        "inside a neighbour's disk; no nested, concentric or coincident pair), at "
+                        "least 2 balls: " +
+                        c.status().message());
     }
-    if (const Status st = CheckBallIndex(sk, e); !st.ok()) return (*cb)(Refused(st, e.client_seq()));
-    const size_t i = e.index();
-    const v1::SkinBall& b = e.ball();
-    // Kept to undo an edit the log cannot take.
-    skin::Skin before = sk;
-    StatusOr<skin::SkinChange> change = ApplyBallEdit(sk, e);
-    if (!change.ok()) {
-      // The skin names the inadmissible pair (digest Def 2.6); the wire error names the ball.
-      v1::SkinAck a = Refused(change.status(), e.client_seq());
-      v1::Error* err = a.mutable_error();
-      err->set_field("SkinBallEdit.ball");
-      err->set_value("(" + FormatNumber(b.x()) + ", " + FormatNumber(b.y()) + ", r " +
-                     FormatNumber(b.r()) + ", theta " + FormatNumber(b.theta()) + ") at index " +
-                     std::to_string(i));
-      err->set_allowed_range(
-          "balls admissible with their neighbours (no contact point inside a neighbour's disk; "
-          "no nested, concentric or coincident pair), at least 2 balls");
-      return (*cb)(a);
-    }
-    const uint64_t seq = next_seq_++;
+    change = std::move(c).value();
     v1::SkinEditRecord rec;
-    rec.set_global_seq(seq);
-    rec.set_client_id(client_id);
-    *rec.mutable_edit() = e;
+    rec.set_global_seq(first_seq);
+    rec.set_client_id(client);
+    *rec.mutable_edit() = edit;
     rec.set_skin_version(entry.version + 1);
-    if (const Status a = log_->Append(seq, SkinEditPayload(rec)); !a.ok()) {
-      spdlog::critical("edit log append failed at seq {}: {}", seq, a.ToString());
-      sk = std::move(before);
-      return (*cb)(Refused(a, e.client_seq()));
-    }
-    entry.version = rec.skin_version();
-    applied_seq_ = seq;
-    ++edits_since_snapshot_;
-    last = e.client_seq();
+    records->push_back(SkinEditPayload(rec));
+    return Status::Ok();
+  }
+
+  Applied Apply(Scene& scene) override {
+    SkinState::Entry& entry = scene.skins_->skins.at(edit.skin());
+    entry.skin = std::move(*next);
+    next.reset();
+    ++entry.version;
+    balls = entry.skin.balls().size();
     if (!entry.subs.empty()) {
-      auto bytes = skin::EncodeSkinUpdate(sk, *change);
+      auto bytes = skin::EncodeSkinUpdate(entry.skin, change);
       if (!bytes.ok()) {
-        spdlog::error("skin {}: update not encoded: {}", e.skin(), bytes.status().ToString());
+        spdlog::error("skin {}: update not encoded: {}", edit.skin(), bytes.status().ToString());
       } else {
         v1::ServerMessage m;
         v1::ContourUpdate* u = m.mutable_contour();
-        u->set_skin(e.skin());
+        u->set_skin(edit.skin());
         u->set_data(std::move(bytes).value());
-        u->set_sections(static_cast<uint32_t>(change->changed.size()));
+        u->set_sections(static_cast<uint32_t>(change.changed.size()));
         u->set_skin_version(entry.version);
-        SetBalls(sk, u);
+        SetBalls(entry.skin, u);
         auto frame = Frame(m);
         for (auto& [id, sink] : entry.subs) sink.send(frame);
       }
     }
+    return Applied{};  // no sculpture changed
+  }
+
+  void Duplicate(Scene& scene) override {
+    auto it = scene.skins_->skins.find(edit.skin());
+    if (it != scene.skins_->skins.end()) balls = it->second.skin.balls().size();
+  }
+
+  void Answer(const CommitOutcome& o) override {
+    if (!o.status.ok()) return done(Refused(o.status, o.client_seq));
     v1::SkinAck a;
-    a.set_client_seq(e.client_seq());
+    a.set_client_seq(o.client_seq);
     a.set_accepted(true);
-    a.set_changed_sections(static_cast<uint32_t>(change->changed.size()));
-    a.set_balls(static_cast<uint32_t>(sk.balls().size()));
-    a.set_global_seq(seq);
-    {
-      std::lock_guard<std::mutex> lock(info_mu_);
-      RefreshInfoLocked();
+    a.set_duplicate(o.duplicate);
+    if (!o.duplicate) {
+      a.set_changed_sections(static_cast<uint32_t>(change.changed.size()));
+      a.set_global_seq(o.global_seq_first);
     }
-    {
-      // Acknowledged once durable, in order with the strokes.
-      std::lock_guard<std::mutex> lock(pending_mu_);
-      pending_.push_back({seq, StrokeOutcome{}, [cb, a](const StrokeOutcome&) { (*cb)(a); }});
-    }
-    ReleaseDurable(log_->durable_seq());
-    MaybeSnapshot();
-  });
+    a.set_balls(static_cast<uint32_t>(balls));
+    done(a);
+  }
+
+  uint64_t client;
+  v1::SkinBallEdit edit;
+  std::function<void(v1::SkinAck)> done;
+  std::optional<skin::Skin> next;
+  skin::SkinChange change;
+  size_t balls = 0;
+};
+
+void Scene::EditSkin(uint64_t client_id, v1::SkinBallEdit e,
+                     std::function<void(v1::SkinAck)> done) {
+  Commit(std::make_shared<BallEditOp>(client_id, std::move(e), AnswerOnce(std::move(done))));
 }
 
-void Scene::SweepSkin(uint64_t client_id, v1::SkinSweep s, std::function<void(v1::SkinAck)> done) {
-  auto once = AnswerOnce(std::move(done));
-  auto cb = std::make_shared<std::function<void(v1::SkinAck)>>(once);
-  auto fail = [once, seq = s.client_seq()](const Status& st) { once(Refused(st, seq)); };
-  Post("skin sweep", fail, [this, client_id, s = std::move(s), cb] {
-    auto it = skins_->skins.find(s.skin());
-    if (it == skins_->skins.end()) {
-      return (*cb)(Refused(NotFound("SkinSweep.skin=" + s.skin() + " outside the scene's skins"),
-                           s.client_seq()));
+// A sweep: the skin's outline and plane go into the record (so recovery needs no skin), the
+// kernel request is built from the record, checked against the object, and applied from it.
+// Replicas get the changed leaves (a sweep has no replay form).
+struct Scene::SweepOp final : EditOp {
+  SweepOp(uint64_t client, v1::SkinSweep s, std::function<void(v1::SkinAck)> d)
+      : client(client), sweep(std::move(s)), done(std::move(d)) {}
+  const char* operation() const override { return "skin sweep"; }
+  ResendStream stream() const override { return ResendStream::kSweeps; }
+  uint64_t client_id() const override { return client; }
+  uint64_t client_seq() const override { return sweep.client_seq(); }
+
+  Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
+    auto it = scene.skins_->skins.find(sweep.skin());
+    if (it == scene.skins_->skins.end()) {
+      return NotFound("SkinSweep.skin=" + sweep.skin() + " outside the scene's skins");
     }
-    auto obj = sculptures_.find(s.object());
-    if (obj == sculptures_.end()) {
-      return (*cb)(Refused(
-          NotFound("SkinSweep.object=" + s.object() + " outside the scene's objects"),
-          s.client_seq()));
+    auto obj = scene.sculptures_.find(sweep.object());
+    if (obj == scene.sculptures_.end()) {
+      return NotFound("SkinSweep.object=" + sweep.object() + " outside the scene's objects");
     }
-    uint64_t& last = last_sweep_seq_[client_id];
-    if (s.client_seq() <= last) {
-      // Already logged and applied: acknowledged once everything logged so far is durable.
-      v1::SkinAck ack;
-      ack.set_client_seq(s.client_seq());
-      ack.set_accepted(true);
-      ack.set_duplicate(true);
-      {
-        std::lock_guard<std::mutex> lock(pending_mu_);
-        pending_.push_back(
-            {next_seq_ - 1, StrokeOutcome{}, [cb, ack](const StrokeOutcome&) { (*cb)(ack); }});
-      }
-      ReleaseDurable(log_->durable_seq());
-      return;
-    }
-    levelset::Sculpture& sculpture = obj->second;
     const SkinState::Entry& entry = it->second;
     v1::SkinSweepRecord rec;
-    rec.set_client_id(client_id);
-    rec.set_client_seq(s.client_seq());
-    rec.set_object(s.object());
-    rec.set_mode(s.mode());
-    rec.set_kind(s.kind());
-    rec.set_depth(s.depth());
+    rec.set_client_id(client);
+    rec.set_client_seq(sweep.client_seq());
+    rec.set_object(sweep.object());
+    rec.set_mode(sweep.mode());
+    rec.set_kind(sweep.kind());
+    rec.set_depth(sweep.depth());
     for (const Vec3& v : {entry.plane.origin, entry.plane.u, entry.plane.v}) {
       rec.add_plane(v.x);
       rec.add_plane(v.y);
@@ -591,56 +532,62 @@ void Scene::SweepSkin(uint64_t client_id, v1::SkinSweep s, std::function<void(v1
       rec.add_outline(p.x);
       rec.add_outline(p.y);
     }
-    if (s.mode() == v1::SKIN_SWEEP_MODE_REVOLVE) {
-      for (double v : {s.axis_x(), s.axis_y(), std::cos(s.axis_angle()), std::sin(s.axis_angle())}) {
+    if (sweep.mode() == v1::SKIN_SWEEP_MODE_REVOLVE) {
+      for (double v : {sweep.axis_x(), sweep.axis_y(), std::cos(sweep.axis_angle()),
+                       std::sin(sweep.axis_angle())}) {
         rec.add_axis(v);
       }
     }
     // The request the kernel applies comes from the record, as recovery's does.
-    auto req = SweepFromRecord(rec);
-    Status valid = req.ok() ? levelset::ValidateSweep(sculpture, *req) : req.status();
-    if (!valid.ok()) return (*cb)(Refused(valid, s.client_seq()));
-    const uint64_t seq = next_seq_++;
-    rec.set_global_seq(seq);
-    if (const Status a = log_->Append(seq, SweepPayload(rec)); !a.ok()) {
-      spdlog::critical("edit log append failed at seq {}: {}", seq, a.ToString());
-      return (*cb)(Refused(a, s.client_seq()));
+    SCULPT_ASSIGN_OR_RETURN(request, SweepFromRecord(rec));
+    SCULPT_RETURN_IF_ERROR(levelset::ValidateSweep(obj->second, request));
+    rec.set_global_seq(first_seq);
+    records->push_back(SweepPayload(rec));
+    return Status::Ok();
+  }
+
+  Applied Apply(Scene& scene) override {
+    Applied a;
+    a.object = sweep.object();
+    a.bounds_may_change = true;
+    auto res = levelset::ApplySweep(scene.sculptures_.at(sweep.object()), request);
+    if (!res.ok()) {
+      a.status = res.status();
+      return a;
     }
-    last = s.client_seq();
-    auto res = levelset::ApplySweep(sculpture, *req);
-    applied_seq_ = seq;
-    ++edits_since_snapshot_;
+    volume_after = res->volume_after;
+    a.dirty_leaves = std::move(res->dirty_leaves);
+    dirty_leaves = a.dirty_leaves.size();
+    return a;
+  }
+
+  void Answer(const CommitOutcome& o) override {
     v1::SkinAck ack;
-    ack.set_client_seq(s.client_seq());
-    ack.set_global_seq(seq);
-    if (res.ok()) {
-      versions_[s.object()].Record(res->dirty_leaves, seq);
-      if (!viewers_.empty()) MarkDirtyChunks(s.object(), res->dirty_leaves);
-      // Replicas get the sweep's leaves (replay mode has no sweep form).
-      for (auto& [id, sub] : subs_) {
-        if (sub.object == s.object()) SendRegion(sub, sculpture, seq - 1, /*replace=*/false);
-      }
-      ack.set_accepted(true);
-      ack.set_volume_after(res->volume_after);
-      ack.set_dirty_leaves(static_cast<uint32_t>(res->dirty_leaves.size()));
+    if (!o.status.ok()) {
+      ack = Refused(o.status, o.client_seq);
     } else {
-      ack = Refused(res.status(), s.client_seq());
-      ack.set_global_seq(seq);
+      ack.set_client_seq(o.client_seq);
+      ack.set_accepted(true);
+      ack.set_duplicate(o.duplicate);
+      if (!o.duplicate) {
+        ack.set_volume_after(volume_after);
+        ack.set_dirty_leaves(static_cast<uint32_t>(dirty_leaves));
+      }
     }
-    {
-      std::lock_guard<std::mutex> lock(info_mu_);
-      bounds_[s.object()] = sculpture.WorldBounds();
-      RefreshInfoLocked();
-    }
-    {
-      // Acknowledged once durable, in order with the strokes.
-      std::lock_guard<std::mutex> lock(pending_mu_);
-      pending_.push_back({seq, StrokeOutcome{}, [cb, ack](const StrokeOutcome&) { (*cb)(ack); }});
-    }
-    ReleaseDurable(log_->durable_seq());
-    MaybeSnapshot();
-    if (res.ok()) SendSlices(s.object(), res->dirty_leaves);
-  });
+    if (o.records > 0) ack.set_global_seq(o.global_seq_first);
+    done(ack);
+  }
+
+  uint64_t client;
+  v1::SkinSweep sweep;
+  std::function<void(v1::SkinAck)> done;
+  levelset::SweepRequest request;
+  double volume_after = 0;
+  size_t dirty_leaves = 0;
+};
+
+void Scene::SweepSkin(uint64_t client_id, v1::SkinSweep s, std::function<void(v1::SkinAck)> done) {
+  Commit(std::make_shared<SweepOp>(client_id, std::move(s), AnswerOnce(std::move(done))));
 }
 
 namespace {

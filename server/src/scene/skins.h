@@ -26,24 +26,16 @@ Status ValidateSkinSweep(const v1::SkinSweep& sweep);
 /// and step in range).
 Status ValidateContourSubscribe(const v1::ContourSubscribe& request);
 
-/// True for an edit-log payload holding a sweep.
-bool IsSweepPayload(const std::string& payload);
-/// The edit-log payload of a sweep record.
+/// The edit-log payload of a sweep record (read back by DecodeLogRecord, commit.h).
 std::string SweepPayload(const v1::SkinSweepRecord& record);
-/// The object a logged sweep edits; DataLoss when it does not parse.
-StatusOr<std::string> SweepPayloadObject(uint64_t seq, const std::string& payload);
 /// The kernel request a record describes; InvalidArgument for a malformed record.
 StatusOr<levelset::SweepRequest> SweepFromRecord(const v1::SkinSweepRecord& record);
-/// Recovery: applies a logged sweep as the live server did. DataLoss when it does not parse; a
-/// sweep the kernel refuses is refused identically (Ok, nothing applied), as live.
-Status ReplaySweepPayload(levelset::Sculpture& sculpture, uint64_t seq, const std::string& payload);
+/// Recovery: applies a logged sweep as the live server did. A sweep the kernel refuses is
+/// refused identically (Ok, nothing applied), as live.
+Status ReplaySweep(levelset::Sculpture& sculpture, uint64_t seq, const v1::SkinSweepRecord& record);
 
-/// True for an edit-log payload holding a ball edit.
-bool IsSkinEditPayload(const std::string& payload);
 /// The edit-log payload of a ball-edit record (a leading 0x03 byte, then the record).
 std::string SkinEditPayload(const v1::SkinEditRecord& record);
-/// A logged ball edit; DataLoss naming the sequence when it does not parse.
-StatusOr<v1::SkinEditRecord> ParseSkinEditPayload(uint64_t seq, const std::string& payload);
 
 /// Writes a skin's state to `path` atomically (temporary file, fsync, rename). Internal on I/O
 /// errors.
