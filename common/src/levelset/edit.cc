@@ -226,7 +226,8 @@ void SpliceBack(Sculpture::Impl& impl, const Block& b, double base_volume, EditR
   res->changed = wb.changed_voxels > 0;
   res->changed_voxels = wb.changed_voxels;
   res->dirty_leaves = std::move(wb.dirty_leaves);
-  impl.volume = base_volume + b.InsideChange() * b.dx * b.dx * b.dx;
+  res->volume_change = b.InsideChange() * b.dx * b.dx * b.dx;
+  impl.volume = base_volume + res->volume_change;
 }
 
 double UnionDistance(const std::vector<EditRequest>& reqs, const Vec3& p) {

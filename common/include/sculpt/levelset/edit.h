@@ -105,6 +105,10 @@ struct EditResult {
   uint64_t changed_voxels = 0;
   double volume_before = 0;
   double volume_after = 0;
+  /// Exactly what the edit added to the tracked volume (volume_after == volume_before +
+  /// volume_change, bit for bit, except under global compensation, which recomputes the volume):
+  /// undo carries the bookkeeping past an edit it does not need to replay (edit_history.h).
+  double volume_change = 0;
   double reference_volume = 0;
   int steps = 0;
   int substeps = 0;

@@ -1,0 +1,72 @@
+/// @brief CellImage: an exact copy of some leaf cells of a sculpture (values, masks and the tree
+/// levels that held them), taken before an edit so that undo can put those cells back.
+#ifndef SCULPT_LEVELSET_CELL_IMAGE_H_
+#define SCULPT_LEVELSET_CELL_IMAGE_H_
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "sculpt/levelset/region.h"
+#include "sculpt/levelset/sculpture.h"
+
+namespace sculpt::levelset {
+
+/// The signed-distance contents of a set of leaf cells (8^3, origins at multiples of 8) as they
+/// were when captured: per cell either the leaf (value mask and all 512 values, bit-exact) or the
+/// uniform value with the tree level that held it (a leaf-level tile, or a tile of a larger node,
+/// or the background with no node at all). Restoring writes exactly that back, and where a cell
+/// was held by a larger node that has since been split, re-collapses the node once every cell of
+/// it is uniform again, so a restored tree hashes (Sculpture::StateHash) as the captured one.
+/// Material fractions are not held (EditHistory refuses sculptures with materials).
+/// Thread safety: a value type; Capture and Restore need the usual one-writer rule on the
+/// sculpture.
+class CellImage {
+ public:
+  CellImage() = default;
+
+  /// Every leaf cell overlapping `box` (empty box: nothing).
+  static CellImage Capture(const Sculpture& sculpture, const VoxelBox& box);
+
+  /// Keeps only the cells listed in `cells` (sorted or not); the others are dropped.
+  void Keep(const std::vector<Int3>& cells);
+
+  /// Writes the held cells listed in `cells` back into `sculpture` (cells not held are skipped)
+  /// and returns how many were written. The tracked volume is not touched (the caller owns the
+  /// scalars: see ReplayState).
+  size_t Restore(Sculpture& sculpture, const std::vector<Int3>& cells) const;
+  /// Writes every held cell back.
+  size_t RestoreAll(Sculpture& sculpture) const;
+
+  bool Holds(const Int3& cell) const;
+  /// Origins of the held cells, sorted (z, y, x).
+  std::vector<Int3> Cells() const;
+  size_t cell_count() const { return cells_.size(); }
+  size_t leaf_count() const { return leaves_.size(); }
+  /// Heap bytes held (the measure of an undo step's memory).
+  size_t MemoryBytes() const;
+  void Clear();
+
+ private:
+  struct Cell {
+    Int3 origin;
+    /// 0 leaf (index into leaves_), 1 tile of the leaf's parent, 2 tile of the parent's parent,
+    /// 3 root tile, 4 background (no root entry).
+    uint8_t level = 0;
+    bool active = false;
+    float value = 0;
+    uint32_t leaf = 0;
+  };
+  struct Leaf {
+    uint64_t mask[8];
+    float values[512];
+  };
+  const Cell* Find(const Int3& origin) const;
+
+  std::vector<Cell> cells_;  // sorted by (z, y, x)
+  std::vector<Leaf> leaves_;
+};
+
+}  // namespace sculpt::levelset
+
+#endif  // SCULPT_LEVELSET_CELL_IMAGE_H_

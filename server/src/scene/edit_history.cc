@@ -1,0 +1,417 @@
+/// @brief EditHistory: per-author undo/redo by pre-images and ordered replay (issue 15).
+#include "scene/edit_history.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstring>
+#include <tuple>
+#include <unordered_set>
+
+#include "sculpt/core/check.h"
+#include "sculpt/levelset/materials.h"
+
+namespace sculpt::server {
+namespace {
+
+using levelset::CellImage;
+using levelset::Int3;
+using levelset::ReplayState;
+using levelset::VoxelBox;
+
+bool CellLess(const Int3& a, const Int3& b) {
+  return std::tie(a.z, a.y, a.x) < std::tie(b.z, b.y, b.x);
+}
+
+uint64_t Key(const Int3& o) {
+  const uint64_t x = static_cast<uint64_t>((o.x >> 3) + (1 << 20)) & 0x1FFFFF;
+  const uint64_t y = static_cast<uint64_t>((o.y >> 3) + (1 << 20)) & 0x1FFFFF;
+  const uint64_t z = static_cast<uint64_t>((o.z >> 3) + (1 << 20)) & 0x1FFFFF;
+  return x | (y << 21) | (z << 42);
+}
+
+bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+// Whether an edit's result depends on the tracked scalars, not only on the voxels it reads:
+// shell compensation aims the volume of its block at the reference volume, so it reads both;
+// reinit_every_k makes the reinitialisation depend on the edit counter.
+bool ReadsVolume(const levelset::EditRequest& r, const levelset::EditSettings& s) {
+  return (r.kind == levelset::EditKind::kPress || r.kind == levelset::EditKind::kSmooth) &&
+         s.compensation != levelset::CompensationRegion::kNone;
+}
+
+std::string Quoted(const std::string& s) { return "\"" + s + "\""; }
+
+}  // namespace
+
+// The leaf cells whose contents in the order being rebuilt may differ from what the sculpture
+// held before the call (the affected region), with their bounding box for a quick reject.
+class EditHistory::CellSet {
+ public:
+  bool Contains(const Int3& c) const { return keys_.count(Key(c)) != 0; }
+  void Insert(const Int3& c) {
+    if (!keys_.insert(Key(c)).second) return;
+    cells_.push_back(c);
+    if (box_.Empty()) {
+      box_ = {c, {c.x + 7, c.y + 7, c.z + 7}};
+    } else {
+      box_.min = {std::min(box_.min.x, c.x), std::min(box_.min.y, c.y), std::min(box_.min.z, c.z)};
+      box_.max = {std::max(box_.max.x, c.x + 7), std::max(box_.max.y, c.y + 7),
+                  std::max(box_.max.z, c.z + 7)};
+    }
+  }
+  void Insert(const std::vector<Int3>& cells) {
+    for (const Int3& c : cells) Insert(c);
+  }
+  const VoxelBox& box() const { return box_; }
+  std::vector<Int3> Sorted() const {
+    std::vector<Int3> out = cells_;
+    std::sort(out.begin(), out.end(), CellLess);
+    return out;
+  }
+
+ private:
+  std::unordered_set<uint64_t> keys_;
+  std::vector<Int3> cells_;
+  VoxelBox box_;
+};
+
+Status ValidateEditHistoryOptions(const EditHistoryOptions& o) {
+  SCULPT_RETURN_IF_ERROR(CheckRange("depth_per_author", o.depth_per_author, 1, 4096));
+  SCULPT_RETURN_IF_ERROR(CheckRange("max_edits", o.max_edits, 1, 1000000));
+  SCULPT_RETURN_IF_ERROR(CheckRange("max_bytes", static_cast<double>(o.max_bytes),
+                                    static_cast<double>(1 << 20), 64.0 * (1ull << 30)));
+  return Status::Ok();
+}
+
+EditHistory::EditHistory(EditHistoryOptions options) : options_(options) {}
+
+PreparedEdit EditHistory::Prepare(const levelset::Sculpture& sculpture,
+                                  const std::vector<levelset::EditRequest>& requests,
+                                  const levelset::EditSettings& settings) const {
+  PreparedEdit p;
+  p.requests = requests;
+  p.settings = settings;
+  p.before = levelset::CaptureReplayState(sculpture);
+  if (requests.empty()) {
+    p.not_undoable = "an empty batch";
+    return p;
+  }
+  const levelset::EditFootprint f = levelset::FootprintOf(sculpture, requests, settings);
+  if (f.whole_object) {
+    p.not_undoable = "compensation=global reads and writes the whole object";
+    return p;
+  }
+  if (levelset::MaterialCount(sculpture) > 0) {
+    p.not_undoable = "the object has material fractions, which pre-images do not hold yet";
+    return p;
+  }
+  p.footprint = VoxelBox{f.min, f.max};
+  p.image = CellImage::Capture(sculpture, p.footprint);
+  return p;
+}
+
+void EditHistory::Commit(PreparedEdit prepared, uint64_t seq, const std::string& author,
+                         const levelset::EditResult& result,
+                         const levelset::Sculpture& sculpture) {
+  if (!prepared.not_undoable.empty()) {
+    Clear("edit " + std::to_string(seq) + " cannot be undone: " + prepared.not_undoable);
+    return;
+  }
+  Record r;
+  r.seq = seq;
+  r.author = author;
+  r.requests = std::move(prepared.requests);
+  r.settings = prepared.settings;
+  r.footprint = prepared.footprint;
+  r.before = prepared.before;
+  r.after = levelset::CaptureReplayState(sculpture);
+  r.volume_change = result.volume_change;
+  r.island_volume_removed = result.island_volume_removed;
+  r.reinitialised = result.reinit_passes > 0;
+  r.image = std::move(prepared.image);
+  r.image.Keep(result.dirty_leaves);  // what it wrote: the kernel writes only changed leaves
+  const uint64_t id = first_id_ + records_.size();
+  bytes_ += RecordBytes(r);
+  records_.push_back(std::move(r));
+
+  AuthorStacks& a = authors_[author];
+  // A new stroke ends the author's redo chain: those edits stay out of the order for good.
+  for (uint64_t rid : a.redo) {
+    Record& dead = At(rid);
+    dead.stack = Stack::kNone;
+    bytes_ -= RecordBytes(dead);
+    dead.image.Clear();
+    bytes_ += RecordBytes(dead);
+  }
+  a.redo.clear();
+  a.undo.push_back(id);
+  if (a.undo.size() > static_cast<size_t>(options_.depth_per_author)) {
+    At(a.undo.front()).stack = Stack::kNone;
+    a.undo.erase(a.undo.begin());
+    ++a.fell_off;
+  }
+  Trim();
+}
+
+StatusOr<levelset::EditResult> EditHistory::Apply(
+    levelset::Sculpture& sculpture, uint64_t seq, const std::string& author,
+    const std::vector<levelset::EditRequest>& requests, const levelset::EditSettings& settings) {
+  PreparedEdit p = Prepare(sculpture, requests, settings);
+  StatusOr<levelset::EditResult> res = levelset::ApplyEdits(sculpture, requests, settings);
+  if (res.ok()) Commit(std::move(p), seq, author, *res, sculpture);
+  return res;
+}
+
+void EditHistory::Clear(const std::string& why) {
+  records_.clear();
+  first_id_ = 0;
+  bytes_ = 0;
+  authors_.clear();
+  cleared_ = why;
+}
+
+uint64_t EditHistory::RecordBytes(const Record& r) {
+  return sizeof(Record) + r.author.capacity() +
+         r.requests.capacity() * sizeof(levelset::EditRequest) + r.image.MemoryBytes();
+}
+
+void EditHistory::DropFront() {
+  Record& r = records_.front();
+  const uint64_t id = first_id_;
+  if (r.stack != Stack::kNone) {
+    AuthorStacks& a = authors_[r.author];
+    auto& stack = r.stack == Stack::kUndo ? a.undo : a.redo;
+    stack.erase(std::remove(stack.begin(), stack.end(), id), stack.end());
+    ++a.fell_off;
+  }
+  bytes_ -= RecordBytes(r);
+  records_.pop_front();
+  ++first_id_;
+}
+
+void EditHistory::Trim() {
+  // Edits before the oldest one anybody can still undo or redo are never replayed again.
+  while (!records_.empty() && records_.front().stack == Stack::kNone) DropFront();
+  while (records_.size() > static_cast<size_t>(options_.max_edits) ||
+         (bytes_ > options_.max_bytes && records_.size() > 1)) {
+    DropFront();
+    while (!records_.empty() && records_.front().stack == Stack::kNone) DropFront();
+  }
+}
+
+size_t EditHistory::undo_depth(const std::string& author) const {
+  auto it = authors_.find(author);
+  return it == authors_.end() ? 0 : it->second.undo.size();
+}
+
+size_t EditHistory::redo_depth(const std::string& author) const {
+  auto it = authors_.find(author);
+  return it == authors_.end() ? 0 : it->second.redo.size();
+}
+
+std::vector<HistoryEntry> EditHistory::Entries(const std::string& author) const {
+  std::vector<HistoryEntry> out;
+  for (const Record& r : records_) {
+    if (!author.empty() && r.author != author) continue;
+    HistoryEntry e;
+    e.seq = r.seq;
+    e.author = r.author;
+    e.kind = r.requests.front().kind;
+    e.poses = static_cast<uint32_t>(r.requests.size());
+    e.undone = !r.active;
+    e.undoable = r.stack == Stack::kUndo;
+    out.push_back(e);
+  }
+  return out;
+}
+
+StatusOr<UndoOutcome> EditHistory::Undo(levelset::Sculpture& sculpture,
+                                        const std::string& author) {
+  auto it = authors_.find(author);
+  if (it == authors_.end() || it->second.undo.empty()) {
+    const uint64_t fell = it == authors_.end() ? 0 : it->second.fell_off;
+    if (fell > 0) {
+      return OutOfRange("undo: author=" + Quoted(author) +
+                        " has no edit left within depth_per_author=" +
+                        std::to_string(options_.depth_per_author) + " (" + std::to_string(fell) +
+                        " older edits fell off the history, which keeps the last " +
+                        std::to_string(options_.depth_per_author) + " per author and " +
+                        std::to_string(options_.max_edits) + " in all)");
+    }
+    return FailedPrecondition("undo: author=" + Quoted(author) + " has nothing to undo" +
+                              (cleared_.empty() ? "" : " (history cleared: " + cleared_ + ")"));
+  }
+  const uint64_t id = it->second.undo.back();
+  SCULPT_ASSIGN_OR_RETURN(UndoOutcome out, Rebuild(sculpture, id, /*activate=*/false));
+  // `it` may not survive Rebuild's bookkeeping of other authors: look the author up again.
+  AuthorStacks& a = authors_[author];
+  a.undo.pop_back();
+  a.redo.push_back(id);
+  At(id).stack = Stack::kRedo;
+  return out;
+}
+
+StatusOr<UndoOutcome> EditHistory::Redo(levelset::Sculpture& sculpture,
+                                        const std::string& author) {
+  auto it = authors_.find(author);
+  if (it == authors_.end() || it->second.redo.empty()) {
+    return FailedPrecondition("redo: author=" + Quoted(author) +
+                              " has nothing to redo (no undo since its last edit)");
+  }
+  const uint64_t id = it->second.redo.back();
+  SCULPT_ASSIGN_OR_RETURN(UndoOutcome out, Rebuild(sculpture, id, /*activate=*/true));
+  AuthorStacks& a = authors_[author];
+  a.redo.pop_back();
+  a.undo.push_back(id);
+  At(id).stack = Stack::kUndo;
+  return out;
+}
+
+bool EditHistory::NeedsReplay(const Record& r, const ReplayState& state,
+                              const CellSet& region) const {
+  if (ReadsVolume(r.requests.front(), r.settings) &&
+      !(SameBits(state.volume, r.before.volume) &&
+        SameBits(state.reference_volume, r.before.reference_volume))) {
+    return true;
+  }
+  if (r.settings.reinit_every_k > 0 && state.edits_since_reinit != r.before.edits_since_reinit) {
+    return true;
+  }
+  if (!region.box().Intersects(r.footprint)) return false;
+  for (const Int3& c : levelset::AllLeafCells(r.footprint)) {
+    if (region.Contains(c)) return true;
+  }
+  return false;
+}
+
+ReplayState EditHistory::Transfer(const Record& r, const ReplayState& state) {
+  // An edit not replayed wrote the same voxels as before; only the scalars it leaves behind move
+  // with the state it starts from, by the kernel's own arithmetic (edit.cc): the volume grows by
+  // the change of its block, the reference follows the volume for edits that add or remove
+  // material on purpose and drops by removed islands otherwise (a compensated edit reads both
+  // and is replayed unless they are unchanged, in which case its old result stands).
+  if (SameBits(state.volume, r.before.volume) &&
+      SameBits(state.reference_volume, r.before.reference_volume) &&
+      state.edits_since_reinit == r.before.edits_since_reinit) {
+    return r.after;
+  }
+  ReplayState out;
+  out.volume = state.volume + r.volume_change;
+  switch (r.requests.front().kind) {
+    case levelset::EditKind::kAdd:
+    case levelset::EditKind::kSubtract:
+    case levelset::EditKind::kInflate:
+    case levelset::EditKind::kDeflate:
+      out.reference_volume = state.reference_volume + (out.volume - state.volume);
+      break;
+    case levelset::EditKind::kPress:
+    case levelset::EditKind::kSmooth:
+      out.reference_volume = state.reference_volume - r.island_volume_removed;
+      break;
+  }
+  if (r.reinitialised) {
+    out.edits_since_reinit = 0;
+  } else {
+    out.edits_since_reinit =
+        state.edits_since_reinit + (r.after.edits_since_reinit - r.before.edits_since_reinit);
+  }
+  return out;
+}
+
+Status EditHistory::ReplayOne(levelset::Sculpture& sculpture, size_t index, bool rewind_self,
+                              ReplayState& state, CellSet& region, UndoOutcome& out) {
+  Record& r = records_[index];
+  // The cells it reads that are not in the region hold what the old order left at its end; set
+  // them to what they held at this edit's place: the pre-image of the first later writer (still
+  // in the order) of each, or the current contents when none wrote it since. They join the region.
+  std::vector<Int3> need;
+  for (const Int3& c : levelset::AllLeafCells(r.footprint)) {
+    if (!region.Contains(c)) need.push_back(c);
+  }
+  std::vector<Int3> take;
+  for (size_t m = rewind_self ? index : index + 1; m < records_.size() && !need.empty(); ++m) {
+    const Record& w = records_[m];
+    if (!w.active || w.image.cell_count() == 0) continue;
+    take.clear();
+    auto keep = need.begin();
+    for (const Int3& c : need) {
+      if (w.image.Holds(c)) {
+        take.push_back(c);
+      } else {
+        *keep++ = c;
+      }
+    }
+    need.erase(keep, need.end());
+    if (take.empty()) continue;
+    w.image.Restore(sculpture, take);
+    region.Insert(take);
+  }
+
+  bytes_ -= RecordBytes(r);
+  r.image = CellImage::Capture(sculpture, r.footprint);
+  r.before = state;
+  StatusOr<levelset::EditResult> res =
+      levelset::ReplayEdits(sculpture, r.requests, r.settings, state);
+  if (!res.ok()) {
+    bytes_ += RecordBytes(r);
+    return Internal("undo: replaying edit " + std::to_string(r.seq) + " failed: " +
+                    res.status().ToString());
+  }
+  r.image.Keep(res->dirty_leaves);
+  bytes_ += RecordBytes(r);
+  region.Insert(res->dirty_leaves);
+  r.after = levelset::CaptureReplayState(sculpture);
+  r.volume_change = res->volume_change;
+  r.island_volume_removed = res->island_volume_removed;
+  r.reinitialised = res->reinit_passes > 0;
+  state = r.after;
+  return Status::Ok();
+}
+
+StatusOr<UndoOutcome> EditHistory::Rebuild(levelset::Sculpture& sculpture, uint64_t id,
+                                           bool activate) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const size_t t = id - first_id_;
+  Record& target = records_[t];
+  UndoOutcome out;
+  out.seq = target.seq;
+  out.author = target.author;
+  CellSet region;
+  ReplayState state = target.before;
+  if (activate) {
+    // Put back at its place: its cells are rewound from the later writers' pre-images (its own
+    // image is stale, taken in an order it has since left), then it runs again.
+    SCULPT_RETURN_IF_ERROR(ReplayOne(sculpture, t, /*rewind_self=*/false, state, region, out));
+    target.active = true;
+  } else {
+    // The leaves it wrote go back to what they held before it.
+    target.image.RestoreAll(sculpture);
+    region.Insert(target.image.Cells());
+    target.active = false;
+  }
+  for (size_t k = t + 1; k < records_.size(); ++k) {
+    Record& r = records_[k];
+    if (!r.active) {
+      r.before = state;  // where it would start if redone
+      continue;
+    }
+    if (NeedsReplay(r, state, region)) {
+      SCULPT_RETURN_IF_ERROR(ReplayOne(sculpture, k, /*rewind_self=*/true, state, region, out));
+      ++out.replayed;
+      ++out.replayed_by[r.author];
+    } else {
+      const ReplayState after = Transfer(r, state);
+      r.before = state;
+      r.after = after;
+      state = after;
+    }
+  }
+  levelset::RestoreReplayState(sculpture, state);
+  out.state = state;
+  out.dirty_leaves = region.Sorted();
+  out.elapsed_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+}  // namespace sculpt::server

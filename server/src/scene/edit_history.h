@@ -1,0 +1,183 @@
+/// @brief EditHistory: per-author undo and redo of level-set edit batches on one object (issue 15),
+/// by restoring pre-images and replaying the later edits that the change reaches.
+#ifndef SCULPT_SERVER_SCENE_EDIT_HISTORY_H_
+#define SCULPT_SERVER_SCENE_EDIT_HISTORY_H_
+
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "sculpt/core/status.h"
+#include "sculpt/levelset/cell_image.h"
+#include "sculpt/levelset/edit.h"
+#include "sculpt/levelset/region.h"
+#include "sculpt/levelset/sculpture.h"
+
+namespace sculpt::server {
+
+struct EditHistoryOptions {
+  /// Undoable edits kept per author (the issue asks for at least 64). Older ones fall off.
+  int depth_per_author = 64;
+  /// Edits kept over all authors. An undo replays edits after the undone one, so the history
+  /// keeps every edit after the oldest undoable one; beyond this count (or max_bytes) the oldest
+  /// fall off whoever made them, which bounds memory and the worst undo.
+  int max_edits = 4096;
+  /// Bytes of pre-images and requests kept over all authors.
+  uint64_t max_bytes = uint64_t{256} << 20;
+};
+
+/// InvalidArgument naming the field, value and range: depth_per_author in [1, 4096], max_edits
+/// in [1, 1000000], max_bytes in [1 MiB, 64 GiB].
+Status ValidateEditHistoryOptions(const EditHistoryOptions& options);
+
+/// What an undo or a redo did.
+struct UndoOutcome {
+  uint64_t seq = 0;    // global sequence of the edit taken back or re-applied
+  std::string author;  // its author (the caller)
+  /// Later edits replayed because they read what the change touched (or the volume it moved),
+  /// in all and per author (the caller's own later edits included).
+  uint32_t replayed = 0;
+  std::map<std::string, uint32_t> replayed_by;
+  /// Leaf cells (origins, sorted z, y, x) whose contents may differ from before the call: what
+  /// the server replicates (EncodeLeafRecords over them) and a replica hashes (LeavesHash).
+  std::vector<levelset::Int3> dirty_leaves;
+  /// The sculpture's tracked scalars afterwards (volume, reference volume, reinit counter).
+  levelset::ReplayState state;
+  double elapsed_ms = 0;
+};
+
+/// One line of the history view (`sculpt history`).
+struct HistoryEntry {
+  uint64_t seq = 0;
+  std::string author;
+  levelset::EditKind kind = levelset::EditKind::kPress;
+  uint32_t poses = 0;
+  bool undone = false;
+  bool undoable = false;  // on its author's undo stack (within the depth)
+};
+
+/// What an edit is about to read and overwrite, taken by Prepare before it is applied.
+/// Opaque to callers: pass it to Commit.
+struct PreparedEdit {
+  std::vector<levelset::EditRequest> requests;
+  levelset::EditSettings settings;
+  levelset::ReplayState before;
+  levelset::VoxelBox footprint;
+  levelset::CellImage image;
+  /// Empty when the edit can be recorded; otherwise why not (Commit then clears the history).
+  std::string not_undoable;
+};
+
+/// The undo history of one sculpted object: every level-set edit batch applied to it, in order,
+/// with what undo needs to take it back as if it had never been made. Undo restores the
+/// pre-image of the leaves the edit wrote and replays, in order and with the same kernel
+/// (ReplayEdits), every later edit that reads a restored or replayed leaf or whose volume
+/// compensation reads tracked scalars that changed; the result is bit-identical to applying the
+/// log without that edit, and the tracked volume and reference volume are what they would have
+/// been. Redo is the same with the edit put back at its place in the order, so with nothing in
+/// between it returns to the exact state before the undo.
+/// Every write to the object's SDF must go through Commit (or be followed by Clear): an
+/// unrecorded write would be lost by the next undo that rewinds its leaves.
+/// Thread safety: not thread-safe; the owner of the sculpture (the scene's compute thread) calls
+/// it, with the same one-writer rule as the sculpture.
+class EditHistory {
+ public:
+  explicit EditHistory(EditHistoryOptions options = {});
+
+  /// Right before ApplyEdits(sculpture, requests, settings): captures the tracked scalars, the
+  /// footprint and a pre-image of the footprint's leaves (about 0.1 ms for a press). Never
+  /// fails; an edit that cannot be undone (global compensation, which reads and writes the whole
+  /// object; a sculpture with materials, whose fractions the pre-image does not hold) is marked
+  /// so and Commit clears the history.
+  PreparedEdit Prepare(const levelset::Sculpture& sculpture,
+                       const std::vector<levelset::EditRequest>& requests,
+                       const levelset::EditSettings& settings) const;
+  /// Right after that edit succeeded: records it under `author` as its newest undoable edit
+  /// (clearing the author's redo stack, as a new stroke does in every editor) with the global
+  /// sequence the log gave it. `sculpture` is the object after the edit. Trims the history to its
+  /// bounds. Do not call for an edit the kernel refused (it changed nothing).
+  void Commit(PreparedEdit prepared, uint64_t seq, const std::string& author,
+              const levelset::EditResult& result, const levelset::Sculpture& sculpture);
+  /// Prepare, ApplyEdits, Commit. The kernel's error otherwise (nothing recorded then).
+  StatusOr<levelset::EditResult> Apply(levelset::Sculpture& sculpture, uint64_t seq,
+                                       const std::string& author,
+                                       const std::vector<levelset::EditRequest>& requests,
+                                       const levelset::EditSettings& settings);
+
+  /// Takes back `author`'s most recent edit that is not undone. FailedPrecondition when the
+  /// author has nothing to undo; OutOfRange when its edits within reach are exhausted and older
+  /// ones fell off the history (depth_per_author or the history's bounds), naming the depth;
+  /// Internal if a replay fails (not expected: every replayed edit was accepted before), the
+  /// sculpture then holding a partial result. The sculpture and history are unchanged on the
+  /// first two.
+  StatusOr<UndoOutcome> Undo(levelset::Sculpture& sculpture, const std::string& author);
+  /// Re-applies `author`'s most recently undone edit at its place in the order.
+  /// FailedPrecondition when there is none (never undone, or a new edit by the author since).
+  StatusOr<UndoOutcome> Redo(levelset::Sculpture& sculpture, const std::string& author);
+
+  /// Forgets everything (after a write that bypassed Commit: a load, ReinitializeRegion, a
+  /// global-compensation edit). `why` is quoted by later "nothing to undo" errors.
+  void Clear(const std::string& why = "cleared");
+
+  size_t undo_depth(const std::string& author) const;
+  size_t redo_depth(const std::string& author) const;
+  /// Edits held (every author's, undone ones included).
+  size_t size() const { return records_.size(); }
+  /// Heap bytes held by pre-images and requests.
+  uint64_t MemoryBytes() const { return bytes_; }
+  /// The held edits, oldest first; only `author`'s when it is not empty.
+  std::vector<HistoryEntry> Entries(const std::string& author = {}) const;
+  const EditHistoryOptions& options() const { return options_; }
+
+ private:
+  enum class Stack : uint8_t { kNone, kUndo, kRedo };
+  struct Record {
+    uint64_t seq = 0;
+    std::string author;
+    std::vector<levelset::EditRequest> requests;
+    levelset::EditSettings settings;
+    levelset::VoxelBox footprint;
+    /// Scalars at its place in the current order (before and after it; for an undone edit
+    /// `before` is what it would start from if redone).
+    levelset::ReplayState before;
+    levelset::ReplayState after;
+    double volume_change = 0;
+    double island_volume_removed = 0;
+    bool reinitialised = false;
+    /// The leaves it wrote, as they were before it (in the current order).
+    levelset::CellImage image;
+    bool active = true;
+    Stack stack = Stack::kUndo;
+  };
+  struct AuthorStacks {
+    std::vector<uint64_t> undo;  // record ids, oldest first
+    std::vector<uint64_t> redo;  // record ids, most recently undone last
+    uint64_t fell_off = 0;
+  };
+  class CellSet;
+
+  Record& At(uint64_t id) { return records_[id - first_id_]; }
+  StatusOr<UndoOutcome> Rebuild(levelset::Sculpture& sculpture, uint64_t id, bool activate);
+  Status ReplayOne(levelset::Sculpture& sculpture, size_t index, bool rewind_self,
+                   levelset::ReplayState& state, CellSet& region, UndoOutcome& out);
+  bool NeedsReplay(const Record& r, const levelset::ReplayState& state,
+                   const CellSet& region) const;
+  static levelset::ReplayState Transfer(const Record& r, const levelset::ReplayState& state);
+  void Trim();
+  void DropFront();
+  static uint64_t RecordBytes(const Record& r);
+
+  EditHistoryOptions options_;
+  std::deque<Record> records_;
+  uint64_t first_id_ = 0;  // id of records_.front()
+  uint64_t bytes_ = 0;
+  std::unordered_map<std::string, AuthorStacks> authors_;
+  std::string cleared_;  // why the history was last cleared, if ever
+};
+
+}  // namespace sculpt::server
+
+#endif  // SCULPT_SERVER_SCENE_EDIT_HISTORY_H_
