@@ -145,7 +145,7 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
         {"max_frame_bytes", "max_poses_per_stroke", "strokes_per_second", "stroke_burst",
          "poses_per_second", "pose_burst", "violations_before_disconnect",
          "max_clients_per_scene", "auth_timeout_ms", "auth_backoff_ms",
-         "auth_free_failures", "send_queue_bytes", "max_pending_joins"}));
+         "auth_free_failures", "send_queue_bytes", "max_pending_joins", "undo_depth"}));
     int64_t v = c->limits.max_frame_bytes;
     Get(*l, "max_frame_bytes", &v);
     c->limits.max_frame_bytes = static_cast<uint32_t>(std::clamp<int64_t>(v, 0, 1ll << 31));
@@ -169,6 +169,9 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     v = c->limits.max_pending_joins;
     Get(*l, "max_pending_joins", &v);
     c->limits.max_pending_joins = static_cast<uint32_t>(std::clamp<int64_t>(v, 0, 1 << 20));
+    v = c->limits.undo_depth;
+    Get(*l, "undo_depth", &v);
+    c->limits.undo_depth = static_cast<uint32_t>(std::clamp<int64_t>(v, 0, 1 << 20));
   }
   if (const toml::table* s = root["scene"].as_table()) {
     SceneConfig& sc = c->scene;
@@ -365,6 +368,7 @@ Status ValidateConfig(const ServerConfig& c) {
   SCULPT_RETURN_IF_ERROR(
       Range("limits.send_queue_bytes", static_cast<double>(l.send_queue_bytes), 64 << 10, 1e10));
   SCULPT_RETURN_IF_ERROR(Range("limits.max_pending_joins", l.max_pending_joins, 1, 1024));
+  SCULPT_RETURN_IF_ERROR(Range("limits.undo_depth", l.undo_depth, 1, 4096));
   const SceneConfig& s = c.scene;
   if (s.name.empty() || s.name.size() > 64) return InvalidArgument("scene.name must be 1..64 bytes");
   SCULPT_RETURN_IF_ERROR(Range("scene.voxel_size", s.voxel_size, levelset::kMinVoxelSize,

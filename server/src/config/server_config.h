@@ -98,6 +98,8 @@ struct LimitsConfig {
   // Late joins being prepared at once (waiting for the scene's copy or its serialisation, one
   // worker); past it a join is refused with RESOURCE_EXHAUSTED. Bounds the copies held.
   uint32_t max_pending_joins = 8;
+  // Strokes each author can undo per object (issue 15); older ones fall off the history.
+  uint32_t undo_depth = 64;
 };
 
 /// TLS on the TCP port and the HTTP port (HTTPS, WSS). Off while cert_file is empty; then only

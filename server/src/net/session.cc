@@ -249,6 +249,20 @@ void Session::OnModelAck(v1::ModelAck a) {
   Send(m);
 }
 
+void Session::OnUndoAck(v1::UndoAck a) {
+  if (!strand_.running_in_this_thread()) {
+    return asio::post(strand_, [self = shared_from_this(), a = std::move(a)]() mutable {
+      self->OnUndoAck(std::move(a));
+    });
+  }
+  if (closing_) return;
+  // A refused undo (nothing to undo, beyond the history) is an answer, not a violation: the
+  // ack carries the error.
+  v1::ServerMessage m;
+  *m.mutable_undo_ack() = std::move(a);
+  Send(m);
+}
+
 void Session::OnJoinState(StatusOr<JoinState> js) {
   if (!strand_.running_in_this_thread()) {
     return asio::post(strand_, [self = shared_from_this(), js = std::move(js)]() mutable {
@@ -358,11 +372,13 @@ void Session::Handle(const std::string& payload) {
     case v1::ClientMessage::kSkinSweep: return OnSkinSweep(msg.skin_sweep());
     case v1::ClientMessage::kPaint: return OnPaint(msg.paint());
     case v1::ClientMessage::kModelIntent: return OnModelIntent(msg.model_intent());
+    case v1::ClientMessage::kUndo: return OnUndo(msg.undo());
     case v1::ClientMessage::BODY_NOT_SET: break;
   }
   SendError(ProtocolError(
       v1::ERROR_CODE_MALFORMED, "ClientMessage.body", "unknown or empty",
-      "{hello, join, stroke, hover, bye, subscribe, set_interest, divergence, viewer_subscribe}",
+      "{hello, join, stroke, hover, bye, subscribe, set_interest, divergence, viewer_subscribe, "
+      "skin_ball_edit, contour_subscribe, skin_sweep, paint, model_intent, undo}",
       "unknown message"));
   Violation();
 }
@@ -724,6 +740,13 @@ void Session::OnModelIntent(const v1::ModelIntent& mi) {
   }
   server_.scene().EditModel(client_id_, mi, [self = shared_from_this()](v1::ModelAck a) {
     self->OnModelAck(std::move(a));
+  });
+}
+
+void Session::OnUndo(const v1::UndoRequest& u) {
+  if (!MayEdit("UndoRequest", u.client_seq())) return;
+  server_.scene().Undo(client_id_, u, [self = shared_from_this()](v1::UndoAck a) {
+    self->OnUndoAck(std::move(a));
   });
 }
 

@@ -68,6 +68,7 @@ class Session : public std::enable_shared_from_this<Session> {
   void OnSkinAck(v1::SkinAck ack);
   void OnPaintAck(v1::PaintAck ack);
   void OnModelAck(v1::ModelAck ack);
+  void OnUndoAck(v1::UndoAck ack);
   void OnJoinState(StatusOr<JoinState> state);
   void OnSubscriptionRefused(bool* flag, Status status);
 
@@ -88,6 +89,7 @@ class Session : public std::enable_shared_from_this<Session> {
   void OnSkinSweep(const v1::SkinSweep& s);
   void OnPaint(const v1::PaintEdit& p);
   void OnModelIntent(const v1::ModelIntent& mi);
+  void OnUndo(const v1::UndoRequest& u);
 
   // Checks shared by the edits that are not strokes: joined, sculptor, the stroke bucket.
   bool MayEdit(const char* what, uint64_t client_seq);

@@ -72,6 +72,16 @@ StatusOr<LoggedEdit> DecodeLogRecord(uint64_t seq, const std::string& payload) {
     e.record = std::move(r);
     return e;
   }
+  if (HasLogTag(payload, LogTag::kUndo)) {
+    SCULPT_ASSIGN_OR_RETURN(auto r, Tagged<v1::UndoRecord>(LogTag::kUndo, seq, payload,
+                                                           "an undo"));
+    e.stream = ResendStream::kUndos;
+    e.client_id = r.client_id();
+    e.client_seq = r.request().client_seq();
+    e.object = r.request().object();
+    e.record = std::move(r);
+    return e;
+  }
   v1::EditRecord r;
   if (!r.ParseFromString(payload)) {
     return DataLoss("edit log record " + std::to_string(seq) + " does not parse");

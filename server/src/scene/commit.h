@@ -37,7 +37,12 @@ enum class ResendStream : uint8_t {
   kModels = 2,
   kBallEdits = 3,
   kSweeps = 4,
+  kUndos = 5,  // undo and redo requests share one sequence
 };
+
+/// The name an author's strokes are filed under in the undo history: its client id (bound to the
+/// authenticated user on a server with named users).
+inline std::string HistoryAuthor(uint64_t client_id) { return std::to_string(client_id); }
 
 /// The newest client sequence committed per (stream, client). A request whose client_seq is not
 /// above it is a resend: acknowledged as a duplicate, never applied again.
@@ -73,7 +78,7 @@ struct LoggedEdit {
   /// complete edit makes a resend a duplicate.
   bool completes = true;
   std::variant<v1::EditRecord, v1::PaintRecord, v1::SkinSweepRecord, v1::ModelRecord,
-               v1::SkinEditRecord>
+               v1::SkinEditRecord, v1::UndoRecord>
       record;
 };
 

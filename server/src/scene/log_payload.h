@@ -16,6 +16,7 @@ enum class LogTag : char {
   kPaint = '\x01',     // v1::PaintRecord
   kModel = '\x02',     // v1::ModelRecord
   kSkinEdit = '\x03',  // v1::SkinEditRecord
+  kUndo = '\x04',      // v1::UndoRecord
 };
 
 inline bool HasLogTag(const std::string& payload, LogTag tag) {

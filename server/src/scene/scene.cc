@@ -12,6 +12,7 @@
 #include "sculpt/codec/settings.h"
 #include "sculpt/core/check.h"
 #include "scene/answer_once.h"
+#include "scene/edit_history.h"
 #include "scene/models.h"
 #include "scene/paint.h"
 #include "scene/skins.h"
@@ -142,26 +143,36 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   const levelset::EditSettings settings = scene->settings_;
   // The live server applies a stroke's poses as one batch once all are logged; replay gathers
   // them the same way. A stroke cut short by a crash was neither applied nor acknowledged live,
-  // so its records at the tail are not applied here either.
+  // so its records at the tail are not applied here either. Strokes, undos and sweeps go through
+  // the object's undo history as live, so an undo replays to the same state.
   std::vector<levelset::EditRequest> batch;
-  auto apply = [&settings, &batch](levelset::Sculpture& s,
-                                   const store::LogRecord& rec) -> Status {
+  Scene* raw_scene = scene.get();
+  auto apply = [&settings, &batch, raw_scene](levelset::Sculpture& s,
+                                              const store::LogRecord& rec) -> Status {
     SCULPT_ASSIGN_OR_RETURN(LoggedEdit e, DecodeLogRecord(rec.seq, rec.payload));
     const auto* r = std::get_if<v1::EditRecord>(&e.record);
     if (!r) batch.clear();
-    if (auto* w = std::get_if<v1::SkinSweepRecord>(&e.record)) return ReplaySweep(s, rec.seq, *w);
+    EditHistory& history = raw_scene->HistoryOf(e.object.empty() ? s.name() : e.object);
+    if (auto* w = std::get_if<v1::SkinSweepRecord>(&e.record)) {
+      history.Clear("a sweep changed " + w->object());
+      return ReplaySweep(s, rec.seq, *w);
+    }
     if (auto* p = std::get_if<v1::PaintRecord>(&e.record)) return ReplayPaint(s, rec.seq, *p);
-    if (!r) return Status::Ok();  // a model's or a skin's (replayed after recovery, below)
-    if (r->pose_count() <= 1) {
-      batch.clear();
-      (void)levelset::ApplyEdit(s, codec::EditFromRecord(*r), settings);
+    if (auto* u = std::get_if<v1::UndoRecord>(&e.record)) {
+      const std::string author = HistoryAuthor(u->client_id());
+      auto out = u->request().redo() ? history.Redo(s, author) : history.Undo(s, author);
+      if (!out.ok()) {
+        spdlog::warn("{} at seq {} refused on replay: {}", u->request().redo() ? "redo" : "undo",
+                     rec.seq, out.status().ToString());
+      }
       return Status::Ok();
     }
-    if (r->pose_index() == 0) batch.clear();
+    if (!r) return Status::Ok();  // a model's or a skin's (replayed after recovery, below)
+    if (r->pose_index() == 0 || r->pose_count() <= 1) batch.clear();
     batch.push_back(codec::EditFromRecord(*r));
-    if (r->pose_index() + 1 == r->pose_count()) {
+    if (r->pose_index() + 1 >= r->pose_count()) {
       // An edit the live server refused after logging it is refused identically here.
-      (void)levelset::ApplyEdits(s, batch, settings);
+      (void)history.Apply(s, rec.seq, HistoryAuthor(r->client_id()), batch, settings);
       batch.clear();
     }
     return Status::Ok();
@@ -223,7 +234,7 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
       (std::filesystem::path(config.data_dir) / store::kResendTableFile).string();
   if (auto table = store::LoadResendTable(table_path); table.ok()) {
     for (const auto& [key, client_seq] : table->last) {
-      if (key.first > static_cast<uint8_t>(ResendStream::kSweeps)) continue;
+      if (key.first > static_cast<uint8_t>(ResendStream::kUndos)) continue;
       scene->resend_.Record(static_cast<ResendStream>(key.first), key.second, client_seq);
     }
   } else if (table.status().code() != Status::Code::kNotFound) {
@@ -379,6 +390,7 @@ struct Scene::StrokeOp final : EditOp {
   uint64_t client_seq() const override { return stroke.client_seq; }
 
   Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
+    last_seq = first_seq + stroke.edits.size() - 1;
     auto it = scene.sculptures_.find(stroke.object);
     if (it == scene.sculptures_.end()) {
       return NotFound("Stroke.object=" + stroke.object + " outside the scene's objects");
@@ -406,8 +418,10 @@ struct Scene::StrokeOp final : EditOp {
     replay.source = &stroke.source;
     replay.before = levelset::CaptureReplayState(sculpture);
     replay.footprint = levelset::FootprintOf(sculpture, batch, scene.settings_);
-    auto res = batch.size() == 1 ? levelset::ApplyEdit(sculpture, batch.front(), scene.settings_)
-                                 : levelset::ApplyEdits(sculpture, batch, scene.settings_);
+    // Recorded in the object's undo history (the pre-image of what it writes), as recovery
+    // records it.
+    auto res = scene.HistoryOf(stroke.object)
+                   .Apply(sculpture, last_seq, HistoryAuthor(client), batch, scene.settings_);
     if (res.ok()) {
       result = std::move(res).value();
       a.dirty_leaves = result.dirty_leaves;
@@ -435,6 +449,7 @@ struct Scene::StrokeOp final : EditOp {
   uint64_t client;
   codec::DecodedStroke stroke;
   StrokeDone done;
+  uint64_t last_seq = 0;
   std::vector<levelset::EditRequest> batch;
   levelset::EditResult result;
 };
@@ -501,6 +516,8 @@ void Scene::MaybeSnapshot(bool force) {
     });
   }
   log_->Roll();
+  // Recovery starts from this snapshot with empty histories; live undo reaches no further.
+  ClearHistories("the object was snapshotted at seq " + std::to_string(seq));
   edits_since_snapshot_ = 0;
   tail_apply_s_ = 0;
   last_snapshot_time_ = NowSeconds();

@@ -31,6 +31,8 @@
 
 namespace sculpt::server {
 
+class EditHistory;
+
 namespace store {
 class EditLog;
 class SnapshotStore;
@@ -199,6 +201,17 @@ class Scene {
   /// The model of a `model` object (tests, tools). NotFound for an object without one.
   StatusOr<ModelSummary> ModelInfo(const std::string& object);
 
+  /// Per-author undo and redo (issue 15, undo.cc): takes back the client's own most recent
+  /// stroke on the object as if it had never been made (later strokes by anyone replayed
+  /// without it), or puts back the one it undid most recently. Logged (an UndoRecord after
+  /// 0x04, replayed by recovery), replicated as changed leaves, `done` once durable. Refused by
+  /// name: nothing to undo or redo (FailedPrecondition), beyond the history (OutOfRange). The
+  /// history reaches back to the object's last snapshot (recovery can rebuild no further) and at
+  /// most limits.undo_depth strokes per author. A resend is acknowledged as a duplicate.
+  void Undo(uint64_t client_id, v1::UndoRequest request, std::function<void(v1::UndoAck)> done);
+  /// Strokes `client_id` can undo / redo on `object` now (tests, tools); 0 for an unknown object.
+  std::pair<size_t, size_t> UndoDepth(const std::string& object, uint64_t client_id);
+
   /// Tasks queued for the compute thread and not yet started (edits, joins, subscriptions).
   size_t compute_queue_depth() const { return queue_depth_.load(std::memory_order_relaxed); }
   /// Edits applied and waiting for the edit log to become durable before they are acknowledged.
@@ -255,6 +268,12 @@ class Scene {
   struct SweepOp;     // skins.cc
   struct BallEditOp;  // skins.cc
   struct ModelOp;     // models.cc
+  struct UndoOp;      // undo.cc
+  // Per object, every stroke since its last snapshot with what undo needs (compute thread).
+  std::map<std::string, std::unique_ptr<EditHistory>> histories_;
+  EditHistory& HistoryOf(const std::string& object);
+  // Forgets every object's history (a snapshot round: recovery starts from it with none).
+  void ClearHistories(const std::string& why);
   void Commit(std::shared_ptr<EditOp> op);
   void RunCommit(const std::shared_ptr<EditOp>& op);
   // Queues `answer` until the log is durable up to `seq` (in sequence order with every other).

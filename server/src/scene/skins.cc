@@ -19,6 +19,7 @@
 
 #include "net/wire_error.h"
 #include "scene/answer_once.h"
+#include "scene/edit_history.h"
 #include "scene/log_payload.h"
 #include "scene/scene.h"
 #include "sculpt/codec/frame.h"
@@ -551,6 +552,8 @@ struct Scene::SweepOp final : EditOp {
     a.object = sweep.object();
     a.bounds_may_change = true;
     auto res = levelset::ApplySweep(scene.sculptures_.at(sweep.object()), request);
+    // Not recorded in the undo history: the strokes before it can no longer be taken back.
+    scene.HistoryOf(sweep.object()).Clear("a sweep changed " + sweep.object());
     if (!res.ok()) {
       a.status = res.status();
       return a;

@@ -1,0 +1,161 @@
+/// @brief Per-author undo and redo on the commit pipeline (issue 15): the Undo op, and the
+/// histories every stroke is recorded in (EditHistory, edit_history.h).
+#include <spdlog/spdlog.h>
+
+#include <future>
+
+#include "net/wire_error.h"
+#include "scene/answer_once.h"
+#include "scene/edit_history.h"
+#include "scene/log_payload.h"
+#include "scene/scene.h"
+
+namespace sculpt::server {
+namespace {
+
+constexpr size_t kMaxNameBytes = 64;
+
+v1::UndoAck Refused(const Status& st, const v1::UndoRequest& r) {
+  v1::UndoAck a;
+  a.set_client_seq(r.client_seq());
+  a.set_redo(r.redo());
+  a.set_accepted(false);
+  *a.mutable_error() = ToWireError(st, r.client_seq());
+  return a;
+}
+
+}  // namespace
+
+EditHistory& Scene::HistoryOf(const std::string& object) {
+  std::unique_ptr<EditHistory>& h = histories_[object];
+  if (!h) {
+    EditHistoryOptions o;
+    o.depth_per_author = static_cast<int>(config_.limits.undo_depth);
+    h = std::make_unique<EditHistory>(o);
+  }
+  return *h;
+}
+
+void Scene::ClearHistories(const std::string& why) {
+  for (auto& [object, h] : histories_) {
+    if (h) h->Clear(why);
+  }
+}
+
+// An undo or redo: Prepare checks there is something to take back (a refusal names why and
+// changes nothing) and logs the request; Apply runs the history's undo or redo, which restores
+// the region and replays the later strokes it reaches, exactly as recovery will (the history is
+// rebuilt by recovery from the same records). Replicas get the changed leaves.
+struct Scene::UndoOp final : EditOp {
+  UndoOp(uint64_t client, v1::UndoRequest r, std::function<void(v1::UndoAck)> d)
+      : client(client), request(std::move(r)), done(std::move(d)) {}
+  const char* operation() const override { return request.redo() ? "redo" : "undo"; }
+  ResendStream stream() const override { return ResendStream::kUndos; }
+  uint64_t client_id() const override { return client; }
+  uint64_t client_seq() const override { return request.client_seq(); }
+
+  Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
+    auto it = scene.sculptures_.find(request.object());
+    if (it == scene.sculptures_.end()) {
+      return NotFound("UndoRequest.object=" + request.object() + " outside the scene's objects");
+    }
+    EditHistory& h = scene.HistoryOf(request.object());
+    const std::string author = HistoryAuthor(client);
+    if (request.redo() && h.redo_depth(author) == 0) {
+      return FailedPrecondition("UndoRequest.redo=true outside requests with an undone stroke "
+                                "to redo on " + request.object() +
+                                " (none since this client's last undo, or a stroke came after it)");
+    }
+    if (!request.redo() && h.undo_depth(author) == 0) {
+      // The history says why (nothing ever, fell off the depth, cleared by a snapshot), and
+      // changes nothing when there is nothing to undo.
+      auto why = h.Undo(it->second, author);
+      if (!why.ok()) return why.status();
+      return Internal("undo history of " + request.object() + " has depth 0 but undid seq " +
+                      std::to_string(why->seq));
+    }
+    v1::UndoRecord rec;
+    rec.set_global_seq(first_seq);
+    rec.set_client_id(client);
+    *rec.mutable_request() = request;
+    rec.set_author(author);
+    records->push_back(TaggedPayload(LogTag::kUndo, rec));
+    return Status::Ok();
+  }
+
+  Applied Apply(Scene& scene) override {
+    Applied a;
+    a.object = request.object();
+    a.bounds_may_change = true;
+    EditHistory& h = scene.HistoryOf(request.object());
+    levelset::Sculpture& s = scene.sculptures_.at(request.object());
+    const std::string author = HistoryAuthor(client);
+    auto out = request.redo() ? h.Redo(s, author) : h.Undo(s, author);
+    if (!out.ok()) {
+      a.status = out.status();
+      return a;
+    }
+    outcome = *out;
+    a.dirty_leaves = out->dirty_leaves;
+    depth = {h.undo_depth(author), h.redo_depth(author)};
+    return a;
+  }
+
+  void Answer(const CommitOutcome& o) override {
+    if (!o.status.ok()) {
+      v1::UndoAck a = Refused(o.status, request);
+      if (o.records > 0) a.set_global_seq(o.global_seq_first);
+      return done(a);
+    }
+    v1::UndoAck a;
+    a.set_client_seq(o.client_seq);
+    a.set_redo(request.redo());
+    a.set_accepted(true);
+    a.set_duplicate(o.duplicate);
+    if (!o.duplicate) {
+      a.set_global_seq(o.global_seq_first);
+      a.set_target_seq(outcome.seq);
+      a.set_replayed(outcome.replayed);
+      for (const auto& [author, n] : outcome.replayed_by) {
+        v1::ReplayedEdits* r = a.add_replayed_by();
+        r->set_author(author);
+        r->set_edits(n);
+      }
+      a.set_undo_depth(static_cast<uint32_t>(depth.first));
+      a.set_redo_depth(static_cast<uint32_t>(depth.second));
+    }
+    done(a);
+  }
+
+  uint64_t client;
+  v1::UndoRequest request;
+  std::function<void(v1::UndoAck)> done;
+  UndoOutcome outcome;
+  std::pair<size_t, size_t> depth;
+};
+
+void Scene::Undo(uint64_t client_id, v1::UndoRequest request,
+                 std::function<void(v1::UndoAck)> done) {
+  auto once = AnswerOnce(std::move(done));
+  if (request.object().empty() || request.object().size() > kMaxNameBytes) {
+    return once(Refused(InvalidArgument("UndoRequest.object=(" +
+                                        std::to_string(request.object().size()) +
+                                        " bytes) outside names of 1..64 bytes"),
+                        request));
+  }
+  Commit(std::make_shared<UndoOp>(client_id, std::move(request), once));
+}
+
+std::pair<size_t, size_t> Scene::UndoDepth(const std::string& object, uint64_t client_id) {
+  std::promise<std::pair<size_t, size_t>> p;
+  auto fail = [&p](const Status&) { p.set_value({0, 0}); };
+  Post("undo depth", fail, [&] {
+    if (!sculptures_.count(object)) return p.set_value({0, 0});
+    EditHistory& h = HistoryOf(object);
+    const std::string author = HistoryAuthor(client_id);
+    p.set_value({h.undo_depth(author), h.redo_depth(author)});
+  });
+  return p.get_future().get();
+}
+
+}  // namespace sculpt::server
