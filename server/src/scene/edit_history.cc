@@ -225,8 +225,7 @@ std::vector<HistoryEntry> EditHistory::Entries(const std::string& author) const 
   return out;
 }
 
-StatusOr<UndoOutcome> EditHistory::Undo(levelset::Sculpture& sculpture,
-                                        const std::string& author) {
+StatusOr<uint64_t> EditHistory::UndoTarget(const std::string& author) const {
   auto it = authors_.find(author);
   if (it == authors_.end() || it->second.undo.empty()) {
     const uint64_t fell = it == authors_.end() ? 0 : it->second.fell_off;
@@ -241,7 +240,22 @@ StatusOr<UndoOutcome> EditHistory::Undo(levelset::Sculpture& sculpture,
     return FailedPrecondition("undo: author=" + Quoted(author) + " has nothing to undo" +
                               (cleared_.empty() ? "" : " (history cleared: " + cleared_ + ")"));
   }
-  const uint64_t id = it->second.undo.back();
+  return records_[it->second.undo.back() - first_id_].seq;
+}
+
+StatusOr<uint64_t> EditHistory::RedoTarget(const std::string& author) const {
+  auto it = authors_.find(author);
+  if (it == authors_.end() || it->second.redo.empty()) {
+    return FailedPrecondition("redo: author=" + Quoted(author) +
+                              " has nothing to redo (no undo since its last edit)");
+  }
+  return records_[it->second.redo.back() - first_id_].seq;
+}
+
+StatusOr<UndoOutcome> EditHistory::Undo(levelset::Sculpture& sculpture,
+                                        const std::string& author) {
+  SCULPT_RETURN_IF_ERROR(UndoTarget(author).status());
+  const uint64_t id = authors_[author].undo.back();
   SCULPT_ASSIGN_OR_RETURN(UndoOutcome out, Rebuild(sculpture, id, /*activate=*/false));
   // `it` may not survive Rebuild's bookkeeping of other authors: look the author up again.
   AuthorStacks& a = authors_[author];
@@ -253,12 +267,8 @@ StatusOr<UndoOutcome> EditHistory::Undo(levelset::Sculpture& sculpture,
 
 StatusOr<UndoOutcome> EditHistory::Redo(levelset::Sculpture& sculpture,
                                         const std::string& author) {
-  auto it = authors_.find(author);
-  if (it == authors_.end() || it->second.redo.empty()) {
-    return FailedPrecondition("redo: author=" + Quoted(author) +
-                              " has nothing to redo (no undo since its last edit)");
-  }
-  const uint64_t id = it->second.redo.back();
+  SCULPT_RETURN_IF_ERROR(RedoTarget(author).status());
+  const uint64_t id = authors_[author].redo.back();
   SCULPT_ASSIGN_OR_RETURN(UndoOutcome out, Rebuild(sculpture, id, /*activate=*/true));
   AuthorStacks& a = authors_[author];
   a.redo.pop_back();

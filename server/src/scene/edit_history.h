@@ -118,6 +118,15 @@ class EditHistory {
   /// FailedPrecondition when there is none (never undone, or a new edit by the author since).
   StatusOr<UndoOutcome> Redo(levelset::Sculpture& sculpture, const std::string& author);
 
+  /// The global sequence of the edit Undo(author) / Redo(author) would take back or re-apply,
+  /// with the same errors, without changing anything: the pipeline's prepare step (check, then
+  /// log the undo record naming its target).
+  StatusOr<uint64_t> UndoTarget(const std::string& author) const;
+  StatusOr<uint64_t> RedoTarget(const std::string& author) const;
+  /// Sequence of the oldest edit held (0 when empty): recovery must replay the log from at or
+  /// before it for the history to be rebuilt whole after a restart.
+  uint64_t OldestSeq() const { return records_.empty() ? 0 : records_.front().seq; }
+
   /// Forgets everything (after a write that bypassed Commit: a load, ReinitializeRegion, a
   /// global-compensation edit). `why` is quoted by later "nothing to undo" errors.
   void Clear(const std::string& why = "cleared");

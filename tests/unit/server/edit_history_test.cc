@@ -117,7 +117,11 @@ TEST(EditHistoryTest, UndoUnderAnOverlappingPressEqualsFreshReplayWithoutIt) {
   const uint64_t after_a = scene.live().StateHash();
   scene.Edit("B", Stroke({20, 0, -2}, {19, 1, 4}, 4));
   const uint64_t after_ab = scene.live().StateHash();
+  ASSERT_TRUE(scene.history().UndoTarget("A").ok());
+  EXPECT_EQ(*scene.history().UndoTarget("A"), 1u);
+  EXPECT_EQ(*scene.history().UndoTarget("B"), 2u);
   const UndoOutcome u = scene.Undo("A");
+  EXPECT_EQ(*scene.history().RedoTarget("A"), 1u);
   EXPECT_EQ(u.seq, 1u);
   EXPECT_EQ(u.author, "A");
   EXPECT_EQ(u.replayed, 1u);
@@ -159,17 +163,18 @@ TEST(EditHistoryTest, UndoUnderThirtyLaterStrokesFromThreeOthers) {
 }
 
 TEST(EditHistoryTest, UndoRedoAlternatingAHundredTimesKeepsHashAndVolume) {
+  // Small strokes: each step replays B's (the kernel's cost), 100 steps in all.
   UndoScene scene(Sphere());
-  scene.Edit("A", Stroke({20, -3, 0}, {19, 3, 1}, 4));
-  scene.Edit("B", Stroke({20, 0, -2}, {19, 1, 4}, 4));
-  scene.Edit("C", Stroke({0, 20, 0}, {1, 19, 3}, 4, EditKind::kAdd));
+  scene.Edit("A", Stroke({20, -2, 0}, {19, 2, 1}, 2, EditKind::kPress, 2));
+  scene.Edit("B", Stroke({20, 0, -1}, {19, 1, 2}, 2, EditKind::kPress, 2));
+  scene.Edit("C", Stroke({0, 20, 0}, {1, 19, 3}, 2, EditKind::kAdd, 2));
   const uint64_t with = scene.live().StateHash();
   const double volume_with = scene.live().volume();
   scene.Undo("A");
   scene.ExpectEqualsFresh("first undo");
   const uint64_t without = scene.live().StateHash();
   const double volume_without = scene.live().volume();
-  for (int i = 0; i < 100; ++i) {
+  for (int i = 0; i < 50; ++i) {
     scene.Redo("A");
     ASSERT_EQ(scene.live().StateHash(), with) << "redo " << i;
     ASSERT_LE(std::abs(scene.live().volume() - volume_with), 1e-6 * volume_with);
@@ -179,7 +184,7 @@ TEST(EditHistoryTest, UndoRedoAlternatingAHundredTimesKeepsHashAndVolume) {
   }
   // In fact bit for bit.
   EXPECT_EQ(scene.live().volume(), volume_without);
-  scene.ExpectEqualsFresh("after 100 alternations");
+  scene.ExpectEqualsFresh("after 101 undos and redos");
 }
 
 TEST(EditHistoryTest, TwoAuthorsUndoingInTheSameRegion) {
@@ -278,6 +283,7 @@ TEST(EditHistoryTest, RejectsUndoWithNothingToUndo) {
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().code(), Status::Code::kFailedPrecondition);
   EXPECT_NE(r.status().message().find("author=\"A\""), std::string::npos);
+  EXPECT_EQ(scene.history().UndoTarget("A").status().code(), Status::Code::kFailedPrecondition);
   scene.Edit("A", Stroke({20, -3, 0}, {19, 3, 1}, 4));
   scene.Undo("A");
   const uint64_t h = scene.live().StateHash();
