@@ -277,6 +277,46 @@ TEST(EditHistoryTest, DirtyLeavesBringAReplicaToTheSameState) {
   EXPECT_EQ(replica.reference_volume(), scene.live().reference_volume());
 }
 
+TEST(EditHistoryTest, UndoAfterARestartFromASnapshotEqualsUndoWithoutIt) {
+  UndoScene scene(Sphere());
+  scene.Edit("A", Stroke({20, -3, 0}, {19, 3, 1}, 4));
+  scene.Edit("B", Stroke({20, 0, -2}, {19, 1, 4}, 4));
+  scene.Edit("A", Stroke({0, 20, 0}, {1, 19, 3}, 3));
+  scene.Undo("A");  // a redo pending across the restart too
+  // The snapshot: the object (with its tracked scalars) and the history beside it.
+  auto vdb = scene.live().SerializeVdb();
+  ASSERT_TRUE(vdb.ok());
+  const std::string bytes = scene.history().Serialize();
+  auto restarted = Sculpture::DeserializeVdb(*vdb);
+  ASSERT_TRUE(restarted.ok());
+  auto history = EditHistory::Parse(bytes);
+  ASSERT_TRUE(history.ok()) << history.status().ToString();
+  EXPECT_EQ(history->Serialize(), bytes);
+  EXPECT_EQ(history->size(), scene.history().size());
+  auto after_restart = history->Undo(*restarted, "A");
+  ASSERT_TRUE(after_restart.ok()) << after_restart.status().ToString();
+  const UndoOutcome live = scene.Undo("A");
+  EXPECT_EQ(after_restart->dirty_leaves, live.dirty_leaves);
+  EXPECT_EQ(restarted->StateHash(), scene.live().StateHash());
+  EXPECT_EQ(restarted->reference_volume(), scene.live().reference_volume());
+  scene.ExpectEqualsFresh("undo after a restart");
+  ASSERT_TRUE(history->Redo(*restarted, "A").ok());
+  scene.Redo("A");
+  EXPECT_EQ(restarted->StateHash(), scene.live().StateHash());
+}
+
+TEST(EditHistoryTest, RejectsTruncatedHistory) {
+  UndoScene scene(Sphere());
+  scene.Edit("A", Stroke({20, -3, 0}, {19, 3, 1}, 4));
+  const std::string bytes = scene.history().Serialize();
+  for (size_t cut : {size_t{0}, size_t{3}, size_t{20}, bytes.size() / 2, bytes.size() - 1}) {
+    auto h = EditHistory::Parse(std::string_view(bytes).substr(0, cut));
+    ASSERT_FALSE(h.ok()) << cut;
+    EXPECT_EQ(h.status().code(), Status::Code::kDataLoss) << cut;
+  }
+  EXPECT_TRUE(EditHistory::Parse(bytes).ok());
+}
+
 TEST(EditHistoryTest, RejectsUndoWithNothingToUndo) {
   UndoScene scene(Sphere());
   auto r = scene.history().Undo(scene.live(), "A");
