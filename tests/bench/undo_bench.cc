@@ -64,7 +64,7 @@ Json RunUndoBench(bool quick, double radius, int trials, uint64_t seed) {
                              EditKind::kSmooth};
   const char* others[3] = {"B", "C", "D"};
   uint64_t seq = 0;
-  Samples apply_ms, record_ms, record_bytes;
+  Samples apply_ms, record_ms, prepare_ms, commit_ms, record_bytes;
   Json results = Json::array();
   for (int later : {0, 10, 30}) {
     Samples undo_ms, replayed, dirty, ratio;
@@ -85,7 +85,10 @@ Json RunUndoBench(bool quick, double radius, int trials, uint64_t seed) {
         const uint64_t before = history.MemoryBytes();
         const auto t2 = Clock::now();
         history.Commit(std::move(p), ++seq, author, *res, sculpture);
-        record_ms.Add(prep + MsSince(t2));
+        const double commit = MsSince(t2);
+        record_ms.Add(prep + commit);
+        prepare_ms.Add(prep);
+        commit_ms.Add(commit);
         if (history.MemoryBytes() > before) {
           record_bytes.Add(static_cast<double>(history.MemoryBytes() - before));
         }
@@ -135,6 +138,8 @@ Json RunUndoBench(bool quick, double radius, int trials, uint64_t seed) {
       {"results", results},
       {"apply_ms", apply_ms.Summary()},
       {"record_overhead_ms", record_ms.Summary()},
+      {"prepare_ms", prepare_ms.Summary()},
+      {"commit_ms", commit_ms.Summary()},
       {"bytes_per_step", record_bytes.Summary()},
       {"depth_64", Json{{"steps", deep.size()},
                         {"bytes", deep.MemoryBytes()},

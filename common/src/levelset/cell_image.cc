@@ -112,6 +112,10 @@ CellImage CellImage::Capture(const Sculpture& sculpture, const VoxelBox& box) {
   std::vector<Int3> cells = AllLeafCells(box);
   std::sort(cells.begin(), cells.end(), CellLess);
   img.cells_.reserve(cells.size());
+  // Counted first so the copies land in one allocation (a stroke's footprint holds ~100 leaves).
+  size_t leaves = 0;
+  for (const Int3& c : cells) leaves += tree.probeConstLeaf(Coord(c.x, c.y, c.z)) != nullptr;
+  img.leaves_.reserve(leaves);
   for (const Int3& c : cells) {
     const Coord xyz(c.x, c.y, c.z);
     Cell cell;
