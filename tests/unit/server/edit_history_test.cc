@@ -277,6 +277,32 @@ TEST(EditHistoryTest, DirtyLeavesBringAReplicaToTheSameState) {
   EXPECT_EQ(replica.reference_volume(), scene.live().reference_volume());
 }
 
+TEST(EditHistoryTest, AReplicaHoldingPartOfTheUndoneRegionConverges) {
+  UndoScene scene(Sphere());
+  scene.Edit("A", Stroke({20, -4, 0}, {19, 4, 1}, 4));
+  scene.Edit("B", Stroke({20, 0, -2}, {19, 1, 4}, 4));
+  // The replica's interest covers only the half of the strokes with y >= 0.
+  const levelset::VoxelBox interest{{0, 0, -32}, {40, 40, 32}};
+  levelset::SculptureOptions o;
+  o.voxel_size = 1.0;
+  o.half_width = 4;
+  auto replica = levelset::MakeEmptySculpture(o);
+  ASSERT_TRUE(replica.ok());
+  const auto cells = levelset::AllLeafCells(interest);
+  ASSERT_TRUE(levelset::ApplyLeafRecords(
+                  *replica, levelset::EncodeLeafRecords(scene.live(), cells, nullptr), interest)
+                  .ok());
+  ASSERT_EQ(levelset::RegionHash(*replica, interest), levelset::RegionHash(scene.live(), interest));
+  const UndoOutcome u = scene.Undo("A");
+  bool outside = false;
+  for (const levelset::Int3& c : u.dirty_leaves) outside = outside || c.y < 0;
+  ASSERT_TRUE(outside);  // the undone region reaches beyond the replica's interest
+  const std::string delta = levelset::EncodeLeafRecords(scene.live(), u.dirty_leaves, nullptr);
+  ASSERT_TRUE(levelset::ApplyLeafRecords(*replica, delta, interest).ok());
+  EXPECT_EQ(levelset::RegionHash(*replica, interest), levelset::RegionHash(scene.live(), interest));
+  scene.ExpectEqualsFresh("partial replica case");
+}
+
 TEST(EditHistoryTest, UndoAfterARestartFromASnapshotEqualsUndoWithoutIt) {
   UndoScene scene(Sphere());
   scene.Edit("A", Stroke({20, -3, 0}, {19, 3, 1}, 4));
