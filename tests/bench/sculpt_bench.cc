@@ -6,6 +6,7 @@
 ///   sculpt-bench skin --json       ball skins: build/update time, contour bytes, accuracy cost
 ///   sculpt-bench haptics --json    haptic tick cost (penalty/proxy, 32/128/512 samples), 1 kHz loop
 ///   sculpt-bench hetero --json     hyperpatch validity per cell and per 1,000 cells, edits, inverse map
+///   sculpt-bench undo --json       per-user undo latency under 0/10/30 later strokes, memory per step
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <iostream>
@@ -17,6 +18,9 @@ namespace sculpt::bench {
 Json RunSkinBench(bool quick, const std::string& out_dat);  // skin_bench.cc
 Json RunHapticsBench(bool quick);                           // haptics_bench.cc
 Json RunHeteroBench(bool quick, const std::string& write_scenes);  // hetero_bench.cc
+#ifdef SCULPT_BENCH_UNDO
+Json RunUndoBench(bool quick, double radius, int trials, uint64_t seed);  // undo_bench.cc
+#endif
 }  // namespace sculpt::bench
 
 namespace {
@@ -145,10 +149,32 @@ int main(int argc, char** argv) {
   hetero->add_option("--write-scenes", hetero_scenes,
                      "write the example models (tyre, mechanical part) into this directory");
 
+#ifdef SCULPT_BENCH_UNDO
+  bool undo_quick = false;
+  double undo_radius = 128;
+  int undo_trials = 30;
+  uint64_t undo_seed = 15;
+  CLI::App* undo = app.add_subcommand(
+      "undo", "per-user undo (issue 15): undo latency p50/p99 with 0, 10 and 30 later "
+              "overlapping strokes by others, the cost of recording an edit, memory per step");
+  undo->add_flag("--json", json, "print the JSON document (the only output of undo)");
+  undo->add_flag("--quick", undo_quick, "seconds-long smoke configuration");
+  undo->add_option("--radius", undo_radius, "sphere radius in voxels")->check(CLI::Range(16.0, 512.0));
+  undo->add_option("--trials", undo_trials, "undos timed per configuration")->check(CLI::Range(1, 10000));
+  undo->add_option("--seed", undo_seed, "random seed");
+#endif
+
   CLI11_PARSE(app, argc, argv);
   const std::string cmd = CommandLine(argc, argv);
 
   Json doc;
+  bool json_only = false;
+#ifdef SCULPT_BENCH_UNDO
+  if (*undo) {
+    doc = sculpt::bench::RunUndoBench(undo_quick, undo_radius, undo_trials, undo_seed);
+    json_only = true;
+  } else
+#endif
   if (*hetero) {
     doc = sculpt::bench::RunHeteroBench(hetero_quick, hetero_scenes);
   } else if (*haptics) {
@@ -184,7 +210,7 @@ int main(int argc, char** argv) {
   Json out{{"command", cmd}};
   out.update(doc);
   doc = std::move(out);
-  if (json || *skin || *haptics || *hetero) {
+  if (json || json_only || *skin || *haptics || *hetero) {
     std::cout << doc.dump(2) << std::endl;
   } else if (*edit) {
     PrintEditSummary(doc);

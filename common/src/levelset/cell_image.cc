@@ -38,7 +38,72 @@ bool Uniform(const NodeT& node, float value, bool active) {
   return true;
 }
 
+template <typename T>
+void Put(std::string& s, const T& v) {
+  s.append(reinterpret_cast<const char*>(&v), sizeof v);
+}
+
+template <typename T>
+bool Get(std::string_view& s, T* v) {
+  if (s.size() < sizeof(T)) return false;
+  std::memcpy(v, s.data(), sizeof(T));
+  s.remove_prefix(sizeof(T));
+  return true;
+}
+
 }  // namespace
+
+void CellImage::AppendTo(std::string& out) const {
+  Put(out, static_cast<uint32_t>(cells_.size()));
+  Put(out, static_cast<uint32_t>(leaves_.size()));
+  for (const Cell& c : cells_) {
+    const int32_t o[3] = {c.origin.x, c.origin.y, c.origin.z};
+    Put(out, o);
+    Put(out, c.level);
+    Put(out, static_cast<uint8_t>(c.active));
+    Put(out, c.value);
+    Put(out, c.leaf);
+  }
+  for (const Leaf& l : leaves_) Put(out, l);
+}
+
+StatusOr<CellImage> CellImage::ReadFrom(std::string_view& in) {
+  uint32_t ncells = 0, nleaves = 0;
+  if (!Get(in, &ncells) || !Get(in, &nleaves)) return DataLoss("cell image: counts truncated");
+  constexpr size_t kCellBytes = 12 + 1 + 1 + 4 + 4;
+  if (ncells > in.size() / kCellBytes || nleaves > ncells) {
+    return DataLoss("cell image: cells=" + std::to_string(ncells) + ", leaves=" +
+                    std::to_string(nleaves) + " outside what " + std::to_string(in.size()) +
+                    " bytes hold");
+  }
+  CellImage img;
+  img.cells_.resize(ncells);
+  for (uint32_t i = 0; i < ncells; ++i) {
+    Cell& c = img.cells_[i];
+    int32_t o[3];
+    uint8_t active = 0;
+    if (!Get(in, &o) || !Get(in, &c.level) || !Get(in, &active) || !Get(in, &c.value) ||
+        !Get(in, &c.leaf)) {
+      return DataLoss("cell image: cell " + std::to_string(i) + " truncated");
+    }
+    c.origin = {o[0], o[1], o[2]};
+    c.active = active != 0;
+    if (o[0] % kLeafDim || o[1] % kLeafDim || o[2] % kLeafDim || c.level > 4 ||
+        (c.level == 0 && c.leaf >= nleaves) || (i > 0 && !CellLess(img.cells_[i - 1].origin, c.origin))) {
+      return DataLoss("cell image: cell " + std::to_string(i) +
+                      " has an unaligned or unsorted origin, level=" + std::to_string(c.level) +
+                      " outside [0, 4] or leaf=" + std::to_string(c.leaf) + " outside [0, " +
+                      std::to_string(nleaves) + ")");
+    }
+  }
+  if (in.size() < static_cast<size_t>(nleaves) * sizeof(Leaf)) {
+    return DataLoss("cell image: leaves truncated");
+  }
+  img.leaves_.resize(nleaves);
+  std::memcpy(img.leaves_.data(), in.data(), nleaves * sizeof(Leaf));
+  in.remove_prefix(nleaves * sizeof(Leaf));
+  return img;
+}
 
 CellImage CellImage::Capture(const Sculpture& sculpture, const VoxelBox& box) {
   CellImage img;
@@ -47,6 +112,10 @@ CellImage CellImage::Capture(const Sculpture& sculpture, const VoxelBox& box) {
   std::vector<Int3> cells = AllLeafCells(box);
   std::sort(cells.begin(), cells.end(), CellLess);
   img.cells_.reserve(cells.size());
+  // Counted first so the copies land in one allocation (a stroke's footprint holds ~100 leaves).
+  size_t leaves = 0;
+  for (const Int3& c : cells) leaves += tree.probeConstLeaf(Coord(c.x, c.y, c.z)) != nullptr;
+  img.leaves_.reserve(leaves);
   for (const Int3& c : cells) {
     const Coord xyz(c.x, c.y, c.z);
     Cell cell;

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstring>
 #include <tuple>
+#include <type_traits>
 #include <unordered_set>
 
 #include "sculpt/core/check.h"
@@ -40,6 +41,36 @@ bool ReadsVolume(const levelset::EditRequest& r, const levelset::EditSettings& s
 }
 
 std::string Quoted(const std::string& s) { return "\"" + s + "\""; }
+
+// The serialized history: this magic, then the sizes of the structs written as they are in
+// memory (a build with other layouts refuses the bytes rather than misreading them).
+constexpr char kMagic[4] = {'S', 'E', 'H', '1'};
+static_assert(std::is_trivially_copyable_v<levelset::EditRequest>);
+static_assert(std::is_trivially_copyable_v<levelset::EditSettings>);
+static_assert(std::is_trivially_copyable_v<ReplayState>);
+
+template <typename T>
+void Put(std::string& s, const T& v) {
+  s.append(reinterpret_cast<const char*>(&v), sizeof v);
+}
+void PutString(std::string& s, const std::string& v) {
+  Put(s, static_cast<uint32_t>(v.size()));
+  s.append(v);
+}
+template <typename T>
+bool Get(std::string_view& s, T* v) {
+  if (s.size() < sizeof(T)) return false;
+  std::memcpy(v, s.data(), sizeof(T));
+  s.remove_prefix(sizeof(T));
+  return true;
+}
+bool GetString(std::string_view& s, std::string* v) {
+  uint32_t n = 0;
+  if (!Get(s, &n) || s.size() < n) return false;
+  v->assign(s.data(), n);
+  s.remove_prefix(n);
+  return true;
+}
 
 }  // namespace
 
@@ -162,6 +193,129 @@ StatusOr<levelset::EditResult> EditHistory::Apply(
   return res;
 }
 
+std::string EditHistory::Serialize() const {
+  std::string out(kMagic, 4);
+  Put(out, static_cast<uint32_t>(sizeof(levelset::EditRequest)));
+  Put(out, static_cast<uint32_t>(sizeof(levelset::EditSettings)));
+  Put(out, first_id_);
+  PutString(out, cleared_);
+  Put(out, static_cast<uint32_t>(records_.size()));
+  for (const Record& r : records_) {
+    Put(out, r.seq);
+    PutString(out, r.author);
+    Put(out, static_cast<uint32_t>(r.requests.size()));
+    for (const levelset::EditRequest& q : r.requests) Put(out, q);
+    Put(out, r.settings);
+    const int32_t box[6] = {r.footprint.min.x, r.footprint.min.y, r.footprint.min.z,
+                            r.footprint.max.x, r.footprint.max.y, r.footprint.max.z};
+    Put(out, box);
+    Put(out, r.before);
+    Put(out, r.after);
+    Put(out, r.volume_change);
+    Put(out, r.island_volume_removed);
+    const uint8_t flags[3] = {static_cast<uint8_t>(r.reinitialised),
+                              static_cast<uint8_t>(r.active), static_cast<uint8_t>(r.stack)};
+    Put(out, flags);
+    r.image.AppendTo(out);
+  }
+  // Authors in name order, so equal histories serialize equally.
+  std::map<std::string, const AuthorStacks*> sorted;
+  for (const auto& [name, a] : authors_) sorted[name] = &a;
+  Put(out, static_cast<uint32_t>(sorted.size()));
+  for (const auto& [name, a] : sorted) {
+    PutString(out, name);
+    Put(out, a->fell_off);
+    for (const std::vector<uint64_t>* ids : {&a->undo, &a->redo}) {
+      Put(out, static_cast<uint32_t>(ids->size()));
+      for (uint64_t id : *ids) Put(out, id);
+    }
+  }
+  return out;
+}
+
+StatusOr<EditHistory> EditHistory::Parse(std::string_view in, EditHistoryOptions options) {
+  SCULPT_RETURN_IF_ERROR(ValidateEditHistoryOptions(options));
+  EditHistory h(options);
+  uint32_t req_size = 0, set_size = 0, n = 0;
+  if (in.size() < 4 || std::memcmp(in.data(), kMagic, 4) != 0) {
+    return DataLoss("edit history: magic outside {SEH1}");
+  }
+  in.remove_prefix(4);
+  if (!Get(in, &req_size) || !Get(in, &set_size) || !Get(in, &h.first_id_) ||
+      !GetString(in, &h.cleared_) || !Get(in, &n)) {
+    return DataLoss("edit history: header truncated");
+  }
+  if (req_size != sizeof(levelset::EditRequest) || set_size != sizeof(levelset::EditSettings)) {
+    return DataLoss("edit history: struct sizes " + std::to_string(req_size) + "/" +
+                    std::to_string(set_size) + " outside {" +
+                    std::to_string(sizeof(levelset::EditRequest)) + "/" +
+                    std::to_string(sizeof(levelset::EditSettings)) + "} (another build wrote it)");
+  }
+  for (uint32_t i = 0; i < n; ++i) {
+    const std::string where = "edit history: record " + std::to_string(i);
+    Record r;
+    uint32_t nreq = 0;
+    if (!Get(in, &r.seq) || !GetString(in, &r.author) || !Get(in, &nreq)) {
+      return DataLoss(where + " truncated");
+    }
+    if (nreq == 0 || nreq > levelset::kMaxEditsPerBatch) {
+      return DataLoss(where + ": requests=" + std::to_string(nreq) + " outside [1, " +
+                      std::to_string(levelset::kMaxEditsPerBatch) + "]");
+    }
+    r.requests.resize(nreq);
+    int32_t box[6];
+    uint8_t flags[3];
+    bool ok = true;
+    for (levelset::EditRequest& q : r.requests) ok = ok && Get(in, &q);
+    ok = ok && Get(in, &r.settings) && Get(in, &box) && Get(in, &r.before) && Get(in, &r.after) &&
+         Get(in, &r.volume_change) && Get(in, &r.island_volume_removed) && Get(in, &flags);
+    if (!ok) return DataLoss(where + " truncated");
+    if (flags[2] > static_cast<uint8_t>(Stack::kRedo)) {
+      return DataLoss(where + ": stack=" + std::to_string(flags[2]) + " outside [0, 2]");
+    }
+    r.footprint = VoxelBox{{box[0], box[1], box[2]}, {box[3], box[4], box[5]}};
+    r.reinitialised = flags[0] != 0;
+    r.active = flags[1] != 0;
+    r.stack = static_cast<Stack>(flags[2]);
+    StatusOr<CellImage> img = CellImage::ReadFrom(in);
+    if (!img.ok()) return DataLoss(where + ": " + img.status().message());
+    r.image = std::move(img).value();
+    h.bytes_ += RecordBytes(r);
+    h.records_.push_back(std::move(r));
+  }
+  uint32_t nauthors = 0;
+  if (!Get(in, &nauthors)) return DataLoss("edit history: authors truncated");
+  const uint64_t end_id = h.first_id_ + h.records_.size();
+  for (uint32_t i = 0; i < nauthors; ++i) {
+    std::string name;
+    AuthorStacks a;
+    if (!GetString(in, &name) || !Get(in, &a.fell_off)) {
+      return DataLoss("edit history: author " + std::to_string(i) + " truncated");
+    }
+    for (std::vector<uint64_t>* ids : {&a.undo, &a.redo}) {
+      uint32_t k = 0;
+      if (!Get(in, &k) || k > in.size() / 8) {
+        return DataLoss("edit history: stacks of author " + Quoted(name) + " truncated");
+      }
+      ids->resize(k);
+      for (uint64_t& id : *ids) {
+        Get(in, &id);
+        if (id < h.first_id_ || id >= end_id || h.records_[id - h.first_id_].author != name) {
+          return DataLoss("edit history: author " + Quoted(name) + " stack id=" +
+                          std::to_string(id) + " outside its records in [" +
+                          std::to_string(h.first_id_) + ", " + std::to_string(end_id) + ")");
+        }
+      }
+    }
+    h.authors_[name] = std::move(a);
+  }
+  if (!in.empty()) {
+    return DataLoss("edit history: " + std::to_string(in.size()) + " bytes after the end");
+  }
+  h.Trim();
+  return h;
+}
+
 void EditHistory::Clear(const std::string& why) {
   records_.clear();
   first_id_ = 0;
@@ -225,8 +379,7 @@ std::vector<HistoryEntry> EditHistory::Entries(const std::string& author) const 
   return out;
 }
 
-StatusOr<UndoOutcome> EditHistory::Undo(levelset::Sculpture& sculpture,
-                                        const std::string& author) {
+StatusOr<uint64_t> EditHistory::UndoTarget(const std::string& author) const {
   auto it = authors_.find(author);
   if (it == authors_.end() || it->second.undo.empty()) {
     const uint64_t fell = it == authors_.end() ? 0 : it->second.fell_off;
@@ -241,7 +394,22 @@ StatusOr<UndoOutcome> EditHistory::Undo(levelset::Sculpture& sculpture,
     return FailedPrecondition("undo: author=" + Quoted(author) + " has nothing to undo" +
                               (cleared_.empty() ? "" : " (history cleared: " + cleared_ + ")"));
   }
-  const uint64_t id = it->second.undo.back();
+  return records_[it->second.undo.back() - first_id_].seq;
+}
+
+StatusOr<uint64_t> EditHistory::RedoTarget(const std::string& author) const {
+  auto it = authors_.find(author);
+  if (it == authors_.end() || it->second.redo.empty()) {
+    return FailedPrecondition("redo: author=" + Quoted(author) +
+                              " has nothing to redo (no undo since its last edit)");
+  }
+  return records_[it->second.redo.back() - first_id_].seq;
+}
+
+StatusOr<UndoOutcome> EditHistory::Undo(levelset::Sculpture& sculpture,
+                                        const std::string& author) {
+  SCULPT_RETURN_IF_ERROR(UndoTarget(author).status());
+  const uint64_t id = authors_[author].undo.back();
   SCULPT_ASSIGN_OR_RETURN(UndoOutcome out, Rebuild(sculpture, id, /*activate=*/false));
   // `it` may not survive Rebuild's bookkeeping of other authors: look the author up again.
   AuthorStacks& a = authors_[author];
@@ -253,12 +421,8 @@ StatusOr<UndoOutcome> EditHistory::Undo(levelset::Sculpture& sculpture,
 
 StatusOr<UndoOutcome> EditHistory::Redo(levelset::Sculpture& sculpture,
                                         const std::string& author) {
-  auto it = authors_.find(author);
-  if (it == authors_.end() || it->second.redo.empty()) {
-    return FailedPrecondition("redo: author=" + Quoted(author) +
-                              " has nothing to redo (no undo since its last edit)");
-  }
-  const uint64_t id = it->second.redo.back();
+  SCULPT_RETURN_IF_ERROR(RedoTarget(author).status());
+  const uint64_t id = authors_[author].redo.back();
   SCULPT_ASSIGN_OR_RETURN(UndoOutcome out, Rebuild(sculpture, id, /*activate=*/true));
   AuthorStacks& a = authors_[author];
   a.redo.pop_back();

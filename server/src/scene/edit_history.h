@@ -7,6 +7,7 @@
 #include <deque>
 #include <map>
 #include <string>
+#include <string_view>
 #include <unordered_map>
 #include <vector>
 
@@ -117,6 +118,23 @@ class EditHistory {
   /// Re-applies `author`'s most recently undone edit at its place in the order.
   /// FailedPrecondition when there is none (never undone, or a new edit by the author since).
   StatusOr<UndoOutcome> Redo(levelset::Sculpture& sculpture, const std::string& author);
+
+  /// The global sequence of the edit Undo(author) / Redo(author) would take back or re-apply,
+  /// with the same errors, without changing anything: the pipeline's prepare step (check, then
+  /// log the undo record naming its target).
+  StatusOr<uint64_t> UndoTarget(const std::string& author) const;
+  StatusOr<uint64_t> RedoTarget(const std::string& author) const;
+  /// Sequence of the oldest edit held (0 when empty): recovery must replay the log from at or
+  /// before it for the history to be rebuilt whole after a restart.
+  uint64_t OldestSeq() const { return records_.empty() ? 0 : records_.front().seq; }
+
+  /// The whole history (edits, pre-images, scalars, author stacks) as bytes to keep beside a
+  /// snapshot of the object: a restart from that snapshot then undoes what was undoable before
+  /// it, as if there had been no restart. For this build's own bytes only (the layout holds the
+  /// kernel's structs as they are in memory); Parse still checks bounds and returns DataLoss
+  /// naming the field for anything truncated or inconsistent, InvalidArgument for bad options.
+  std::string Serialize() const;
+  static StatusOr<EditHistory> Parse(std::string_view bytes, EditHistoryOptions options = {});
 
   /// Forgets everything (after a write that bypassed Commit: a load, ReinitializeRegion, a
   /// global-compensation edit). `why` is quoted by later "nothing to undo" errors.

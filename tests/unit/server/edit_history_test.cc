@@ -117,7 +117,11 @@ TEST(EditHistoryTest, UndoUnderAnOverlappingPressEqualsFreshReplayWithoutIt) {
   const uint64_t after_a = scene.live().StateHash();
   scene.Edit("B", Stroke({20, 0, -2}, {19, 1, 4}, 4));
   const uint64_t after_ab = scene.live().StateHash();
+  ASSERT_TRUE(scene.history().UndoTarget("A").ok());
+  EXPECT_EQ(*scene.history().UndoTarget("A"), 1u);
+  EXPECT_EQ(*scene.history().UndoTarget("B"), 2u);
   const UndoOutcome u = scene.Undo("A");
+  EXPECT_EQ(*scene.history().RedoTarget("A"), 1u);
   EXPECT_EQ(u.seq, 1u);
   EXPECT_EQ(u.author, "A");
   EXPECT_EQ(u.replayed, 1u);
@@ -159,17 +163,18 @@ TEST(EditHistoryTest, UndoUnderThirtyLaterStrokesFromThreeOthers) {
 }
 
 TEST(EditHistoryTest, UndoRedoAlternatingAHundredTimesKeepsHashAndVolume) {
+  // Small strokes: each step replays B's (the kernel's cost), 100 steps in all.
   UndoScene scene(Sphere());
-  scene.Edit("A", Stroke({20, -3, 0}, {19, 3, 1}, 4));
-  scene.Edit("B", Stroke({20, 0, -2}, {19, 1, 4}, 4));
-  scene.Edit("C", Stroke({0, 20, 0}, {1, 19, 3}, 4, EditKind::kAdd));
+  scene.Edit("A", Stroke({20, -2, 0}, {19, 2, 1}, 2, EditKind::kPress, 2));
+  scene.Edit("B", Stroke({20, 0, -1}, {19, 1, 2}, 2, EditKind::kPress, 2));
+  scene.Edit("C", Stroke({0, 20, 0}, {1, 19, 3}, 2, EditKind::kAdd, 2));
   const uint64_t with = scene.live().StateHash();
   const double volume_with = scene.live().volume();
   scene.Undo("A");
   scene.ExpectEqualsFresh("first undo");
   const uint64_t without = scene.live().StateHash();
   const double volume_without = scene.live().volume();
-  for (int i = 0; i < 100; ++i) {
+  for (int i = 0; i < 50; ++i) {
     scene.Redo("A");
     ASSERT_EQ(scene.live().StateHash(), with) << "redo " << i;
     ASSERT_LE(std::abs(scene.live().volume() - volume_with), 1e-6 * volume_with);
@@ -179,7 +184,7 @@ TEST(EditHistoryTest, UndoRedoAlternatingAHundredTimesKeepsHashAndVolume) {
   }
   // In fact bit for bit.
   EXPECT_EQ(scene.live().volume(), volume_without);
-  scene.ExpectEqualsFresh("after 100 alternations");
+  scene.ExpectEqualsFresh("after 101 undos and redos");
 }
 
 TEST(EditHistoryTest, TwoAuthorsUndoingInTheSameRegion) {
@@ -272,12 +277,79 @@ TEST(EditHistoryTest, DirtyLeavesBringAReplicaToTheSameState) {
   EXPECT_EQ(replica.reference_volume(), scene.live().reference_volume());
 }
 
+TEST(EditHistoryTest, AReplicaHoldingPartOfTheUndoneRegionConverges) {
+  UndoScene scene(Sphere());
+  scene.Edit("A", Stroke({20, -4, 0}, {19, 4, 1}, 4));
+  scene.Edit("B", Stroke({20, 0, -2}, {19, 1, 4}, 4));
+  // The replica's interest covers only the half of the strokes with y >= 0.
+  const levelset::VoxelBox interest{{0, 0, -32}, {40, 40, 32}};
+  levelset::SculptureOptions o;
+  o.voxel_size = 1.0;
+  o.half_width = 4;
+  auto replica = levelset::MakeEmptySculpture(o);
+  ASSERT_TRUE(replica.ok());
+  const auto cells = levelset::AllLeafCells(interest);
+  ASSERT_TRUE(levelset::ApplyLeafRecords(
+                  *replica, levelset::EncodeLeafRecords(scene.live(), cells, nullptr), interest)
+                  .ok());
+  ASSERT_EQ(levelset::RegionHash(*replica, interest), levelset::RegionHash(scene.live(), interest));
+  const UndoOutcome u = scene.Undo("A");
+  bool outside = false;
+  for (const levelset::Int3& c : u.dirty_leaves) outside = outside || c.y < 0;
+  ASSERT_TRUE(outside);  // the undone region reaches beyond the replica's interest
+  const std::string delta = levelset::EncodeLeafRecords(scene.live(), u.dirty_leaves, nullptr);
+  ASSERT_TRUE(levelset::ApplyLeafRecords(*replica, delta, interest).ok());
+  EXPECT_EQ(levelset::RegionHash(*replica, interest), levelset::RegionHash(scene.live(), interest));
+  scene.ExpectEqualsFresh("partial replica case");
+}
+
+TEST(EditHistoryTest, UndoAfterARestartFromASnapshotEqualsUndoWithoutIt) {
+  UndoScene scene(Sphere());
+  scene.Edit("A", Stroke({20, -3, 0}, {19, 3, 1}, 4));
+  scene.Edit("B", Stroke({20, 0, -2}, {19, 1, 4}, 4));
+  scene.Edit("A", Stroke({0, 20, 0}, {1, 19, 3}, 3));
+  scene.Undo("A");  // a redo pending across the restart too
+  // The snapshot: the object (with its tracked scalars) and the history beside it.
+  auto vdb = scene.live().SerializeVdb();
+  ASSERT_TRUE(vdb.ok());
+  const std::string bytes = scene.history().Serialize();
+  auto restarted = Sculpture::DeserializeVdb(*vdb);
+  ASSERT_TRUE(restarted.ok());
+  auto history = EditHistory::Parse(bytes);
+  ASSERT_TRUE(history.ok()) << history.status().ToString();
+  EXPECT_EQ(history->Serialize(), bytes);
+  EXPECT_EQ(history->size(), scene.history().size());
+  auto after_restart = history->Undo(*restarted, "A");
+  ASSERT_TRUE(after_restart.ok()) << after_restart.status().ToString();
+  const UndoOutcome live = scene.Undo("A");
+  EXPECT_EQ(after_restart->dirty_leaves, live.dirty_leaves);
+  EXPECT_EQ(restarted->StateHash(), scene.live().StateHash());
+  EXPECT_EQ(restarted->reference_volume(), scene.live().reference_volume());
+  scene.ExpectEqualsFresh("undo after a restart");
+  ASSERT_TRUE(history->Redo(*restarted, "A").ok());
+  scene.Redo("A");
+  EXPECT_EQ(restarted->StateHash(), scene.live().StateHash());
+}
+
+TEST(EditHistoryTest, RejectsTruncatedHistory) {
+  UndoScene scene(Sphere());
+  scene.Edit("A", Stroke({20, -3, 0}, {19, 3, 1}, 4));
+  const std::string bytes = scene.history().Serialize();
+  for (size_t cut : {size_t{0}, size_t{3}, size_t{20}, bytes.size() / 2, bytes.size() - 1}) {
+    auto h = EditHistory::Parse(std::string_view(bytes).substr(0, cut));
+    ASSERT_FALSE(h.ok()) << cut;
+    EXPECT_EQ(h.status().code(), Status::Code::kDataLoss) << cut;
+  }
+  EXPECT_TRUE(EditHistory::Parse(bytes).ok());
+}
+
 TEST(EditHistoryTest, RejectsUndoWithNothingToUndo) {
   UndoScene scene(Sphere());
   auto r = scene.history().Undo(scene.live(), "A");
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().code(), Status::Code::kFailedPrecondition);
   EXPECT_NE(r.status().message().find("author=\"A\""), std::string::npos);
+  EXPECT_EQ(scene.history().UndoTarget("A").status().code(), Status::Code::kFailedPrecondition);
   scene.Edit("A", Stroke({20, -3, 0}, {19, 3, 1}, 4));
   scene.Undo("A");
   const uint64_t h = scene.live().StateHash();

@@ -5,6 +5,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
+#include <string_view>
 #include <vector>
 
 #include "sculpt/levelset/region.h"
@@ -37,6 +39,13 @@ class CellImage {
   size_t Restore(Sculpture& sculpture, const std::vector<Int3>& cells) const;
   /// Writes every held cell back.
   size_t RestoreAll(Sculpture& sculpture) const;
+
+  /// Appends the held cells to `out` (for a snapshot of the server's own undo history).
+  void AppendTo(std::string& out) const;
+  /// Reads what AppendTo wrote from the front of `in` and advances it. Only for bytes this
+  /// process's build wrote; still bounds-checked: DataLoss naming the field for a truncated or
+  /// malformed image.
+  static StatusOr<CellImage> ReadFrom(std::string_view& in);
 
   bool Holds(const Int3& cell) const;
   /// Origins of the held cells, sorted (z, y, x).
