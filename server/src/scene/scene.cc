@@ -177,6 +177,11 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
     }
     return Status::Ok();
   };
+  // Each object's undo history as kept with the snapshot it is loaded from, before the tail
+  // is replayed through it.
+  ro.on_loaded = [raw_scene](const std::string& object, uint64_t snapshot_seq) {
+    raw_scene->LoadHistory(object, snapshot_seq);
+  };
   const double t0 = NowSeconds();
   SCULPT_ASSIGN_OR_RETURN(store::RecoveredScene rec,
                           store::Recover(config.data_dir, ro, make_initial, route, apply));
@@ -496,7 +501,8 @@ void Scene::MaybeSnapshot(bool force) {
   }
   // The resend table, skins and models at `seq` are durable before the round can let the log
   // go; a round with any failure trims nothing.
-  const bool side_files_saved = SaveResendTable(seq) & SaveModels(seq) & SaveSkins(seq);
+  const bool side_files_saved =
+      SaveResendTable(seq) & SaveModels(seq) & SaveSkins(seq) & SaveHistories(seq);
   struct Round {
     std::atomic<size_t> remaining;
     std::atomic<bool> failed;
@@ -516,8 +522,6 @@ void Scene::MaybeSnapshot(bool force) {
     });
   }
   log_->Roll();
-  // Recovery starts from this snapshot with empty histories; live undo reaches no further.
-  ClearHistories("the object was snapshotted at seq " + std::to_string(seq));
   edits_since_snapshot_ = 0;
   tail_apply_s_ = 0;
   last_snapshot_time_ = NowSeconds();

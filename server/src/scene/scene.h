@@ -272,8 +272,14 @@ class Scene {
   // Per object, every stroke since its last snapshot with what undo needs (compute thread).
   std::map<std::string, std::unique_ptr<EditHistory>> histories_;
   EditHistory& HistoryOf(const std::string& object);
-  // Forgets every object's history (a snapshot round: recovery starts from it with none).
+  // Forgets every object's history.
   void ClearHistories(const std::string& why);
+  // Each object's history beside the snapshots of round `seq` (data_dir/history/<object>.bin),
+  // so a restart from that snapshot undoes what was undoable before it; false if one failed.
+  bool SaveHistories(uint64_t seq);
+  // Recovery: the history kept with the snapshot the object was loaded from (an older or
+  // missing one: an empty history, and a warning).
+  void LoadHistory(const std::string& object, uint64_t snapshot_seq);
   void Commit(std::shared_ptr<EditOp> op);
   void RunCommit(const std::shared_ptr<EditOp>& op);
   // Queues `answer` until the log is durable up to `seq` (in sequence order with every other).

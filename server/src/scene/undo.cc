@@ -2,18 +2,40 @@
 /// histories every stroke is recorded in (EditHistory, edit_history.h).
 #include <spdlog/spdlog.h>
 
+#include <boost/crc.hpp>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <future>
+#include <iterator>
 
 #include "net/wire_error.h"
 #include "scene/answer_once.h"
 #include "scene/edit_history.h"
 #include "scene/log_payload.h"
 #include "scene/scene.h"
+#include "store/resend_table.h"
 
 namespace sculpt::server {
 namespace {
 
 constexpr size_t kMaxNameBytes = 64;
+
+// A history file beside the snapshots: magic, the snapshot seq it belongs to, the payload size,
+// CRC32C of the payload, then EditHistory::Serialize's bytes.
+constexpr char kHistoryMagic[8] = {'S', 'C', 'L', 'P', 'H', 'I', 'S', 'T'};
+constexpr size_t kHistoryHeader = 8 + 8 + 8 + 4;
+
+uint32_t Crc32c(std::string_view bytes) {
+  boost::crc_optimal<32, 0x1EDC6F41, 0xFFFFFFFF, 0xFFFFFFFF, true, true> crc;
+  crc.process_bytes(bytes.data(), bytes.size());
+  return crc.checksum();
+}
+
+std::string HistoryPath(const std::string& data_dir, const std::string& object) {
+  return (std::filesystem::path(data_dir) / "history" / (object + ".bin")).string();
+}
 
 v1::UndoAck Refused(const Status& st, const v1::UndoRequest& r) {
   v1::UndoAck a;
@@ -61,18 +83,17 @@ struct Scene::UndoOp final : EditOp {
     }
     EditHistory& h = scene.HistoryOf(request.object());
     const std::string author = HistoryAuthor(client);
-    if (request.redo() && h.redo_depth(author) == 0) {
-      return FailedPrecondition("UndoRequest.redo=true outside requests with an undone stroke "
-                                "to redo on " + request.object() +
-                                " (none since this client's last undo, or a stroke came after it)");
-    }
-    if (!request.redo() && h.undo_depth(author) == 0) {
-      // The history says why (nothing ever, fell off the depth, cleared by a snapshot), and
-      // changes nothing when there is nothing to undo.
-      auto why = h.Undo(it->second, author);
-      if (!why.ok()) return why.status();
-      return Internal("undo history of " + request.object() + " has depth 0 but undid seq " +
-                      std::to_string(why->seq));
+    if (request.redo()) {
+      if (h.redo_depth(author) == 0) {
+        return FailedPrecondition("UndoRequest.redo=true outside requests with an undone stroke "
+                                  "to redo on " + request.object() +
+                                  " (none since this client's last undo, or a stroke came after "
+                                  "it)");
+      }
+      SCULPT_RETURN_IF_ERROR(h.RedoTarget(author).status());
+    } else {
+      // The history says why not (nothing ever, fell off the depth, cleared by a sweep).
+      SCULPT_RETURN_IF_ERROR(h.UndoTarget(author).status());
     }
     v1::UndoRecord rec;
     rec.set_global_seq(first_seq);
@@ -144,6 +165,65 @@ void Scene::Undo(uint64_t client_id, v1::UndoRequest request,
                         request));
   }
   Commit(std::make_shared<UndoOp>(client_id, std::move(request), once));
+}
+
+bool Scene::SaveHistories(uint64_t seq) {
+  bool saved_all = true;
+  std::error_code ec;
+  std::filesystem::create_directories(std::filesystem::path(config_.data_dir) / "history", ec);
+  for (const auto& [object, sculpture] : sculptures_) {
+    const std::string payload = HistoryOf(object).Serialize();
+    std::string bytes(kHistoryMagic, sizeof(kHistoryMagic));
+    const uint64_t size = payload.size();
+    const uint32_t crc = Crc32c(payload);
+    bytes.append(reinterpret_cast<const char*>(&seq), 8);
+    bytes.append(reinterpret_cast<const char*>(&size), 8);
+    bytes.append(reinterpret_cast<const char*>(&crc), 4);
+    bytes += payload;
+    if (const Status s = store::WriteFileDurably(HistoryPath(config_.data_dir, object), bytes);
+        !s.ok()) {
+      spdlog::error("undo history of {} at seq {} not saved: {}", object, seq, s.ToString());
+      saved_all = false;
+    }
+  }
+  return saved_all;
+}
+
+void Scene::LoadHistory(const std::string& object, uint64_t snapshot_seq) {
+  EditHistory& h = HistoryOf(object);
+  if (snapshot_seq == 0) return;  // built from the scene: nothing before it to undo
+  const std::string path = HistoryPath(config_.data_dir, object);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    h.Clear("no undo history was kept with the snapshot at seq " + std::to_string(snapshot_seq));
+    return;
+  }
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  auto refuse = [&](const std::string& why) {
+    spdlog::warn("undo history {}: {}; strokes before seq {} can no longer be undone", path, why,
+                 snapshot_seq);
+    h.Clear("the undo history kept with the snapshot at seq " + std::to_string(snapshot_seq) +
+            " was not usable");
+  };
+  if (bytes.size() < kHistoryHeader || std::memcmp(bytes.data(), kHistoryMagic, 8) != 0) {
+    return refuse("not a history file");
+  }
+  uint64_t seq = 0, size = 0;
+  uint32_t crc = 0;
+  std::memcpy(&seq, bytes.data() + 8, 8);
+  std::memcpy(&size, bytes.data() + 16, 8);
+  std::memcpy(&crc, bytes.data() + 24, 4);
+  if (seq != snapshot_seq) {
+    return refuse("kept at seq " + std::to_string(seq) + ", the snapshot loaded is at seq " +
+                  std::to_string(snapshot_seq));
+  }
+  const std::string_view payload(bytes.data() + kHistoryHeader, bytes.size() - kHistoryHeader);
+  if (size != payload.size() || Crc32c(payload) != crc) return refuse("size or checksum mismatch");
+  EditHistoryOptions o;
+  o.depth_per_author = static_cast<int>(config_.limits.undo_depth);
+  auto parsed = EditHistory::Parse(payload, o);
+  if (!parsed.ok()) return refuse(parsed.status().ToString());
+  h = std::move(parsed).value();
 }
 
 std::pair<size_t, size_t> Scene::UndoDepth(const std::string& object, uint64_t client_id) {

@@ -112,6 +112,9 @@ StatusOr<RecoveredScene> Recover(const std::string& data_dir, const RecoveryOpti
                       "): it holds edits whose records were lost before they were durable");
   }
 
+  if (options.on_loaded) {
+    for (const auto& [object, seq] : scene.snapshot_seq) options.on_loaded(object, seq);
+  }
   Status replay = log.ForEachFrom(replay_from, [&](const LogRecord& record) -> Status {
     StatusOr<std::string> object = route(record);
     if (!object.ok()) {

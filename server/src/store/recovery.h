@@ -38,6 +38,10 @@ struct RecoveryOptions {
   std::vector<std::string> objects;
   EditLogOptions log;
   SnapshotStoreOptions snapshots;
+  /// Called once per object after it is loaded (from its snapshot at `snapshot_seq`, or built
+  /// with seq 0) and before the log tail is replayed onto it: where side state kept beside a
+  /// snapshot (the undo history) is loaded to match. Optional.
+  std::function<void(const std::string& object, uint64_t snapshot_seq)> on_loaded;
 };
 
 /// A scene as it was after the last record in the log (or the newest snapshot, if later).

@@ -65,6 +65,10 @@ Status SaveResendTable(const std::string& path, const ResendTable& table) {
     Put(&bytes, client_seq, 8);
   }
   Put(&bytes, Crc(bytes.data(), bytes.size()), 4);
+  return WriteFileDurably(path, bytes);
+}
+
+Status WriteFileDurably(const std::string& path, std::string_view bytes) {
   const std::string tmp = path + ".tmp";
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) return Errno("creating", tmp);

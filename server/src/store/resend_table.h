@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <string_view>
 #include <utility>
 
 #include "sculpt/core/status.h"
@@ -35,6 +36,11 @@ StatusOr<ResendTable> LoadResendTable(const std::string& path);
 /// fsync of a directory, so that a rename or unlink inside it survives a power loss. Internal
 /// naming the directory on failure.
 Status FsyncDirectory(const std::string& dir);
+
+/// Replaces `path` with `bytes` so that a crash leaves the old file or the new one whole: written
+/// to `<path>.tmp`, fdatasynced, renamed, the directory fsynced. Internal naming the path and the
+/// step that failed.
+Status WriteFileDurably(const std::string& path, std::string_view bytes);
 
 }  // namespace sculpt::server::store
 
