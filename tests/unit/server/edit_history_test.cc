@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <random>
 #include <set>
 #include <string>
@@ -341,6 +342,55 @@ TEST(EditHistoryTest, RejectsTruncatedHistory) {
     EXPECT_EQ(h.status().code(), Status::Code::kDataLoss) << cut;
   }
   EXPECT_TRUE(EditHistory::Parse(bytes).ok());
+}
+
+// Random strokes, undos and redos by three authors in one region, checked against a fresh
+// replay of the log after every undo and redo. SCULPT_UNDO_SEED and SCULPT_UNDO_STEPS pick
+// another or a longer sequence.
+void RandomEditsUndosAndRedos(const EditSettings& settings, uint64_t seed) {
+  if (const char* e = std::getenv("SCULPT_UNDO_SEED")) seed = std::strtoull(e, nullptr, 10);
+  std::mt19937 rng(static_cast<uint32_t>(seed));
+  std::uniform_real_distribution<double> u(-5, 5);
+  std::uniform_int_distribution<int> pick(0, 9);
+  const char* authors[3] = {"A", "B", "C"};
+  const EditKind kinds[5] = {EditKind::kPress, EditKind::kAdd, EditKind::kSmooth,
+                             EditKind::kSubtract, EditKind::kPress};
+  UndoScene scene(Sphere(), settings);
+  int ops = 0;
+  int steps = 24;
+  if (const char* e = std::getenv("SCULPT_UNDO_STEPS")) steps = std::atoi(e);
+  for (int step = 0; step < steps; ++step) {
+    const std::string who = authors[rng() % 3];
+    const int what = pick(rng);
+    if (what < 6) {
+      const Vec3 a{19.5, u(rng), u(rng)};
+      scene.Edit(who, Stroke(a, a + Vec3{-0.5, u(rng) / 3, u(rng) / 3}, 2, kinds[rng() % 5], 2.5));
+    } else if (what < 8 && scene.history().undo_depth(who) > 0) {
+      scene.Undo(who);
+      scene.ExpectEqualsFresh(("undo at step " + std::to_string(step)).c_str());
+      ++ops;
+    } else if (scene.history().redo_depth(who) > 0) {
+      scene.Redo(who);
+      scene.ExpectEqualsFresh(("redo at step " + std::to_string(step)).c_str());
+      ++ops;
+    }
+    if (::testing::Test::HasFailure()) break;
+  }
+  EXPECT_GT(ops, 3);
+}
+
+TEST(EditHistoryTest, RandomEditsUndosAndRedosEqualFreshReplays) {
+  RandomEditsUndosAndRedos(EditSettings{}, 7);
+}
+
+// Scalars an edit reads beyond the volume: the reinitialisation counter (every 2nd edit), and
+// islands removed with their volume taken off the reference.
+TEST(EditHistoryTest, RandomEditsUndosAndRedosWithCountedReinitAndIslands) {
+  EditSettings s;
+  s.reinit_every_k = 2;
+  s.islands = levelset::IslandPolicy::kRemoveSmall;
+  s.min_island_volume = 50;
+  RandomEditsUndosAndRedos(s, 8);
 }
 
 TEST(EditHistoryTest, RejectsUndoWithNothingToUndo) {
