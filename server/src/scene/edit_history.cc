@@ -388,8 +388,9 @@ StatusOr<uint64_t> EditHistory::UndoTarget(const std::string& author) const {
                         " has no edit left within depth_per_author=" +
                         std::to_string(options_.depth_per_author) + " (" + std::to_string(fell) +
                         " older edits fell off the history, which keeps the last " +
-                        std::to_string(options_.depth_per_author) + " per author and " +
-                        std::to_string(options_.max_edits) + " in all)");
+                        std::to_string(options_.depth_per_author) + " per author, " +
+                        std::to_string(options_.max_edits) + " edits and " +
+                        std::to_string(options_.max_bytes >> 20) + " MiB in all)");
     }
     return FailedPrecondition("undo: author=" + Quoted(author) + " has nothing to undo" +
                               (cleared_.empty() ? "" : " (history cleared: " + cleared_ + ")"));
