@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "levelset/sculpture_impl.h"
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/region.h"
 
@@ -254,12 +255,22 @@ TEST(EditHistoryTest, FarEditsWithoutCompensationAreNotReplayed) {
   scene.ExpectEqualsFresh("far compensated press replayed");
 }
 
+// Internal nodes of 128^3 voxels (the leaves' parents) in the tree.
+size_t Node1Count(const Sculpture& s) {
+  std::vector<const openvdb::FloatTree::RootNodeType::ChildNodeType::ChildNodeType*> nodes;
+  s.impl().grid->tree().getNodes(nodes);
+  return nodes.size();
+}
+
 TEST(EditHistoryTest, UndoRemovesTheNodesAnEditAllocated) {
   // The sphere's band ends just below x = 128; an add there allocates a new 128^3 node, which an
   // undo must take away again for the tree (and its hash) to be the one without the add.
   UndoScene scene(Sphere({105, 10, 10}, 15));
+  const size_t nodes = Node1Count(scene.live());
   scene.Edit("A", Stroke({121, 10, 10}, {122, 12, 10}, 2, EditKind::kAdd, 4));
+  ASSERT_EQ(Node1Count(scene.live()), nodes + 1);
   scene.Undo("A");
+  EXPECT_EQ(Node1Count(scene.live()), nodes);
   scene.ExpectEqualsFresh("undo of an add that allocated a node");
 }
 
