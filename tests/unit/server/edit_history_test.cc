@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <optional>
 #include <random>
 #include <set>
 #include <string>
@@ -50,6 +51,7 @@ std::vector<EditRequest> Stroke(Vec3 from, Vec3 to, int poses, EditKind kind = E
 struct Logged {
   std::string author;
   std::vector<EditRequest> reqs;
+  std::optional<levelset::SweepRequest> sweep;
 };
 
 // The scene as a log: every edit goes through the history, as the pipeline will apply it.
@@ -62,6 +64,13 @@ class UndoScene {
     auto r = history_.Apply(live_, ++seq_, author, reqs, settings_);
     EXPECT_TRUE(r.ok()) << r.status().ToString();
     log_.push_back({author, std::move(reqs)});
+    undone_.push_back(false);
+    return r.ok() ? *r : levelset::EditResult{};
+  }
+  levelset::EditResult Sweep(const std::string& author, const levelset::SweepRequest& sweep) {
+    auto r = history_.ApplySweep(live_, ++seq_, author, sweep);
+    EXPECT_TRUE(r.ok()) << r.status().ToString();
+    log_.push_back({author, {}, sweep});
     undone_.push_back(false);
     return r.ok() ? *r : levelset::EditResult{};
   }
@@ -82,7 +91,8 @@ class UndoScene {
     Sculpture s = initial_.Clone();
     for (size_t i = 0; i < log_.size(); ++i) {
       if (undone_[i]) continue;
-      auto r = levelset::ApplyEdits(s, log_[i].reqs, settings_);
+      auto r = log_[i].sweep ? levelset::ApplySweep(s, *log_[i].sweep)
+                             : levelset::ApplyEdits(s, log_[i].reqs, settings_);
       EXPECT_TRUE(r.ok()) << r.status().ToString();
     }
     return s;
@@ -236,6 +246,36 @@ TEST(EditHistoryTest, UndoOfAPressThatCutOffAnIslandWhichWasRemoved) {
   scene.Redo("A");
   scene.ExpectEqualsFresh("redo of the cut");
   EXPECT_GT(scene.live().SampleWorld({20, 0, 0}), 0.0);
+}
+
+TEST(EditHistoryTest, SweepsAreUndoneAndReplayedLikeStrokes) {
+  UndoScene scene(Sphere());
+  scene.Edit("A", Stroke({20, -3, 0}, {19, 3, 1}, 4));
+  levelset::SweepRequest block;  // a 8 x 8 square extruded 4 voxels out of the sphere at +x
+  block.plane.origin = {18, -4, -4};
+  block.plane.u = {0, 1, 0};
+  block.plane.v = {0, 0, 1};
+  block.outline = {{0, 0}, {8, 0}, {8, 8}, {0, 8}};
+  block.depth = 5;
+  scene.Sweep("B", block);
+  scene.Edit("C", Stroke({23, 0, 0}, {22, 1, 1}, 3));
+  const UndoOutcome a = scene.Undo("A");  // under B's sweep and C's press
+  EXPECT_EQ(a.replayed, 2u);
+  scene.ExpectEqualsFresh("a press undone under a sweep");
+  const UndoOutcome b = scene.Undo("B");  // the sweep itself
+  EXPECT_EQ(b.replayed_by.count("C"), 1u);
+  scene.ExpectEqualsFresh("a sweep undone");
+  const auto entries = scene.history().Entries("B");
+  ASSERT_EQ(entries.size(), 1u);
+  EXPECT_TRUE(entries[0].sweep);
+  EXPECT_TRUE(entries[0].undone);
+  // Across a snapshot of the history too.
+  auto again = EditHistory::Parse(scene.history().Serialize());
+  ASSERT_TRUE(again.ok()) << again.status().ToString();
+  EXPECT_EQ(again->Serialize(), scene.history().Serialize());
+  scene.Redo("B");
+  scene.Redo("A");
+  scene.ExpectEqualsFresh("both redone");
 }
 
 TEST(EditHistoryTest, FarEditsWithoutCompensationAreNotReplayed) {
