@@ -298,6 +298,7 @@ StatusOr<EditResult> ApplySweep(Sculpture& sculpture, const SweepRequest& r) {
   }
   impl.volume += change;
   impl.reference_volume += change;  // material added or removed on purpose
+  res.volume_change = change;
   res.changed = wb.changed_voxels > 0;
   res.changed_voxels = wb.changed_voxels;
   res.dirty_leaves = std::move(wb.dirty_leaves);
@@ -306,6 +307,14 @@ StatusOr<EditResult> ApplySweep(Sculpture& sculpture, const SweepRequest& r) {
   res.elapsed_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return res;
+}
+
+EditFootprint SweepFootprintOf(const Sculpture& sculpture, const SweepRequest& request) {
+  const internal::IndexBox box = SweepBox(sculpture.impl(), request);
+  EditFootprint f;
+  f.min = box.min;
+  f.max = box.max;
+  return f;
 }
 
 }  // namespace sculpt::levelset

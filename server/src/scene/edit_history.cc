@@ -72,6 +72,31 @@ bool GetString(std::string_view& s, std::string* v) {
   return true;
 }
 
+void PutSweep(std::string& s, const levelset::SweepRequest& r) {
+  Put(s, static_cast<uint8_t>(r.mode));
+  Put(s, static_cast<uint8_t>(r.add));
+  Put(s, r.plane);
+  Put(s, r.depth);
+  Put(s, r.axis_point);
+  Put(s, r.axis_dir);
+  Put(s, static_cast<uint32_t>(r.outline.size()));
+  for (const levelset::PlanePoint& p : r.outline) Put(s, p);
+}
+bool GetSweep(std::string_view& s, levelset::SweepRequest* r) {
+  uint8_t mode = 0, add = 0;
+  uint32_t n = 0;
+  if (!Get(s, &mode) || !Get(s, &add) || !Get(s, &r->plane) || !Get(s, &r->depth) ||
+      !Get(s, &r->axis_point) || !Get(s, &r->axis_dir) || !Get(s, &n) ||
+      n > s.size() / sizeof(levelset::PlanePoint) || mode > 1) {
+    return false;
+  }
+  r->mode = static_cast<levelset::SweepRequest::Mode>(mode);
+  r->add = add != 0;
+  r->outline.resize(n);
+  for (levelset::PlanePoint& p : r->outline) Get(s, &p);
+  return true;
+}
+
 }  // namespace
 
 // The leaf cells whose contents in the order being rebuilt may differ from what the sculpture
@@ -141,6 +166,31 @@ PreparedEdit EditHistory::Prepare(const levelset::Sculpture& sculpture,
   return p;
 }
 
+PreparedEdit EditHistory::PrepareSweep(const levelset::Sculpture& sculpture,
+                                       const levelset::SweepRequest& request) const {
+  PreparedEdit p;
+  p.sweep = request;
+  p.before = levelset::CaptureReplayState(sculpture);
+  if (levelset::MaterialCount(sculpture) > 0) {
+    p.not_undoable = "the object has material fractions, which pre-images do not hold yet";
+    return p;
+  }
+  const levelset::EditFootprint f = levelset::SweepFootprintOf(sculpture, request);
+  p.footprint = VoxelBox{f.min, f.max};
+  p.image = CellImage::Capture(sculpture, p.footprint);
+  return p;
+}
+
+StatusOr<levelset::EditResult> EditHistory::ApplySweep(levelset::Sculpture& sculpture,
+                                                       uint64_t seq, const std::string& author,
+                                                       const levelset::SweepRequest& request) {
+  SCULPT_RETURN_IF_ERROR(levelset::ValidateSweep(sculpture, request));
+  PreparedEdit p = PrepareSweep(sculpture, request);
+  StatusOr<levelset::EditResult> res = levelset::ApplySweep(sculpture, request);
+  if (res.ok()) Commit(std::move(p), seq, author, *res, sculpture);
+  return res;
+}
+
 void EditHistory::Commit(PreparedEdit prepared, uint64_t seq, const std::string& author,
                          const levelset::EditResult& result,
                          const levelset::Sculpture& sculpture) {
@@ -152,6 +202,7 @@ void EditHistory::Commit(PreparedEdit prepared, uint64_t seq, const std::string&
   r.seq = seq;
   r.author = author;
   r.requests = std::move(prepared.requests);
+  r.sweep = std::move(prepared.sweep);
   r.settings = prepared.settings;
   r.footprint = prepared.footprint;
   r.before = prepared.before;
@@ -203,6 +254,8 @@ std::string EditHistory::Serialize() const {
   for (const Record& r : records_) {
     Put(out, r.seq);
     PutString(out, r.author);
+    Put(out, static_cast<uint8_t>(r.sweep.has_value()));
+    if (r.sweep) PutSweep(out, *r.sweep);
     Put(out, static_cast<uint32_t>(r.requests.size()));
     for (const levelset::EditRequest& q : r.requests) Put(out, q);
     Put(out, r.settings);
@@ -255,11 +308,17 @@ StatusOr<EditHistory> EditHistory::Parse(std::string_view in, EditHistoryOptions
     const std::string where = "edit history: record " + std::to_string(i);
     Record r;
     uint32_t nreq = 0;
-    if (!Get(in, &r.seq) || !GetString(in, &r.author) || !Get(in, &nreq)) {
+    uint8_t has_sweep = 0;
+    if (!Get(in, &r.seq) || !GetString(in, &r.author) || !Get(in, &has_sweep)) {
       return DataLoss(where + " truncated");
     }
-    if (nreq == 0 || nreq > levelset::kMaxEditsPerBatch) {
-      return DataLoss(where + ": requests=" + std::to_string(nreq) + " outside [1, " +
+    if (has_sweep) {
+      r.sweep.emplace();
+      if (!GetSweep(in, &*r.sweep)) return DataLoss(where + ": sweep truncated");
+    }
+    if (!Get(in, &nreq)) return DataLoss(where + " truncated");
+    if ((has_sweep && nreq != 0) || (!has_sweep && (nreq == 0 || nreq > levelset::kMaxEditsPerBatch))) {
+      return DataLoss(where + ": requests=" + std::to_string(nreq) + " outside {0} (a sweep) or [1, " +
                       std::to_string(levelset::kMaxEditsPerBatch) + "]");
     }
     r.requests.resize(nreq);
@@ -370,7 +429,12 @@ std::vector<HistoryEntry> EditHistory::Entries(const std::string& author) const 
     HistoryEntry e;
     e.seq = r.seq;
     e.author = r.author;
-    e.kind = r.requests.front().kind;
+    if (r.sweep) {
+      e.sweep = true;
+      e.kind = r.sweep->add ? levelset::EditKind::kAdd : levelset::EditKind::kSubtract;
+    } else {
+      e.kind = r.requests.front().kind;
+    }
     e.poses = static_cast<uint32_t>(r.requests.size());
     e.undone = !r.active;
     e.undoable = r.stack == Stack::kUndo;
@@ -388,8 +452,9 @@ StatusOr<uint64_t> EditHistory::UndoTarget(const std::string& author) const {
                         " has no edit left within depth_per_author=" +
                         std::to_string(options_.depth_per_author) + " (" + std::to_string(fell) +
                         " older edits fell off the history, which keeps the last " +
-                        std::to_string(options_.depth_per_author) + " per author and " +
-                        std::to_string(options_.max_edits) + " in all)");
+                        std::to_string(options_.depth_per_author) + " per author, " +
+                        std::to_string(options_.max_edits) + " edits and " +
+                        std::to_string(options_.max_bytes >> 20) + " MiB in all)");
     }
     return FailedPrecondition("undo: author=" + Quoted(author) + " has nothing to undo" +
                               (cleared_.empty() ? "" : " (history cleared: " + cleared_ + ")"));
@@ -433,7 +498,7 @@ StatusOr<UndoOutcome> EditHistory::Redo(levelset::Sculpture& sculpture,
 
 bool EditHistory::NeedsReplay(const Record& r, const ReplayState& state,
                               const CellSet& region) const {
-  if (ReadsVolume(r.requests.front(), r.settings) &&
+  if (!r.sweep && ReadsVolume(r.requests.front(), r.settings) &&
       !(SameBits(state.volume, r.before.volume) &&
         SameBits(state.reference_volume, r.before.reference_volume))) {
     return true;
@@ -461,6 +526,12 @@ ReplayState EditHistory::Transfer(const Record& r, const ReplayState& state) {
   }
   ReplayState out;
   out.volume = state.volume + r.volume_change;
+  if (r.sweep) {
+    // ApplySweep: volume += change; reference += change; the counter is not touched.
+    out.reference_volume = state.reference_volume + r.volume_change;
+    out.edits_since_reinit = state.edits_since_reinit;
+    return out;
+  }
   switch (r.requests.front().kind) {
     case levelset::EditKind::kAdd:
     case levelset::EditKind::kSubtract:
@@ -514,8 +585,13 @@ Status EditHistory::ReplayOne(levelset::Sculpture& sculpture, size_t index, bool
   bytes_ -= RecordBytes(r);
   r.image = CellImage::Capture(sculpture, r.footprint);
   r.before = state;
-  StatusOr<levelset::EditResult> res =
-      levelset::ReplayEdits(sculpture, r.requests, r.settings, state);
+  StatusOr<levelset::EditResult> res = Status(Status::Code::kInternal, "unset");
+  if (r.sweep) {
+    levelset::RestoreReplayState(sculpture, state);
+    res = levelset::ApplySweep(sculpture, *r.sweep);
+  } else {
+    res = levelset::ReplayEdits(sculpture, r.requests, r.settings, state);
+  }
   if (!res.ok()) {
     bytes_ += RecordBytes(r);
     return Internal("undo: replaying edit " + std::to_string(r.seq) + " failed: " +

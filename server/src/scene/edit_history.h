@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <deque>
 #include <map>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <unordered_map>
@@ -16,6 +17,7 @@
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/region.h"
 #include "sculpt/levelset/sculpture.h"
+#include "sculpt/levelset/sweep.h"
 
 namespace sculpt::server {
 
@@ -54,7 +56,8 @@ struct UndoOutcome {
 struct HistoryEntry {
   uint64_t seq = 0;
   std::string author;
-  levelset::EditKind kind = levelset::EditKind::kPress;
+  levelset::EditKind kind = levelset::EditKind::kPress;  // a sweep: kAdd or kSubtract
+  bool sweep = false;
   uint32_t poses = 0;
   bool undone = false;
   bool undoable = false;  // on its author's undo stack (within the depth)
@@ -63,7 +66,8 @@ struct HistoryEntry {
 /// What an edit is about to read and overwrite, taken by Prepare before it is applied.
 /// Opaque to callers: pass it to Commit.
 struct PreparedEdit {
-  std::vector<levelset::EditRequest> requests;
+  std::vector<levelset::EditRequest> requests;  // a batch, or
+  std::optional<levelset::SweepRequest> sweep;  // a sweep
   levelset::EditSettings settings;
   levelset::ReplayState before;
   levelset::VoxelBox footprint;
@@ -107,6 +111,13 @@ class EditHistory {
                                        const std::string& author,
                                        const std::vector<levelset::EditRequest>& requests,
                                        const levelset::EditSettings& settings);
+  /// The same for a sweep (levelset::ApplySweep), which reads and writes its block voxel by
+  /// voxel and moves volume and reference volume together: Commit takes it like a batch.
+  PreparedEdit PrepareSweep(const levelset::Sculpture& sculpture,
+                            const levelset::SweepRequest& request) const;
+  StatusOr<levelset::EditResult> ApplySweep(levelset::Sculpture& sculpture, uint64_t seq,
+                                            const std::string& author,
+                                            const levelset::SweepRequest& request);
 
   /// Takes back `author`'s most recent edit that is not undone. FailedPrecondition when the
   /// author has nothing to undo; OutOfRange when its edits within reach are exhausted and older
@@ -155,7 +166,8 @@ class EditHistory {
   struct Record {
     uint64_t seq = 0;
     std::string author;
-    std::vector<levelset::EditRequest> requests;
+    std::vector<levelset::EditRequest> requests;  // empty for a sweep
+    std::optional<levelset::SweepRequest> sweep;
     levelset::EditSettings settings;
     levelset::VoxelBox footprint;
     /// Scalars at its place in the current order (before and after it; for an undone edit

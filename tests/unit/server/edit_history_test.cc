@@ -6,11 +6,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
+#include <optional>
 #include <random>
 #include <set>
 #include <string>
 #include <vector>
 
+#include "levelset/sculpture_impl.h"
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/region.h"
 
@@ -48,6 +51,7 @@ std::vector<EditRequest> Stroke(Vec3 from, Vec3 to, int poses, EditKind kind = E
 struct Logged {
   std::string author;
   std::vector<EditRequest> reqs;
+  std::optional<levelset::SweepRequest> sweep;
 };
 
 // The scene as a log: every edit goes through the history, as the pipeline will apply it.
@@ -60,6 +64,13 @@ class UndoScene {
     auto r = history_.Apply(live_, ++seq_, author, reqs, settings_);
     EXPECT_TRUE(r.ok()) << r.status().ToString();
     log_.push_back({author, std::move(reqs)});
+    undone_.push_back(false);
+    return r.ok() ? *r : levelset::EditResult{};
+  }
+  levelset::EditResult Sweep(const std::string& author, const levelset::SweepRequest& sweep) {
+    auto r = history_.ApplySweep(live_, ++seq_, author, sweep);
+    EXPECT_TRUE(r.ok()) << r.status().ToString();
+    log_.push_back({author, {}, sweep});
     undone_.push_back(false);
     return r.ok() ? *r : levelset::EditResult{};
   }
@@ -80,7 +91,8 @@ class UndoScene {
     Sculpture s = initial_.Clone();
     for (size_t i = 0; i < log_.size(); ++i) {
       if (undone_[i]) continue;
-      auto r = levelset::ApplyEdits(s, log_[i].reqs, settings_);
+      auto r = log_[i].sweep ? levelset::ApplySweep(s, *log_[i].sweep)
+                             : levelset::ApplyEdits(s, log_[i].reqs, settings_);
       EXPECT_TRUE(r.ok()) << r.status().ToString();
     }
     return s;
@@ -236,6 +248,36 @@ TEST(EditHistoryTest, UndoOfAPressThatCutOffAnIslandWhichWasRemoved) {
   EXPECT_GT(scene.live().SampleWorld({20, 0, 0}), 0.0);
 }
 
+TEST(EditHistoryTest, SweepsAreUndoneAndReplayedLikeStrokes) {
+  UndoScene scene(Sphere());
+  scene.Edit("A", Stroke({20, -3, 0}, {19, 3, 1}, 4));
+  levelset::SweepRequest block;  // a 8 x 8 square extruded 4 voxels out of the sphere at +x
+  block.plane.origin = {18, -4, -4};
+  block.plane.u = {0, 1, 0};
+  block.plane.v = {0, 0, 1};
+  block.outline = {{0, 0}, {8, 0}, {8, 8}, {0, 8}};
+  block.depth = 5;
+  scene.Sweep("B", block);
+  scene.Edit("C", Stroke({23, 0, 0}, {22, 1, 1}, 3));
+  const UndoOutcome a = scene.Undo("A");  // under B's sweep and C's press
+  EXPECT_EQ(a.replayed, 2u);
+  scene.ExpectEqualsFresh("a press undone under a sweep");
+  const UndoOutcome b = scene.Undo("B");  // the sweep itself
+  EXPECT_EQ(b.replayed_by.count("C"), 1u);
+  scene.ExpectEqualsFresh("a sweep undone");
+  const auto entries = scene.history().Entries("B");
+  ASSERT_EQ(entries.size(), 1u);
+  EXPECT_TRUE(entries[0].sweep);
+  EXPECT_TRUE(entries[0].undone);
+  // Across a snapshot of the history too.
+  auto again = EditHistory::Parse(scene.history().Serialize());
+  ASSERT_TRUE(again.ok()) << again.status().ToString();
+  EXPECT_EQ(again->Serialize(), scene.history().Serialize());
+  scene.Redo("B");
+  scene.Redo("A");
+  scene.ExpectEqualsFresh("both redone");
+}
+
 TEST(EditHistoryTest, FarEditsWithoutCompensationAreNotReplayed) {
   UndoScene scene(Sphere({0, 0, 0}, 30));
   scene.Edit("A", Stroke({30, -3, 0}, {29, 3, 1}, 4));
@@ -253,12 +295,22 @@ TEST(EditHistoryTest, FarEditsWithoutCompensationAreNotReplayed) {
   scene.ExpectEqualsFresh("far compensated press replayed");
 }
 
+// Internal nodes of 128^3 voxels (the leaves' parents) in the tree.
+size_t Node1Count(const Sculpture& s) {
+  std::vector<const openvdb::FloatTree::RootNodeType::ChildNodeType::ChildNodeType*> nodes;
+  s.impl().grid->tree().getNodes(nodes);
+  return nodes.size();
+}
+
 TEST(EditHistoryTest, UndoRemovesTheNodesAnEditAllocated) {
   // The sphere's band ends just below x = 128; an add there allocates a new 128^3 node, which an
   // undo must take away again for the tree (and its hash) to be the one without the add.
   UndoScene scene(Sphere({105, 10, 10}, 15));
+  const size_t nodes = Node1Count(scene.live());
   scene.Edit("A", Stroke({121, 10, 10}, {122, 12, 10}, 2, EditKind::kAdd, 4));
+  ASSERT_EQ(Node1Count(scene.live()), nodes + 1);
   scene.Undo("A");
+  EXPECT_EQ(Node1Count(scene.live()), nodes);
   scene.ExpectEqualsFresh("undo of an add that allocated a node");
 }
 
@@ -341,6 +393,55 @@ TEST(EditHistoryTest, RejectsTruncatedHistory) {
     EXPECT_EQ(h.status().code(), Status::Code::kDataLoss) << cut;
   }
   EXPECT_TRUE(EditHistory::Parse(bytes).ok());
+}
+
+// Random strokes, undos and redos by three authors in one region, checked against a fresh
+// replay of the log after every undo and redo. SCULPT_UNDO_SEED and SCULPT_UNDO_STEPS pick
+// another or a longer sequence.
+void RandomEditsUndosAndRedos(const EditSettings& settings, uint64_t seed) {
+  if (const char* e = std::getenv("SCULPT_UNDO_SEED")) seed = std::strtoull(e, nullptr, 10);
+  std::mt19937 rng(static_cast<uint32_t>(seed));
+  std::uniform_real_distribution<double> u(-5, 5);
+  std::uniform_int_distribution<int> pick(0, 9);
+  const char* authors[3] = {"A", "B", "C"};
+  const EditKind kinds[5] = {EditKind::kPress, EditKind::kAdd, EditKind::kSmooth,
+                             EditKind::kSubtract, EditKind::kPress};
+  UndoScene scene(Sphere(), settings);
+  int ops = 0;
+  int steps = 24;
+  if (const char* e = std::getenv("SCULPT_UNDO_STEPS")) steps = std::atoi(e);
+  for (int step = 0; step < steps; ++step) {
+    const std::string who = authors[rng() % 3];
+    const int what = pick(rng);
+    if (what < 6) {
+      const Vec3 a{19.5, u(rng), u(rng)};
+      scene.Edit(who, Stroke(a, a + Vec3{-0.5, u(rng) / 3, u(rng) / 3}, 2, kinds[rng() % 5], 2.5));
+    } else if (what < 8 && scene.history().undo_depth(who) > 0) {
+      scene.Undo(who);
+      scene.ExpectEqualsFresh(("undo at step " + std::to_string(step)).c_str());
+      ++ops;
+    } else if (scene.history().redo_depth(who) > 0) {
+      scene.Redo(who);
+      scene.ExpectEqualsFresh(("redo at step " + std::to_string(step)).c_str());
+      ++ops;
+    }
+    if (::testing::Test::HasFailure()) break;
+  }
+  EXPECT_GT(ops, 3);
+}
+
+TEST(EditHistoryTest, RandomEditsUndosAndRedosEqualFreshReplays) {
+  RandomEditsUndosAndRedos(EditSettings{}, 7);
+}
+
+// Scalars an edit reads beyond the volume: the reinitialisation counter (every 2nd edit), and
+// islands removed with their volume taken off the reference.
+TEST(EditHistoryTest, RandomEditsUndosAndRedosWithCountedReinitAndIslands) {
+  EditSettings s;
+  s.reinit_every_k = 2;
+  s.islands = levelset::IslandPolicy::kRemoveSmall;
+  s.min_island_volume = 50;
+  RandomEditsUndosAndRedos(s, 8);
 }
 
 TEST(EditHistoryTest, RejectsUndoWithNothingToUndo) {

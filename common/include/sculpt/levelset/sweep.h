@@ -63,6 +63,10 @@ double PolygonSignedDistance(const std::vector<PlanePoint>& outline, const Plane
 /// on a bad request returns InvalidArgument and leaves the sculpture unchanged.
 StatusOr<EditResult> ApplySweep(Sculpture& sculpture, const SweepRequest& request);
 
+/// The index box a sweep reads and writes (voxel by voxel), for undo (server/src/scene/
+/// edit_history.h). Meaningful for a request ValidateSweep accepts.
+EditFootprint SweepFootprintOf(const Sculpture& sculpture, const SweepRequest& request);
+
 }  // namespace sculpt::levelset
 
 #endif  // SCULPT_LEVELSET_SWEEP_H_
