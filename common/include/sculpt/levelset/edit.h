@@ -99,6 +99,18 @@ struct EditRequest {
 };
 
 /// What an edit did.
+/// Wall time (ms) of each stage of one edit, for profiling (sculpt-bench edit reports them). The
+/// stages run in this order and together make up about `EditResult::elapsed_ms`.
+struct EditStageTimes {
+  double block = 0;         // copy-in of the block and the tools' distance field
+  double operators = 0;     // the kind's operator (a press's motion substeps)
+  double islands = 0;       // sliver scan and islands search
+  double compensation = 0;  // every shell compensation pass
+  double reinit = 0;        // Eikonal measure and reinitialisation
+  double resolve = 0;       // sliver and band-repair rounds (inflate, deflate, box tools)
+  double write_back = 0;    // material fractions, write-back and volume tracking
+};
+
 struct EditResult {
   bool changed = false;
   std::vector<Int3> dirty_leaves;
@@ -119,6 +131,7 @@ struct EditResult {
   double island_volume_removed = 0;
   bool press_fallback_csg = false;  // the flow stalled (no interface reached) and CSG finished it
   double elapsed_ms = 0;
+  EditStageTimes stage_ms;
 };
 
 /// Applies one edit. Validates the request first (tool fields, speed, dt, amount): on a bad
