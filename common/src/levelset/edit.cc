@@ -1159,12 +1159,14 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
 
   bool touched = false;
   for (const EditRequest& req : reqs) {
-  // Operators read a request's own field only inside its tool, at its rim (2 voxels) and, for
-  // CSG, within the band: nothing beyond bg + 2 voxels of the tool.
+  // Operators read a request's own field only inside its tool, at its rim (2 voxels, within
+  // the band's half-width of at least 3) and, for CSG, within the band: a distance beyond the
+  // band clamps to the same value as +max, so nothing beyond bg of the tool needs evaluating.
   if (reqs.size() > 1) {
+    const double margin = std::max(static_cast<double>(b.bg), 2 * b.dx);
     b.near = NearBox{};
-    b.near.limit = b.bg + 2 * b.dx;
-    ToolFieldInto(b, req.tool, b.bg + 2 * b.dx, b.tool_sdf, &b.near);
+    b.near.limit = margin;
+    ToolFieldInto(b, req.tool, margin, b.tool_sdf, &b.near);
   }
   const VoxelList gamma = b.SelectNear(0.0, [](size_t, float t) { return t < 0.f; });
   switch (req.kind) {
