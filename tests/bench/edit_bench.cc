@@ -483,7 +483,7 @@ Json RunEditBench(const EditBenchOptions& o) {
                        {"strokes", o.strokes},
                        {"seed", o.seed},
                        {"settings",
-                        "EditSettings{} (WENO5/RK2, CFL 0.5, shell compensation, Newton to "
+                        "EditSettings{} (upwind/RK2, CFL 0.5, shell compensation, Newton to "
                         "0.25 voxel^3, reinit at mean Eikonal error > 0.05, 4 upwind iterations)"},
                        {"timing",
                         "wall_ms: steady_clock around the whole ApplyEdit call (validation "

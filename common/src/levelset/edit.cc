@@ -263,11 +263,12 @@ internal::IndexBox BlockBox(const Sculpture::Impl& impl, const std::vector<EditR
 }
 
 // One block around every tool of a batch; tool_sdf is the union of the tools (their minimum).
-// Every operator and selection compares the field with thresholds no larger than `reach`
-// (and the CSG operators see no difference between a distance beyond the band and +max), so
-// the exact-distance tools are evaluated only within `reach` of their bounds.
-Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& reqs,
-                double reach) {
+// Every operator and selection compares the field with thresholds no larger than
+// `field_reach` (and the CSG operators see no difference between a distance beyond the band
+// and +max), so the exact-distance tools are evaluated only within max(field_reach, band) of
+// their bounds.
+Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& reqs, double reach,
+                double field_reach) {
   Block b;
   b.dx = impl.dx();
   b.bg = impl.background();
@@ -275,13 +276,13 @@ Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& req
   b.box = BlockBox(impl, reqs, reach);
   b.before = internal::ExtractDense(*impl.grid, b.box);
   b.phi = b.before;
-  b.near.limit = reach;
+  const double margin = std::max(field_reach, static_cast<double>(b.bg));
+  b.near.limit = margin;
   bool equal_spheres = reqs.size() > 1;
   for (const EditRequest& q : reqs) {
     equal_spheres = equal_spheres && q.tool.kind == ToolKind::kSphere &&
                     q.tool.size.x == reqs.front().tool.size.x;
   }
-  const double margin = std::max(reach, static_cast<double>(b.bg));
   if (reqs.size() == 1) {
     const ToolShape& t = reqs.front().tool;
     ToolFieldInto(b, t, ExactDistance(t) ? margin : std::numeric_limits<double>::infinity(),
@@ -661,10 +662,14 @@ IslandReport FindIslands(Block& b, const EditSettings& s) {
     for (int dj = -1; dj <= 1; ++dj)
       for (int di = -1; di <= 1; ++di)
         if (di || dj || dk) offsets[no++] = di * sx + dj * sy + dk * sz;
+  // Block indices fit 32 bits (VoxelList): 32-bit divisions cost a fraction of 64-bit ones.
+  const uint32_t ux = static_cast<uint32_t>(d.x), uy = static_cast<uint32_t>(d.y);
   auto coords = [&](size_t idx, int& i, int& j, int& k) {
-    i = static_cast<int>(idx % d.x);
-    j = static_cast<int>((idx / d.x) % d.y);
-    k = static_cast<int>(idx / (static_cast<size_t>(d.x) * d.y));
+    const uint32_t u = static_cast<uint32_t>(idx);
+    const uint32_t row = u / ux;
+    i = static_cast<int>(u - row * ux);
+    j = static_cast<int>(row % uy);
+    k = static_cast<int>(row / uy);
   };
   // A piece can only have been cut off by this edit if it touches a voxel the edit emptied, so
   // the search starts from the material next to those voxels, and each search walks best-first
@@ -870,20 +875,32 @@ struct CompensationOutcome {
 
 // Shell compensation inside the block. `base_volume` is the tracked volume before the edit, so
 // Vol = base_volume + (change of the block's inside count) dx^3, exactly as the tracked volume.
+// The shell and its weights depend on the tools' field alone, which the passes of one edit share.
+struct ShellCache {
+  bool ready = false;
+  VoxelList shell;
+  std::vector<float> w;
+};
+
 CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
-                                    double shell_outer, const EditSettings& s) {
+                                    double shell_outer, const EditSettings& s, ShellCache& cache) {
   CompensationOutcome out;
   const double dx3 = b.dx * b.dx * b.dx;
   // Every shell voxel moves (offsetting only the band would leave a growing step at its
   // edge), but only band voxels can change their inside fraction by a sub-band offset, so the
   // volume and area sums run over those alone. Weights are kept beside the lists (w[n] for
   // shell[n], band_w[m] for shell_band[m]), not in a block-sized field.
-  VoxelList shell =
-      b.SelectNear(shell_outer, [&](size_t, float t) { return t > 1.5 * b.dx && t < shell_outer; });
-  std::vector<float> w(shell.size());
-  for (size_t n = 0; n < shell.size(); ++n) {
-    w[n] = ShellWeight(b.tool_sdf[shell[n]], 1.5 * b.dx, shell_outer, b.dx);
+  if (!cache.ready) {
+    cache.shell = b.SelectNear(shell_outer,
+                               [&](size_t, float t) { return t > 1.5 * b.dx && t < shell_outer; });
+    cache.w.resize(cache.shell.size());
+    for (size_t n = 0; n < cache.shell.size(); ++n) {
+      cache.w[n] = ShellWeight(b.tool_sdf[cache.shell[n]], 1.5 * b.dx, shell_outer, b.dx);
+    }
+    cache.ready = true;
   }
+  const VoxelList& shell = cache.shell;
+  const std::vector<float>& w = cache.w;
   VoxelList shell_band;
   std::vector<float> band_w;
   for (size_t n = 0; n < shell.size(); ++n) {
@@ -1149,7 +1166,12 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
 
   // One block for the whole batch: each request's operator runs in turn inside it, then the
   // islands check, compensation and reinitialisation run once for all of them.
-  Block b = MakeBlock(impl, reqs, reach);
+  // The largest threshold any selection compares the union's field with: the compensation
+  // shell, the reinitialised region (within it) and the press's rim.
+  const double field_reach =
+      std::max(compensate && s.compensation == CompensationRegion::kShell ? shell_outer : 0.0,
+               2 * dx);
+  Block b = MakeBlock(impl, reqs, reach, field_reach);
   const double base_volume = impl.volume;
   std::vector<float> union_sdf;
   const NearBox union_near = b.near;
@@ -1162,11 +1184,16 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   // Operators read a request's own field only inside its tool, at its rim (2 voxels, within
   // the band's half-width of at least 3) and, for CSG, within the band: a distance beyond the
   // band clamps to the same value as +max, so nothing beyond bg of the tool needs evaluating.
-  if (reqs.size() > 1) {
-    const double margin = std::max(static_cast<double>(b.bg), 2 * b.dx);
+  // A press reads it only inside the tool and at its rim unless it falls back to CSG, which
+  // evaluates the band's width then.
+  auto request_field = [&](double margin) {
     b.near = NearBox{};
     b.near.limit = margin;
     ToolFieldInto(b, req.tool, margin, b.tool_sdf, &b.near);
+  };
+  if (reqs.size() > 1) {
+    request_field(req.kind == EditKind::kPress ? 2 * b.dx
+                                               : std::max(static_cast<double>(b.bg), 2 * b.dx));
   }
   const VoxelList gamma = b.SelectNear(0.0, [](size_t, float t) { return t < 0.f; });
   switch (req.kind) {
@@ -1227,6 +1254,7 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
       // interior has zero gradient everywhere): finish with the CSG difference, which is where
       // the flow would have converged.
       res.press_fallback_csg = true;
+      if (reqs.size() > 1) request_field(std::max(static_cast<double>(b.bg), 2 * b.dx));
       VoxelList all = b.Select([](size_t, float) { return true; });
       for (uint32_t idx : all) {
         b.phi.data()[idx] = std::max(b.phi.data()[idx], std::min(b.bg, -b.tool_sdf[idx]));
@@ -1306,6 +1334,7 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   }
 
   double reference = impl.reference_volume;
+  ShellCache shell_cache;
   VoxelList reinit_extra;
   if (touched && (kind == EditKind::kPress || kind == EditKind::kSubtract)) {
     IslandReport islands = FindIslands(b, s);
@@ -1327,7 +1356,7 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   // Shell compensation first: its weighted offset bends |grad phi| in the shell, which the
   // reinitialisation below then straightens.
   if (touched && compensate && s.compensation == CompensationRegion::kShell) {
-    CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s);
+    CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s, shell_cache);
     res.compensation_iterations = c.iterations;
     res.compensation_failed = c.failed;
     res.substeps += c.substeps;
@@ -1378,7 +1407,7 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   // Compensation once more: the reinitialisation moved the interface slightly (by far less
   // than a voxel), so this pass is a small correction whose offset barely bends the field.
   if (touched && compensate && s.compensation == CompensationRegion::kShell) {
-    CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s);
+    CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s, shell_cache);
     res.compensation_iterations += c.iterations;
     res.compensation_failed = res.compensation_failed || c.failed;
     res.substeps += c.substeps;
@@ -1393,7 +1422,7 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   // reference volume is re-baselined by it.
   if (resolve_slivers && Resolve(b, repair, offset_kind) && compensate &&
       s.compensation == CompensationRegion::kShell) {
-    CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s);
+    CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s, shell_cache);
     res.compensation_iterations += c.iterations;
     res.compensation_failed = res.compensation_failed || c.failed;
     res.substeps += c.substeps;
@@ -1475,7 +1504,7 @@ StatusOr<EditResult> ReinitializeRegion(Sculpture& sculpture, const Aabb& region
   const ToolShape box = ToolShape::Box(c, (region.max - region.min) * 0.5 + Vec3{dx, dx, dx} * 0.5);
   EditRequest region_request;
   region_request.tool = box;
-  Block b = MakeBlock(impl, {region_request}, 0);
+  Block b = MakeBlock(impl, {region_request}, 0, 0);
   const double base_volume = impl.volume;
   VoxelList active = b.Select([&](size_t idx, float t) {
     return t <= 0.f && std::abs(b.phi.data()[idx]) < b.bg;

@@ -44,7 +44,10 @@ enum class IslandPolicy : uint8_t {
 
 /// Scene-level choices for edits (the effects the scene calls for).
 struct EditSettings {
-  MotionSettings motion{SpatialScheme::kWeno5, TemporalScheme::kRk2, Boundary::kClamp};
+  /// First-order upwind in space: a press runs a few substeps and stops when the tool is
+  /// empty, so WENO5 bought no measured accuracy there (docs/benchmarks.md section 2) and cost
+  /// a fifth of an edit.
+  MotionSettings motion{SpatialScheme::kUpwind, TemporalScheme::kRk2, Boundary::kClamp};
   /// CFL number for every substep (phi moves at most cfl voxels per substep).
   double cfl = 0.5;
   CompensationRegion compensation = CompensationRegion::kShell;
