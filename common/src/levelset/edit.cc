@@ -1173,9 +1173,10 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
                2 * dx);
   Block b = MakeBlock(impl, reqs, reach, field_reach);
   const double base_volume = impl.volume;
+  // A batch's operators read each request's own field; the union is set aside meanwhile.
   std::vector<float> union_sdf;
   const NearBox union_near = b.near;
-  if (reqs.size() > 1) union_sdf = b.tool_sdf;
+  if (reqs.size() > 1) union_sdf.swap(b.tool_sdf);
   std::vector<float> speed;  // a press's speed field, reused by the batch's requests
   lap(res.stage_ms.block);
 
