@@ -48,7 +48,7 @@ Status RunDemo(const DemoOptions& o) {
   spdlog::info("scene: sphere r={} voxel={} -> {} active voxels, volume {:.2f}", o.radius,
                o.voxel_size, sculpture.ActiveVoxelCount(), v0);
 
-  levelset::EditSettings settings;  // shell compensation, WENO5/RK2, Eikonal-triggered reinit
+  levelset::EditSettings settings;  // shell compensation, upwind/RK2, Eikonal-triggered reinit
   settings.islands = levelset::IslandPolicy::kRemoveSmall;
   settings.min_island_volume = 4.0 * std::pow(o.voxel_size, 3) * 64;
 

@@ -51,7 +51,7 @@ struct Config {
   std::string label;  // no spaces (gnuplot labels)
   std::string group;  // which factor it varies
   double voxel = 0.5;
-  SpatialScheme spatial = SpatialScheme::kWeno5;
+  SpatialScheme spatial = SpatialScheme::kUpwind;  // the library default (EditSettings::motion)
   TemporalScheme temporal = TemporalScheme::kRk2;
   Reinit reinit = Reinit::kThreshold;
   bool reinit_weno5 = false;  // reinitialise with WENO5 instead of the library's default scheme
@@ -269,8 +269,8 @@ std::vector<Config> Configs(const AccuracyBenchOptions& o) {
                                      TemporalScheme::kRk3};
   for (SpatialScheme sp : spatial) {
     for (TemporalScheme tm : temporal) {
-      const bool is_default = sp == SpatialScheme::kWeno5 && tm == TemporalScheme::kRk2;
-      const bool one_factor = sp == SpatialScheme::kWeno5 || tm == TemporalScheme::kRk2;
+      const bool is_default = sp == SpatialScheme::kUpwind && tm == TemporalScheme::kRk2;
+      const bool one_factor = sp == SpatialScheme::kUpwind || tm == TemporalScheme::kRk2;
       if (!o.scheme_grid && !one_factor) continue;
       Config c = base(is_default ? "default" : std::string(SpatialName(sp)) + "-" + TemporalName(tm),
                       is_default ? "default" : "scheme");

@@ -58,8 +58,16 @@ struct KindStats {
   int fallback_csg = 0;
   int unchanged = 0;
   double max_abs_residual = 0;
+  levelset::EditStageTimes stages;  // summed over the timed edits
 
   void Add(const EditResult& r, double wall) {
+    stages.block += r.stage_ms.block;
+    stages.operators += r.stage_ms.operators;
+    stages.islands += r.stage_ms.islands;
+    stages.compensation += r.stage_ms.compensation;
+    stages.reinit += r.stage_ms.reinit;
+    stages.resolve += r.stage_ms.resolve;
+    stages.write_back += r.stage_ms.write_back;
     wall_ms.Add(wall);
     edit_ms.Add(r.elapsed_ms);
     changed_voxels += static_cast<double>(r.changed_voxels);
@@ -84,7 +92,14 @@ struct KindStats {
                 {"compensation_failed", compensation_failed},
                 {"press_fallback_csg", fallback_csg},
                 {"unchanged_edits", unchanged},
-                {"max_abs_compensation_residual", max_abs_residual}};
+                {"max_abs_compensation_residual", max_abs_residual},
+                {"mean_stage_ms", Json{{"block", stages.block / n},
+                                       {"operators", stages.operators / n},
+                                       {"islands", stages.islands / n},
+                                       {"compensation", stages.compensation / n},
+                                       {"reinit", stages.reinit / n},
+                                       {"resolve", stages.resolve / n},
+                                       {"write_back", stages.write_back / n}}}};
   }
 };
 
@@ -94,6 +109,31 @@ StatusOr<EditResult> TimedEdit(Sculpture& s, const EditRequest& r, const EditSet
   StatusOr<EditResult> res = levelset::ApplyEdit(s, r, settings);
   *wall_ms = MsSince(t0);
   return res;
+}
+
+/// Poses per stroke in the "stroke" run, as sculpt-loadgen sends them.
+constexpr int kStrokePoses = 4;
+
+/// A server-like stroke: kStrokePoses press poses one voxel apart along a tangent of the sphere
+/// at `dir` (sculpt-loadgen's walk at 60 world units/s and 120 Hz with voxel 0.5), applied as one
+/// batch as sculptd applies a stroke.
+std::vector<EditRequest> StrokeOnSurface(const Vec3& dir, const Vec3& tangent_seed,
+                                         double sphere_r, const EditBenchOptions& o) {
+  Vec3 t = tangent_seed - dir * tangent_seed.Dot(dir);
+  t = t.LengthSqr() > 1e-12 ? t * (1.0 / t.Length()) : Vec3{-dir.y, dir.x, 0};
+  std::vector<EditRequest> poses;
+  for (int i = 0; i < kStrokePoses; ++i) {
+    Vec3 d = dir * sphere_r + t * ((i - 0.5 * (kStrokePoses - 1)) * kVoxel);
+    d = d * (1.0 / d.Length());
+    poses.push_back(ToolOnSurface(EditKind::kPress, d, sphere_r, o));
+  }
+  return poses;
+}
+
+std::string HexHash(uint64_t h) {
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+  return buf;
 }
 
 /// The naive pipeline on a copy of the grid: a fog mask of the tool, a masked
@@ -207,7 +247,9 @@ Json RunRadius(double R, const EditBenchOptions& o, Json* naive_out) {
   };
   EditSettings equal_work = settings;
   equal_work.compensation_tolerance_voxels = 1.0;
+  // "stroke" is a batch of kStrokePoses presses (StrokeOnSurface), timed per batch.
   const Run runs[] = {{"press", EditKind::kPress, settings},
+                      {"stroke", EditKind::kPress, settings},
                       {"add", EditKind::kAdd, settings},
                       {"subtract", EditKind::kSubtract, settings},
                       {"press_equal_work", EditKind::kPress, equal_work},
@@ -228,10 +270,20 @@ Json RunRadius(double R, const EditBenchOptions& o, Json* naive_out) {
     std::mt19937_64 krng(o.seed + static_cast<uint64_t>(R));  // the same spots for every kind
     KindStats ks;
     std::string error;
+    const bool stroke = std::string(run.name) == "stroke";
     for (int i = 0; i < o.warmup + o.edits; ++i) {
-      const EditRequest r = ToolOnSurface(run.kind, RandomDirection(krng), R, o);
+      const Vec3 dir = RandomDirection(krng);
       double wall = 0;
-      StatusOr<EditResult> res = TimedEdit(work, r, run.settings, &wall);
+      StatusOr<EditResult> res = InvalidArgument("no edit");
+      if (stroke) {
+        const std::vector<EditRequest> poses =
+            StrokeOnSurface(dir, RandomDirection(krng), R, o);
+        const auto t0 = Clock::now();
+        res = levelset::ApplyEdits(work, poses, run.settings);
+        wall = MsSince(t0);
+      } else {
+        res = TimedEdit(work, ToolOnSurface(run.kind, dir, R, o), run.settings, &wall);
+      }
       if (!res.ok()) {
         error = res.status().ToString();
         break;
@@ -249,7 +301,8 @@ Json RunRadius(double R, const EditBenchOptions& o, Json* naive_out) {
                            {"volume_vs_initial_rel",
                             (recomputed - s.reference_volume()) / s.reference_volume()},
                            {"check_level_set", StatusText(work.CheckLevelSet())},
-                           {"active_voxels", work.ActiveVoxelCount()}};
+                           {"active_voxels", work.ActiveVoxelCount()},
+                           {"state_hash", HexHash(work.StateHash())}};
     Progress("edit: r=%g: %s wall p50 %.3f ms p99 %.3f ms (in-call p50 %.3f ms p99 %.3f ms)", R,
              run.name, ks.wall_ms.P(0.5), ks.wall_ms.P(0.99), ks.edit_ms.P(0.5),
              ks.edit_ms.P(0.99));
@@ -380,7 +433,7 @@ Json RunEditBench(const EditBenchOptions& o) {
     ratios["size_independence_radii"] = Json::array({num, den});
     Json per_kind;
     for (const char* kind :
-         {"press", "add", "subtract", "press_equal_work", "inflate", "deflate"}) {
+         {"press", "stroke", "add", "subtract", "press_equal_work", "inflate", "deflate"}) {
       per_kind[kind] = Json{{"wall_p50", ratio(kind, "wall_ms", "p50")},
                             {"wall_p99", ratio(kind, "wall_ms", "p99")},
                             {"in_call_p50", ratio(kind, "edit_ms", "p50")},
@@ -430,7 +483,7 @@ Json RunEditBench(const EditBenchOptions& o) {
                        {"strokes", o.strokes},
                        {"seed", o.seed},
                        {"settings",
-                        "EditSettings{} (WENO5/RK2, CFL 0.5, shell compensation, Newton to "
+                        "EditSettings{} (upwind/RK2, CFL 0.5, shell compensation, Newton to "
                         "0.25 voxel^3, reinit at mean Eikonal error > 0.05, 4 upwind iterations)"},
                        {"timing",
                         "wall_ms: steady_clock around the whole ApplyEdit call (validation "

@@ -97,7 +97,7 @@ int main(int argc, char** argv) {
   edit->add_option("--naive-radii", eo.naive_radii, "radii for the naive pipeline")->delimiter(',');
   edit->add_option("--naive-edits", eo.naive_edits, "naive edits per radius (0: skip)")->check(CLI::Range(0, 1000));
   edit->add_option("--kinds", eo.kinds,
-                   "edit kinds to run: press, add, subtract, press_equal_work, inflate, deflate "
+                   "edit kinds to run: press, stroke (4-pose batches), add, subtract, press_equal_work, inflate, deflate "
                    "(default: all)");
   edit->add_option("--strokes", eo.strokes, "press strokes of the volume-drift run (0: skip)")->check(CLI::Range(0, 10000000));
   edit->add_option("--stroke-radius", eo.stroke_radius, "sphere radius of the volume-drift run");

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <sstream>
 
@@ -34,12 +35,39 @@ double ToolScale(const ToolShape& t) {
   }
 }
 
+// A block-local index range [lo, hi) that holds every voxel whose tool distance is at most
+// `limit` (world units); empty (lo >= hi) when there is none.
+struct NearBox {
+  int lo[3] = {std::numeric_limits<int>::max(), std::numeric_limits<int>::max(),
+               std::numeric_limits<int>::max()};
+  int hi[3] = {std::numeric_limits<int>::min(), std::numeric_limits<int>::min(),
+               std::numeric_limits<int>::min()};
+  double limit = -std::numeric_limits<double>::infinity();
+
+  // Row (j, k) has voxels within the limit from i0 to i1 inclusive.
+  void AddRow(int i0, int i1, int j, int k) {
+    lo[0] = std::min(lo[0], i0);
+    hi[0] = std::max(hi[0], i1 + 1);
+    lo[1] = std::min(lo[1], j);
+    hi[1] = std::max(hi[1], j + 1);
+    lo[2] = std::min(lo[2], k);
+    hi[2] = std::max(hi[2], k + 1);
+  }
+  void Merge(const NearBox& o) {
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::min(lo[a], o.lo[a]);
+      hi[a] = std::max(hi[a], o.hi[a]);
+    }
+  }
+};
+
 // Everything one edit needs about its block.
 struct Block {
   internal::IndexBox box;
   DenseField before;
   DenseField phi;
   std::vector<float> tool_sdf;  // world units, per voxel
+  NearBox near;                 // where tool_sdf <= near.limit
   double dx = 1;
   float bg = 1;
   double eps = 1.5;
@@ -64,6 +92,30 @@ struct Block {
     }
     return out;
   }
+  // Select for predicates that hold only where the tool distance is at most `limit`: scans the
+  // part of the interior `near` bounds (the whole interior when `limit` is beyond near.limit),
+  // in the same order, so the list is the one Select returns.
+  template <typename Pred>
+  VoxelList SelectNear(double limit, Pred pred) const {
+    if (!(limit <= near.limit)) return Select(pred);
+    VoxelList out;
+    const Int3 d = phi.dims();
+    const int dims[3] = {d.x, d.y, d.z};
+    int lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::max(kStencilMargin, near.lo[a]);
+      hi[a] = std::min(dims[a] - kStencilMargin, near.hi[a]);
+    }
+    for (int k = lo[2]; k < hi[2]; ++k) {
+      for (int j = lo[1]; j < hi[1]; ++j) {
+        for (int i = lo[0]; i < hi[0]; ++i) {
+          const size_t idx = phi.Index(i, j, k);
+          if (pred(idx, tool_sdf[idx])) out.push_back(static_cast<uint32_t>(idx));
+        }
+      }
+    }
+    return out;
+  }
   void ClampToBand() {
     for (float& v : phi.data()) v = std::clamp(v, -bg, bg);
   }
@@ -73,33 +125,58 @@ struct Block {
     double sum = 0;
     const auto& now = phi.data();
     const auto& was = before.data();
-    for (size_t i = 0; i < now.size(); ++i) {
-      if (now[i] != was[i]) sum += InsideFraction(now[i], eps) - InsideFraction(was[i], eps);
+    const size_t n = now.size();
+    constexpr size_t kChunk = 16;
+    size_t i = 0;
+    while (i < n) {
+      // Most of the block is unchanged: skip runs that are bitwise equal (hence equal), then
+      // add the changed voxels in index order as the plain loop does.
+      if (i + kChunk <= n && std::memcmp(&now[i], &was[i], kChunk * sizeof(float)) == 0) {
+        i += kChunk;
+        continue;
+      }
+      const size_t end = std::min(n, i + kChunk);
+      for (; i < end; ++i) {
+        if (now[i] != was[i]) sum += InsideFraction(now[i], eps) - InsideFraction(was[i], eps);
+      }
     }
     return sum;
   }
 };
 
+// Block-local index range [lo, hi) of the voxels within `margin` (world units) of `tb`.
+void RangeNear(const Block& b, const Aabb& tb, double margin, int lo[3], int hi[3]) {
+  const Int3 o = b.box.min;
+  const Int3 d = b.phi.dims();
+  const double mn[3] = {tb.min.x - margin, tb.min.y - margin, tb.min.z - margin};
+  const double mx[3] = {tb.max.x + margin, tb.max.y + margin, tb.max.z + margin};
+  const int orig[3] = {o.x, o.y, o.z};
+  const int dims[3] = {d.x, d.y, d.z};
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = std::clamp(static_cast<int>(std::floor(mn[a] / b.dx)) - orig[a], 0, dims[a]);
+    hi[a] = std::clamp(static_cast<int>(std::ceil(mx[a] / b.dx)) - orig[a] + 1, 0, dims[a]);
+  }
+}
+
+// Spheres and capsules have exact distances: no voxel beyond `margin` of their bounds is nearer
+// than `margin`, so their fields need not be evaluated there.
+bool ExactDistance(const ToolShape& t) {
+  return t.kind == ToolKind::kSphere || t.kind == ToolKind::kCapsule;
+}
+
 // The tool's signed distance (world units) at the voxels of the block within `margin` of the
-// tool's bounds; +max elsewhere, where no operator reads a finite value. Spheres and capsules,
-// the tools strokes use, skip the generic dispatch: this loop is a hot spot of every edit.
-std::vector<float> ToolField(const Block& b, const ToolShape& tool,
-                             double margin = std::numeric_limits<double>::infinity()) {
-  std::vector<float> f(b.phi.size(), std::numeric_limits<float>::max());
+// tool's bounds; +max elsewhere, where no operator reads a finite value. Written into `f`
+// (resized to the block); `near` gets the range of the voxels at most near->limit away. Spheres
+// and capsules, the tools strokes use, skip the generic dispatch: this loop is a hot spot of
+// every edit.
+void ToolFieldInto(const Block& b, const ToolShape& tool, double margin, std::vector<float>& f,
+                   NearBox* near) {
+  f.assign(b.phi.size(), std::numeric_limits<float>::max());
   const Int3 o = b.box.min;
   const Int3 d = b.phi.dims();
   int lo[3] = {0, 0, 0}, hi[3] = {d.x, d.y, d.z};
-  if (std::isfinite(margin)) {
-    const Aabb tb = ToolBounds(tool);
-    const double mn[3] = {tb.min.x - margin, tb.min.y - margin, tb.min.z - margin};
-    const double mx[3] = {tb.max.x + margin, tb.max.y + margin, tb.max.z + margin};
-    const int orig[3] = {o.x, o.y, o.z};
-    const int dims[3] = {d.x, d.y, d.z};
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = std::clamp(static_cast<int>(std::floor(mn[a] / b.dx)) - orig[a], 0, dims[a]);
-      hi[a] = std::clamp(static_cast<int>(std::ceil(mx[a] / b.dx)) - orig[a] + 1, 0, dims[a]);
-    }
-  }
+  if (std::isfinite(margin)) RangeNear(b, ToolBounds(tool), margin, lo, hi);
+  const double near_limit = near->limit;
   const Vec3 c = tool.center;
   const double r = tool.size.x;
   const Vec3 seg = tool.end - tool.center;
@@ -122,8 +199,24 @@ std::vector<float> ToolField(const Block& b, const ToolShape& tool,
         }
         row[i] = static_cast<float>(v);
       }
+      // The stored (float) value, as every selection reads it.
+      int i0 = hi[0], i1 = -1;
+      for (int i = lo[0]; i < hi[0]; ++i) {
+        if (static_cast<double>(row[i]) <= near_limit) {
+          i0 = std::min(i0, i);
+          i1 = i;
+        }
+      }
+      if (i1 >= 0) near->AddRow(i0, i1, j, k);
     }
   }
+}
+
+std::vector<float> ToolField(const Block& b, const ToolShape& tool,
+                             double margin = std::numeric_limits<double>::infinity()) {
+  std::vector<float> f;
+  NearBox unused;
+  ToolFieldInto(b, tool, margin, f, &unused);
   return f;
 }
 
@@ -170,8 +263,12 @@ internal::IndexBox BlockBox(const Sculpture::Impl& impl, const std::vector<EditR
 }
 
 // One block around every tool of a batch; tool_sdf is the union of the tools (their minimum).
-Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& reqs,
-                double reach) {
+// Every operator and selection compares the field with thresholds no larger than
+// `field_reach` (and the CSG operators see no difference between a distance beyond the band
+// and +max), so the exact-distance tools are evaluated only within max(field_reach, band) of
+// their bounds.
+Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& reqs, double reach,
+                double field_reach) {
   Block b;
   b.dx = impl.dx();
   b.bg = impl.background();
@@ -179,34 +276,60 @@ Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& req
   b.box = BlockBox(impl, reqs, reach);
   b.before = internal::ExtractDense(*impl.grid, b.box);
   b.phi = b.before;
+  const double margin = std::max(field_reach, static_cast<double>(b.bg));
+  b.near.limit = margin;
   bool equal_spheres = reqs.size() > 1;
   for (const EditRequest& q : reqs) {
     equal_spheres = equal_spheres && q.tool.kind == ToolKind::kSphere &&
                     q.tool.size.x == reqs.front().tool.size.x;
   }
   if (reqs.size() == 1) {
-    b.tool_sdf = ToolField(b, reqs.front().tool);
+    const ToolShape& t = reqs.front().tool;
+    ToolFieldInto(b, t, ExactDistance(t) ? margin : std::numeric_limits<double>::infinity(),
+                  b.tool_sdf, &b.near);
   } else if (equal_spheres) {
     // The poses of a stroke share their tool: the union of equal spheres is the distance to
     // the nearest centre minus the radius, one square root per voxel instead of one per pose.
-    b.tool_sdf.resize(b.phi.size());
+    b.tool_sdf.assign(b.phi.size(), std::numeric_limits<float>::max());
     const Int3 o = b.box.min;
-    const Int3 d = b.phi.dims();
+    Aabb tb = ToolBounds(reqs.front().tool);
+    for (const EditRequest& q : reqs) {
+      const Aabb a = ToolBounds(q.tool);
+      tb.min = {std::min(tb.min.x, a.min.x), std::min(tb.min.y, a.min.y),
+                std::min(tb.min.z, a.min.z)};
+      tb.max = {std::max(tb.max.x, a.max.x), std::max(tb.max.y, a.max.y),
+                std::max(tb.max.z, a.max.z)};
+    }
+    int lo[3], hi[3];
+    RangeNear(b, tb, margin, lo, hi);
     const double r = reqs.front().tool.size.x;
-    for (int k = 0; k < d.z; ++k) {
-      for (int j = 0; j < d.y; ++j) {
-        for (int i = 0; i < d.x; ++i) {
+    for (int k = lo[2]; k < hi[2]; ++k) {
+      for (int j = lo[1]; j < hi[1]; ++j) {
+        float* row = &b.tool_sdf[b.phi.Index(0, j, k)];
+        for (int i = lo[0]; i < hi[0]; ++i) {
           const Vec3 p{(o.x + i) * b.dx, (o.y + j) * b.dx, (o.z + k) * b.dx};
           double best = std::numeric_limits<double>::max();
           for (const EditRequest& q : reqs) best = std::min(best, (p - q.tool.center).LengthSqr());
-          b.tool_sdf[b.phi.Index(i, j, k)] = static_cast<float>(std::sqrt(best) - r);
+          row[i] = static_cast<float>(std::sqrt(best) - r);
         }
+        int i0 = hi[0], i1 = -1;
+        for (int i = lo[0]; i < hi[0]; ++i) {
+          if (static_cast<double>(row[i]) <= b.near.limit) {
+            i0 = std::min(i0, i);
+            i1 = i;
+          }
+        }
+        if (i1 >= 0) b.near.AddRow(i0, i1, j, k);
       }
     }
   } else {
     b.tool_sdf.assign(b.phi.size(), std::numeric_limits<float>::max());
+    std::vector<float> f;
     for (const EditRequest& q : reqs) {
-      const std::vector<float> f = ToolField(b, q.tool);
+      NearBox nb;
+      nb.limit = b.near.limit;
+      ToolFieldInto(b, q.tool, std::numeric_limits<double>::infinity(), f, &nb);
+      b.near.Merge(nb);
       for (size_t i = 0; i < f.size(); ++i) b.tool_sdf[i] = std::min(b.tool_sdf[i], f[i]);
     }
   }
@@ -540,10 +663,14 @@ IslandReport FindIslands(Block& b, const EditSettings& s) {
     for (int dj = -1; dj <= 1; ++dj)
       for (int di = -1; di <= 1; ++di)
         if (di || dj || dk) offsets[no++] = di * sx + dj * sy + dk * sz;
+  // Block indices fit 32 bits (VoxelList): 32-bit divisions cost a fraction of 64-bit ones.
+  const uint32_t ux = static_cast<uint32_t>(d.x), uy = static_cast<uint32_t>(d.y);
   auto coords = [&](size_t idx, int& i, int& j, int& k) {
-    i = static_cast<int>(idx % d.x);
-    j = static_cast<int>((idx / d.x) % d.y);
-    k = static_cast<int>(idx / (static_cast<size_t>(d.x) * d.y));
+    const uint32_t u = static_cast<uint32_t>(idx);
+    const uint32_t row = u / ux;
+    i = static_cast<int>(u - row * ux);
+    j = static_cast<int>(row % uy);
+    k = static_cast<int>(row / uy);
   };
   // A piece can only have been cut off by this edit if it touches a voxel the edit emptied, so
   // the search starts from the material next to those voxels, and each search walks best-first
@@ -554,16 +681,26 @@ IslandReport FindIslands(Block& b, const EditSettings& s) {
   std::vector<uint8_t> state(n, kUnknown);
   bool any_border = false;
   std::vector<uint32_t> seeds;
-  for (size_t idx = 0; idx < n; ++idx) {
-    int i, j, k;
-    coords(idx, i, j, k);
-    const bool interior = b.Interior(i, j, k);
-    if (!interior && data[idx] < 0.f) any_border = true;
-    if (!interior || !(b.before.data()[idx] < 0.f) || data[idx] < 0.f) continue;
-    // This voxel was emptied: its material neighbours are seeds.
-    for (int o = 0; o < 26; ++o) {
-      const size_t nidx = static_cast<size_t>(static_cast<int64_t>(idx) + offsets[o]);
-      if (data[nidx] < 0.f) seeds.push_back(static_cast<uint32_t>(nidx));
+  // In index order, with the coordinates from the loops (no division per voxel).
+  const float* was = b.before.data().data();
+  size_t idx = 0;
+  for (int k = 0; k < d.z; ++k) {
+    for (int j = 0; j < d.y; ++j) {
+      const bool row_interior = j >= kStencilMargin && k >= kStencilMargin &&
+                                j < d.y - kStencilMargin && k < d.z - kStencilMargin;
+      for (int i = 0; i < d.x; ++i, ++idx) {
+        const bool interior = row_interior && i >= kStencilMargin && i < d.x - kStencilMargin;
+        if (!interior) {
+          if (data[idx] < 0.f) any_border = true;
+          continue;
+        }
+        if (!(was[idx] < 0.f) || data[idx] < 0.f) continue;
+        // This voxel was emptied: its material neighbours are seeds.
+        for (int o = 0; o < 26; ++o) {
+          const size_t nidx = static_cast<size_t>(static_cast<int64_t>(idx) + offsets[o]);
+          if (data[nidx] < 0.f) seeds.push_back(static_cast<uint32_t>(nidx));
+        }
+      }
     }
   }
   auto border_distance = [&](size_t idx) {
@@ -626,11 +763,11 @@ IslandReport FindIslands(Block& b, const EditSettings& s) {
     p.voxels = visited;
     pieces.push_back(std::move(p));
   }
+  if (pieces.empty()) return rep;
   std::vector<int32_t> label(n, -1);
   for (size_t i = 0; i < pieces.size(); ++i) {
     for (uint32_t v : pieces[i].voxels) label[v] = static_cast<int32_t>(i);
   }
-  if (pieces.empty()) return rep;
   size_t largest = 0;
   for (size_t i = 0; i < pieces.size(); ++i) {
     if (pieces[i].inside > pieces[largest].inside) largest = i;
@@ -739,20 +876,40 @@ struct CompensationOutcome {
 
 // Shell compensation inside the block. `base_volume` is the tracked volume before the edit, so
 // Vol = base_volume + (change of the block's inside count) dx^3, exactly as the tracked volume.
+// The shell and its weights depend on the tools' field alone, which the passes of one edit share.
+struct ShellCache {
+  bool ready = false;
+  VoxelList shell;
+  std::vector<float> w;
+};
+
 CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
-                                    double shell_outer, const EditSettings& s) {
+                                    double shell_outer, const EditSettings& s, ShellCache& cache) {
   CompensationOutcome out;
   const double dx3 = b.dx * b.dx * b.dx;
-  std::vector<float> w(b.phi.size(), 0.f);
   // Every shell voxel moves (offsetting only the band would leave a growing step at its
   // edge), but only band voxels can change their inside fraction by a sub-band offset, so the
-  // volume and area sums run over those alone.
-  VoxelList shell = b.Select([&](size_t, float t) { return t > 1.5 * b.dx && t < shell_outer; });
-  VoxelList shell_band;
-  for (uint32_t idx : shell) {
-    if (std::abs(b.phi.data()[idx]) < b.bg) shell_band.push_back(idx);
+  // volume and area sums run over those alone. Weights are kept beside the lists (w[n] for
+  // shell[n], band_w[m] for shell_band[m]), not in a block-sized field.
+  if (!cache.ready) {
+    cache.shell = b.SelectNear(shell_outer,
+                               [&](size_t, float t) { return t > 1.5 * b.dx && t < shell_outer; });
+    cache.w.resize(cache.shell.size());
+    for (size_t n = 0; n < cache.shell.size(); ++n) {
+      cache.w[n] = ShellWeight(b.tool_sdf[cache.shell[n]], 1.5 * b.dx, shell_outer, b.dx);
+    }
+    cache.ready = true;
   }
-  for (uint32_t idx : shell) w[idx] = ShellWeight(b.tool_sdf[idx], 1.5 * b.dx, shell_outer, b.dx);
+  const VoxelList& shell = cache.shell;
+  const std::vector<float>& w = cache.w;
+  VoxelList shell_band;
+  std::vector<float> band_w;
+  for (size_t n = 0; n < shell.size(); ++n) {
+    if (std::abs(b.phi.data()[shell[n]]) < b.bg) {
+      shell_band.push_back(shell[n]);
+      band_w.push_back(w[n]);
+    }
+  }
   const double tol = s.compensation_tolerance_voxels * b.dx * b.dx * b.dx;
   // Only shell voxels change here, so the block's inside sum moves by their change alone.
   auto shell_sum = [&] {
@@ -767,8 +924,8 @@ CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
     const double err = target - vol;
     if (std::abs(err) <= tol) break;
     double area = 0;  // weighted smoothed area, seed 000 eq. 5.7 delta
-    for (uint32_t idx : shell_band) {
-      area += w[idx] * SmoothedDelta(b.phi.data()[idx], b.eps) * dx3;
+    for (size_t m = 0; m < shell_band.size(); ++m) {
+      area += band_w[m] * SmoothedDelta(b.phi.data()[shell_band[m]], b.eps) * dx3;
     }
     if (area < 1e-9 * b.dx * b.dx) {
       out.failed = true;
@@ -783,9 +940,9 @@ CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
         // than the band can represent in one go; the next iteration continues.
         const double limit = 0.5 * b.bg;
         const float step = static_cast<float>(std::clamp(d, -limit, limit));
-        for (uint32_t idx : shell) {
-          float& v = b.phi.data()[idx];
-          v = std::clamp(v - step * w[idx], -b.bg, b.bg);
+        for (size_t n = 0; n < shell.size(); ++n) {
+          float& v = b.phi.data()[shell[n]];
+          v = std::clamp(v - step * w[n], -b.bg, b.bg);
         }
         ++out.substeps;
         break;
@@ -795,7 +952,9 @@ CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
         // step is gradient_descent_dt Newton steps (a proportional controller).
         const double step = s.gradient_descent_dt * d;
         std::vector<float> speed(b.phi.size(), 0.f);
-        for (uint32_t idx : shell) speed[idx] = static_cast<float>(step * w[idx]);
+        for (size_t n = 0; n < shell.size(); ++n) {
+          speed[shell[n]] = static_cast<float>(step * w[n]);
+        }
         NormalMotionStep(b.phi, speed, shell, 1.0, b.dx, s.motion);
         ++out.substeps;
         break;
@@ -803,15 +962,19 @@ CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
       case CompensationMethod::kGradientDescentDelta: {
         // Eq. 5.6 with the digest's sign: phi += tau (Vol - c) delta_eps(phi) chi.
         const double tau = s.gradient_descent_dt * d * b.eps;
-        for (uint32_t idx : shell) {
-          float& v = b.phi.data()[idx];
-          v = static_cast<float>(v - tau * SmoothedDelta(v, b.eps) * w[idx]);
+        for (size_t n = 0; n < shell.size(); ++n) {
+          float& v = b.phi.data()[shell[n]];
+          v = static_cast<float>(v - tau * SmoothedDelta(v, b.eps) * w[n]);
         }
         ++out.substeps;
         break;
       }
     }
-    b.ClampToBand();
+    // Only shell voxels moved, and the block was within the band when this began.
+    for (uint32_t idx : shell) {
+      float& v = b.phi.data()[idx];
+      v = std::clamp(v, -b.bg, b.bg);
+    }
   }
   return out;
 }
@@ -975,6 +1138,13 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
     }
   }
   const auto t0 = std::chrono::steady_clock::now();
+  // Stage clock: each call charges the time since the previous one to `slot`.
+  auto mark = t0;
+  auto lap = [&mark](double& slot) {
+    const auto now = std::chrono::steady_clock::now();
+    slot += std::chrono::duration<double, std::milli>(now - mark).count();
+    mark = now;
+  };
   Sculpture::Impl& impl = sculpture.impl();
   if (replay) {
     // The scalars the server held before this edit: a replica holding part of the object, or
@@ -997,17 +1167,37 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
 
   // One block for the whole batch: each request's operator runs in turn inside it, then the
   // islands check, compensation and reinitialisation run once for all of them.
-  Block b = MakeBlock(impl, reqs, reach);
+  // The largest threshold any selection compares the union's field with: the compensation
+  // shell, the reinitialised region (within it) and the press's rim.
+  const double field_reach =
+      std::max(compensate && s.compensation == CompensationRegion::kShell ? shell_outer : 0.0,
+               2 * dx);
+  Block b = MakeBlock(impl, reqs, reach, field_reach);
   const double base_volume = impl.volume;
+  // A batch's operators read each request's own field; the union is set aside meanwhile.
   std::vector<float> union_sdf;
-  if (reqs.size() > 1) union_sdf = b.tool_sdf;
+  const NearBox union_near = b.near;
+  if (reqs.size() > 1) union_sdf.swap(b.tool_sdf);
+  std::vector<float> speed;  // a press's speed field, reused by the batch's requests
+  lap(res.stage_ms.block);
 
   bool touched = false;
   for (const EditRequest& req : reqs) {
-  // Operators read a request's own field only inside its tool, at its rim (2 voxels) and, for
-  // CSG, within the band: nothing beyond bg + 2 voxels of the tool.
-  if (reqs.size() > 1) b.tool_sdf = ToolField(b, req.tool, b.bg + 2 * b.dx);
-  const VoxelList gamma = b.Select([](size_t, float t) { return t < 0.f; });
+  // Operators read a request's own field only inside its tool, at its rim (2 voxels, within
+  // the band's half-width of at least 3) and, for CSG, within the band: a distance beyond the
+  // band clamps to the same value as +max, so nothing beyond bg of the tool needs evaluating.
+  // A press reads it only inside the tool and at its rim unless it falls back to CSG, which
+  // evaluates the band's width then.
+  auto request_field = [&](double margin) {
+    b.near = NearBox{};
+    b.near.limit = margin;
+    ToolFieldInto(b, req.tool, margin, b.tool_sdf, &b.near);
+  };
+  if (reqs.size() > 1) {
+    request_field(req.kind == EditKind::kPress ? 2 * b.dx
+                                               : std::max(static_cast<double>(b.bg), 2 * b.dx));
+  }
+  const VoxelList gamma = b.SelectNear(0.0, [](size_t, float t) { return t < 0.f; });
   switch (req.kind) {
     case EditKind::kPress: {
       // Seed 000 eq. 5.1 with the digest's sign: phi_t = v |grad phi| chi_Gamma, i.e. F = -v.
@@ -1016,7 +1206,7 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
       // which left islands in the thesis: digest claim 9).
       if (req.speed <= 0 || !GammaHoldsMaterial(b, gamma)) break;
       touched = true;
-      std::vector<float> speed(b.phi.size(), 0.f);
+      speed.assign(b.phi.size(), 0.f);
       for (uint32_t idx : gamma) speed[idx] = static_cast<float>(-req.speed);
       // The press runs until Gamma is empty, so its result does not depend on the speed; a
       // stroke slower than a quarter of a CFL substep per interval is run at that floor, which
@@ -1033,9 +1223,10 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
       for (int step = 0; step < max_steps && !empty; ++step) {
         ++res.steps;
         float max_change = 0;
+        std::vector<float> prev;
+        prev.reserve(gamma.size());
         for (int i = 0; i < sub; ++i) {
-          std::vector<float> prev;
-          prev.reserve(gamma.size());
+          prev.clear();
           for (uint32_t idx : gamma) prev.push_back(b.phi.data()[idx]);
           NormalMotionStep(b.phi, speed, gamma, dt_sub, dx, s.motion);
           ++res.substeps;
@@ -1054,7 +1245,8 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
         // (seed 000 §5 item 8): voxels just outside still hold their distance to the old
         // surface. Give them their distance to the new one, the tool's imprint (the thesis's
         // own CSG remedy, §6.2), so the dent sits where the tool was.
-        VoxelList rim = b.Select([&](size_t, float t) { return t >= 0.f && t <= 2 * dx; });
+        VoxelList rim =
+            b.SelectNear(2 * dx, [&](size_t, float t) { return t >= 0.f && t <= 2 * dx; });
         for (uint32_t idx : rim) {
           b.phi.data()[idx] = std::max(b.phi.data()[idx], -b.tool_sdf[idx]);
         }
@@ -1064,6 +1256,7 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
       // interior has zero gradient everywhere): finish with the CSG difference, which is where
       // the flow would have converged.
       res.press_fallback_csg = true;
+      if (reqs.size() > 1) request_field(std::max(static_cast<double>(b.bg), 2 * b.dx));
       VoxelList all = b.Select([](size_t, float) { return true; });
       for (uint32_t idx : all) {
         b.phi.data()[idx] = std::max(b.phi.data()[idx], std::min(b.bg, -b.tool_sdf[idx]));
@@ -1084,7 +1277,7 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
     }
     case EditKind::kSmooth: {
       std::vector<float> w(b.phi.size(), 0.f);
-      VoxelList region = b.Select([](size_t, float t) { return t < 0.f; });
+      VoxelList region = b.SelectNear(0.0, [](size_t, float t) { return t < 0.f; });
       for (uint32_t idx : region) {
         w[idx] = std::clamp(static_cast<float>(-b.tool_sdf[idx] / (2 * dx)), 0.f, 1.f);
       }
@@ -1116,10 +1309,12 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
     }
   }
   }  // for each request
-  if (reqs.size() > 1) b.tool_sdf = std::move(union_sdf);
+  if (reqs.size() > 1) {
+    b.tool_sdf = std::move(union_sdf);
+    b.near = union_near;
+  }
   b.ClampToBand();
-  // Voxels the band repair must rebuild (emptied slivers, removed islands).
-  std::vector<uint8_t> repair(b.phi.size(), 0);
+  lap(res.stage_ms.operators);
   const bool offset_kind = kind == EditKind::kInflate || kind == EditKind::kDeflate;
   // Slivers come from offsets that rewrite the band and from the box's sharp edges (ribs). A
   // smooth tool's press, smooth or CSG edit leaves none the reinitialisation does not
@@ -1131,10 +1326,17 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   // Slivers the operators left are emptied now. After an inflate or deflate the band repair
   // rebuilds around them; after the other kinds the reinitialisation below straightens them
   // with the rest of the edited band (a rebuild would cost more than the edit).
-  std::vector<uint8_t> emptied(b.phi.size(), 0);
-  if (resolve_slivers) RemoveThinMaterial(b, offset_kind ? repair : emptied);
+  // Voxels the band repair must rebuild (emptied slivers, removed islands); only edits that
+  // resolve slivers use these.
+  std::vector<uint8_t> repair, emptied;
+  if (resolve_slivers) {
+    repair.assign(b.phi.size(), 0);
+    emptied.assign(b.phi.size(), 0);
+    RemoveThinMaterial(b, offset_kind ? repair : emptied);
+  }
 
   double reference = impl.reference_volume;
+  ShellCache shell_cache;
   VoxelList reinit_extra;
   if (touched && (kind == EditKind::kPress || kind == EditKind::kSubtract)) {
     IslandReport islands = FindIslands(b, s);
@@ -1151,14 +1353,17 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
     }
   }
 
+  lap(res.stage_ms.islands);
+
   // Shell compensation first: its weighted offset bends |grad phi| in the shell, which the
   // reinitialisation below then straightens.
   if (touched && compensate && s.compensation == CompensationRegion::kShell) {
-    CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s);
+    CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s, shell_cache);
     res.compensation_iterations = c.iterations;
     res.compensation_failed = c.failed;
     res.substeps += c.substeps;
   }
+  lap(res.stage_ms.compensation);
 
   // Local reinitialisation (seed 000 §4.4), triggered by the measured Eikonal error of the
   // edited band (the tool region plus two voxels), or every k edits, never blindly.
@@ -1168,12 +1373,14 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
     // bends |grad phi| away from one.
     const double extent =
         compensate && s.compensation == CompensationRegion::kShell ? shell_outer : 2 * dx;
-    VoxelList region = b.Select([&](size_t idx, float t) {
+    VoxelList region = b.SelectNear(extent, [&](size_t idx, float t) {
       return t < extent && std::abs(b.phi.data()[idx]) < b.bg;
     });
-    region.insert(region.end(), reinit_extra.begin(), reinit_extra.end());
-    std::sort(region.begin(), region.end());
-    region.erase(std::unique(region.begin(), region.end()), region.end());
+    if (!reinit_extra.empty()) {  // the selection alone is sorted and unique already
+      region.insert(region.end(), reinit_extra.begin(), reinit_extra.end());
+      std::sort(region.begin(), region.end());
+      region.erase(std::unique(region.begin(), region.end()), region.end());
+    }
     const EikonalStats e = MeasureEikonal(b.phi, region, dx, 3 * dx);
     res.eikonal_error_before_reinit = e.mean_abs_error;
     const bool due = s.reinit_every_k > 0 &&
@@ -1188,6 +1395,7 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
       b.ClampToBand();
     }
   }
+  lap(res.stage_ms.reinit);
 
   // Slivers emptied and the band rebuilt where the operators, the islands policy, the
   // compensation or the reinitialisation left it broken, before the last compensation restores
@@ -1196,15 +1404,17 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
     for (size_t n = 0; n < island_zone; ++n) repair[reinit_extra[n]] = 1;
     Resolve(b, repair, offset_kind);
   }
+  lap(res.stage_ms.resolve);
 
   // Compensation once more: the reinitialisation moved the interface slightly (by far less
   // than a voxel), so this pass is a small correction whose offset barely bends the field.
   if (touched && compensate && s.compensation == CompensationRegion::kShell) {
-    CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s);
+    CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s, shell_cache);
     res.compensation_iterations += c.iterations;
     res.compensation_failed = res.compensation_failed || c.failed;
     res.substeps += c.substeps;
   }
+  lap(res.stage_ms.compensation);
 
   // Again after the second compensation, whose offset may have flipped a sample next to a thin
   // spot or bent the band somewhere; usually there is nothing left to do. When there was, a
@@ -1214,15 +1424,17 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   // reference volume is re-baselined by it.
   if (resolve_slivers && Resolve(b, repair, offset_kind) && compensate &&
       s.compensation == CompensationRegion::kShell) {
-    CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s);
+    CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s, shell_cache);
     res.compensation_iterations += c.iterations;
     res.compensation_failed = res.compensation_failed || c.failed;
     res.substeps += c.substeps;
     const double inside_before = b.InsideChange();
     if (RemoveThinMaterial(b, repair) > 0) reference += (b.InsideChange() - inside_before) * dx3;
   }
+  lap(res.stage_ms.resolve);
 
   SpliceBack(impl, b, base_volume, &res);
+  lap(res.stage_ms.write_back);
 
   if (touched && compensate && s.compensation == CompensationRegion::kGlobal) {
     // The thesis's region: every interface voxel outside the tool (chi of Gamma's complement).
@@ -1257,6 +1469,7 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
     }
     res.changed = true;
   }
+  lap(res.stage_ms.compensation);
 
   if (kind == EditKind::kAdd || kind == EditKind::kSubtract || kind == EditKind::kInflate ||
       kind == EditKind::kDeflate) {
@@ -1293,7 +1506,7 @@ StatusOr<EditResult> ReinitializeRegion(Sculpture& sculpture, const Aabb& region
   const ToolShape box = ToolShape::Box(c, (region.max - region.min) * 0.5 + Vec3{dx, dx, dx} * 0.5);
   EditRequest region_request;
   region_request.tool = box;
-  Block b = MakeBlock(impl, {region_request}, 0);
+  Block b = MakeBlock(impl, {region_request}, 0, 0);
   const double base_volume = impl.volume;
   VoxelList active = b.Select([&](size_t idx, float t) {
     return t <= 0.f && std::abs(b.phi.data()[idx]) < b.bg;

@@ -51,15 +51,17 @@ template <typename Skip>
 std::vector<Voxel> Collect(const Grid& g, size_t size, const VoxelList& active, Skip skip) {
   std::vector<Voxel> out;
   out.reserve(active.size());
-  const uint64_t nx = static_cast<uint64_t>(g.n[0]);
-  const uint64_t ny = static_cast<uint64_t>(g.n[1]);
+  // Indices are 32-bit: 32-bit divisions cost a fraction of 64-bit ones.
+  const uint32_t nx = static_cast<uint32_t>(g.n[0]);
+  const uint32_t ny = static_cast<uint32_t>(g.n[1]);
   for (uint32_t idx : active) {
     if (idx >= size) continue;
     Voxel v;
     v.index = static_cast<ptrdiff_t>(idx);
-    v.c[0] = static_cast<int>(idx % nx);
-    v.c[1] = static_cast<int>((idx / nx) % ny);
-    v.c[2] = static_cast<int>(idx / (nx * ny));
+    const uint32_t row = idx / nx;
+    v.c[0] = static_cast<int>(idx - row * nx);
+    v.c[1] = static_cast<int>(row % ny);
+    v.c[2] = static_cast<int>(row / ny);
     if (skip(v)) continue;
     out.push_back(v);
   }

@@ -145,15 +145,20 @@ DenseField ExtractDense(const FloatGrid& grid, const IndexBox& box) {
         const Coord origin(bx, by, bz);
         const auto* leaf = tree.probeConstLeaf(origin);
         const float tile = leaf ? 0.f : acc.getValue(origin);
+        // The leaf's values read straight from its buffer (offset x*64 + y*8 + z in the leaf).
+        const float* values = leaf ? leaf->buffer().data() : nullptr;
         const int z0 = std::max(bz, box.min.z), z1 = std::min(bz + 7, box.max.z);
         const int y0 = std::max(by, box.min.y), y1 = std::min(by + 7, box.max.y);
         const int x0 = std::max(bx, box.min.x), x1 = std::min(bx + 7, box.max.x);
         for (int z = z0; z <= z1; ++z) {
           for (int y = y0; y <= y1; ++y) {
             float* row = &f.data()[f.Index(0, y - box.min.y, z - box.min.z)];
-            for (int x = x0; x <= x1; ++x) {
-              row[x - box.min.x] = leaf ? leaf->getValue(Coord(x, y, z)) : tile;
+            if (!values) {
+              std::fill(row + (x0 - box.min.x), row + (x1 - box.min.x) + 1, tile);
+              continue;
             }
+            const int yz = ((y & 7) << 3) | (z & 7);
+            for (int x = x0; x <= x1; ++x) row[x - box.min.x] = values[((x & 7) << 6) | yz];
           }
         }
       }

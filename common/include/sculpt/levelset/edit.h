@@ -44,7 +44,10 @@ enum class IslandPolicy : uint8_t {
 
 /// Scene-level choices for edits (the effects the scene calls for).
 struct EditSettings {
-  MotionSettings motion{SpatialScheme::kWeno5, TemporalScheme::kRk2, Boundary::kClamp};
+  /// First-order upwind in space: a press runs a few substeps and stops when the tool is
+  /// empty, so WENO5 bought no measured accuracy there (docs/benchmarks.md section 2) and cost
+  /// a fifth of an edit.
+  MotionSettings motion{SpatialScheme::kUpwind, TemporalScheme::kRk2, Boundary::kClamp};
   /// CFL number for every substep (phi moves at most cfl voxels per substep).
   double cfl = 0.5;
   CompensationRegion compensation = CompensationRegion::kShell;
@@ -99,6 +102,18 @@ struct EditRequest {
 };
 
 /// What an edit did.
+/// Wall time (ms) of each stage of one edit, for profiling (sculpt-bench edit reports them). The
+/// stages run in this order and together make up about `EditResult::elapsed_ms`.
+struct EditStageTimes {
+  double block = 0;         // copy-in of the block and the tools' distance field
+  double operators = 0;     // the kind's operator (a press's motion substeps)
+  double islands = 0;       // sliver scan and islands search
+  double compensation = 0;  // every shell compensation pass
+  double reinit = 0;        // Eikonal measure and reinitialisation
+  double resolve = 0;       // sliver and band-repair rounds (inflate, deflate, box tools)
+  double write_back = 0;    // material fractions, write-back and volume tracking
+};
+
 struct EditResult {
   bool changed = false;
   std::vector<Int3> dirty_leaves;
@@ -123,6 +138,7 @@ struct EditResult {
   double island_volume_removed = 0;
   bool press_fallback_csg = false;  // the flow stalled (no interface reached) and CSG finished it
   double elapsed_ms = 0;
+  EditStageTimes stage_ms;
 };
 
 /// Applies one edit. Validates the request first (tool fields, speed, dt, amount): on a bad
