@@ -4,7 +4,7 @@ BUILD_DIR ?= build
 JOBS ?= $(shell nproc)
 DEMO_OUT ?= demo-output
 
-.PHONY: all deps configure build demo demo-local test soak fuzz bench bench-server bench-replication clean
+.PHONY: all deps configure build demo demo-local test test-asan soak fuzz bench bench-server bench-replication clean
 
 all: build
 
@@ -29,6 +29,23 @@ demo-local: build
 # Every test except the hand-run soaks, through ctest.
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS) -LE soak --timeout 1500
+
+# The unit, stability and integration tests under AddressSanitizer + UndefinedBehaviorSanitizer
+# (gcc) in their own build directory; -O1 keeps the sanitized tests fast enough for CI. Not run:
+# browser tests, soaks, benchmarks (not built there), and EditStability's 10,000-stroke run (its
+# 4 minutes in Release would be most of the budget; the other stability tests cover the same
+# code). See docs/sanitizers.md.
+ASAN_BUILD_DIR ?= build-asan
+SANITIZER_ENV = ASAN_OPTIONS=detect_leaks=1:abort_on_error=0:strict_string_checks=1:detect_stack_use_after_return=0 \
+	LSAN_OPTIONS=suppressions=$(CURDIR)/tests/sanitizers/lsan.supp:print_suppressions=0 \
+	UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1:suppressions=$(CURDIR)/tests/sanitizers/ubsan.supp
+test-asan: deps
+	cmake -S . -B $(ASAN_BUILD_DIR) -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+	  "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG" -DSCULPT_SANITIZE=address,undefined
+	$(SANITIZER_ENV) cmake --build $(ASAN_BUILD_DIR) -j $(JOBS)
+	cd $(ASAN_BUILD_DIR) && $(SANITIZER_ENV) ctest --output-on-failure -j $(JOBS) \
+	  -L 'unit|stability|integration' -LE 'soak|browser' \
+	  -E '^EditStability.TenThousandPressStrokesKeepVolume$$' --timeout 1500
 
 soak: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -L soak

@@ -42,10 +42,13 @@ StatusOr<uint32_t> CompositeModel::AddCoefficient(const Vec3& p, std::span<const
   SCULPT_RETURN_IF_ERROR(CheckFinitePoint("coefficient.p", p));
   SCULPT_RETURN_IF_ERROR(ValidateFractions("coefficient.a", a, materials_));
   const auto index = static_cast<uint32_t>(positions_.size());
+  // `p` may be one of positions_ (copying a coefficient): the key is taken before push_back can
+  // reallocate it away.
+  const auto key = WeldKey(p);
   positions_.push_back(p);
   fractions_.insert(fractions_.end(), a.begin(), a.end());
   users_.emplace_back();
-  weld_index_.emplace(WeldKey(p), index);
+  weld_index_.emplace(key, index);
   return index;
 }
 

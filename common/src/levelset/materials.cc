@@ -223,8 +223,10 @@ StatusOr<std::vector<double>> FractionsAtWorld(const Sculpture& sculpture, const
   SCULPT_RETURN_IF_ERROR(CheckFinitePoint("point", p));
   std::vector<double> out;
   for (const auto& g : sculpture.impl().fractions) {
+    // GridSampler keeps a reference to the accessor: it must outlive the sampler.
+    const FloatGrid::ConstAccessor acc = g->getConstAccessor();
     openvdb::tools::GridSampler<FloatGrid::ConstAccessor, openvdb::tools::BoxSampler> sampler(
-        g->getConstAccessor(), g->transform());
+        acc, g->transform());
     out.push_back(sampler.wsSample(openvdb::Vec3d(p.x, p.y, p.z)));
   }
   return out;

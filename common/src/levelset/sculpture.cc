@@ -614,8 +614,10 @@ Status Sculpture::CheckLevelSet(int checks) const {
 }
 
 double Sculpture::SampleWorld(const Vec3& p) const {
+  // GridSampler keeps a reference to the accessor: it must outlive the sampler, not be a temporary.
+  const FloatGrid::ConstAccessor acc = impl_->grid->getConstAccessor();
   openvdb::tools::GridSampler<FloatGrid::ConstAccessor, openvdb::tools::BoxSampler> sampler(
-      impl_->grid->getConstAccessor(), impl_->grid->transform());
+      acc, impl_->grid->transform());
   return sampler.wsSample(openvdb::Vec3d(p.x, p.y, p.z));
 }
 

@@ -117,8 +117,10 @@ StatusOr<std::vector<std::vector<PlanePoint>>> SliceContours(const Sculpture& sc
                                     0.5 * (kMaxSliceSamples - 1) * r.step));
   const int n = static_cast<int>(std::floor(2 * r.half_extent / r.step)) + 1;
   const openvdb::FloatGrid& grid = *sculpture.impl().grid;
+  // GridSampler keeps a reference to the accessor: it must outlive the sampler.
+  const openvdb::FloatGrid::ConstAccessor acc = grid.getConstAccessor();
   openvdb::tools::GridSampler<openvdb::FloatGrid::ConstAccessor, openvdb::tools::BoxSampler>
-      sampler(grid.getConstAccessor(), grid.transform());
+      sampler(acc, grid.transform());
   std::vector<float> phi(static_cast<size_t>(n) * n);
   const PlanePoint origin{-r.half_extent, -r.half_extent};
   for (int j = 0; j < n; ++j) {
