@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Abuse benchmark: a well-behaved sculptor (sculpt-loadgen, 60 strokes/s) beside one abusive
+"""Abuse benchmark: a well-behaved sculptor (sculpt-loadgen, 60 Hz, 4 poses a stroke) beside one abusive
 client at a time; prints JSON.
 
 For each abuse a fresh sculptd is started; the victim runs alone first (the baseline), then with
@@ -124,8 +124,8 @@ def body_field(payload):
 class Abuser:
     def __init__(self, port, source, tokens, stop):
         self.port, self.source, self.tokens, self.stop = port, source, tokens, stop
-        self.counts = {"attempts": 0, "welcomed": 0, "errors": 0, "closed_by_server": 0,
-                       "bytes_received": 0}
+        self.counts = {"attempts": 0, "welcomed": 0, "refused": 0, "errors": 0,
+                       "closed_by_server": 0, "bytes_received": 0}
         self.lock = threading.Lock()
         self.held = []
 
@@ -145,7 +145,22 @@ class Abuser:
         try:
             s = self.connect()
             token = self.tokens[0] if role == ROLE_SCULPTOR else self.tokens[1]
-            s.sendall(hello(token, role, cid) + join(skip_state))
+            s.sendall(hello(token, role, cid))
+            # JoinScene only once the Welcome is in (a join before it is refused).
+            buf = b""
+            deadline = time.time() + 10
+            while True:
+                frames, buf, closed = read_frames(s, buf)
+                closed = closed or time.time() > deadline
+                kinds = [body_field(f) for f in frames]
+                if 1 in kinds:
+                    self.count("welcomed")
+                    break
+                if closed or 6 in kinds or 7 in kinds:
+                    self.count("refused")
+                    s.close()
+                    return None
+            s.sendall(join(skip_state))
             return s
         except OSError:
             self.count("connect_failures")
@@ -155,15 +170,16 @@ class Abuser:
         """Reads what comes for up to `seconds`; counts errors, welcomes and a close."""
         buf = b""
         end = time.time() + seconds
-        s.settimeout(0.05)
+        try:
+            s.settimeout(0.05)
+        except OSError:  # closed by the sender meanwhile
+            return False
         while time.time() < end and not self.stop.is_set():
             frames, buf, closed = read_frames(s, buf)
             for f in frames:
                 self.count("bytes_received", len(f) + 4)
                 k = body_field(f)
-                if k == 1:
-                    self.count("welcomed")
-                elif k == 6:
+                if k == 6:
                     self.count("errors")
             if closed:
                 self.count("closed_by_server")
@@ -321,11 +337,13 @@ class Sculptd:
     def __init__(self, args, tmp):
         self.dir = tempfile.mkdtemp(dir=tmp)
         port_file = os.path.join(self.dir, "port")
-        cmd = [os.path.join(args.bin, "sculptd"), "serve", "--listen", "127.0.0.1:0", "--http",
+        cmd = [args.sculptd or os.path.join(args.bin, "sculptd"), "serve", "--listen", "127.0.0.1:0", "--http",
                "off", "--data", os.path.join(self.dir, "data"), "--port-file", port_file]
         if args.config:
             cmd += ["--config", args.config]
         cmd += args.server_arg or []
+        if args.server_cpus:
+            cmd = ["taskset", "-c", args.server_cpus] + cmd
         self.log = open(os.path.join(self.dir, "sculptd.log"), "w")
         self.proc = subprocess.Popen(cmd, stdout=self.log, stderr=subprocess.STDOUT)
         for _ in range(1000):
@@ -338,7 +356,7 @@ class Sculptd:
         else:
             raise RuntimeError("sculptd did not start: " + self.dir)
 
-    def stop(self):
+    def stop(self, keep_log=None):
         self.proc.terminate()
         try:
             self.proc.wait(timeout=20)
@@ -346,17 +364,22 @@ class Sculptd:
             self.proc.kill()
         self.log.close()
         lines = sum(1 for _ in open(self.log.name, errors="replace"))
+        if keep_log:
+            shutil.copy(self.log.name, keep_log)
         shutil.rmtree(self.dir, ignore_errors=True)
         return lines
 
 
 def victim(args, port):
-    cmd = [os.path.join(args.bin, "sculpt-loadgen"), "--server", f"127.0.0.1:{port}",
-           "--sculptors", "1", "--rate", str(4 * args.hz), "--poses-per-stroke", "4",
+    cmd = [args.loadgen or os.path.join(args.bin, "sculpt-loadgen"), "--server", f"127.0.0.1:{port}",
+           "--sculptors", "1", "--rate", str(args.hz), "--poses-per-stroke",
+           str(args.poses_per_stroke), "--replay-replicas", "0", "--leafdelta-replicas", "0",
            "--seconds", str(args.seconds), "--drain-seconds", "5", "--json"]
+    if args.client_cpus:
+        cmd = ["taskset", "-c", args.client_cpus] + cmd
     out = subprocess.run(cmd, capture_output=True, text=True, timeout=args.seconds + 120)
     if out.returncode != 0:
-        return {"failed": out.stderr[-2000:]}
+        return {"failed": (out.stdout + out.stderr)[-2000:], "returncode": out.returncode}
     r = json.loads(out.stdout)
     keep = ["strokes_sent", "strokes_acked", "strokes_refused", "strokes_unacked",
             "stroke_ack_p50_ms", "stroke_ack_p99_ms", "stroke_ack_max_ms", "server_errors"]
@@ -389,7 +412,7 @@ def run_one(args, name):
         w.join()
         cpu = cpu_seconds(d.proc.pid) - cpu0
         rss = rss_mb(d.proc.pid)
-        lines = d.stop()
+        lines = d.stop(args.keep_log)
         b99, u99 = base.get("stroke_ack_p99_ms"), under.get("stroke_ack_p99_ms")
         return {
             "abuse": name,
@@ -411,18 +434,26 @@ def run_one(args, name):
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--bin", default="build/bin", help="folder of sculptd and sculpt-loadgen")
+    p.add_argument("--sculptd", help="sculptd binary (default: BIN/sculptd)")
+    p.add_argument("--loadgen", help="sculpt-loadgen binary (default: BIN/sculpt-loadgen)")
     p.add_argument("--seconds", type=float, default=10, help="victim's sending phase, each run")
-    p.add_argument("--hz", type=int, default=60, help="victim's strokes per second (4 poses)")
+    p.add_argument("--hz", type=int, default=60, help="victim's pose samples per second")
+    p.add_argument("--poses-per-stroke", type=int, default=4, help="victim's poses per stroke")
     p.add_argument("--abuses", default="rejoin,set_interest,reconnect,idle,slowloris")
     p.add_argument("--source", default="127.0.0.2", help="abuser's source address")
     p.add_argument("--config", help="sculptd --config file (default: the built-in scene)")
     p.add_argument("--server-arg", action="append", help="extra sculptd serve argument")
     p.add_argument("--sculptor-token", default="sculpt-dev-sculptor")
     p.add_argument("--viewer-token", default="sculpt-dev-viewer")
+    p.add_argument("--server-cpus", help="taskset -c list for sculptd (e.g. 0)")
+    p.add_argument("--client-cpus", help="taskset -c list for the victim and the abuser (e.g. 1)")
+    p.add_argument("--keep-log", help="copy sculptd's log of the last run here")
     p.add_argument("--tmp", default=tempfile.gettempdir())
     args = p.parse_args()
+    if args.client_cpus:  # the abuser is this process
+        os.sched_setaffinity(0, {int(c) for c in args.client_cpus.split(",")})
     results = {"seconds": args.seconds, "victim_hz": args.hz, "source": args.source,
-               "bin": os.path.abspath(args.bin), "runs": []}
+               "sculptd": os.path.abspath(args.sculptd or os.path.join(args.bin, "sculptd")), "runs": []}
     for name in args.abuses.split(","):
         print(f"abuse {name}...", file=sys.stderr)
         results["runs"].append(run_one(args, name))

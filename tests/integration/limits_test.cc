@@ -250,6 +250,10 @@ TEST_F(LimitsTest, ChargesEveryRequestKind) {
   auto c = Entered(v1::ROLE_VIEWER);  // the join took 4 of the 10
   v1::ClientMessage si;
   si.mutable_set_interest()->set_object("clay");
+  // A small box: the base cost of 1 and a sliver for its 64 voxels.
+  si.mutable_set_interest()->mutable_interest()->mutable_max()->set_x(2);
+  si.mutable_set_interest()->mutable_interest()->mutable_max()->set_y(2);
+  si.mutable_set_interest()->mutable_interest()->mutable_max()->set_z(2);
   for (int i = 0; i < 12; ++i) ASSERT_TRUE(c->Send(si));
   int charged = 0, others = 0;
   for (int n = 0; n < 12; ++n) {
@@ -257,15 +261,42 @@ TEST_F(LimitsTest, ChargesEveryRequestKind) {
     if (!m) break;
     if (m->error().field() == "requests_per_second") {
       ++charged;
-      EXPECT_EQ(m->error().value(), "SetInterest costs 1");
+      EXPECT_EQ(m->error().value().rfind("SetInterest costs 1.000", 0), 0u) << m->error().value();
       EXPECT_NE(m->error().allowed_range().find("per connection"), std::string::npos);
     } else {
       ++others;  // not subscribed: the scene's own refusal
     }
   }
   EXPECT_GE(charged, 5);
-  EXPECT_LE(charged, 6);
+  EXPECT_LE(charged, 7);
   EXPECT_EQ(charged + others, 12);
+}
+
+// A region request is charged by the voxels it may make the server send: the whole object
+// (radius 12, voxel 0.5: about 60^3 voxels in its bounds) costs almost twice a small box.
+TEST_F(LimitsTest, ChargesARegionRequestByItsSize) {
+  config_.limits.requests_per_second = 1;
+  config_.limits.request_burst = 10;
+  Start();
+  auto c = Entered(v1::ROLE_VIEWER);
+  v1::ClientMessage whole;
+  whole.mutable_set_interest()->set_object("clay");  // no box: the whole object
+  for (int i = 0; i < 6; ++i) ASSERT_TRUE(c->Send(whole));
+  int passed = 0;
+  double cost = 0;
+  for (int n = 0; n < 6; ++n) {
+    auto m = c->ReadUntil(v1::ServerMessage::kError);
+    ASSERT_TRUE(m);
+    if (m->error().field() != "requests_per_second") {
+      ++passed;
+      continue;
+    }
+    const std::string v = m->error().value();
+    cost = std::stod(v.substr(v.find("costs ") + 6));
+  }
+  EXPECT_GT(cost, 1.5);
+  EXPECT_LT(cost, 2.5);
+  EXPECT_LE(passed, 4);  // 6 tokens left after the join, almost 2 each
 }
 
 // Several connections from one address share its budget: neither more connections nor

@@ -5,6 +5,7 @@
 #include <sodium.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "config/seats.h"
@@ -62,6 +63,35 @@ std::string Num(double v) {
   s.erase(s.find_last_not_of('0') + 1);
   if (!s.empty() && s.back() == '.') s.pop_back();
   return s;
+}
+
+// A request for a region of leaves (Subscribe, SetInterest) is charged by what it may make the
+// server send: its base cost plus 1 per kRegionVoxelsPerToken voxels of its box clipped to the
+// object's bounds (the whole object when unset), at most half the request burst so that any
+// region can be asked for. An unknown object costs the base (the scene refuses it).
+constexpr double kRegionVoxelsPerToken = 64.0 * 64.0 * 64.0;
+
+double RegionCost(const v1::SceneInfo& info, const std::string& object, const v1::Box3* box,
+                  double base, double burst) {
+  for (const v1::ObjectInfo& o : info.objects()) {
+    if (o.name() != object || !(o.voxel_size() > 0)) continue;
+    const float lo[3] = {o.bounds_min().x(), o.bounds_min().y(), o.bounds_min().z()};
+    const float hi[3] = {o.bounds_max().x(), o.bounds_max().y(), o.bounds_max().z()};
+    double voxels = 1;
+    for (int a = 0; a < 3; ++a) {
+      double l = lo[a], h = hi[a];
+      if (box) {
+        const float bl[3] = {box->min().x(), box->min().y(), box->min().z()};
+        const float bh[3] = {box->max().x(), box->max().y(), box->max().z()};
+        // NaN bounds compare false and leave the object's: the scene refuses them anyway.
+        if (bl[a] > l) l = bl[a];
+        if (bh[a] < h) h = bh[a];
+      }
+      voxels *= std::max(0.0, (h - l) / o.voxel_size());
+    }
+    return std::min(base + voxels / kRegionVoxelsPerToken, std::max(base, burst / 2));
+  }
+  return base;
 }
 
 }  // namespace
@@ -658,13 +688,19 @@ std::function<void(Status)> Session::BeginSubscription(const char* what, bool* f
 }
 
 void Session::OnSubscribe(const v1::Subscribe& sub) {
-  if (!Charge("Subscribe", kSubscribeCost, Clock::now())) return;
+  const double cost = RegionCost(server_.scene().Info(), sub.object(),
+                                 sub.has_interest() ? &sub.interest() : nullptr, kSubscribeCost,
+                                 server_.config().limits.request_burst);
+  if (!Charge("Subscribe", cost, Clock::now())) return;
   auto done = BeginSubscription("Subscribe", &subscribed_, "use SetInterest to move the region");
   if (done) server_.scene().Subscribe(Sink(), sub, std::move(done));
 }
 
 void Session::OnSetInterest(const v1::SetInterest& si) {
-  if (!Charge("SetInterest", kSetInterestCost, Clock::now())) return;
+  const double cost = RegionCost(server_.scene().Info(), si.object(),
+                                 si.has_interest() ? &si.interest() : nullptr, kSetInterestCost,
+                                 server_.config().limits.request_burst);
+  if (!Charge("SetInterest", cost, Clock::now())) return;
   auto done = BeginSubscription("SetInterest", nullptr, "");
   if (done) server_.scene().SetInterest(id_, si, std::move(done));
 }
