@@ -165,6 +165,65 @@ int main(int argc, char** argv) {
                     "Close an HTTP connection that sends no request for this long (default 15000)")
       ->check(CLI::Range(100, 3600000));
 
+  // Limits an operator sets most often; the rest are in the configuration file's [limits]
+  // (deploy/scene.toml, docs/limits.md). A flag overrides the file.
+  const sculpt::server::LimitsConfig ld;
+  int64_t max_sessions = -1, max_per_source = -1, reserved_seats = -1, max_clients = -1;
+  int auth_timeout = -1, join_timeout = -1, idle_timeout = -1, frame_timeout = -1;
+  int64_t send_queue = -1;
+  double strokes_rate = -1, requests_rate = -1, source_factor = -1;
+  auto* limits = serve->add_option_group("Limits", "Per-client and per-address limits "
+                                                   "(config [limits]; docs/limits.md)");
+  limits->add_option("--max-sessions", max_sessions,
+                     "Open sessions at most, TCP and WebSocket, authenticated or not (default " +
+                         std::to_string(ld.max_sessions) + ")")
+      ->check(CLI::Range(int64_t{1}, int64_t{1000000}));
+  limits->add_option("--max-connections-per-source", max_per_source,
+                     "Open sessions from one IP address at most (default " +
+                         std::to_string(ld.max_connections_per_source) + ")")
+      ->check(CLI::Range(int64_t{1}, int64_t{1000000}));
+  limits->add_option("--max-clients-per-scene", max_clients,
+                     "Joined clients at most (default " + std::to_string(ld.max_clients_per_scene) +
+                         ")")
+      ->check(CLI::Range(int64_t{1}, int64_t{100000}));
+  limits->add_option("--reserved-sculptor-seats", reserved_seats,
+                     "Seats of the scene viewers may not take (default " +
+                         std::to_string(ld.reserved_sculptor_seats) + ")")
+      ->check(CLI::Range(int64_t{0}, int64_t{100000}));
+  limits->add_option("--auth-timeout-ms", auth_timeout,
+                     "A connection must authenticate (and finish TLS) within this (default " +
+                         std::to_string(ld.auth_timeout_ms) + ")")
+      ->check(CLI::Range(10, 600000));
+  limits->add_option("--join-timeout-ms", join_timeout,
+                     "An authenticated session must join within this; 0: no limit (default " +
+                         std::to_string(ld.join_timeout_ms) + ")")
+      ->check(CLI::Range(0, 3600000));
+  limits->add_option("--idle-timeout-ms", idle_timeout,
+                     "Close a joined session that sends nothing for this long; 0: never "
+                     "(default 0: passive viewers send nothing)")
+      ->check(CLI::Range(0, 86400000));
+  limits->add_option("--frame-timeout-ms", frame_timeout,
+                     "A frame begun must be complete within this (slow senders; default " +
+                         std::to_string(ld.frame_timeout_ms) + ")")
+      ->check(CLI::Range(10, 3600000));
+  limits->add_option("--send-queue-bytes", send_queue,
+                     "Per-session send queue bound; a client that does not read is dropped past "
+                     "it (default " + std::to_string(ld.send_queue_bytes) + ")")
+      ->check(CLI::Range(int64_t{64} << 10, int64_t{10000000000}));
+  limits->add_option("--strokes-per-second", strokes_rate,
+                     "Stroke rate per client (token bucket; default " +
+                         std::to_string(static_cast<int>(ld.strokes_per_second)) + ")")
+      ->check(CLI::Range(1.0, 1e5));
+  limits->add_option("--requests-per-second", requests_rate,
+                     "Request cost per client per second (joins, subscriptions, SetInterest, ...; "
+                     "default " + std::to_string(static_cast<int>(ld.requests_per_second)) + ")")
+      ->check(CLI::Range(1.0, 1e6));
+  limits->add_option("--source-rate-factor", source_factor,
+                     "One IP address gets this many clients' worth of every rate, whatever its "
+                     "number of connections (default " +
+                         std::to_string(static_cast<int>(ld.source_rate_factor)) + ")")
+      ->check(CLI::Range(1.0, 1e4));
+
   std::string tls_cert, tls_key, tls_client_ca;
   bool allow_plaintext = false;
   serve->add_option("--tls-cert", tls_cert,
@@ -255,6 +314,19 @@ int main(int argc, char** argv) {
   if (!tls_key.empty()) config.tls.key_file = tls_key;
   if (!tls_client_ca.empty()) config.tls.client_ca_file = tls_client_ca;
   if (allow_plaintext) config.tls.allow_plaintext = true;
+  sculpt::server::LimitsConfig& l = config.limits;
+  if (max_sessions > 0) l.max_sessions = static_cast<uint32_t>(max_sessions);
+  if (max_per_source > 0) l.max_connections_per_source = static_cast<uint32_t>(max_per_source);
+  if (max_clients > 0) l.max_clients_per_scene = static_cast<uint32_t>(max_clients);
+  if (reserved_seats >= 0) l.reserved_sculptor_seats = static_cast<uint32_t>(reserved_seats);
+  if (auth_timeout >= 0) l.auth_timeout_ms = auth_timeout;
+  if (join_timeout >= 0) l.join_timeout_ms = join_timeout;
+  if (idle_timeout >= 0) l.idle_timeout_ms = idle_timeout;
+  if (frame_timeout >= 0) l.frame_timeout_ms = frame_timeout;
+  if (send_queue > 0) l.send_queue_bytes = static_cast<size_t>(send_queue);
+  if (strokes_rate > 0) l.strokes_per_second = strokes_rate;
+  if (requests_rate > 0) l.requests_per_second = requests_rate;
+  if (source_factor > 0) l.source_rate_factor = source_factor;
   if (const sculpt::Status s = sculpt::server::ValidateConfig(config); !s.ok()) {
     spdlog::error("configuration: {}", s.ToString());
     return 2;

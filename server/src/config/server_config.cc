@@ -1,5 +1,6 @@
 /// @brief Reading and checking sculptd's TOML configuration.
 #include "config/server_config.h"
+#include "config/seats.h"
 
 #include "sculpt/core/check.h"
 #include "sculpt/levelset/sweep.h"
@@ -145,7 +146,10 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
         {"max_frame_bytes", "max_poses_per_stroke", "strokes_per_second", "stroke_burst",
          "poses_per_second", "pose_burst", "violations_before_disconnect",
          "max_clients_per_scene", "auth_timeout_ms", "auth_backoff_ms",
-         "auth_free_failures", "send_queue_bytes", "max_pending_joins", "undo_depth"}));
+         "auth_free_failures", "send_queue_bytes", "max_pending_joins", "max_sessions",
+         "max_connections_per_source", "reserved_sculptor_seats", "join_timeout_ms",
+         "idle_timeout_ms", "frame_timeout_ms", "requests_per_second", "request_burst",
+         "source_rate_factor", "undo_depth"}));
     int64_t v = c->limits.max_frame_bytes;
     Get(*l, "max_frame_bytes", &v);
     c->limits.max_frame_bytes = static_cast<uint32_t>(std::clamp<int64_t>(v, 0, 1ll << 31));
@@ -172,6 +176,21 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     v = c->limits.undo_depth;
     Get(*l, "undo_depth", &v);
     c->limits.undo_depth = static_cast<uint32_t>(std::clamp<int64_t>(v, 0, 1 << 20));
+    for (auto [key, out] : {std::pair{"max_sessions", &c->limits.max_sessions},
+                            std::pair{"max_connections_per_source",
+                                      &c->limits.max_connections_per_source},
+                            std::pair{"reserved_sculptor_seats",
+                                      &c->limits.reserved_sculptor_seats}}) {
+      v = *out;
+      Get(*l, key, &v);
+      *out = static_cast<uint32_t>(std::clamp<int64_t>(v, 0, 1 << 24));
+    }
+    Get(*l, "join_timeout_ms", &c->limits.join_timeout_ms);
+    Get(*l, "idle_timeout_ms", &c->limits.idle_timeout_ms);
+    Get(*l, "frame_timeout_ms", &c->limits.frame_timeout_ms);
+    Get(*l, "requests_per_second", &c->limits.requests_per_second);
+    Get(*l, "request_burst", &c->limits.request_burst);
+    Get(*l, "source_rate_factor", &c->limits.source_rate_factor);
   }
   if (const toml::table* s = root["scene"].as_table()) {
     SceneConfig& sc = c->scene;
@@ -369,6 +388,17 @@ Status ValidateConfig(const ServerConfig& c) {
       Range("limits.send_queue_bytes", static_cast<double>(l.send_queue_bytes), 64 << 10, 1e10));
   SCULPT_RETURN_IF_ERROR(Range("limits.max_pending_joins", l.max_pending_joins, 1, 1024));
   SCULPT_RETURN_IF_ERROR(Range("limits.undo_depth", l.undo_depth, 1, 4096));
+  SCULPT_RETURN_IF_ERROR(Range("limits.max_sessions", l.max_sessions, 1, 1e6));
+  SCULPT_RETURN_IF_ERROR(
+      Range("limits.max_connections_per_source", l.max_connections_per_source, 1, l.max_sessions));
+  SCULPT_RETURN_IF_ERROR(Range("limits.reserved_sculptor_seats", l.reserved_sculptor_seats, 0,
+                               1e5));
+  SCULPT_RETURN_IF_ERROR(Range("limits.join_timeout_ms", l.join_timeout_ms, 0, 3.6e6));
+  SCULPT_RETURN_IF_ERROR(Range("limits.idle_timeout_ms", l.idle_timeout_ms, 0, 8.64e7));
+  SCULPT_RETURN_IF_ERROR(Range("limits.frame_timeout_ms", l.frame_timeout_ms, 10, 3.6e6));
+  SCULPT_RETURN_IF_ERROR(Range("limits.requests_per_second", l.requests_per_second, 1, 1e6));
+  SCULPT_RETURN_IF_ERROR(Range("limits.request_burst", l.request_burst, 4, 1e7));
+  SCULPT_RETURN_IF_ERROR(Range("limits.source_rate_factor", l.source_rate_factor, 1, 1e4));
   const SceneConfig& s = c.scene;
   if (s.name.empty() || s.name.size() > 64) return InvalidArgument("scene.name must be 1..64 bytes");
   SCULPT_RETURN_IF_ERROR(Range("scene.voxel_size", s.voxel_size, levelset::kMinVoxelSize,
@@ -434,6 +464,10 @@ Status ValidateConfig(const ServerConfig& c) {
     }
   }
   return Status::Ok();
+}
+
+uint32_t ViewerSeats(const LimitsConfig& l) {
+  return l.max_clients_per_scene - std::min(l.reserved_sculptor_seats, l.max_clients_per_scene / 2);
 }
 
 levelset::EditSettings EditSettingsFor(const SceneConfig& s) {

@@ -100,6 +100,27 @@ struct LimitsConfig {
   uint32_t max_pending_joins = 8;
   // Strokes each author can undo per object (issue 15); older ones fall off the history.
   uint32_t undo_depth = 64;
+
+  // Connections (docs/limits.md). Sessions on the TCP port and WebSocket sessions alike, from
+  // accept to close, authenticated or not; past a cap a connection gets an Error and a Bye.
+  uint32_t max_sessions = 1024;
+  uint32_t max_connections_per_source = 64;  // per IP address
+  // Seats of max_clients_per_scene that viewers may not take: viewers alone cannot fill a scene.
+  uint32_t reserved_sculptor_seats = 4;
+  // An authenticated session must join within this; 0: no limit.
+  int join_timeout_ms = 10000;
+  // A joined session that sends nothing for this long is closed; 0 (default): never, since the
+  // protocol has no keep-alive and a passive viewer legitimately sends nothing.
+  int idle_timeout_ms = 0;
+  // A frame whose first byte has arrived must be complete within this (slowloris).
+  int frame_timeout_ms = 10000;
+  // Every request that is not an edit costs tokens of this bucket (a join 4, a subscription 2,
+  // a SetInterest 1, a divergence report 2, a hover 0.05, a connection 1: docs/limits.md).
+  double requests_per_second = 30;
+  double request_burst = 100;
+  // One source address may use this many clients' worth of every rate above (strokes, poses,
+  // requests), whatever the number of its connections; a named user, one client's worth.
+  double source_rate_factor = 4;
 };
 
 /// TLS on the TCP port and the HTTP port (HTTPS, WSS). Off while cert_file is empty; then only

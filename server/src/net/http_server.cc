@@ -359,7 +359,8 @@ HttpServer::HttpServer(asio::io_context& io, HttpConfig config, Server& server)
       config_(std::move(config)),
       server_(server),
       files_(config_.web_root),
-      acceptor_(io) {}
+      acceptor_(io),
+      accept_pause_(io, "http accept on " + config_.listen) {}
 
 HttpServer::~HttpServer() { Stop(); }
 
@@ -406,6 +407,7 @@ void HttpServer::Stop() {
   asio::post(io_, [this] {
     boost::system::error_code ec;
     acceptor_.close(ec);
+    accept_pause_.Cancel();
   });
   std::lock_guard<std::mutex> lock(connections_mu_);
   for (auto& [id, weak] : connections_) {
@@ -418,10 +420,14 @@ void HttpServer::Accept() {
   Strand strand = asio::make_strand(io_);
   acceptor_.async_accept(strand, [this, strand](boost::system::error_code ec, tcp::socket socket) {
     if (ec) {
-      if (ec != asio::error::operation_aborted) spdlog::warn("http accept: {}", ec.message());
-      if (!stopped_) Accept();
-      return;
+      if (stopped_) return;
+      if (ec == asio::error::operation_aborted) return Accept();
+      // Out of descriptors: pause instead of spinning (net/accept_pause.h).
+      return accept_pause_.OnError(ec, [this] {
+        if (!stopped_) Accept();
+      });
     }
+    accept_pause_.Succeeded();
     if (static_cast<size_t>(open_->load()) >= config_.max_connections) {
       // Full: a short answer without waiting on the client, then close. The connections
       // already open, and every TCP session, are not touched.

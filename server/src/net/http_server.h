@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "net/metrics.h"
+#include "net/accept_pause.h"
 #include "net/net.h"
 #include "net/server.h"
 #include "net/static_files.h"
@@ -97,6 +98,7 @@ class HttpServer {
   Server& server_;
   StaticFiles files_;
   tcp::acceptor acceptor_;
+  AcceptPause accept_pause_;
   std::shared_ptr<boost::asio::ssl::context> tls_;  // null: plain HTTP
   std::atomic<bool> stopped_{false};
   // Shared with the connection slots, which may outlive this object in queued handlers.

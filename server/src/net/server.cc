@@ -4,11 +4,13 @@
 #include <sodium.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <vector>
 
 #include "net/session.h"
 #include "net/tcp_transport.h"
 #include "net/tls.h"
+#include "net/wire_error.h"
 #include "sculpt/codec/frame.h"
 
 namespace sculpt::server {
@@ -28,7 +30,13 @@ Authenticator::Options AuthOptions(const ServerConfig& c, bool with_users_file) 
 }  // namespace
 
 Server::Server(asio::io_context& io, const ServerConfig& config, Scene& scene)
-    : io_(io), config_(config), scene_(scene), acceptor_(io), presence_timer_(io) {
+    : io_(io),
+      config_(config),
+      scene_(scene),
+      acceptor_(io),
+      presence_timer_(io),
+      accept_pause_(io, "accept on " + config.listen),
+      budgets_(config.limits) {
   // The shared tokens until Start reads the users file (creating this one cannot fail).
   auto a = Authenticator::Create(AuthOptions(config_, false));
   if (a.ok()) auth_ = std::move(a).value();
@@ -91,6 +99,7 @@ void Server::Stop() {
     boost::system::error_code ec;
     acceptor_.close(ec);
     presence_timer_.cancel();
+    accept_pause_.Cancel();
   });
   std::set<std::shared_ptr<Session>> sessions;
   {
@@ -105,10 +114,14 @@ void Server::Accept() {
   Strand strand = asio::make_strand(io_);
   acceptor_.async_accept(strand, [this, strand](boost::system::error_code ec, tcp::socket socket) {
     if (ec) {
-      if (ec != asio::error::operation_aborted) spdlog::warn("accept: {}", ec.message());
-      if (!stopped_) Accept();
-      return;
+      if (stopped_) return;
+      if (ec == asio::error::operation_aborted) return Accept();
+      stats_.accept_errors++;
+      return accept_pause_.OnError(ec, [this] {
+        if (!stopped_) Accept();
+      });
     }
+    accept_pause_.Succeeded();
     boost::system::error_code nd;
     socket.set_option(tcp::no_delay(true), nd);
     if (!tls_) {
@@ -137,36 +150,90 @@ bool Server::Adopt(Strand strand, std::shared_ptr<Transport> transport) {
   stats_.connections++;
   auto s = std::make_shared<Session>(*this, std::move(strand), std::move(transport),
                                      next_session_id_++);
-  if (!Register(s)) {
-    s->Shutdown("server shutting down");
-    return false;
+  v1::Error refusal;
+  switch (Register(s, &refusal)) {
+    case Admission::kStopped:
+      s->Shutdown("server shutting down");
+      return false;
+    case Admission::kRefused:
+      // Logged once per interval: a flood of connections must not become a flood of lines.
+      stats_.connections_refused++;
+      if (const uint64_t n = refusal_log_.Tick()) {
+        spdlog::warn("refused {} connection(s) since the last report; the latest from {}: {} "
+                     "({} = {})",
+                     n, s->source(), refusal.message(), refusal.field(), refusal.value());
+      }
+      s->Refuse(std::move(refusal));
+      return true;
+    case Admission::kAdmitted:
+      break;
   }
   s->Start();
   return true;
 }
 
-bool Server::Register(const std::shared_ptr<Session>& s) {
+Server::Admission Server::Register(const std::shared_ptr<Session>& s, v1::Error* refusal) {
+  const LimitsConfig& l = config_.limits;
   std::lock_guard<std::mutex> lock(sessions_mu_);
-  if (stopped_) return false;
+  if (stopped_) return Admission::kStopped;
+  if (sessions_.size() >= l.max_sessions) {
+    *refusal = ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "limits.max_sessions",
+                             std::to_string(sessions_.size()),
+                             "[0, " + std::to_string(l.max_sessions) + "]",
+                             "server full: too many connections");
+    return Admission::kRefused;
+  }
+  const auto it = sessions_per_source_.find(s->source());
+  const uint32_t from_source = it == sessions_per_source_.end() ? 0 : it->second;
+  if (from_source >= l.max_connections_per_source) {
+    *refusal = ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED,
+                             "limits.max_connections_per_source", std::to_string(from_source),
+                             "[0, " + std::to_string(l.max_connections_per_source) +
+                                 "] per source address",
+                             "too many connections from this address");
+    return Admission::kRefused;
+  }
+  if (!s->ChargeConnection()) {
+    *refusal = ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "requests_per_second",
+                             "a connection costs " + std::to_string(Session::kConnectionCost),
+                             s->source_budget().AllowedRange(SharedBudget::Kind::kRequests) +
+                                 " per source address",
+                             "too many connections per second from this address");
+    return Admission::kRefused;
+  }
   sessions_.insert(s);
-  return true;
+  ++sessions_per_source_[s->source()];
+  return Admission::kAdmitted;
 }
 
 void Server::Unregister(const Session* s) {
   std::lock_guard<std::mutex> lock(sessions_mu_);
   for (auto it = sessions_.begin(); it != sessions_.end(); ++it) {
     if (it->get() == s) {
+      if (auto n = sessions_per_source_.find(s->source()); n != sessions_per_source_.end()) {
+        if (--n->second == 0) sessions_per_source_.erase(n);
+      }
       sessions_.erase(it);
       return;
     }
   }
 }
 
-size_t Server::JoinedCount() {
+Server::Seats Server::JoinedSeats() {
   std::lock_guard<std::mutex> lock(sessions_mu_);
-  size_t n = 0;
-  for (const auto& s : sessions_) n += s->joined() ? 1 : 0;
-  return n;
+  Seats seats;
+  for (const auto& s : sessions_) {
+    if (!s->joined()) continue;
+    ++seats.joined;
+    if (s->role() == v1::ROLE_VIEWER) ++seats.viewers;
+  }
+  return seats;
+}
+
+uint32_t Server::SessionsFrom(const std::string& source) {
+  std::lock_guard<std::mutex> lock(sessions_mu_);
+  const auto it = sessions_per_source_.find(source);
+  return it == sessions_per_source_.end() ? 0 : it->second;
 }
 
 SessionCounts Server::CountSessions() {

@@ -11,8 +11,12 @@
 #include <mutex>
 #include <set>
 #include <string>
+#include <unordered_map>
 
 #include "config/server_config.h"
+#include "net/accept_pause.h"
+#include "net/budget_pool.h"
+#include "net/log_limiter.h"
 #include "net/metrics.h"
 #include "net/net.h"
 #include "net/transport.h"
@@ -38,6 +42,13 @@ struct ServerStats {
   std::atomic<uint64_t> frames_superseded{0};
   /// TLS handshakes that failed or timed out (plaintext on a TLS port, bad certificates).
   std::atomic<uint64_t> tls_handshake_failures{0};
+  /// Connections refused at once: limits.max_sessions, max_connections_per_source, or the
+  /// source's request budget (connections per second).
+  std::atomic<uint64_t> connections_refused{0};
+  /// Sessions closed by a timeout after authentication: join, idle, an incomplete frame.
+  std::atomic<uint64_t> sessions_timed_out{0};
+  /// Failed accepts (EMFILE, ENFILE, ...), each followed by a growing pause of the acceptor.
+  std::atomic<uint64_t> accept_errors{0};
   std::array<std::atomic<uint64_t>, kTransportKinds> bytes_in{};
   std::array<std::atomic<uint64_t>, kTransportKinds> bytes_out{};
   std::array<std::atomic<uint64_t>, kTransportKinds> messages_in{};
@@ -80,14 +91,25 @@ class Server {
   // Called by sessions.
   void Unregister(const Session* s);
   void BroadcastPresence();
-  /// Sessions that have joined the scene.
-  size_t JoinedCount();
+  /// Sessions that have joined the scene, and how many of them are viewers.
+  struct Seats {
+    size_t joined = 0;
+    size_t viewers = 0;
+  };
+  Seats JoinedSeats();
+  /// The rate limits shared by the sessions of one source address or one named user.
+  BudgetPool& budgets() { return budgets_; }
+  /// Live sessions from `source` (an address without port).
+  uint32_t SessionsFrom(const std::string& source);
   SessionCounts CountSessions();
 
  private:
+  enum class Admission { kAdmitted, kRefused, kStopped };
+
   void Accept();
   void SchedulePresence();
-  bool Register(const std::shared_ptr<Session>& s);
+  // Admits `s` under the session caps and its source's connection budget, or says why not.
+  Admission Register(const std::shared_ptr<Session>& s, v1::Error* refusal);
 
   asio::io_context& io_;
   ServerConfig config_;
@@ -96,8 +118,12 @@ class Server {
   std::shared_ptr<boost::asio::ssl::context> tls_;       // the TCP port's; null: plaintext
   std::shared_ptr<boost::asio::ssl::context> http_tls_;  // the HTTP port's
   asio::steady_timer presence_timer_;
+  AcceptPause accept_pause_;
+  LogLimiter refusal_log_{std::chrono::seconds(10)};
+  BudgetPool budgets_;
   std::mutex sessions_mu_;
   std::set<std::shared_ptr<Session>> sessions_;
+  std::unordered_map<std::string, uint32_t> sessions_per_source_;  // under sessions_mu_
   std::atomic<uint64_t> next_session_id_{1};
   std::atomic<bool> stopped_{false};
   ServerStats stats_;

@@ -5,10 +5,13 @@
 #include <sodium.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
 
+#include "config/seats.h"
 #include "net/frame_key.h"
 #include "net/server.h"
+#include "net/untrusted_text.h"
 #include "net/wire_error.h"
 #include "scene/models.h"
 #include "scene/paint.h"
@@ -27,17 +30,6 @@ constexpr size_t kStateAllowanceBytes = 64u << 20;
 constexpr auto kByeGrace = std::chrono::milliseconds(500);
 // How long a client being disconnected for violations waits for its accepted strokes' acks.
 constexpr auto kDrainLimit = std::chrono::seconds(5);
-
-// "10.0.0.7:5555" -> "10.0.0.7", "[::1]:5555" -> "::1": failed authentications are counted
-// per address, whatever port a retry comes from.
-std::string SourceAddress(const std::string& remote) {
-  if (!remote.empty() && remote.front() == '[') {
-    const size_t close = remote.find(']');
-    return close == std::string::npos ? remote : remote.substr(1, close - 1);
-  }
-  const size_t colon = remote.rfind(':');
-  return colon == std::string::npos ? remote : remote.substr(0, colon);
-}
 
 // The id a named user's client_id is filed under: 64 bits of BLAKE2b(user, client_id), never 0.
 uint64_t BoundClientId(const std::string& user, uint64_t client_id) {
@@ -66,7 +58,52 @@ Frame MakeFrame(const v1::ServerMessage& m) {
 
 size_t Index(TransportKind k) { return static_cast<size_t>(k); }
 
+std::string Num(double v) {
+  std::string s = std::to_string(v);
+  s.erase(s.find_last_not_of('0') + 1);
+  if (!s.empty() && s.back() == '.') s.pop_back();
+  return s;
+}
+
+// A request for a region of leaves (Subscribe, SetInterest) is charged by what it may make the
+// server send: its base cost plus 1 per kRegionVoxelsPerToken voxels of its box clipped to the
+// object's bounds (the whole object when unset), at most half the request burst so that any
+// region can be asked for. An unknown object costs the base (the scene refuses it).
+constexpr double kRegionVoxelsPerToken = 64.0 * 64.0 * 64.0;
+
+double RegionCost(const v1::SceneInfo& info, const std::string& object, const v1::Box3* box,
+                  double base, double burst) {
+  for (const v1::ObjectInfo& o : info.objects()) {
+    if (o.name() != object || !(o.voxel_size() > 0)) continue;
+    const float lo[3] = {o.bounds_min().x(), o.bounds_min().y(), o.bounds_min().z()};
+    const float hi[3] = {o.bounds_max().x(), o.bounds_max().y(), o.bounds_max().z()};
+    double voxels = 1;
+    for (int a = 0; a < 3; ++a) {
+      double l = lo[a], h = hi[a];
+      if (box) {
+        const float bl[3] = {box->min().x(), box->min().y(), box->min().z()};
+        const float bh[3] = {box->max().x(), box->max().y(), box->max().z()};
+        // NaN bounds compare false and leave the object's: the scene refuses them anyway.
+        if (bl[a] > l) l = bl[a];
+        if (bh[a] < h) h = bh[a];
+      }
+      voxels *= std::max(0.0, (h - l) / o.voxel_size());
+    }
+    return std::min(base + voxels / kRegionVoxelsPerToken, std::max(base, burst / 2));
+  }
+  return base;
+}
+
 }  // namespace
+
+std::string SourceAddress(const std::string& remote) {
+  if (!remote.empty() && remote.front() == '[') {
+    const size_t close = remote.find(']');
+    return close == std::string::npos ? remote : remote.substr(1, close - 1);
+  }
+  const size_t colon = remote.rfind(':');
+  return colon == std::string::npos ? remote : remote.substr(0, colon);
+}
 
 const char* TransportName(TransportKind kind) {
   return kind == TransportKind::kWebSocket ? "ws" : "tcp";
@@ -79,9 +116,15 @@ Session::Session(Server& server, Strand strand, std::shared_ptr<Transport> trans
       transport_kind_(transport_->kind()),
       auth_timer_(strand_),
       close_timer_(strand_),
+      idle_timer_(strand_),
+      frame_timer_(strand_),
       id_(id),
+      source_(SourceAddress(transport_->remote())),
+      source_budget_(server.budgets().Get("addr:" + source_,
+                                          server.config().limits.source_rate_factor)),
       strokes_(server.config().limits.strokes_per_second, server.config().limits.stroke_burst),
-      poses_(server.config().limits.poses_per_second, server.config().limits.pose_burst) {}
+      poses_(server.config().limits.poses_per_second, server.config().limits.pose_burst),
+      requests_(server.config().limits.requests_per_second, server.config().limits.request_burst) {}
 
 Session::~Session() = default;
 
@@ -103,6 +146,22 @@ void Session::Start() {
     self->Close("authentication timeout", true);
   });
   DoRead();
+}
+
+void Session::Refuse(v1::Error error) {
+  if (!strand_.running_in_this_thread()) {
+    return asio::post(strand_, [self = shared_from_this(), error = std::move(error)]() mutable {
+      self->Refuse(std::move(error));
+    });
+  }
+  quiet_close_ = true;
+  const std::string reason = error.message();
+  SendError(std::move(error));
+  Close(reason, true);
+}
+
+bool Session::ChargeConnection() {
+  return source_budget_->TryTake(SharedBudget::Kind::kRequests, kConnectionCost, Clock::now());
 }
 
 void Session::Shutdown(std::string reason) {
@@ -325,13 +384,16 @@ void Session::OnRead(ReadResult r) {
   if (closing_) return;
   ServerStats& stats = server_.stats();
   stats.bytes_in[Index(transport_kind_)] += r.bytes;
+  if (!r.payloads.empty()) last_message_ = Clock::now();
   for (const std::string& payload : r.payloads) {
     stats.messages_in[Index(transport_kind_)]++;
     Handle(payload);
     if (closing_) return;
   }
   switch (r.end) {
-    case ReadResult::End::kNone: return DoRead();
+    case ReadResult::End::kNone:
+      OnPartialFrame(r.partial);
+      return DoRead();
     case ReadResult::End::kClosed: return Close(r.reason.message(), false);
     case ReadResult::End::kTooLarge:
       SendStatus(r.reason);
@@ -360,12 +422,19 @@ void Session::Handle(const std::string& payload) {
     case v1::ClientMessage::kJoin: return OnJoin(msg.join());
     case v1::ClientMessage::kStroke: return OnStroke(msg.stroke(), received);
     case v1::ClientMessage::kHover: return OnHover(msg.hover());
-    case v1::ClientMessage::kBye: return Close("client said bye: " + msg.bye().reason(), false);
+    case v1::ClientMessage::kBye:
+      // The reason is the client's text: bounded and escaped before it reaches the log.
+      return Close("client said bye: " + Printable(msg.bye().reason()), false);
     case v1::ClientMessage::kSubscribe: return OnSubscribe(msg.subscribe());
     case v1::ClientMessage::kSetInterest: return OnSetInterest(msg.set_interest());
-    case v1::ClientMessage::kDivergence:
-      if (subscribed_) server_.scene().ReportDivergence(id_, msg.divergence());
+    case v1::ClientMessage::kDivergence: {
+      // Each report is a log line: charged, and its object name bounded and escaped.
+      if (!subscribed_ || !Charge("DivergenceReport", kDivergenceCost, received)) return;
+      v1::DivergenceReport r = msg.divergence();
+      r.set_object(Printable(r.object()));
+      server_.scene().ReportDivergence(id_, r);
       return;
+    }
     case v1::ClientMessage::kViewerSubscribe: return OnViewerSubscribe(msg.viewer_subscribe());
     case v1::ClientMessage::kSkinBallEdit: return OnSkinBallEdit(msg.skin_ball_edit());
     case v1::ClientMessage::kContourSubscribe: return OnContourSubscribe(msg.contour_subscribe());
@@ -462,6 +531,10 @@ void Session::OnAuthenticated(AuthResult r, v1::Role role, uint64_t client_id,
   const ServerConfig& c = server_.config();
   auth_timer_.cancel();
   state_ = State::kAuthed;
+  // A named user's sessions share one budget, wherever they connect from: reconnecting, or
+  // opening more connections, buys no more strokes.
+  if (r.named) user_budget_ = server_.budgets().Get("user:" + r.user, 1.0);
+  ArmJoinTimer();
   role_ = role;
   role_flag_ = role_;
   // With named users, edits are filed under an id bound to the user: another user presenting
@@ -498,6 +571,7 @@ void Session::OnJoin(const v1::JoinScene& j) {
                             "after Hello", "authenticate first"));
     return Close("join before hello", true);
   }
+  if (!Charge("JoinScene", j.skip_state() ? kJoinSkipStateCost : kJoinCost, Clock::now())) return;
   if (!j.scene().empty() && j.scene() != server_.scene().name()) {
     SendError(ProtocolError(v1::ERROR_CODE_NOT_FOUND, "JoinScene.scene", j.scene(),
                             "{" + server_.scene().name() + "}", "unknown scene"));
@@ -508,15 +582,33 @@ void Session::OnJoin(const v1::JoinScene& j) {
                             "once per connection", "already joined"));
     return Violation();
   }
-  const size_t joined = server_.JoinedCount();
+  const Server::Seats seats = server_.JoinedSeats();
   const uint32_t max_clients = server_.config().limits.max_clients_per_scene;
-  if (joined >= max_clients) {
-    SendError(ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "clients", std::to_string(joined),
-                            "[0, " + std::to_string(max_clients) + "]", "scene full"));
+  if (seats.joined >= max_clients) {
+    SendError(ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "clients",
+                            std::to_string(seats.joined), "[0, " + std::to_string(max_clients) + "]",
+                            "scene full"));
     return Close("scene full", true);
+  }
+  // The last reserved_sculptor_seats seats are for sculptors: viewers alone cannot fill a scene
+  // so that nobody may sculpt.
+  const size_t viewer_seats = ViewerSeats(server_.config().limits);
+  const size_t reserved = max_clients - viewer_seats;
+  if (role_ == v1::ROLE_VIEWER && seats.viewers >= viewer_seats) {
+    SendError(ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "viewers",
+                            std::to_string(seats.viewers),
+                            "[0, " + std::to_string(viewer_seats) + "] (" +
+                                std::to_string(reserved) + " of " + std::to_string(max_clients) +
+                                " seats reserved for sculptors)",
+                            "no seat left for viewers"));
+    return Close("no seat left for viewers", true);
   }
   joined_ = true;
   joined_flag_ = true;
+  if (const int idle = server_.config().limits.idle_timeout_ms; idle > 0) {
+    last_message_ = Clock::now();
+    ArmIdleTimer(last_message_ + std::chrono::milliseconds(idle));
+  }
   if (j.skip_state()) {
     // A replica loads its region through Subscribe: scene info only.
     v1::ServerMessage info;
@@ -539,20 +631,7 @@ void Session::OnStroke(const v1::Stroke& s, Clock::time_point received) {
                             "{ROLE_SCULPTOR}", "viewers may not edit", s.client_seq()));
     return Violation();
   }
-  if (!strokes_.TryTake(1.0, received)) {
-    server_.stats().strokes_refused++;
-    SendError(ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "strokes_per_second",
-                            "above the limit", strokes_.AllowedRange(), "stroke rate limit",
-                            s.client_seq()));
-    return Violation();
-  }
-  if (!poses_.TryTake(static_cast<double>(s.pose_count()), received)) {
-    server_.stats().strokes_refused++;
-    SendError(ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "poses_per_second",
-                            "above the limit", poses_.AllowedRange(), "pose rate limit",
-                            s.client_seq()));
-    return Violation();
-  }
+  if (!TakeEditTokens(static_cast<double>(s.pose_count()), received, s.client_seq())) return;
   auto limits = server_.scene().LimitsFor(s.object());
   if (!limits.ok()) {
     server_.stats().strokes_refused++;
@@ -578,7 +657,7 @@ void Session::OnStroke(const v1::Stroke& s, Clock::time_point received) {
 }
 
 void Session::OnHover(const v1::Hover& h) {
-  if (!joined_) return;
+  if (!joined_ || !Charge("Hover", kHoverCost, Clock::now())) return;
   if (!std::isfinite(h.position().x()) || !std::isfinite(h.position().y()) ||
       !std::isfinite(h.position().z()) || !std::isfinite(h.radius())) {
     SendError(ProtocolError(v1::ERROR_CODE_INVALID_ARGUMENT, "Hover.position", "not finite",
@@ -625,21 +704,31 @@ std::function<void(Status)> Session::BeginSubscription(const char* what, bool* f
 }
 
 void Session::OnSubscribe(const v1::Subscribe& sub) {
+  const double cost = RegionCost(server_.scene().Info(), sub.object(),
+                                 sub.has_interest() ? &sub.interest() : nullptr, kSubscribeCost,
+                                 server_.config().limits.request_burst);
+  if (!Charge("Subscribe", cost, Clock::now())) return;
   auto done = BeginSubscription("Subscribe", &subscribed_, "use SetInterest to move the region");
   if (done) server_.scene().Subscribe(Sink(), sub, std::move(done));
 }
 
 void Session::OnSetInterest(const v1::SetInterest& si) {
+  const double cost = RegionCost(server_.scene().Info(), si.object(),
+                                 si.has_interest() ? &si.interest() : nullptr, kSetInterestCost,
+                                 server_.config().limits.request_burst);
+  if (!Charge("SetInterest", cost, Clock::now())) return;
   auto done = BeginSubscription("SetInterest", nullptr, "");
   if (done) server_.scene().SetInterest(id_, si, std::move(done));
 }
 
 void Session::OnViewerSubscribe(const v1::ViewerSubscribe& vs) {
+  if (!Charge("ViewerSubscribe", kSubscribeCost, Clock::now())) return;
   auto done = BeginSubscription("ViewerSubscribe", &viewing_, "already subscribed to meshes");
   if (done) server_.scene().SubscribeViewer(Sink(), vs, std::move(done));
 }
 
 void Session::OnContourSubscribe(const v1::ContourSubscribe& c) {
+  if (!Charge("ContourSubscribe", kSubscribeCost, Clock::now())) return;
   if (!joined_) {
     SendError(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, "ContourSubscribe",
                             "before JoinScene", "after JoinScene", "join a scene first"));
@@ -670,14 +759,130 @@ bool Session::MayEdit(const char* what, uint64_t seq) {
     Violation();
     return false;
   }
-  if (!strokes_.TryTake(1.0, Clock::now())) {
+  return TakeEditTokens(0, Clock::now(), seq);
+}
+
+// The connection's own bucket first, then the ones it shares: a refusal names the one that
+// ran out. Tokens taken from an earlier bucket of a refused edit are not given back (the
+// refusal itself was work).
+bool Session::TakeEditTokens(double poses, Clock::time_point now, uint64_t seq) {
+  using Kind = SharedBudget::Kind;
+  struct Shared {
+    SharedBudget* budget;
+    const char* scope;
+  };
+  const Shared shared[] = {{source_budget_.get(), " per source address"},
+                           {user_budget_.get(), " per user"}};
+  auto refuse = [&](const char* field, const std::string& range, const char* message) {
     server_.stats().strokes_refused++;
-    SendError(ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "strokes_per_second",
-                            "above the limit", strokes_.AllowedRange(), "stroke rate limit", seq));
+    SendError(ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, field, "above the limit", range,
+                            message, seq));
     Violation();
     return false;
+  };
+  if (!strokes_.TryTake(1.0, now)) {
+    return refuse("strokes_per_second", strokes_.AllowedRange(), "stroke rate limit");
+  }
+  for (const Shared& s : shared) {
+    if (s.budget && !s.budget->TryTake(Kind::kStrokes, 1.0, now)) {
+      return refuse("strokes_per_second", s.budget->AllowedRange(Kind::kStrokes) + s.scope,
+                    "stroke rate limit");
+    }
+  }
+  if (poses <= 0) return true;
+  if (!poses_.TryTake(poses, now)) {
+    return refuse("poses_per_second", poses_.AllowedRange(), "pose rate limit");
+  }
+  for (const Shared& s : shared) {
+    if (s.budget && !s.budget->TryTake(Kind::kPoses, poses, now)) {
+      return refuse("poses_per_second", s.budget->AllowedRange(Kind::kPoses) + s.scope,
+                    "pose rate limit");
+    }
   }
   return true;
+}
+
+bool Session::Charge(const char* what, double cost, Clock::time_point now) {
+  using Kind = SharedBudget::Kind;
+  std::string range;
+  if (!requests_.TryTake(cost, now)) {
+    range = requests_.AllowedRange() + " per connection";
+  } else if (!source_budget_->TryTake(Kind::kRequests, cost, now)) {
+    range = source_budget_->AllowedRange(Kind::kRequests) + " per source address";
+  } else if (user_budget_ && !user_budget_->TryTake(Kind::kRequests, cost, now)) {
+    range = user_budget_->AllowedRange(Kind::kRequests) + " per user";
+  } else {
+    return true;
+  }
+  SendError(ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "requests_per_second",
+                          std::string(what) + " costs " + Num(cost), range,
+                          "request rate limit: every request has a cost (docs/limits.md)"));
+  Violation();
+  return false;
+}
+
+// ---- Timeouts after authentication (on the strand) ------------------------------------------
+
+void Session::TimedOut(v1::Error error, const std::string& reason) {
+  if (closing_) return;
+  server_.stats().sessions_timed_out++;
+  SendError(std::move(error));
+  Close(reason, true);
+}
+
+// Not cancelled by a join: a join the scene refuses (max_pending_joins) leaves the session
+// unjoined, and the timer still closes it if it never gets in.
+void Session::ArmJoinTimer() {
+  const int ms = server_.config().limits.join_timeout_ms;
+  if (ms <= 0) return;
+  auth_timer_.expires_after(std::chrono::milliseconds(ms));
+  auth_timer_.async_wait([self = shared_from_this(), ms](boost::system::error_code ec) {
+    if (ec || self->joined_ || self->closing_) return;
+    self->TimedOut(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, "JoinScene", "none",
+                                 "within " + std::to_string(ms) + " ms of Welcome",
+                                 "no JoinScene received in time"),
+                   "join timeout");
+  });
+}
+
+void Session::ArmIdleTimer(Clock::time_point deadline) {
+  idle_timer_.expires_at(deadline);
+  idle_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
+    if (ec || self->closing_) return;
+    const auto idle = std::chrono::milliseconds(self->server_.config().limits.idle_timeout_ms);
+    const Clock::time_point due = self->last_message_ + idle;
+    if (Clock::now() < due) return self->ArmIdleTimer(due);
+    self->TimedOut(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, "idle",
+                                 "no message for " + std::to_string(idle.count()) + " ms",
+                                 "a message at least every " + std::to_string(idle.count()) +
+                                     " ms (limits.idle_timeout_ms)",
+                                 "idle connection closed"),
+                   "idle timeout");
+  });
+}
+
+// A frame whose first bytes have arrived must be complete within limits.frame_timeout_ms,
+// however slowly the rest trickles in: a client that keeps a frame open holds its connection
+// without ever sending a message.
+void Session::OnPartialFrame(bool partial) {
+  if (!partial) {
+    if (frame_timer_armed_) frame_timer_.cancel();
+    frame_timer_armed_ = false;
+    return;
+  }
+  if (frame_timer_armed_) return;
+  frame_timer_armed_ = true;
+  const int ms = server_.config().limits.frame_timeout_ms;
+  frame_timer_.expires_after(std::chrono::milliseconds(ms));
+  frame_timer_.async_wait([self = shared_from_this(), ms](boost::system::error_code ec) {
+    if (ec || !self->frame_timer_armed_ || self->closing_) return;
+    self->TimedOut(ProtocolError(v1::ERROR_CODE_MALFORMED, "frame",
+                                 "incomplete after " + std::to_string(ms) + " ms",
+                                 "complete within " + std::to_string(ms) +
+                                     " ms of its first byte (limits.frame_timeout_ms)",
+                                 "frame too slow"),
+                   "frame not completed in time");
+  });
 }
 
 void Session::OnSkinBallEdit(const v1::SkinBallEdit& e) {
@@ -831,8 +1036,13 @@ void Session::Close(const std::string& reason, bool send_bye) {
   closing_ = true;
   joined_flag_ = false;
   auth_timer_.cancel();
-  spdlog::info("session {} ({}, {} {}): closing: {}", id_, PresenceEntry().name(),
-               TransportName(transport_kind_), transport_->remote(), reason);
+  idle_timer_.cancel();
+  frame_timer_.cancel();
+  frame_timer_armed_ = false;
+  if (!quiet_close_) {
+    spdlog::info("session {} ({}, {} {}): closing: {}", id_, Printable(PresenceEntry().name()),
+                 TransportName(transport_kind_), transport_->remote(), reason);
+  }
   if (send_bye && state_ != State::kClosed) {
     v1::ServerMessage m;
     m.mutable_bye()->set_reason(reason);

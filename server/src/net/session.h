@@ -14,6 +14,7 @@
 #include <string>
 #include <unordered_map>
 
+#include "net/budget_pool.h"
 #include "net/net.h"
 #include "net/rate_limiter.h"
 #include "net/transport.h"
@@ -25,6 +26,10 @@ namespace sculpt::server {
 
 class Server;
 
+/// "10.0.0.7:5555" -> "10.0.0.7", "[::1]:5555" -> "::1": limits and failed authentications are
+/// counted per address, whatever port a connection comes from.
+std::string SourceAddress(const std::string& remote);
+
 /// One client connection. Its logic sees whole sculpt.v1 messages and never the framing: the
 /// Transport brings them in and takes frames out. Public methods are entry points callable from
 /// any thread; each gets onto the session's strand itself (posting when called elsewhere), so
@@ -33,6 +38,17 @@ class Server;
 class Session : public std::enable_shared_from_this<Session> {
  public:
   using Clock = std::chrono::steady_clock;
+
+  /// What each request costs in the request buckets (limits.requests_per_second): per
+  /// connection, per source address and per named user. Edits are counted by the stroke and
+  /// pose buckets instead.
+  static constexpr double kConnectionCost = 1;   // charged to the source address only
+  static constexpr double kJoinCost = 4;         // the scene's state is serialised and sent
+  static constexpr double kJoinSkipStateCost = 1;
+  static constexpr double kSubscribeCost = 2;    // replica, viewer mesh and contour subscriptions
+  static constexpr double kSetInterestCost = 1;  // a region of leaves is sent
+  static constexpr double kDivergenceCost = 2;   // a log line
+  static constexpr double kHoverCost = 0.05;     // presence only
 
   /// `transport` must run on `strand`.
   Session(Server& server, Strand strand, std::shared_ptr<Transport> transport, uint64_t id);
@@ -44,6 +60,12 @@ class Session : public std::enable_shared_from_this<Session> {
   void Start();
   /// Sends a Bye with `reason` and closes.
   void Shutdown(std::string reason);
+  /// A connection the server does not admit: sends `error` and a Bye, closes, and logs nothing
+  /// (the server logs refusals once per interval).
+  void Refuse(v1::Error error);
+  /// Takes a connection's cost from the source address's request budget (any thread, before
+  /// Start). False when the address has none left.
+  bool ChargeConnection();
   /// Queues a presence frame unless one is already waiting (coalesced) or the client has not
   /// joined.
   void DeliverPresence(Frame frame);
@@ -59,6 +81,9 @@ class Session : public std::enable_shared_from_this<Session> {
   v1::Role role() const { return role_flag_.load(); }
   /// The presence entry the server broadcasts (any thread).
   v1::PresenceEntry PresenceEntry() const;
+  /// The peer's address without port (any thread).
+  const std::string& source() const { return source_; }
+  SharedBudget& source_budget() { return *source_budget_; }
 
  private:
   enum class State { kAwaitHello, kAuthenticating, kAuthed, kClosed };
@@ -93,6 +118,17 @@ class Session : public std::enable_shared_from_this<Session> {
 
   // Checks shared by the edits that are not strokes: joined, sculptor, the stroke bucket.
   bool MayEdit(const char* what, uint64_t client_seq);
+  // Takes one stroke and `poses` poses from this connection's, the source's and the user's
+  // buckets; false, with the refusal sent and counted as a violation, when one has too few.
+  bool TakeEditTokens(double poses, Clock::time_point now, uint64_t client_seq);
+  // Takes `cost` from the request buckets; false, refused as above, when one has too few.
+  bool Charge(const char* what, double cost, Clock::time_point now);
+  // Timeouts after authentication: join (armed at Welcome), idle (armed at join), an
+  // incomplete frame (armed while one is buffered).
+  void ArmJoinTimer();
+  void ArmIdleTimer(Clock::time_point deadline);
+  void OnPartialFrame(bool partial);
+  void TimedOut(v1::Error error, const std::string& reason);
   // Starts a once-per-connection subscription (see session.cc); null when refused.
   std::function<void(Status)> BeginSubscription(const char* what, bool* flag,
                                                 const char* repeat_hint);
@@ -113,9 +149,17 @@ class Session : public std::enable_shared_from_this<Session> {
   Strand strand_;
   std::shared_ptr<Transport> transport_;
   const TransportKind transport_kind_;
-  asio::steady_timer auth_timer_;
+  asio::steady_timer auth_timer_;  // Hello, then JoinScene, within their timeouts
   asio::steady_timer close_timer_;
+  asio::steady_timer idle_timer_;
+  asio::steady_timer frame_timer_;
+  bool frame_timer_armed_ = false;
+  Clock::time_point last_message_;
   const uint64_t id_;
+  const std::string source_;
+  std::shared_ptr<SharedBudget> source_budget_;  // shared with every session of source_
+  std::shared_ptr<SharedBudget> user_budget_;    // a named user's, shared likewise; else null
+  bool quiet_close_ = false;
 
   std::deque<Frame> queue_;
   // Coalescing key (frame_key.h) -> index in queue_ of the frame waiting in that slot. The
@@ -138,6 +182,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::string user_;        // the authenticated user name (named users) or the claimed name
   RateLimiter strokes_;  // strokes and every other edit message
   RateLimiter poses_;    // each pose is an edit: bounds the work one client queues
+  RateLimiter requests_;  // every request that is not an edit, by its cost
   int violations_ = 0;
   // Strokes handed to the scene and not yet answered. A client disconnected for its violations
   // first gets the acks of these (draining_), so no applied stroke is reported as lost.

@@ -79,6 +79,7 @@ void BasicTcpTransport<Stream>::AsyncRead(ReadHandler done) {
           if (!next->has_value()) break;
           r.payloads.push_back(std::move(**next));
         }
+        r.partial = self->reader_.buffered() > 0;
         if (ec) {
           if (self->reader_.buffered() > 0 && IsEnd(ec)) {
             spdlog::info("{}: closed mid-frame ({} bytes of a truncated frame dropped)",

@@ -37,6 +37,7 @@ struct ReadResult {
   End end = End::kNone;
   Status reason;
   uint64_t bytes = 0;  // bytes taken off the connection by this read
+  bool partial = false;  // the start of a message is buffered, its end not yet received
 };
 
 /// A client connection as a session sees it. Every method is called on the session's strand

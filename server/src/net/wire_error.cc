@@ -1,6 +1,7 @@
 /// @brief Status → sculpt.v1.Error.
 #include "net/wire_error.h"
 
+#include "net/untrusted_text.h"
 #include "sculpt/codec/stroke.h"
 
 namespace sculpt::server {
@@ -28,12 +29,14 @@ v1::Error ToWireError(const Status& status, uint64_t client_seq) {
 
 v1::Error ProtocolError(v1::ErrorCode code, std::string field, std::string value,
                         std::string allowed_range, std::string message, uint64_t client_seq) {
+  // Any of these may quote a client's text (a name, an object, a scene): bounded and escaped
+  // here, once for every error, so nothing a client sends is echoed back at length.
   v1::Error e;
   e.set_code(code);
-  e.set_field(std::move(field));
-  e.set_value(std::move(value));
-  e.set_allowed_range(std::move(allowed_range));
-  e.set_message(std::move(message));
+  e.set_field(Printable(field, kMaxErrorFieldBytes));
+  e.set_value(Printable(value, kMaxErrorFieldBytes));
+  e.set_allowed_range(Printable(allowed_range, kMaxErrorTextBytes));
+  e.set_message(Printable(message, kMaxErrorTextBytes));
   e.set_client_seq(client_seq);
   return e;
 }

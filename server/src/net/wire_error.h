@@ -21,8 +21,13 @@ v1::ErrorCode ToWireCode(Status::Code code);
 /// message, for the message with sequence number `client_seq` (0 when none).
 v1::Error ToWireError(const Status& status, uint64_t client_seq = 0);
 
+/// Bounds of an Error's strings: field and value, allowed range and message (net/untrusted_text.h
+/// escapes and cuts them).
+inline constexpr size_t kMaxErrorFieldBytes = 128;
+inline constexpr size_t kMaxErrorTextBytes = 512;
+
 /// A protocol error the session raises itself (authentication, roles, framing), whose code a
-/// Status does not name.
+/// Status does not name. Each string is passed through Printable (bounded, escaped).
 v1::Error ProtocolError(v1::ErrorCode code, std::string field, std::string value,
                         std::string allowed_range, std::string message, uint64_t client_seq = 0);
 
