@@ -69,7 +69,7 @@ std::string Num(double v) {
 // server send: its base cost plus 1 per kRegionVoxelsPerToken voxels of its box clipped to the
 // object's bounds (the whole object when unset), at most half the request burst so that any
 // region can be asked for. An unknown object costs the base (the scene refuses it).
-constexpr double kRegionVoxelsPerToken = 32.0 * 32.0 * 32.0;
+constexpr double kRegionVoxelsPerToken = 64.0 * 64.0 * 64.0;
 
 double RegionCost(const v1::SceneInfo& info, const std::string& object, const v1::Box3* box,
                   double base, double burst) {
