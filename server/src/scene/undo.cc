@@ -2,8 +2,6 @@
 /// histories every stroke is recorded in (EditHistory, edit_history.h).
 #include <spdlog/spdlog.h>
 
-#include <boost/crc.hpp>
-
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -26,12 +24,6 @@ constexpr size_t kMaxNameBytes = 64;
 // CRC32C of the payload, then EditHistory::Serialize's bytes.
 constexpr char kHistoryMagic[8] = {'S', 'C', 'L', 'P', 'H', 'I', 'S', 'T'};
 constexpr size_t kHistoryHeader = 8 + 8 + 8 + 4;
-
-uint32_t Crc32c(std::string_view bytes) {
-  boost::crc_optimal<32, 0x1EDC6F41, 0xFFFFFFFF, 0xFFFFFFFF, true, true> crc;
-  crc.process_bytes(bytes.data(), bytes.size());
-  return crc.checksum();
-}
 
 std::string HistoryPath(const std::string& data_dir, const std::string& object) {
   return (std::filesystem::path(data_dir) / "history" / (object + ".bin")).string();
@@ -175,7 +167,7 @@ bool Scene::SaveHistories(uint64_t seq) {
     const std::string payload = HistoryOf(object).Serialize();
     std::string bytes(kHistoryMagic, sizeof(kHistoryMagic));
     const uint64_t size = payload.size();
-    const uint32_t crc = Crc32c(payload);
+    const uint32_t crc = store::Crc32c(payload);
     bytes.append(reinterpret_cast<const char*>(&seq), 8);
     bytes.append(reinterpret_cast<const char*>(&size), 8);
     bytes.append(reinterpret_cast<const char*>(&crc), 4);
@@ -218,7 +210,9 @@ void Scene::LoadHistory(const std::string& object, uint64_t snapshot_seq) {
                   std::to_string(snapshot_seq));
   }
   const std::string_view payload(bytes.data() + kHistoryHeader, bytes.size() - kHistoryHeader);
-  if (size != payload.size() || Crc32c(payload) != crc) return refuse("size or checksum mismatch");
+  if (size != payload.size() || store::Crc32c(payload) != crc) {
+    return refuse("size or checksum mismatch");
+  }
   EditHistoryOptions o;
   o.depth_per_author = static_cast<int>(config_.limits.undo_depth);
   auto parsed = EditHistory::Parse(payload, o);

@@ -20,8 +20,6 @@ constexpr uint32_t kVersion = 1;
 constexpr size_t kHeader = 8 + 4 + 4 + 8;
 constexpr size_t kEntry = 1 + 8 + 8;
 
-using Crc32c = boost::crc_optimal<32, 0x1EDC6F41, 0xFFFFFFFF, 0xFFFFFFFF, true, true>;
-
 void Put(std::string* out, uint64_t v, int bytes) {
   for (int i = 0; i < bytes; ++i) out->push_back(static_cast<char>(v >> (8 * i)));
 }
@@ -33,16 +31,18 @@ uint64_t Get(const std::string& in, size_t at, int bytes) {
   }
   return v;
 }
-uint32_t Crc(const char* data, size_t size) {
-  Crc32c crc;
-  crc.process_bytes(data, size);
-  return crc.checksum();
-}
+uint32_t Crc(const char* data, size_t size) { return Crc32c(std::string_view(data, size)); }
 Status Errno(const std::string& what, const std::string& path) {
   return Internal("resend table: " + what + " " + path + ": " + std::strerror(errno));
 }
 
 }  // namespace
+
+uint32_t Crc32c(std::string_view bytes) {
+  boost::crc_optimal<32, 0x1EDC6F41, 0xFFFFFFFF, 0xFFFFFFFF, true, true> crc;
+  crc.process_bytes(bytes.data(), bytes.size());
+  return crc.checksum();
+}
 
 Status FsyncDirectory(const std::string& dir) {
   const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);

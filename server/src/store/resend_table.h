@@ -37,6 +37,9 @@ StatusOr<ResendTable> LoadResendTable(const std::string& path);
 /// naming the directory on failure.
 Status FsyncDirectory(const std::string& dir);
 
+/// CRC32C (Castagnoli) of `bytes`, the checksum of the store's side files.
+uint32_t Crc32c(std::string_view bytes);
+
 /// Replaces `path` with `bytes` so that a crash leaves the old file or the new one whole: written
 /// to `<path>.tmp`, fdatasynced, renamed, the directory fsynced. Internal naming the path and the
 /// step that failed.
