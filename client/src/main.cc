@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <tuple>
 
 #include "demo.h"
 #include "play_cmd.h"
@@ -18,6 +19,7 @@
 #include "sculpt/mesh/mesh_stats.h"
 #include "skin_cmd.h"
 #include "tls_flags.h"
+#include "token_flags.h"
 #include "thesis_cmd.h"
 
 namespace {
@@ -73,7 +75,7 @@ int RemoteInfo(const std::string& server, const std::string& token, const std::s
 }
 
 struct ExportArgs {
-  std::string in, out, format, server, token = "sculpt-dev-viewer", object, scene;
+  std::string in, out, format, server, token, object, scene;
   double adaptivity = 0.0;
   sculpt::client::ClientTlsOptions tls;
 };
@@ -184,12 +186,14 @@ int main(int argc, char** argv) {
   demo_cmd->add_option("--seed", demo.seed, "Random seed for the stroke jitter")
       ->capture_default_str();
 
-  std::string vdb_path, info_server, info_token = "sculpt-dev-viewer", info_scene;
+  std::string vdb_path, info_server, info_token, info_scene;
   CLI::App* info_cmd = app.add_subcommand(
       "info", "Print a .vdb sculpture's statistics, or a running server's scene (--server)");
   info_cmd->add_option("file", vdb_path, ".vdb file")->check(CLI::ExistingFile);
   info_cmd->add_option("--server", info_server, "sculptd address HOST:PORT (joins as a viewer)");
-  info_cmd->add_option("--token", info_token, "Viewer secret")->capture_default_str();
+  sculpt::client::TokenFlags info_token_flags;
+  info_token_flags.fallback = "sculpt-dev-viewer";
+  sculpt::client::AddTokenFlags(*info_cmd, &info_token_flags, "Viewer token");
   info_cmd->add_option("--scene", info_scene, "Scene (default: the server's)");
   sculpt::client::ClientTlsOptions info_tls;
   sculpt::client::AddTlsFlags(*info_cmd, &info_tls);
@@ -211,7 +215,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0));
   export_cmd->add_option("--server", ex.server,
                          "Fetch the current state from sculptd at HOST:PORT as a viewer");
-  export_cmd->add_option("--token", ex.token, "Viewer secret")->capture_default_str();
+  sculpt::client::TokenFlags export_token;
+  export_token.fallback = "sculpt-dev-viewer";
+  sculpt::client::AddTokenFlags(*export_cmd, &export_token, "Viewer token");
   export_cmd->add_option("--object", ex.object, "Object to export (default: the scene's first)");
   export_cmd->add_option("--scene", ex.scene, "Scene (default: the server's)");
   sculpt::client::AddTlsFlags(*export_cmd, &ex.tls);
@@ -225,7 +231,9 @@ int main(int argc, char** argv) {
       ->add_option("--script", play.script,
                    "Stroke script (JSON; format below; optional with --haptics)")
       ->check(CLI::ExistingFile);
-  play_cmd->add_option("--token", play.token, "Sculptor secret")->capture_default_str();
+  sculpt::client::TokenFlags play_token;
+  play_token.fallback = "sculpt-dev-sculptor";
+  sculpt::client::AddTokenFlags(*play_cmd, &play_token, "Sculptor token");
   play_cmd->add_option("--object", play.object,
                        "Object every stroke sculpts (default: the script's \"object\", else the "
                        "scene's first object)");
@@ -247,6 +255,19 @@ int main(int argc, char** argv) {
   CLI::App* skin_cmd = sculpt::client::AddSkinCommand(app, skin_opts);
 
   CLI11_PARSE(app, argc, argv);
+
+  // Secrets come from a file or the environment; a token flag stops here with directions.
+  for (auto [cmd, flags, token] : {std::tuple{info_cmd, &info_token_flags, &info_token},
+                                   std::tuple{export_cmd, &export_token, &ex.token},
+                                   std::tuple{play_cmd, &play_token, &play.token}}) {
+    if (!cmd->parsed()) continue;
+    auto t = sculpt::client::ResolveTokenFlags(*flags);
+    if (!t.ok()) {
+      spdlog::error("{}: {}", cmd->get_name(), t.status().ToString());
+      return 2;
+    }
+    *token = *t;
+  }
 
   if (*skin_cmd) return sculpt::client::RunSkin(skin_opts);
 

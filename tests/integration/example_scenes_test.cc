@@ -86,9 +86,9 @@ class ExampleSceneTest : public ::testing::TestWithParam<Example> {
   }
 
   std::string Export(const std::string& format, const fs::path& out) {
-    const std::string cmd = std::string(SCULPT_BIN_DIR) +
-                            "/sculpt export --server 127.0.0.1:" + std::to_string(port_) +
-                            " --token " + config_.viewer_token + " --format " + format + " --out " +
+    const std::string cmd = "SCULPT_TOKEN=" + config_.viewer_token + " " +
+                            std::string(SCULPT_BIN_DIR) + "/sculpt export --server 127.0.0.1:" +
+                            std::to_string(port_) + " --format " + format + " --out " +
                             out.string() + " > " + (dir_ / "export.log").string() + " 2>&1";
     EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
     std::ifstream in(out, std::ios::binary);
@@ -203,9 +203,9 @@ TEST_P(ExampleSceneTest, PlaySculptsTheScenesFirstObjectByDefault) {
   }
   std::ofstream(dir_ / "script.json") << script.dump();
   const uint64_t before = scene_->StateHash(ex.object);
-  const std::string play = std::string(SCULPT_BIN_DIR) + "/sculpt play --server 127.0.0.1:" +
-                           std::to_string(port_) + " --token " + config_.sculptor_token +
-                           " --script " + (dir_ / "script.json").string();
+  const std::string play = "SCULPT_TOKEN=" + config_.sculptor_token + " " +
+                           std::string(SCULPT_BIN_DIR) + "/sculpt play --server 127.0.0.1:" +
+                           std::to_string(port_) + " --script " + (dir_ / "script.json").string();
   const std::string out = (dir_ / "play.json").string();
   ASSERT_EQ(std::system((play + " > " + out + " 2>&1").c_str()), 0);
   const nlohmann::json summary = nlohmann::json::parse(std::ifstream(out));

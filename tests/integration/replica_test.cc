@@ -336,8 +336,9 @@ TEST_F(ReplicaTest, ExportFromTheServerAsGlbCarriesDracoCompression) {
   for (int i = 0; i < 5; ++i) ASSERT_TRUE(a->SendStroke(PressArc(0, i)).ok());
   ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
   const fs::path out = srv_.dir() / "state.glb";
-  const std::string cmd = std::string(SCULPT_BIN_DIR) + "/sculpt export --server 127.0.0.1:" +
-                          std::to_string(srv_.port()) + " --token sculpt-dev-viewer --format glb --out " +
+  const std::string cmd = "SCULPT_TOKEN=sculpt-dev-viewer " + std::string(SCULPT_BIN_DIR) +
+                          "/sculpt export --server 127.0.0.1:" + std::to_string(srv_.port()) +
+                          " --format glb --out " +
                           out.string() + " > " + (srv_.dir() / "export.log").string() + " 2>&1";
   ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
   std::ifstream in(out, std::ios::binary);

@@ -4,9 +4,11 @@
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <utility>
 
 #include "loadgen/load_run.h"
 #include "tls_flags.h"
+#include "token_flags.h"
 
 int main(int argc, char** argv) {
   sculpt::client::LoadOptions o;
@@ -31,8 +33,18 @@ int main(int argc, char** argv) {
   app.add_option("--poses-per-stroke", o.poses_per_stroke, "Poses per stroke message")
       ->capture_default_str();
   app.add_option("--seed", o.seed, "Seed of the trajectories")->capture_default_str();
-  app.add_option("--sculptor-token", o.sculptor_token, "Sculptor secret")->capture_default_str();
-  app.add_option("--viewer-token", o.viewer_token, "Viewer secret")->capture_default_str();
+  // The environment variables are sculptd's, so one shell can start both.
+  sculpt::client::TokenFlags sculptor_token, viewer_token;
+  sculptor_token.flag = "--sculptor-token";
+  sculptor_token.file_flag = "--sculptor-token-file";
+  sculptor_token.env = "SCULPT_SCULPTOR_TOKEN";
+  sculptor_token.fallback = o.sculptor_token;
+  viewer_token.flag = "--viewer-token";
+  viewer_token.file_flag = "--viewer-token-file";
+  viewer_token.env = "SCULPT_VIEWER_TOKEN";
+  viewer_token.fallback = o.viewer_token;
+  sculpt::client::AddTokenFlags(app, &sculptor_token, "Sculptor token");
+  sculpt::client::AddTokenFlags(app, &viewer_token, "Viewer token");
   app.add_option("--scene", o.scene, "Scene to join (default: the server's)");
   sculpt::client::AddTlsFlags(app, &o.tls);
   app.add_option("--object", o.object, "Object to sculpt (default: the scene's first)");
@@ -64,6 +76,15 @@ int main(int argc, char** argv) {
                "Only measure a late join: one replica loads the whole object (bytes, ms)");
   app.add_flag("--json", as_json, "Print the JSON report (otherwise a short summary)");
   CLI11_PARSE(app, argc, argv);
+  for (auto [flags, token] :
+       {std::pair{&sculptor_token, &o.sculptor_token}, std::pair{&viewer_token, &o.viewer_token}}) {
+    auto t = sculpt::client::ResolveTokenFlags(*flags);
+    if (!t.ok()) {
+      spdlog::error("{}", t.status().ToString());
+      return 2;
+    }
+    *token = *t;
+  }
 
   if (late_join) {
     auto lj = sculpt::client::RunLateJoin(o);
