@@ -232,7 +232,8 @@ void Print(const json& j) { std::printf("%s\n", j.dump(2).c_str()); }
 /// given id may have been used by an earlier run, whose sequences the server would take for
 /// resends: then `co` numbers from the clock.
 StatusOr<uint64_t> PlayClientId(const PlayOptions& options, ClientOptions* co) {
-  if (options.client_id_text.empty() && std::getenv(kClientIdEnv) == nullptr) return 0;
+  const char* env = std::getenv(kClientIdEnv);
+  if (options.client_id_text.empty() && (env == nullptr || *env == '\0')) return 0;
   SCULPT_ASSIGN_OR_RETURN(const uint64_t id, ResolveClientId(options.client_id_text));
   co->first_client_seq = ClockClientSeq();
   return id;
