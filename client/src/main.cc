@@ -1,4 +1,5 @@
-/// @brief `sculpt`: the command-line client. Subcommands: demo, info, export, play, thesis, skin.
+/// @brief `sculpt`: the command-line client. Subcommands: demo, info, export, play, thesis, skin,
+/// undo, redo.
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -21,6 +22,7 @@
 #include "tls_flags.h"
 #include "token_flags.h"
 #include "thesis_cmd.h"
+#include "undo_cmd.h"
 
 namespace {
 
@@ -238,6 +240,9 @@ int main(int argc, char** argv) {
                        "Object every stroke sculpts (default: the script's \"object\", else the "
                        "scene's first object)");
   play_cmd->add_option("--name", play.name, "Name shown to others")->capture_default_str();
+  play_cmd->add_option("--client-id", play.client_id_text,
+                       "Client id to sculpt under, which `sculpt undo --client-id` takes back "
+                       "(default: $SCULPT_CLIENT_ID, else a random one; printed as client_id)");
   play_cmd->add_option("--scene", play.scene, "Scene (default: the script's, else the server's)");
   play_cmd->add_option("--timeout", play.timeout_s, "Seconds to wait for the last acks")
       ->check(CLI::Range(0.1, 3600.0))
@@ -254,12 +259,22 @@ int main(int argc, char** argv) {
   sculpt::client::SkinCmdOptions skin_opts;
   CLI::App* skin_cmd = sculpt::client::AddSkinCommand(app, skin_opts);
 
+  sculpt::client::UndoCmdOptions undo_opts, redo_opts;
+  CLI::App* undo_cmd = sculpt::client::AddUndoCommand(app, /*redo=*/false, undo_opts);
+  CLI::App* redo_cmd = sculpt::client::AddUndoCommand(app, /*redo=*/true, redo_opts);
+  sculpt::client::TokenFlags undo_token, redo_token;
+  undo_token.fallback = redo_token.fallback = "sculpt-dev-sculptor";
+  sculpt::client::AddTokenFlags(*undo_cmd, &undo_token, "Sculptor token");
+  sculpt::client::AddTokenFlags(*redo_cmd, &redo_token, "Sculptor token");
+
   CLI11_PARSE(app, argc, argv);
 
   // Secrets come from a file or the environment; a token flag stops here with directions.
   for (auto [cmd, flags, token] : {std::tuple{info_cmd, &info_token_flags, &info_token},
                                    std::tuple{export_cmd, &export_token, &ex.token},
-                                   std::tuple{play_cmd, &play_token, &play.token}}) {
+                                   std::tuple{play_cmd, &play_token, &play.token},
+                                   std::tuple{undo_cmd, &undo_token, &undo_opts.token},
+                                   std::tuple{redo_cmd, &redo_token, &redo_opts.token}}) {
     if (!cmd->parsed()) continue;
     auto t = sculpt::client::ResolveTokenFlags(*flags);
     if (!t.ok()) {
@@ -270,6 +285,8 @@ int main(int argc, char** argv) {
   }
 
   if (*skin_cmd) return sculpt::client::RunSkin(skin_opts);
+  if (*undo_cmd) return sculpt::client::RunUndo(undo_opts);
+  if (*redo_cmd) return sculpt::client::RunUndo(redo_opts);
 
   if (*thesis_cmd) {
     std::printf("%s\n", sculpt::client::RunThesisReproduction().c_str());

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <functional>
 #include <map>
@@ -24,6 +25,7 @@
 #include "sculpt/haptics/monitored_device.h"
 #include "sculpt/haptics/sculpture_feed.h"
 #include "sculpt/haptics/sculpture_snapshot.h"
+#include "undo_cmd.h"
 
 namespace sculpt::client {
 
@@ -226,6 +228,17 @@ json ErrorJson(const v1::Error& e) {
 
 void Print(const json& j) { std::printf("%s\n", j.dump(2).c_str()); }
 
+/// The client id to sculpt under: --client-id or $SCULPT_CLIENT_ID, else 0 (a random one). A
+/// given id may have been used by an earlier run, whose sequences the server would take for
+/// resends: then `co` numbers from the clock.
+StatusOr<uint64_t> PlayClientId(const PlayOptions& options, ClientOptions* co) {
+  const char* env = std::getenv(kClientIdEnv);
+  if (options.client_id_text.empty() && (env == nullptr || *env == '\0')) return 0;
+  SCULPT_ASSIGN_OR_RETURN(const uint64_t id, ResolveClientId(options.client_id_text));
+  co->first_client_seq = ClockClientSeq();
+  return id;
+}
+
 double Smoothstep(double u) {
   u = std::clamp(u, 0.0, 1.0);
   return u * u * (3 - 2 * u);
@@ -333,13 +346,18 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
   co.tls = options.tls;
   co.timeout = std::chrono::milliseconds(static_cast<int64_t>(options.timeout_s * 1000));
   co.skip_state = true;  // the replica loads its region through Subscribe
+  auto client_id = PlayClientId(options, &co);
+  if (!client_id.ok()) {
+    spdlog::error("play: {}", client_id.status().ToString());
+    return 2;
+  }
   Client client(co);
   const auto fail = [&](const std::string& stage, const Status& s) {
     Print({{"server", options.server}, {"ok", false}, {"stage", stage}, {"error", s.message()}});
     return 1;
   };
   if (Status s = client.Connect(host, port); !s.ok()) return fail("connect", s);
-  auto welcome = client.Hello(options.token, v1::ROLE_SCULPTOR, options.name, 0);
+  auto welcome = client.Hello(options.token, v1::ROLE_SCULPTOR, options.name, *client_id);
   if (!welcome.ok()) return fail("hello", welcome.status());
   auto joined = client.Join(scene);
   if (!joined.ok()) return fail("join", joined.status());
@@ -728,13 +746,18 @@ int RunPlay(const PlayOptions& options) {
   ClientOptions co;
   co.tls = options.tls;
   co.timeout = std::chrono::milliseconds(static_cast<int64_t>(options.timeout_s * 1000));
+  auto client_id = PlayClientId(options, &co);
+  if (!client_id.ok()) {
+    spdlog::error("play: {}", client_id.status().ToString());
+    return 2;
+  }
   Client client(co);
   const auto fail = [&](const std::string& stage, const Status& s) {
     Print({{"server", options.server}, {"ok", false}, {"stage", stage}, {"error", s.message()}});
     return 1;
   };
   if (Status s = client.Connect(host, port); !s.ok()) return fail("connect", s);
-  auto welcome = client.Hello(options.token, v1::ROLE_SCULPTOR, options.name, 0);
+  auto welcome = client.Hello(options.token, v1::ROLE_SCULPTOR, options.name, *client_id);
   if (!welcome.ok()) return fail("hello", welcome.status());
   auto joined = client.Join(scene);
   if (!joined.ok()) return fail("join", joined.status());
@@ -800,6 +823,7 @@ int RunPlay(const PlayOptions& options) {
   Print({{"server", options.server},
          {"script", options.script},
          {"scene", joined->info.scene()},
+         {"client_id", client.client_id()},
          {"ok", ok},
          {"strokes", strokes->size()},
          {"sent", st.strokes_sent},

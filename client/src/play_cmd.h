@@ -41,6 +41,9 @@ struct PlayOptions {
   std::string object;     // empty: the script's "object", else the scene's first object
   double timeout_s = 30;  // for the last acks after the last stroke
   double speedup = 1;     // divides every time in the script
+  // The client id to sculpt under (--client-id, else $SCULPT_CLIENT_ID, else a random one):
+  // `sculpt undo` with the same id takes these strokes back.
+  std::string client_id_text;
   PlayHapticsOptions haptics;
 };
 

@@ -23,6 +23,10 @@ namespace sculpt::client {
 
 using Clock = std::chrono::steady_clock;
 
+// Answers to undo requests kept for WaitUndoAck; beyond it the oldest go (a caller that only
+// reads events never waits for them).
+constexpr size_t kMaxUndoAnswers = 1024;
+
 struct IoThread::Impl {
   asio::io_context io;
   asio::executor_work_guard<asio::io_context::executor_type> work{io.get_executor()};
@@ -152,10 +156,12 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
     std::string frame;
     Clock::time_point sent_at;
     bool written = false;
+    bool undo = false;  // an UndoRequest (answered by UndoAck), else a stroke (Ack)
+    bool redo = false;
   };
 
   Impl(asio::io_context& io_context, ClientOptions opts)
-      : io(io_context), options(std::move(opts)) {}
+      : io(io_context), options(std::move(opts)), next_seq(std::max<uint64_t>(1, options.first_client_seq)) {}
 
   // --- I/O thread ------------------------------------------------------------------------
 
@@ -226,6 +232,8 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
         return OnChunkLocked(*m.mutable_state_chunk());
       case v1::ServerMessage::kAck:
         return OnAckLocked(m.ack());
+      case v1::ServerMessage::kUndoAck:
+        return OnUndoAckLocked(std::move(*m.mutable_undo_ack()));
       case v1::ServerMessage::kPresence: {
         ++stats.presence;
         Event e;
@@ -296,7 +304,7 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
     e.type = Event::Type::kAck;
     e.ack = a;
     auto it = pending.find(a.client_seq());
-    if (it == pending.end()) {
+    if (it == pending.end() || it->second.undo) {
       // Settled already: the ack of a stroke resent just before its first ack arrived.
       ++stats.stray_acks;
     } else {
@@ -320,20 +328,78 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
     EmitLocked(std::move(e));
   }
 
+  void OnUndoAckLocked(v1::UndoAck&& a) {
+    Event e;
+    e.type = Event::Type::kUndoAck;
+    auto it = pending.find(a.client_seq());
+    if (it == pending.end() || !it->second.undo) {
+      ++stats.stray_acks;  // the answer to a resend of a request answered already
+    } else {
+      e.latency_ms =
+          std::chrono::duration<double, std::milli>(Clock::now() - it->second.sent_at).count();
+      pending.erase(it);
+      ++stats.undo_acks;
+      if (!a.accepted()) ++stats.undos_refused;
+      if (!a.duplicate() && a.global_seq() > 0) {
+        stats.last_global_seq = std::max(stats.last_global_seq, a.global_seq());
+      }
+      AnswerUndoLocked(a);
+    }
+    e.undo_ack = std::move(a);
+    EmitLocked(std::move(e));
+  }
+
+  /// Keeps the answer for WaitUndoAck (bounded) and wakes the waiters.
+  void AnswerUndoLocked(const v1::UndoAck& a) {
+    undo_answers[a.client_seq()] = a;
+    while (undo_answers.size() > kMaxUndoAnswers) undo_answers.erase(undo_answers.begin());
+    cv.notify_all();
+  }
+
+  /// A pending undo refused by an Error rather than an UndoAck: answered as an UndoAck with
+  /// accepted false and that error, so callers handle one shape.
+  void RefuseUndoLocked(uint64_t seq, const Pending& p, const v1::Error& error) {
+    v1::UndoAck a;
+    a.set_client_seq(seq);
+    a.set_redo(p.redo);
+    a.set_accepted(false);
+    *a.mutable_error() = error;
+    ++stats.undos_refused;
+    AnswerUndoLocked(a);
+  }
+
   void OnErrorLocked(const v1::Error& error) {
     ++stats.errors;
     Event e;
     e.type = Event::Type::kError;
     e.error = error;
+    if (error.client_seq() == 0 && error.code() == v1::ERROR_CODE_MALFORMED &&
+        error.field() == "ClientMessage.body") {
+      // A server older than undo does not know the message: every pending request would meet
+      // the same answer, so they are settled (refused) now rather than left to time out.
+      for (auto u = pending.begin(); u != pending.end();) {
+        if (!u->second.undo) {
+          ++u;
+          continue;
+        }
+        e.refused = true;
+        RefuseUndoLocked(u->first, u->second, error);
+        u = pending.erase(u);
+      }
+    }
     auto it = error.client_seq() != 0 ? pending.find(error.client_seq()) : pending.end();
     if (it != pending.end()) {
-      // Refused strokes are not retried with the same client_seq: once a later stroke of this
-      // client is applied, the server would take the old number for a duplicate.
+      // Refused strokes (and undos) are not retried with the same client_seq: once a later one
+      // of this client is applied, the server would take the old number for a duplicate.
       e.refused = true;
       e.latency_ms =
           std::chrono::duration<double, std::milli>(Clock::now() - it->second.sent_at).count();
+      if (it->second.undo) {
+        RefuseUndoLocked(it->first, it->second, error);
+      } else {
+        ++stats.refused;
+      }
       pending.erase(it);
-      ++stats.refused;
       cv.notify_all();
     } else if (phase == Phase::kAwaitWelcome || phase == Phase::kAwaitJoin) {
       handshake_error = error;
@@ -522,7 +588,8 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
   v1::SceneInfo scene_info;
 
   uint64_t next_seq = 1;
-  std::map<uint64_t, Pending> pending;
+  std::map<uint64_t, Pending> pending;  // strokes and undo requests, by client_seq
+  std::map<uint64_t, v1::UndoAck> undo_answers;
   uint64_t last_fresh_global_seq = 0;
 
   std::vector<Event> outbox;
@@ -742,7 +809,7 @@ StatusOr<JoinedScene> Client::Join(const std::string& scene) {
   // Resends go out before the phase lets new strokes onto the wire, so every stroke reaches
   // the server in client_seq order (see the class comment).
   for (auto& [seq, p] : d.pending) {
-    if (p.written) ++d.stats.strokes_resent;
+    if (p.written) ++(p.undo ? d.stats.undos_resent : d.stats.strokes_resent);
     p.written = true;
     d.QueueLocked(p.frame, seq);
   }
@@ -832,6 +899,96 @@ StatusOr<uint64_t> Client::SendStrokeMessage(v1::Stroke stroke) {
     d.QueueLocked(p.frame, seq);
   }
   return seq;
+}
+
+StatusOr<uint64_t> Client::SendUndo(const std::string& object, bool redo) {
+  Impl& d = *impl_;
+  std::lock_guard<std::mutex> lock(d.mu);
+  const char* what = redo ? "Redo" : "Undo";
+  if (!d.joined_once) return FailedPrecondition(std::string(what) + " needs a joined scene");
+  std::string name = object;
+  if (name.empty()) {
+    if (d.scene_info.objects_size() == 0) {
+      return InvalidArgument("UndoRequest.object=(none) outside the scene's objects: scene " +
+                             d.scene_info.scene() + " has no objects");
+    }
+    name = d.scene_info.objects(0).name();
+  } else {
+    const auto& objects = d.scene_info.objects();
+    if (std::none_of(objects.begin(), objects.end(),
+                     [&](const v1::ObjectInfo& o) { return o.name() == name; })) {
+      return NotFound("UndoRequest.object=" + name + " outside the scene's objects");
+    }
+  }
+  if (d.pending.size() >= d.options.max_unacked) {
+    return ResourceExhausted("un-acked strokes and undos=" + std::to_string(d.pending.size()) +
+                             " outside [0, " + std::to_string(d.options.max_unacked) + ")");
+  }
+  const uint64_t seq = d.next_seq++;
+  v1::ClientMessage m;
+  v1::UndoRequest* u = m.mutable_undo();
+  u->set_client_seq(seq);
+  u->set_object(name);
+  u->set_redo(redo);
+  Impl::Pending& p = d.pending[seq];
+  p.frame = Impl::Frame(m);
+  p.sent_at = Clock::now();
+  p.undo = true;
+  p.redo = redo;
+  ++d.stats.undos_sent;
+  if (d.phase == Impl::Phase::kJoined) {
+    p.written = true;
+    d.QueueLocked(p.frame, seq);
+  }
+  return seq;
+}
+
+StatusOr<v1::UndoAck> Client::WaitUndoAck(uint64_t client_seq, std::chrono::milliseconds timeout) {
+  Impl& d = *impl_;
+  std::unique_lock<std::mutex> lock(d.mu);
+  const auto waiting = [&] {
+    auto it = d.pending.find(client_seq);
+    return it != d.pending.end() && it->second.undo;
+  };
+  d.cv.wait_for(lock, timeout, [&] {
+    return d.undo_answers.count(client_seq) > 0 || !waiting() ||
+           d.phase == Impl::Phase::kDisconnected;
+  });
+  auto answer = d.undo_answers.find(client_seq);
+  if (answer != d.undo_answers.end()) {
+    v1::UndoAck a = std::move(answer->second);
+    d.undo_answers.erase(answer);
+    return a;
+  }
+  const std::string seq = std::to_string(client_seq);
+  if (!waiting()) return NotFound("no undo request pending or answered with client_seq " + seq);
+  if (d.phase == Impl::Phase::kDisconnected) {
+    return Status(Status::Code::kUnavailable,
+                  "connection lost before the UndoAck of client_seq " + seq + " (" +
+                      d.disconnect_reason + "); it is resent by Reconnect()");
+  }
+  return Status(Status::Code::kUnavailable,
+                "no UndoAck for client_seq " + seq + " within " + Ms(timeout));
+}
+
+namespace {
+
+StatusOr<v1::UndoAck> UndoOrRedo(Client& client, const std::string& object, bool redo,
+                                 std::chrono::milliseconds timeout) {
+  SCULPT_ASSIGN_OR_RETURN(const uint64_t seq, client.SendUndo(object, redo));
+  SCULPT_ASSIGN_OR_RETURN(v1::UndoAck ack, client.WaitUndoAck(seq, timeout));
+  if (!ack.accepted()) return ErrorToStatus(ack.error());
+  return ack;
+}
+
+}  // namespace
+
+StatusOr<v1::UndoAck> Client::Undo(const std::string& object) {
+  return UndoOrRedo(*this, object, /*redo=*/false, impl_->options.timeout);
+}
+
+StatusOr<v1::UndoAck> Client::Redo(const std::string& object) {
+  return UndoOrRedo(*this, object, /*redo=*/true, impl_->options.timeout);
 }
 
 Status Client::SendHover(const Vec3& position, double radius) {
@@ -990,6 +1147,12 @@ uint64_t NewClientId() {
   // The top bit is the server's space for clients that send no id; never 0.
   const uint64_t masked = id & ~(uint64_t{1} << 63);
   return masked != 0 ? masked : 1;
+}
+
+uint64_t ClockClientSeq() {
+  const auto us = std::chrono::duration_cast<std::chrono::microseconds>(
+      std::chrono::system_clock::now().time_since_epoch());
+  return std::max<int64_t>(1, us.count());
 }
 
 Status ParseServerAddress(const std::string& text, std::string* host, uint16_t* port) {

@@ -2,13 +2,14 @@
 // the shared sculpture from its Draco chunks, sculpt with the pointer, see who else is there.
 // Modules: connection.js (the wire), meshes.js (mesh assembly), packing.js (stroke poses),
 // tools.js (pointer sculpting, painting and presence), contours.js (skin and slice panels, over
-// contour_codec.js); this file is the page and its state.
+// contour_codec.js), undo.js (undo and redo); this file is the page and its state.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
 import { Connection, describeError, num, v1 } from './connection.js';
 import { ChunkMeshes } from './meshes.js';
 import { Sculpting, Presence } from './tools.js';
 import { Contours } from './contours.js';
+import { UndoControls } from './undo.js';
 
 const $ = (id) => document.getElementById(id);
 const kBusyChunks = 16;    // chunks in the decoder above which frames are spaced out
@@ -194,6 +195,7 @@ class App {
     if (info.effects && info.effects.contours) this.contours = new Contours(this, info, this.stats.role === 'sculptor');
     if (this.stats.role === 'sculptor') {
       this.sculpting = new Sculpting(this, info, welcome, clientId);
+      this.undo = new UndoControls(this, this.sculpting, welcome);
       $('tools').hidden = false;
       // The left button and one finger sculpt; the view moves with the others (the wheel zooms).
       this.controls.mouseButtons = { LEFT: -1, MIDDLE: THREE.MOUSE.PAN, RIGHT: THREE.MOUSE.ROTATE };

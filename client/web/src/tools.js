@@ -20,6 +20,9 @@ export class Sculpting {
     this.clientId = clientId;
     this.seq = 0;
     this.pending = new Map();  // client_seq -> send time
+    // One drag is sent as several strokes (kStrokeHz); undo.js takes a drag back as a whole.
+    this.gesture = 0;
+    this.gestureOf = new Map();  // client_seq of a stroke not yet acked -> its drag
     this.samples = [];
     this.dragging = false;
     this.lastHover = 0;
@@ -84,6 +87,7 @@ export class Sculpting {
     const p = this.hit(e);
     if (!p) return;
     this.dragging = true;
+    this.gesture += 1;
     this.pressure = e.pressure > 0 ? e.pressure : 0.5;
     this.app.renderer.domElement.setPointerCapture(e.pointerId);
     this.sample(p);
@@ -155,6 +159,7 @@ export class Sculpting {
     };
     if (this.app.conn.send('stroke', stroke)) {
       this.pending.set(stroke.clientSeq, performance.now());
+      this.gestureOf.set(stroke.clientSeq, this.gesture);
       this.app.stats.strokesSent += 1;
     }
   }

@@ -64,6 +64,11 @@ struct ClientOptions {
   uint32_t max_frame_bytes = 4u << 20;
   /// Join without the objects' .vdb state (a replica loads its region through Subscribe).
   bool skip_state = false;
+  /// The first client_seq given to a stroke or an undo. The server takes any client_seq not
+  /// above the highest it logged for a client_id as a resend, so a run that reuses the client_id
+  /// of an earlier run must start above every sequence that run used (`sculpt undo` starts at
+  /// the clock in microseconds, ClockClientSeq()). Never 0.
+  uint64_t first_client_seq = 1;
   /// TLS on the connection (off: plain TCP).
   ClientTlsOptions tls;
 };
@@ -89,11 +94,13 @@ struct Event {
     kPresence,      // `presence`
     kBye,           // the server ends the session: `reason`
     kDisconnected,  // the connection is gone (`reason`); un-acked strokes wait for Reconnect()
+    kUndoAck,       // `undo_ack` (accepted or not); `latency_ms` from its request's write
   };
   Type type = Type::kAck;
   v1::Ack ack;
   v1::Error error;
   v1::Presence presence;
+  v1::UndoAck undo_ack;
   std::string reason;
   double latency_ms = 0;
   bool refused = false;
@@ -116,7 +123,7 @@ struct ClientStats {
   uint64_t acks = 0;                  // acks that settled a pending stroke
   uint64_t duplicate_acks = 0;        // of those, `duplicate = true`
   uint64_t stray_acks = 0;            // acks for no pending stroke (already settled)
-  uint64_t refused = 0;               // pending strokes dropped by an Error
+  uint64_t refused = 0;               // pending strokes dropped by an Error (undos: below)
   uint64_t errors = 0;                // every Error received
   uint64_t presence = 0;
   uint64_t acks_out_of_order = 0;  // fresh acks whose global_seq_first did not increase
@@ -125,6 +132,10 @@ struct ClientStats {
   uint64_t events_dropped = 0;     // queue overflow (no handler and nobody draining)
   uint64_t reconnects = 0;
   uint64_t replication_messages = 0;  // EditBroadcast, LeafDelta, MeshChunk
+  uint64_t undos_sent = 0;            // distinct undo and redo requests
+  uint64_t undos_resent = 0;          // of the frames written again after a reconnect
+  uint64_t undo_acks = 0;             // UndoAcks that settled a pending request (any outcome)
+  uint64_t undos_refused = 0;         // pending requests settled by a refusal (ack or Error)
 };
 
 /// A connection to sculptd. The I/O runs on an IoThread (its own, or a shared one); the caller's
@@ -139,8 +150,14 @@ struct ClientStats {
 /// highest client_seq it logged for the client_id, so a newer stroke overtaking an older resend
 /// would make the older one look applied. Strokes sent while disconnected wait for the resend.
 ///
-/// Events (acks, errors, presence, bye, disconnect) go to the handler if one is set, else to a
-/// bounded queue read with NextEvent / DrainEvents.
+/// Undo and redo: SendUndo numbers its request from the same counter as strokes (the server
+/// de-duplicates undos on their own sequence, so gaps are harmless, and an Error naming a
+/// client_seq then names exactly one request), keeps it until its UndoAck or a refusing Error,
+/// and resends it with the strokes, in client_seq order, after a reconnect: an undo sent after a
+/// stroke reaches the server after it, so it never takes back the stroke before.
+///
+/// Events (acks, undo acks, errors, presence, bye, disconnect) go to the handler if one is set,
+/// else to a bounded queue read with NextEvent / DrainEvents.
 ///
 /// Thread safety: every public method may be called from any thread, except that the blocking
 /// calls must not be made from an event handler (it runs on the I/O thread they wait on), and a
@@ -189,6 +206,29 @@ class Client {
   StatusOr<uint64_t> SendStrokeMessage(v1::Stroke stroke);
   /// Sends a presence-only tool position. FailedPrecondition when not joined.
   Status SendHover(const Vec3& position, double radius);
+
+  /// Queues an undo (`redo` false) or a redo of this client's own most recent edit of `object`
+  /// (empty: the scene's first object); returns its client_seq. The server files edits under the
+  /// Hello's client_id: only that id's edits are taken back. FailedPrecondition before Join,
+  /// NotFound for an object not in SceneInfo, InvalidArgument for a scene without objects,
+  /// ResourceExhausted past options.max_unacked (strokes and undos together). Sent now if
+  /// joined, else at the next Join.
+  StatusOr<uint64_t> SendUndo(const std::string& object, bool redo = false);
+  /// The answer to the undo or redo `client_seq`, as the server sent it: accepted (duplicate set
+  /// for a resend it had applied already) or not (`error` says why: FAILED_PRECONDITION for
+  /// nothing to undo or redo, INVALID_ARGUMENT beyond the history's depth). An Error that
+  /// refused the request before it reached the history (a viewer, the rate limit, a server
+  /// that does not know undo: MALFORMED) comes back the same way, as an UndoAck with accepted
+  /// false and that error. Unavailable when `timeout` passes, or at once when the connection is
+  /// lost (the request stays pending for Reconnect(); call again after it); NotFound for a
+  /// client_seq that is neither pending nor answered (each answer is returned once).
+  StatusOr<v1::UndoAck> WaitUndoAck(uint64_t client_seq, std::chrono::milliseconds timeout);
+  /// SendUndo, then WaitUndoAck within options.timeout. Returns the accepted UndoAck (target_seq,
+  /// replayed, replayed_by, undo_depth, redo_depth); a refused one as ErrorToStatus(error)
+  /// (FailedPrecondition "ERROR_CODE_FAILED_PRECONDITION ...: nothing to undo ..."), and the
+  /// errors of SendUndo and WaitUndoAck.
+  StatusOr<v1::UndoAck> Undo(const std::string& object = "");
+  StatusOr<v1::UndoAck> Redo(const std::string& object = "");
 
   /// Waits until no stroke is pending (acked or refused) and every event up to then has been
   /// delivered (handler returned, or queued). False on timeout, or early when the connection is
@@ -239,6 +279,10 @@ Status ErrorToStatus(const v1::Error& error);
 std::string ErrorCodeName(v1::ErrorCode code);
 /// A random non-zero client id.
 uint64_t NewClientId();
+/// A first client_seq for ClientOptions::first_client_seq that is above every sequence an earlier
+/// run of a client on this machine used, unless it sent more than a million edits a second or
+/// the clock went back: the wall clock in microseconds since 1970.
+uint64_t ClockClientSeq();
 /// Splits "HOST:PORT" (IPv6 as "[::1]:7420"). InvalidArgument naming the text otherwise.
 Status ParseServerAddress(const std::string& text, std::string* host, uint16_t* port);
 

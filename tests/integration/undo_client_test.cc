@@ -1,0 +1,177 @@
+/// @brief Per-user undo and redo end to end (issue 15): sculpt::client's Undo/Redo and
+/// `sculpt undo` against the real server in-process. Each test skips itself when the server does
+/// not know UndoRequest (it answers MALFORMED "unknown message"), so they pass on a tree without
+/// the server side and run once it is there.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "integration/in_process_server.h"
+#include "sculpt/client/client.h"
+
+namespace sculpt::client {
+namespace {
+
+using std::chrono::seconds;
+using testing_support::InProcessServer;
+using testing_support::PressArc;
+
+/// True when `status` is a server's answer that it does not know the undo message.
+bool UndoUnknown(const Status& status) {
+  return !status.ok() && status.message().find("ERROR_CODE_MALFORMED") != std::string::npos;
+}
+
+#define SKIP_IF_SERVER_LACKS_UNDO(status)                                          \
+  if (UndoUnknown(status)) GTEST_SKIP() << "sculptd does not know UndoRequest yet: " \
+                                        << (status).message()
+
+/// A's stroke and B's overlap: the same arc, B's a little lower.
+StrokeRequest StrokeOf(char who) { return PressArc(who == 'a' ? 10.0 : 9.0, 0, 4); }
+
+class UndoClientTest : public ::testing::Test {
+ protected:
+  void SetUp() override { ASSERT_TRUE(srv_.Start()); }
+
+  std::unique_ptr<Client> Sculptor(const std::string& name, uint64_t id = 0) {
+    return srv_.Joined(v1::ROLE_SCULPTOR, /*skip_state=*/true, name, id);
+  }
+
+  /// The state hash of the default scene after only `strokes` (a fresh server, one sculptor).
+  uint64_t HashOfFreshSceneWith(const std::vector<StrokeRequest>& strokes) {
+    InProcessServer fresh("undo_fresh");
+    EXPECT_TRUE(fresh.Start());
+    auto c = fresh.Joined(v1::ROLE_SCULPTOR, /*skip_state=*/true, "fresh");
+    for (const StrokeRequest& s : strokes) EXPECT_TRUE(c->SendStroke(s).ok());
+    EXPECT_TRUE(c->WaitAllAcked(seconds(20)));
+    return fresh.scene().StateHash("clay");
+  }
+
+  InProcessServer srv_{"undo_client"};
+};
+
+// A presses, B presses overlapping, A undoes: A's stroke is gone, B's stays, and the object is
+// bit-identical to a scene that only ever had B's stroke. Redo returns the exact state.
+TEST_F(UndoClientTest, UndoTakesBackOnlyTheAuthorsStrokeAndRedoReturnsTheExactHash) {
+  const uint64_t initial = srv_.scene().StateHash("clay");
+  auto a = Sculptor("alice");
+  auto b = Sculptor("bob");
+  ASSERT_TRUE(a->SendStroke(StrokeOf('a')).ok());
+  ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
+  ASSERT_TRUE(b->SendStroke(StrokeOf('b')).ok());
+  ASSERT_TRUE(b->WaitAllAcked(seconds(20)));
+  const uint64_t both = srv_.scene().StateHash("clay");
+
+  auto undo = a->Undo();
+  SKIP_IF_SERVER_LACKS_UNDO(undo.status());
+  ASSERT_TRUE(undo.ok()) << undo.status();
+  EXPECT_TRUE(undo->accepted());
+  EXPECT_FALSE(undo->duplicate());
+  EXPECT_EQ(undo->target_seq(), 4u) << "A's stroke: global seqs 1..4, acked first";
+  EXPECT_GE(undo->replayed(), 1u) << "B's overlapping stroke is replayed without A's";
+  ASSERT_GE(undo->replayed_by_size(), 1);
+  EXPECT_EQ(undo->undo_depth(), 0u);
+  EXPECT_EQ(undo->redo_depth(), 1u);
+  const uint64_t undone = srv_.scene().StateHash("clay");
+  EXPECT_NE(undone, both) << "A's stroke is gone";
+  EXPECT_NE(undone, initial) << "B's stroke stays";
+  EXPECT_EQ(undone, HashOfFreshSceneWith({StrokeOf('b')}))
+      << "the object equals a scene that never had A's stroke";
+
+  auto redo = a->Redo();
+  ASSERT_TRUE(redo.ok()) << redo.status();
+  EXPECT_TRUE(redo->redo());
+  EXPECT_EQ(redo->target_seq(), undo->target_seq());
+  EXPECT_EQ(srv_.scene().StateHash("clay"), both) << "redo returns exactly to before the undo";
+
+  // B never had anything undone: its undo takes back its own stroke only.
+  auto b_undo = b->Undo("clay");
+  ASSERT_TRUE(b_undo.ok()) << b_undo.status();
+  EXPECT_EQ(b_undo->target_seq(), 8u);
+  EXPECT_EQ(srv_.scene().StateHash("clay"), HashOfFreshSceneWith({StrokeOf('a')}));
+}
+
+TEST_F(UndoClientTest, NothingToUndoAndAViewersUndoAreNamedErrors) {
+  auto a = Sculptor("alice");
+  auto nothing = a->Undo();
+  SKIP_IF_SERVER_LACKS_UNDO(nothing.status());
+  EXPECT_EQ(nothing.status().code(), Status::Code::kFailedPrecondition) << nothing.status();
+  EXPECT_NE(nothing.status().message().find("nothing to undo"), std::string::npos)
+      << nothing.status();
+  auto no_redo = a->Redo();
+  EXPECT_EQ(no_redo.status().code(), Status::Code::kFailedPrecondition) << no_redo.status();
+
+  auto viewer = srv_.Joined(v1::ROLE_VIEWER, /*skip_state=*/true, "watcher");
+  auto seq = viewer->SendUndo("clay");
+  ASSERT_TRUE(seq.ok());
+  auto refused = viewer->WaitUndoAck(*seq, seconds(10));
+  ASSERT_TRUE(refused.ok()) << refused.status();
+  EXPECT_FALSE(refused->accepted());
+  EXPECT_EQ(refused->error().code(), v1::ERROR_CODE_PERMISSION_DENIED);
+}
+
+// An undo written just before the connection drops is resent by Reconnect and applied once.
+TEST_F(UndoClientTest, UndoResentAfterReconnectIsAppliedOnce) {
+  auto a = Sculptor("alice");
+  ASSERT_TRUE(a->SendStroke(PressArc(10.0, 0)).ok());
+  ASSERT_TRUE(a->SendStroke(PressArc(10.0, 1)).ok());
+  ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
+  auto probe = a->Redo();  // nothing to redo: tells whether the server knows undo at all
+  SKIP_IF_SERVER_LACKS_UNDO(probe.status());
+
+  auto seq = a->SendUndo("clay");
+  ASSERT_TRUE(seq.ok());
+  a->DropConnection();
+  ASSERT_TRUE(a->Reconnect().ok());
+  auto first = a->WaitUndoAck(*seq, seconds(20));
+  ASSERT_TRUE(first.ok()) << first.status();
+  EXPECT_TRUE(first->accepted()) << first->DebugString();
+  EXPECT_GE(a->stats().undos_resent + a->stats().undo_acks, 1u);
+
+  // Applied once: the next undo takes back the first stroke (seqs 1..4), not nothing.
+  auto second = a->Undo();
+  ASSERT_TRUE(second.ok()) << second.status();
+  EXPECT_EQ(second->target_seq(), 4u);
+  EXPECT_EQ(second->undo_depth(), 0u);
+  EXPECT_EQ(second->redo_depth(), 2u);
+}
+
+// `sculpt undo` under the client id a sculptor used takes back that sculptor's stroke.
+TEST_F(UndoClientTest, SculptUndoCliTakesBackTheStrokesOfItsClientId) {
+  const uint64_t initial = srv_.scene().StateHash("clay");
+  constexpr uint64_t kId = 515151;
+  {
+    auto a = Sculptor("alice", kId);
+    ASSERT_TRUE(a->SendStroke(StrokeOf('a')).ok());
+    ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
+    (void)a->Close();
+  }
+  const std::filesystem::path out = srv_.dir() / "undo.json";
+  const std::string cmd = "env -u SCULPT_TOKEN " + std::string(SCULPT_BIN_DIR) +
+                          "/sculpt undo --server 127.0.0.1:" + std::to_string(srv_.port()) +
+                          " --client-id " + std::to_string(kId) + " --json > " + out.string() +
+                          " 2>&1";
+  const int status = std::system(cmd.c_str());
+  std::ifstream in(out);
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string printed = text.str();
+  if (printed.find("MALFORMED") != std::string::npos) {
+    GTEST_SKIP() << "sculptd does not know UndoRequest yet: " << printed;
+  }
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << printed;
+  const auto j = nlohmann::json::parse(printed.substr(printed.find('{')));
+  EXPECT_EQ(j["ok"], true);
+  EXPECT_EQ(j["steps"][0]["target_seq"], 4);
+  EXPECT_EQ(srv_.scene().StateHash("clay"), initial) << "the only stroke is taken back";
+}
+
+}  // namespace
+}  // namespace sculpt::client
