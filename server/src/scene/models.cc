@@ -24,6 +24,7 @@
 #include "sculpt/hetero/model_io.h"
 #include "sculpt/hetero/validity.h"
 #include "store/edit_log.h"
+#include "store/durable_file.h"
 #include "store/resend_table.h"
 
 namespace sculpt::server {

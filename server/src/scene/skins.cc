@@ -28,6 +28,7 @@
 #include "sculpt/levelset/slice.h"
 #include "sculpt/skin/contour_codec.h"
 #include "store/edit_log.h"
+#include "store/durable_file.h"
 #include "store/resend_table.h"
 
 namespace sculpt::server {

@@ -13,6 +13,7 @@
 #include "scene/edit_history.h"
 #include "scene/log_payload.h"
 #include "scene/scene.h"
+#include "store/durable_file.h"
 #include "store/resend_table.h"
 
 namespace sculpt::server {

@@ -1,6 +1,8 @@
 /// @brief EditLog: segment files, record framing with CRC32C, group commit and start-up scan.
 #include "store/edit_log.h"
 
+#include "store/durable_file.h"
+
 #include <fcntl.h>
 #include <spdlog/spdlog.h>
 #include <sys/stat.h>
@@ -11,7 +13,6 @@
 
 #include <algorithm>
 #include <array>
-#include <boost/crc.hpp>
 #include <cerrno>
 #include <chrono>
 #include <cinttypes>
@@ -29,35 +30,20 @@ constexpr char kMagic[8] = {'S', 'C', 'L', 'P', 'T', 'L', 'O', 'G'};
 constexpr uint32_t kFormatVersion = 1;
 constexpr uint64_t kMinSegmentBytes = kSegmentHeaderBytes + kRecordHeaderBytes;
 
-// CRC-32C (Castagnoli): better burst-error detection than the zlib CRC-32 for the same cost.
-using Crc32c = boost::crc_optimal<32, 0x1EDC6F41, 0xFFFFFFFF, 0xFFFFFFFF, true, true>;
-
-void PutU32(uint8_t* p, uint32_t v) {
-  for (int i = 0; i < 4; ++i) p[i] = static_cast<uint8_t>(v >> (8 * i));
-}
-void PutU64(uint8_t* p, uint64_t v) {
-  for (int i = 0; i < 8; ++i) p[i] = static_cast<uint8_t>(v >> (8 * i));
-}
-uint32_t GetU32(const uint8_t* p) {
-  uint32_t v = 0;
-  for (int i = 0; i < 4; ++i) v |= static_cast<uint32_t>(p[i]) << (8 * i);
-  return v;
-}
-uint64_t GetU64(const uint8_t* p) {
-  uint64_t v = 0;
-  for (int i = 0; i < 8; ++i) v |= static_cast<uint64_t>(p[i]) << (8 * i);
-  return v;
-}
+void PutU32(uint8_t* p, uint32_t v) { PutLittleEndian(p, v); }
+void PutU64(uint8_t* p, uint64_t v) { PutLittleEndian(p, v); }
+uint32_t GetU32(const uint8_t* p) { return GetLittleEndian<uint32_t>(p); }
+uint64_t GetU64(const uint8_t* p) { return GetLittleEndian<uint64_t>(p); }
 
 uint32_t RecordCrc(const uint8_t* seq_le, const void* payload, size_t size) {
-  Crc32c crc;
+  Crc32cState crc;
   crc.process_bytes(seq_le, 8);
   crc.process_bytes(payload, size);
   return crc.checksum();
 }
 
 uint32_t HeaderCrc(const uint8_t* header) {
-  Crc32c crc;
+  Crc32cState crc;
   crc.process_bytes(header, kSegmentHeaderBytes - 4);
   return crc.checksum();
 }
@@ -170,14 +156,7 @@ Status ReadWholeFile(const std::string& path, uint64_t limit, std::string* out) 
 
 // A new or deleted directory entry is only durable once the directory itself is synced; a
 // record fdatasync'ed into a file whose name is lost would be lost with it.
-Status FsyncDir(const std::string& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return Errno("opening directory", dir);
-  const int rc = ::fsync(fd);
-  Status s = rc == 0 ? Status::Ok() : Errno("fsync of directory", dir);
-  ::close(fd);
-  return s;
-}
+Status FsyncDir(const std::string& dir) { return FsyncDirectory(dir); }
 
 }  // namespace
 

@@ -2,11 +2,12 @@
 /// (u8 stream, u64 client, u64 client_seq) | u32 CRC32C of everything before it.
 #include "store/resend_table.h"
 
+#include "store/durable_file.h"
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <boost/crc.hpp>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -32,27 +33,8 @@ uint64_t Get(const std::string& in, size_t at, int bytes) {
   return v;
 }
 uint32_t Crc(const char* data, size_t size) { return Crc32c(std::string_view(data, size)); }
-Status Errno(const std::string& what, const std::string& path) {
-  return Internal("resend table: " + what + " " + path + ": " + std::strerror(errno));
-}
 
 }  // namespace
-
-uint32_t Crc32c(std::string_view bytes) {
-  boost::crc_optimal<32, 0x1EDC6F41, 0xFFFFFFFF, 0xFFFFFFFF, true, true> crc;
-  crc.process_bytes(bytes.data(), bytes.size());
-  return crc.checksum();
-}
-
-Status FsyncDirectory(const std::string& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return Internal("opening directory " + dir + ": " + std::strerror(errno));
-  const int rc = ::fsync(fd);
-  Status s = rc == 0 ? Status::Ok() : Internal("fsync of directory " + dir + ": " +
-                                                  std::strerror(errno));
-  ::close(fd);
-  return s;
-}
 
 Status SaveResendTable(const std::string& path, const ResendTable& table) {
   std::string bytes(kMagic, sizeof(kMagic));
@@ -66,31 +48,6 @@ Status SaveResendTable(const std::string& path, const ResendTable& table) {
   }
   Put(&bytes, Crc(bytes.data(), bytes.size()), 4);
   return WriteFileDurably(path, bytes);
-}
-
-Status WriteFileDurably(const std::string& path, std::string_view bytes) {
-  const std::string tmp = path + ".tmp";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) return Errno("creating", tmp);
-  size_t done = 0;
-  while (done < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) {
-      Status s = Errno("writing", tmp);
-      ::close(fd);
-      return s;
-    }
-    done += static_cast<size_t>(n);
-  }
-  if (::fdatasync(fd) != 0) {
-    Status s = Errno("fdatasync of", tmp);
-    ::close(fd);
-    return s;
-  }
-  ::close(fd);
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) return Errno("renaming", tmp);
-  return FsyncDirectory(std::filesystem::path(path).parent_path().string());
 }
 
 StatusOr<ResendTable> LoadResendTable(const std::string& path) {

@@ -33,18 +33,6 @@ Status SaveResendTable(const std::string& path, const ResendTable& table);
 /// naming the file for a bad magic, size or checksum (sizes are checked before allocation).
 StatusOr<ResendTable> LoadResendTable(const std::string& path);
 
-/// fsync of a directory, so that a rename or unlink inside it survives a power loss. Internal
-/// naming the directory on failure.
-Status FsyncDirectory(const std::string& dir);
-
-/// CRC32C (Castagnoli) of `bytes`, the checksum of the store's side files.
-uint32_t Crc32c(std::string_view bytes);
-
-/// Replaces `path` with `bytes` so that a crash leaves the old file or the new one whole: written
-/// to `<path>.tmp`, fdatasynced, renamed, the directory fsynced. Internal naming the path and the
-/// step that failed.
-Status WriteFileDurably(const std::string& path, std::string_view bytes);
-
 }  // namespace sculpt::server::store
 
 #endif  // SCULPT_SERVER_STORE_RESEND_TABLE_H_

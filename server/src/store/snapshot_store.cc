@@ -2,6 +2,8 @@
 /// newest-K retention.
 #include "store/snapshot_store.h"
 
+#include "store/durable_file.h"
+
 #include <fcntl.h>
 #include <spdlog/spdlog.h>
 #include <sys/stat.h>
@@ -12,7 +14,6 @@
 #include <cinttypes>
 #include <cstdio>
 #include <cstring>
-#include <boost/crc.hpp>
 #include <filesystem>
 #include <utility>
 
@@ -37,31 +38,11 @@ constexpr uint64_t kSnapHeaderBytes = 40;
 // OpenVDB's file magic (int64 0x56444220): snapshots written before the container.
 constexpr unsigned char kVdbMagic[8] = {0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0};
 
-using Crc32c = boost::crc_optimal<32, 0x1EDC6F41, 0xFFFFFFFF, 0xFFFFFFFF, true, true>;
-
-uint32_t Crc(const void* data, size_t size) {
-  Crc32c crc;
-  crc.process_bytes(data, size);
-  return crc.checksum();
-}
-void PutU32(char* p, uint32_t v) {
-  for (int i = 0; i < 4; ++i) p[i] = static_cast<char>(v >> (8 * i));
-}
-void PutU64(char* p, uint64_t v) {
-  for (int i = 0; i < 8; ++i) p[i] = static_cast<char>(v >> (8 * i));
-}
-uint32_t GetU32(const char* p) {
-  uint32_t v = 0;
-  for (int i = 0; i < 4; ++i)
-    v |= static_cast<uint32_t>(static_cast<unsigned char>(p[i])) << (8 * i);
-  return v;
-}
-uint64_t GetU64(const char* p) {
-  uint64_t v = 0;
-  for (int i = 0; i < 8; ++i)
-    v |= static_cast<uint64_t>(static_cast<unsigned char>(p[i])) << (8 * i);
-  return v;
-}
+uint32_t Crc(const void* data, size_t size) { return Crc32c(data, size); }
+void PutU32(char* p, uint32_t v) { PutLittleEndian(p, v); }
+void PutU64(char* p, uint64_t v) { PutLittleEndian(p, v); }
+uint32_t GetU32(const char* p) { return GetLittleEndian<uint32_t>(p); }
+uint64_t GetU64(const char* p) { return GetLittleEndian<uint64_t>(p); }
 
 std::string SnapshotFileName(uint64_t seq, const std::string& object) {
   char seq_text[32];
@@ -93,15 +74,6 @@ bool ParseSnapshotFileName(const std::string& name, uint64_t* seq, std::string* 
 
 Status Errno(const std::string& what, const std::string& path) {
   return Internal("snapshot store: " + what + " " + path + ": " + std::strerror(errno));
-}
-
-Status FsyncPath(const std::string& path, bool directory) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | (directory ? O_DIRECTORY : 0));
-  if (fd < 0) return Errno("opening", path);
-  const int rc = ::fsync(fd);
-  Status s = rc == 0 ? Status::Ok() : Errno("fsync of", path);
-  ::close(fd);
-  return s;
 }
 
 bool EndsWith(const std::string& s, const std::string& suffix) {
