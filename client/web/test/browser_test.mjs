@@ -3,11 +3,12 @@
 //   node test/browser_test.mjs --bin BUILD/bin --web-root DIST [--screenshots DIR]
 // Exits non-zero with the failing check's name. Run by ctest (label browser).
 import { execFileSync, spawn } from 'node:child_process';
-import { mkdtempSync, readFileSync, existsSync, rmSync, mkdirSync, writeFileSync } from 'node:fs';
+import { mkdtempSync, existsSync, mkdirSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { dirname, join } from 'node:path';
 import { fileURLToPath } from 'node:url';
 import { chromiumPath, launchChromium } from './chromium.mjs';
+import { sculptdPorts, startSculptd, stopSculptd } from './sculptd.mjs';
 
 const args = Object.fromEntries(process.argv.slice(2).reduce((acc, a, i, all) =>
   (a.startsWith('--') ? [...acc, [a.slice(2), all[i + 1]]] : acc), []));
@@ -30,27 +31,13 @@ async function waitFor(page, fn, arg, timeout = 20000) {
 }
 
 const dir = mkdtempSync(join(tmpdir(), 'sculpt-browser-'));
-const portFile = join(dir, 'ports');
 // The scene has a ball skin, contours on and paint materials (scene.toml beside this file).
 const sceneFile = join(dirname(fileURLToPath(import.meta.url)), 'scene.toml');
-const server = spawn(join(bin, 'sculptd'), ['serve', '--config', sceneFile, '--data', join(dir, 'data'), '--listen',
-  '127.0.0.1:0', '--http', '127.0.0.1:0', '--port-file', portFile, '--web-root', webRoot],
-{ stdio: ['ignore', 'inherit', 'inherit'] });
-// The whole run is bounded: a hung browser must not hold ctest until its own timeout.
-const deadline = setTimeout(() => {
-  console.error('FAIL browser tests exceeded 240 s');
-  server.kill('SIGKILL');
-  process.exit(1);
-}, 240000);
+const sculptd = startSculptd({ bin, webRoot, dir, label: 'browser tests', limitMs: 240000,
+  extra: ['--config', sceneFile] });
 let browser;
 try {
-  let ports;
-  for (let i = 0; i < 300 && !ports; ++i) {
-    if (existsSync(portFile)) ports = readFileSync(portFile, 'utf8').trim().split('\n').map(Number);
-    else await sleep(100);
-  }
-  if (!ports || ports.length < 2) throw new Error('sculptd wrote no port file');
-  const [tcpPort, httpPort] = ports;
+  const { tcpPort, httpPort } = await sculptdPorts(sculptd);
   const base = `http://127.0.0.1:${httpPort}/`;
   browser = await launchChromium();
   const open = async (fragment) => {
@@ -241,10 +228,7 @@ try {
   failures += 1;
 } finally {
   if (browser) await browser.close();
-  server.kill('SIGTERM');
-  await new Promise((r) => server.on('exit', r));
-  rmSync(dir, { recursive: true, force: true });
+  await stopSculptd(sculptd);
 }
 console.log(failures === 0 ? 'browser tests: all passed' : `browser tests: ${failures} failed`);
-clearTimeout(deadline);
 process.exit(failures === 0 ? 0 : 1);

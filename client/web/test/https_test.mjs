@@ -4,12 +4,13 @@
 // served over plain http:// from the HTTPS port gets nothing. Usage:
 //   node test/https_test.mjs --bin BUILD/bin --web-root DIST
 // Exits non-zero with the failing check's name. Run by ctest (label browser).
-import { execFileSync, spawn } from 'node:child_process';
-import { mkdtempSync, readFileSync, existsSync, rmSync, writeFileSync } from 'node:fs';
+import { execFileSync } from 'node:child_process';
+import { mkdtempSync, existsSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { chromium } from 'playwright-core';
 import { chromiumPath } from './chromium.mjs';
+import { sculptdPorts, startSculptd, stopSculptd } from './sculptd.mjs';
 
 const args = Object.fromEntries(process.argv.slice(2).reduce((acc, a, i, all) =>
   (a.startsWith('--') ? [...acc, [a.slice(2), all[i + 1]]] : acc), []));
@@ -37,25 +38,11 @@ openssl('x509', '-req', '-in', 'server.csr', '-CA', 'ca.pem', '-CAkey', 'ca.key'
 const spki = execFileSync('sh', ['-c', 'openssl x509 -in server.pem -pubkey -noout | openssl pkey -pubin '
   + '-outform der | openssl dgst -sha256 -binary | base64'], { cwd: dir }).toString().trim();
 
-const portFile = join(dir, 'ports');
-const server = spawn(join(bin, 'sculptd'), ['serve', '--data', join(dir, 'data'), '--listen', '127.0.0.1:0',
-  '--http', '127.0.0.1:0', '--port-file', portFile, '--web-root', webRoot,
-  '--tls-cert', join(dir, 'server.pem'), '--tls-key', join(dir, 'server.key')],
-{ stdio: ['ignore', 'inherit', 'inherit'] });
-const deadline = setTimeout(() => {
-  console.error('FAIL https tests exceeded 120 s');
-  server.kill('SIGKILL');
-  process.exit(1);
-}, 120000);
+const sculptd = startSculptd({ bin, webRoot, dir, label: 'https tests', limitMs: 120000,
+  extra: ['--tls-cert', join(dir, 'server.pem'), '--tls-key', join(dir, 'server.key')] });
 let browser;
 try {
-  let ports;
-  for (let i = 0; i < 300 && !ports; ++i) {
-    if (existsSync(portFile)) ports = readFileSync(portFile, 'utf8').trim().split('\n').map(Number);
-    else await sleep(100);
-  }
-  if (!ports || ports.length < 2) throw new Error('sculptd wrote no port file');
-  const httpPort = ports[1];
+  const { httpPort } = await sculptdPorts(sculptd);
   browser = await chromium.launch({ executablePath: chromiumPath, headless: true,
     args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
       '--disable-background-networking', '--disable-component-update', '--disable-sync',
@@ -100,10 +87,7 @@ try {
 } catch (e) {
   check('https run', false, e.stack || String(e));
 } finally {
-  clearTimeout(deadline);
   if (browser) await browser.close();
-  server.kill('SIGTERM');
-  await new Promise((r) => server.once('exit', r));
-  rmSync(dir, { recursive: true, force: true });
+  await stopSculptd(sculptd);
 }
 process.exit(failures ? 1 : 0);

@@ -6,11 +6,12 @@
 //   node test/undo_browser_test.mjs --bin BUILD/bin --web-root DIST
 // Exits 0 with "skipped" when the server answers undo as an unknown message (a sculptd without
 // the server side of undo); non-zero with the failing check's name otherwise.
-import { execFileSync, spawn } from 'node:child_process';
-import { mkdtempSync, readFileSync, existsSync, rmSync, writeFileSync } from 'node:fs';
+import { execFileSync } from 'node:child_process';
+import { mkdtempSync, existsSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { chromiumPath, launchChromium } from './chromium.mjs';
+import { sculptdPorts, startSculptd, stopSculptd } from './sculptd.mjs';
 
 const args = Object.fromEntries(process.argv.slice(2).reduce((acc, a, i, all) =>
   (a.startsWith('--') ? [...acc, [a.slice(2), all[i + 1]]] : acc), []));
@@ -29,23 +30,11 @@ function check(name, ok, detail = '') {
 const waitFor = (page, fn, arg, timeout = 20000) => page.waitForFunction(fn, arg, { timeout, polling: 100 });
 
 const dir = mkdtempSync(join(tmpdir(), 'sculpt-undo-browser-'));
-const portFile = join(dir, 'ports');
-const server = spawn(join(bin, 'sculptd'), ['serve', '--data', join(dir, 'data'), '--listen', '127.0.0.1:0',
-  '--http', '127.0.0.1:0', '--port-file', portFile, '--web-root', webRoot], { stdio: ['ignore', 'inherit', 'inherit'] });
-const deadline = setTimeout(() => {
-  console.error('FAIL undo browser tests exceeded 180 s');
-  server.kill('SIGKILL');
-  process.exit(1);
-}, 180000);
+const sculptd = startSculptd({ bin, webRoot, dir, label: 'undo browser tests', limitMs: 180000 });
 let browser;
 try {
-  let ports;
-  for (let i = 0; i < 300 && !ports; ++i) {
-    if (existsSync(portFile)) ports = readFileSync(portFile, 'utf8').trim().split('\n').map(Number);
-    else await sleep(100);
-  }
-  if (!ports || ports.length < 2) throw new Error('sculptd wrote no port file');
-  const base = `http://127.0.0.1:${ports[1]}/`;
+  const { tcpPort, httpPort } = await sculptdPorts(sculptd);
+  const base = `http://127.0.0.1:${httpPort}/`;
   browser = await launchChromium();
   // A small page: Chromium renders in software here, and every pixel costs every frame.
   const open = async (fragment) => {
@@ -151,7 +140,7 @@ try {
       { t_ms: 0, poses: [[x, y, z, 0], [x + 0.4, y, z, 8]] }, { t_ms: 40, poses: [[x - 0.4, y, z, 0], [x, y + 0.4, z, 8]] }] }));
     const otherSculptorEnv = { ...process.env };
     delete otherSculptorEnv.SCULPT_CLIENT_ID;
-    const played = JSON.parse(execFileSync(join(bin, 'sculpt'), ['play', '--server', `127.0.0.1:${ports[0]}`,
+    const played = JSON.parse(execFileSync(join(bin, 'sculpt'), ['play', '--server', `127.0.0.1:${tcpPort}`,
       '--script', script], { encoding: 'utf8', env: otherSculptorEnv }));
     check('another sculptor pressed where the drag was', played.ok && played.acked === 2, JSON.stringify(played));
     const u4 = await answered(sculptor, () => sculptor.keyboard.press('Control+z'));
@@ -172,11 +161,8 @@ try {
   failures += 1;
 } finally {
   if (browser) await browser.close();
-  server.kill('SIGTERM');
-  await new Promise((r) => server.on('exit', r));
-  rmSync(dir, { recursive: true, force: true });
+  await stopSculptd(sculptd);
 }
 console.log(failures === 0 ? `undo browser tests: ${skipped ? 'skipped (no server undo)' : 'all passed'}`
   : `undo browser tests: ${failures} failed`);
-clearTimeout(deadline);
 process.exit(failures === 0 ? 0 : 1);
