@@ -47,7 +47,8 @@ struct Corners {
   double tx, ty, tz;
 };
 
-inline double Interpolate(const double (&v)[2][2][2], double tx, double ty, double tz) {
+[[gnu::always_inline]] inline double Interpolate(const double (&v)[2][2][2], double tx, double ty,
+                                                 double tz) {
   const double x00 = v[0][0][0] + tx * (v[1][0][0] - v[0][0][0]);
   const double x10 = v[0][1][0] + tx * (v[1][1][0] - v[0][1][0]);
   const double x01 = v[0][0][1] + tx * (v[1][0][1] - v[0][0][1]);
