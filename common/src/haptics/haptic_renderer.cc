@@ -82,6 +82,7 @@ HapticRenderer::HapticRenderer(const HapticSettings& s)
   from_.resize(local_.size());
   anchor_.resize(local_.size());
   anchor_phi_.assign(local_.size(), kNan);
+  anchor_exact_.assign(local_.size(), 0);
   term_.resize(local_.size());
   known_.assign(local_.size(), 0);
 }
@@ -94,6 +95,57 @@ bool HapticRenderer::OutOfBudget(int evaluated, double start_us) const {
   if (settings_.tick_budget_samples > 0 && evaluated >= settings_.tick_budget_samples) return true;
   return settings_.tick_budget_us > 0 && evaluated % kClockEvery == 0 &&
          clock_->NowUs() - start_us >= settings_.tick_budget_us;
+}
+
+void HapticRenderer::CarryOverSwap(const SdfSampler* sdf) {
+  // A new snapshot starts the visiting order afresh, so a tick cut short after a swap still has
+  // samples spread over the tool.
+  cursor_ = 0;
+  double change = 0;
+  Vec3 lo, hi;
+  const bool bounded = sdf != nullptr && previous_snapshot_ != nullptr &&
+                       sdf->ChangeSince(*previous_snapshot_, &change, &lo, &hi) &&
+                       std::isfinite(change) && change >= 0;
+  if (sdf != nullptr && previous_snapshot_ != nullptr) ++swaps_;
+  if (!bounded) {
+    // Nothing known of the change: what the samples learnt belongs to the old snapshot.
+    std::fill(anchor_phi_.begin(), anchor_phi_.end(), kNan);
+    std::fill(known_.begin(), known_.end(), 0);
+    known_count_ = 0;
+    return;
+  }
+  // phi moved by at most `change` inside [lo, hi]: an anchor there keeps a lower bound (exact
+  // when nothing changed), so the first tick on the new snapshot skips the far samples as every
+  // other tick does instead of reading all of them. A sample's term is kept too: a tick cut
+  // short by the budget uses it until the sample's next visit, as it does between swaps (the
+  // term is then off by about the stiffness times the change), so the force does not fall
+  // back to the estimate of a few spread samples at every swap.
+  ++swaps_carried_;
+  if (change == 0 && std::isinf(lo.x) && std::isinf(lo.y) && std::isinf(lo.z) &&
+      std::isinf(hi.x) && std::isinf(hi.y) && std::isinf(hi.z)) {
+    return;  // the same field everywhere: everything holds as it is
+  }
+  // Without branches (this runs for every sample on the swap tick): a NaN anchor phi stays NaN,
+  // and a sample known on the old snapshot has an anchor (skipping or reading one set it).
+  // The arrays through local pointers: a byte store may alias anything, and the members would
+  // be loaded again after each one.
+  const uint8_t exact = change == 0 ? 1 : 0;
+  const size_t n = local_.size();
+  const Vec3* anchor = anchor_.data();
+  double* anchor_phi = anchor_phi_.data();
+  uint8_t* anchor_exact = anchor_exact_.data();
+  uint8_t* known_now = known_.data();
+  int known = 0;
+  for (size_t k = 0; k < n; ++k) {
+    const Vec3 q = anchor[k];
+    const uint8_t inside = (q.x >= lo.x) & (q.y >= lo.y) & (q.z >= lo.z) & (q.x <= hi.x) &
+                           (q.y <= hi.y) & (q.z <= hi.z);
+    anchor_phi[k] = inside ? anchor_phi[k] - change : kNan;
+    anchor_exact[k] &= exact;
+    known_now[k] &= inside;
+    known += known_now[k];
+  }
+  known_count_ = known;
 }
 
 void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, double start_us,
@@ -128,9 +180,14 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
         ++skipped;
         continue;
       }
-      // A lower bound is a safe start for the sweep's steps only while it says "free".
+      // A lower bound is a safe start for the sweep's steps only while it says "free", and
+      // only for a path that has length (the sweep returns its start as phi at its end).
       const double bound = anchor_phi_[k] - kSkipLipschitz * std::sqrt(da2);
-      if (da2 == 0 || bound > 0) phi_a = da2 == 0 ? anchor_phi_[k] : bound;
+      if (da2 == 0 && anchor_exact_[k]) {
+        phi_a = anchor_phi_[k];
+      } else if (bound > 0 && !(a == x)) {
+        phi_a = bound;
+      }
     }
     if (evaluated > 0 && OutOfBudget(evaluated, start_us)) {
       stopped = true;
@@ -179,6 +236,7 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
     from_[k] = x;
     anchor_[k] = x;
     anchor_phi_[k] = phi;
+    anchor_exact_[k] = 1;
   }
   // Resume after the last sample visited; a complete tick starts the next at the coarsest.
   cursor_ = stopped ? (cursor_ + visited) % n : 0;
@@ -202,14 +260,7 @@ const TickOutput& HapticRenderer::Tick(const std::shared_ptr<const SdfSampler>& 
 
   const SdfSampler* sdf = snapshot.get();
   TickOutput out;
-  // Everything known about the samples belongs to one snapshot; a new one starts the order
-  // afresh, so a tick cut short after a swap still has samples spread over the tool.
-  if (sdf != previous_snapshot_) {
-    std::fill(anchor_phi_.begin(), anchor_phi_.end(), kNan);
-    std::fill(known_.begin(), known_.end(), 0);
-    known_count_ = 0;
-    cursor_ = 0;
-  }
+  if (sdf != previous_snapshot_) CarryOverSwap(sdf);
   if (settings_.model == ForceModel::kProxy) {
     // The proxy's force is the output: it runs first, whatever the samples' budget leaves.
     const ProxyState& p = proxy_.Update(sdf, sample.position, dt);

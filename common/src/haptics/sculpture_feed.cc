@@ -46,15 +46,17 @@ void SculptureFeed::Publish(std::shared_ptr<const levelset::Sculpture> sculpture
 
 void SculptureFeed::PublishLocked(std::shared_ptr<const levelset::Sculpture> sculpture) {
   if (!window_centre_) {
+    last_windowed_.reset();
     publisher_->Publish(std::make_shared<const SculptureSnapshot>(std::move(sculpture)));
     return;
   }
   const auto t0 = Clock::now();
   last_centre_ = window_centre_();
-  auto snapshot =
-      std::make_shared<const SculptureSnapshot>(std::move(sculpture), last_centre_, window_radius_);
+  auto snapshot = std::make_shared<const SculptureSnapshot>(
+      std::move(sculpture), last_centre_, window_radius_, last_windowed_.get());
   stats_.window_ms += MsSince(t0);
   if (snapshot->window_values() > 0) ++stats_.windows;
+  last_windowed_ = snapshot;
   publisher_->Publish(std::move(snapshot));
 }
 

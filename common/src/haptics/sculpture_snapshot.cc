@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <limits>
 #include <optional>
 
 #include "levelset/sculpture_impl.h"
@@ -29,6 +30,7 @@ struct ThreadAccessor {
   std::optional<Accessor> accessor;
 };
 thread_local ThreadAccessor t_accessor;
+thread_local SculptureSnapshot::LookupCounts t_counts;
 
 Accessor& AccessorFor(uint64_t id, const Tree& tree) {
   if (t_accessor.id != id) {
@@ -45,7 +47,8 @@ struct Corners {
   double tx, ty, tz;
 };
 
-inline double Interpolate(const double (&v)[2][2][2], double tx, double ty, double tz) {
+[[gnu::always_inline]] inline double Interpolate(const double (&v)[2][2][2], double tx, double ty,
+                                                 double tz) {
   const double x00 = v[0][0][0] + tx * (v[1][0][0] - v[0][0][0]);
   const double x10 = v[0][1][0] + tx * (v[1][1][0] - v[0][1][0]);
   const double x01 = v[0][0][1] + tx * (v[1][0][1] - v[0][0][1]);
@@ -141,7 +144,8 @@ SculptureSnapshot::SculptureSnapshot(std::shared_ptr<const levelset::Sculpture> 
       id_(g_next_id.fetch_add(1, std::memory_order_relaxed)) {}
 
 SculptureSnapshot::SculptureSnapshot(std::shared_ptr<const levelset::Sculpture> sculpture,
-                                     const Vec3& window_centre, double window_radius)
+                                     const Vec3& window_centre, double window_radius,
+                                     const SculptureSnapshot* previous)
     : SculptureSnapshot(std::move(sculpture)) {
   if (!window_centre.IsFinite() || !(window_radius > 0) || !std::isfinite(window_radius)) return;
   const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
@@ -166,9 +170,73 @@ SculptureSnapshot::SculptureSnapshot(std::shared_ptr<const levelset::Sculpture> 
       }
     }
   }
+  if (previous == nullptr || previous->window_.empty() || previous->sculpture_ == sculpture_) {
+    return;  // nothing to compare (the same sculpture needs no comparison: ChangeSince says 0)
+  }
+  const auto& prev_grid = *static_cast<const openvdb::FloatGrid*>(previous->grid_);
+  // Only an axis-aligned scale (and translation), the same in both, maps the overlap to a
+  // world box.
+  const auto& map = *grid.transform().baseMap();
+  if (!(grid.transform() == prev_grid.transform()) ||
+      !(map.isType<openvdb::math::UniformScaleMap>() ||
+        map.isType<openvdb::math::UniformScaleTranslateMap>() ||
+        map.isType<openvdb::math::ScaleMap>() || map.isType<openvdb::math::ScaleTranslateMap>())) {
+    return;
+  }
+  const int plo[3] = {previous->window_lo_.x, previous->window_lo_.y, previous->window_lo_.z};
+  const int pn[3] = {previous->window_n_.x, previous->window_n_.y, previous->window_n_.z};
+  int olo[3], ohi[3];  // the overlap, inclusive
+  for (int a = 0; a < 3; ++a) {
+    olo[a] = std::max(lo[a], plo[a]);
+    ohi[a] = std::min(lo[a] + n[a], plo[a] + pn[a]) - 1;
+    if (ohi[a] - olo[a] < 1) return;  // no whole cell in common
+  }
+  float bound = 0;
+  for (int k = olo[2]; k <= ohi[2]; ++k) {
+    for (int j = olo[1]; j <= ohi[1]; ++j) {
+      const float* mine = &window_[(olo[0] - lo[0]) + static_cast<size_t>(j - lo[1]) * n[0] +
+                                   static_cast<size_t>(k - lo[2]) * n[0] * n[1]];
+      const float* theirs =
+          &previous->window_[(olo[0] - plo[0]) + static_cast<size_t>(j - plo[1]) * pn[0] +
+                             static_cast<size_t>(k - plo[2]) * pn[0] * pn[1]];
+      for (int i = 0; i <= ohi[0] - olo[0]; ++i) {
+        bound = std::max(bound, std::abs(mine[i] - theirs[i]));
+      }
+    }
+  }
+  // A point's 8 corners lie in the overlap while its index position is in [olo, ohi); a
+  // hundredth of a voxel inside that, so the world-to-index round-off cannot cross it.
+  const openvdb::Vec3d wlo = grid.transform().indexToWorld(
+      openvdb::Vec3d(olo[0] + 0.01, olo[1] + 0.01, olo[2] + 0.01));
+  const openvdb::Vec3d whi = grid.transform().indexToWorld(
+      openvdb::Vec3d(ohi[0] - 0.01, ohi[1] - 0.01, ohi[2] - 0.01));
+  change_base_id_ = previous->id_;
+  change_bound_ = bound;
+  change_lo_ = {std::min(wlo.x(), whi.x()), std::min(wlo.y(), whi.y()), std::min(wlo.z(), whi.z())};
+  change_hi_ = {std::max(wlo.x(), whi.x()), std::max(wlo.y(), whi.y()), std::max(wlo.z(), whi.z())};
+}
+
+bool SculptureSnapshot::ChangeSince(const SdfSampler& previous, double* bound, Vec3* lo,
+                                    Vec3* hi) const {
+  const auto* p = dynamic_cast<const SculptureSnapshot*>(&previous);
+  if (p == nullptr) return false;
+  if (p->sculpture_ == sculpture_) {
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    *bound = 0;
+    *lo = {-kInf, -kInf, -kInf};
+    *hi = {kInf, kInf, kInf};
+    return true;
+  }
+  if (change_base_id_ == 0 || p->id_ != change_base_id_) return false;
+  *bound = change_bound_;
+  *lo = change_lo_;
+  *hi = change_hi_;
+  return true;
 }
 
 SculptureSnapshot::~SculptureSnapshot() = default;
+
+SculptureSnapshot::LookupCounts SculptureSnapshot::ThreadLookupCounts() { return t_counts; }
 
 namespace {
 
@@ -203,9 +271,11 @@ double SculptureSnapshot::Phi(const Vec3& p) const {
     FillCorners(WindowGet{window_.data(), {window_lo_.x, window_lo_.y, window_lo_.z}, window_n_.x,
                           window_n_.x * window_n_.y},
                 &c);
+    ++t_counts.window_phi;
   } else {
     Accessor& acc = AccessorFor(id_, grid.tree());
     FillCorners([&acc](const openvdb::Coord& ijk) { return acc.getValue(ijk); }, &c);
+    ++t_counts.tree_phi;
   }
   return Interpolate(c.v, c.tx, c.ty, c.tz);
 }
@@ -221,11 +291,13 @@ void SculptureSnapshot::PhiAndGradient(const Vec3& p, double* phi, Vec3* gradien
                         window_n_.x * window_n_.y};
     FillCorners(get, &c);
     gi = CentralIndexGradient(get, c, c.origin);
+    ++t_counts.window_stencil;
   } else {
     Accessor& acc = AccessorFor(id_, grid.tree());
     const auto get = [&acc](const openvdb::Coord& ijk) { return acc.getValue(ijk); };
     FillCorners(get, &c);
     gi = CentralIndexGradient(get, c, c.origin);
+    ++t_counts.tree_stencil;
   }
   *phi = Interpolate(c.v, c.tx, c.ty, c.tz);
   // World gradient: the index gradient through the inverse transpose of the index-to-world map

@@ -64,7 +64,10 @@ class TickClock {
 /// from one stencil. With a budget (HapticSettings::tick_budget_us / tick_budget_samples) a tick
 /// stops when it is spent; samples not visited keep their term from their last visit on the
 /// same snapshot, and each one's path is swept from where it was last visited, so no contact is
-/// missed, only felt a tick or two later.
+/// missed, only felt a tick or two later. Across a snapshot swap the bounds and terms are kept
+/// where the new snapshot bounds the change (SdfSampler::ChangeSince: a windowed snapshot made
+/// with its predecessor, or one of the same sculpture), lowered by that change, so the first tick
+/// on a new snapshot does the lookups of any other; otherwise they are forgotten.
 /// Thread safety: not thread-safe; the haptic loop's thread owns it.
 class HapticRenderer {
  public:
@@ -81,6 +84,10 @@ class HapticRenderer {
   const HapticSettings& settings() const { return settings_; }
   uint64_t nan_samples() const { return nan_samples_; }
   uint64_t ticks() const { return ticks_; }
+  /// Snapshot swaps seen, and of those the ones whose distance bounds were carried over
+  /// (SdfSampler::ChangeSince knew the change) instead of forgotten.
+  uint64_t swaps() const { return swaps_; }
+  uint64_t swaps_carried() const { return swaps_carried_; }
   const TickOutput& last() const { return out_; }
   /// Reads time for the budget from `clock` (not owned; null: steady_clock).
   void set_clock(TickClock* clock);
@@ -98,6 +105,9 @@ class HapticRenderer {
 
   // Visits samples from order_[cursor_] on, updating their state; stops at the budget.
   void VisitSamples(const SdfSampler& sdf, const Vec3& centre, double start_us, TickOutput* out);
+  // On a new snapshot: keeps what SdfSampler::ChangeSince lets the samples' state keep, forgets
+  // the rest.
+  void CarryOverSwap(const SdfSampler* sdf);
   bool OutOfBudget(int evaluated, double start_us) const;
 
   double rho_ = 0;  // area-weighted patch radius; 0 for the plain penalty average
@@ -108,6 +118,7 @@ class HapticRenderer {
   // (NaN: unknown on this snapshot); its force term and whether that term is for this snapshot.
   std::vector<Vec3> from_, anchor_;
   std::vector<double> anchor_phi_;
+  std::vector<uint8_t> anchor_exact_;  // anchor_phi_ is phi itself (not a bound) on this snapshot
   std::vector<SampleForce> term_;
   std::vector<uint8_t> known_;
   int known_count_ = 0;
@@ -123,6 +134,7 @@ class HapticRenderer {
   int blend_left_ = 0;
   uint64_t nan_samples_ = 0;
   uint64_t ticks_ = 0;
+  uint64_t swaps_ = 0, swaps_carried_ = 0;
   TickOutput out_;
 };
 

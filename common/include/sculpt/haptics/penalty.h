@@ -27,6 +27,15 @@ class SdfSampler {
   }
   /// Grid spacing in world units: continuous contact detection steps at most half of it.
   virtual double cell_size() const = 0;
+  /// What is known of how phi changed from `previous` (a sampler read before this one) to this
+  /// one: true with *bound >= 0 and the world box [*lo, *hi] such that |Phi(p) -
+  /// previous.Phi(p)| <= *bound for every p in the box; false when nothing is known (the
+  /// default). The haptic renderer keeps the distance bounds it learnt on `previous` through a
+  /// swap with it, so the first tick on a new snapshot skips the same far samples as any other.
+  virtual bool ChangeSince(const SdfSampler& previous, double* bound, Vec3* lo, Vec3* hi) const {
+    (void)previous, (void)bound, (void)lo, (void)hi;
+    return false;
+  }
 };
 
 /// phi of a Sculpture (trilinear in its narrow band) and its central-difference gradient over

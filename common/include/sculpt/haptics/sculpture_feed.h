@@ -16,6 +16,8 @@
 
 namespace sculpt::haptics {
 
+class SculptureSnapshot;
+
 /// Wraps each published sculpture in a SculptureSnapshot that shares it and publishes that. With
 /// sealing on, the sculpture's StateHash is taken at publication and taken again when the feed
 /// lets the copy go (after kHeld newer ones) or at CheckHeld: a difference means somebody edited
@@ -80,6 +82,9 @@ class SculptureFeed {
   std::function<Vec3()> window_centre_;
   double window_radius_ = 0;
   Vec3 last_centre_;
+  // The last windowed snapshot published: the next one compares its window with it, so the
+  // loop's renderer knows how far phi moved around the tool (SdfSampler::ChangeSince).
+  std::shared_ptr<const SculptureSnapshot> last_windowed_;
 };
 
 }  // namespace sculpt::haptics
