@@ -108,7 +108,9 @@ TEST(HapticLoopTest, ReportsSchedulingClassMemoryLockAndCpu) {
     if (realtime) {
       EXPECT_TRUE(st.scheduling == "SCHED_FIFO" || st.scheduling == "SCHED_OTHER")
           << st.scheduling;
-      if (st.scheduling == "SCHED_FIFO") EXPECT_GT(st.priority, 0);
+      if (st.scheduling == "SCHED_FIFO") {
+        EXPECT_GT(st.priority, 0);
+      }
     } else {
       EXPECT_EQ(st.scheduling, "SCHED_OTHER");
     }
