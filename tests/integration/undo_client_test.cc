@@ -13,9 +13,12 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <thread>
 
 #include "integration/in_process_server.h"
 #include "sculpt/client/client.h"
+#include "sculpt/client/replica.h"
+#include "sculpt/levelset/region.h"
 
 namespace sculpt::client {
 namespace {
@@ -171,6 +174,68 @@ TEST_F(UndoClientTest, SculptUndoCliTakesBackTheStrokesOfItsClientId) {
   EXPECT_EQ(j["ok"], true);
   EXPECT_EQ(j["steps"][0]["target_seq"], 4);
   EXPECT_EQ(srv_.scene().StateHash("clay"), initial) << "the only stroke is taken back";
+}
+
+
+// Hard case: A and B undo at the same time in a region C also sculpted, while a replica watches
+// through an interest box that covers only part of the region the undos change. Both undos are
+// taken back (the object equals a scene that only had C's stroke) and the replica's voxels over
+// what it holds equal the server's.
+TEST_F(UndoClientTest, TwoAuthorsUndoAtOnceAndAPartialReplicaConverges) {
+  auto a = Sculptor("alice");
+  auto b = Sculptor("bob");
+  auto c = Sculptor("carol");
+  auto watcher = srv_.Joined(v1::ROLE_VIEWER, /*skip_state=*/true, "watcher");
+  ReplicaOptions part;
+  part.interest = levelset::Aabb{{15, 6, 5}, {25, 12, 15}};  // y >= 6: the strokes' +y side
+  Replica replica(*watcher, part);
+  ASSERT_TRUE(replica.Start().ok());
+  ASSERT_TRUE(replica.WaitLoaded(1, seconds(20)));
+  const levelset::VoxelBox held = replica.held();
+  ASSERT_FALSE(held.Empty());
+  // Where the strokes reach below the held region (y < held.min.y), in voxels.
+  const levelset::VoxelBox outside{{held.min.x, held.min.y - 24, held.min.z},
+                                   {held.max.x, held.min.y - 1, held.max.z}};
+
+  const StrokeRequest a1 = PressArc(10.0, 0), b1 = PressArc(9.0, 0), c1 = PressArc(9.5, 1),
+                      a2 = PressArc(10.5, 1), b2 = PressArc(8.5, 0);
+  for (auto [who, s] : {std::pair{a.get(), &a1}, {b.get(), &b1}, {c.get(), &c1},
+                        {a.get(), &a2}, {b.get(), &b2}}) {
+    ASSERT_TRUE(who->SendStroke(*s).ok());
+    ASSERT_TRUE(who->WaitAllAcked(seconds(20)));
+  }
+  const uint64_t inside_before = srv_.scene().RegionHash("clay", held);
+  const uint64_t outside_before = srv_.scene().RegionHash("clay", outside);
+
+  auto both = [&](const char* what) {
+    auto sa = a->SendUndo("clay");
+    auto sb = b->SendUndo("clay");
+    ASSERT_TRUE(sa.ok() && sb.ok()) << what;
+    auto ua = a->WaitUndoAck(*sa, seconds(20));
+    auto ub = b->WaitUndoAck(*sb, seconds(20));
+    ASSERT_TRUE(ua.ok() && ub.ok()) << what;
+    SKIP_IF_SERVER_LACKS_UNDO(ErrorToStatus(ua->error()));
+    EXPECT_TRUE(ua->accepted()) << what << ": " << ua->DebugString();
+    EXPECT_TRUE(ub->accepted()) << what << ": " << ub->DebugString();
+  };
+  both("second strokes");
+  both("first strokes");
+  if (HasFatalFailure() || IsSkipped()) return;
+  EXPECT_EQ(srv_.scene().StateHash("clay"), HashOfFreshSceneWith({c1}))
+      << "the object differs from a scene that only had C's stroke";
+  EXPECT_NE(srv_.scene().RegionHash("clay", held), inside_before) << "the undos missed the box";
+  EXPECT_NE(srv_.scene().RegionHash("clay", outside), outside_before)
+      << "the undone region does not reach beyond the replica's box: the case is not exercised";
+  const auto end = std::chrono::steady_clock::now() + seconds(20);
+  while (replica.RegionHash(held) != srv_.scene().RegionHash("clay", held) &&
+         std::chrono::steady_clock::now() < end) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_EQ(replica.RegionHash(held), srv_.scene().RegionHash("clay", held))
+      << "the partial replica did not converge";
+  EXPECT_EQ(replica.stats().hash_mismatches, 0u);
+  EXPECT_EQ(replica.stats().errors, 0u);
+  EXPECT_EQ(srv_.scene().replication_stats().divergences.load(), 0u);
 }
 
 }  // namespace
