@@ -14,6 +14,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "integration/in_process_server.h"
 #include "sculpt/client/client.h"
@@ -236,6 +237,122 @@ TEST_F(UndoClientTest, TwoAuthorsUndoAtOnceAndAPartialReplicaConverges) {
   EXPECT_EQ(replica.stats().hash_mismatches, 0u);
   EXPECT_EQ(replica.stats().errors, 0u);
   EXPECT_EQ(srv_.scene().replication_stats().divergences.load(), 0u);
+}
+
+/// Runs `sculpt ARGS` with stdout and stderr in one file; returns the exit status and the text.
+std::pair<int, std::string> RunSculpt(const std::filesystem::path& dir, const std::string& args) {
+  const std::filesystem::path out = dir / "sculpt_out.txt";
+  const std::string cmd = "env -u SCULPT_TOKEN " + std::string(SCULPT_BIN_DIR) + "/sculpt " + args +
+                          " > " + out.string() + " 2>&1";
+  const int status = std::system(cmd.c_str());
+  std::ifstream in(out);
+  std::stringstream text;
+  text << in.rdbuf();
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
+}
+
+// The history view through the client library: a viewer reads it; refusals name the field.
+TEST_F(UndoClientTest, AViewerReadsTheHistoryAndBadRequestsAreNamedErrors) {
+  auto a = Sculptor("alice", 7001);
+  auto b = Sculptor("bob", 7002);
+  ASSERT_TRUE(a->SendStroke(StrokeOf('a')).ok());
+  ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
+  ASSERT_TRUE(b->SendStroke(StrokeOf('b')).ok());
+  ASSERT_TRUE(b->WaitAllAcked(seconds(20)));
+  auto undo = a->Undo();
+  SKIP_IF_SERVER_LACKS_UNDO(undo.status());
+  ASSERT_TRUE(undo.ok()) << undo.status();
+
+  auto viewer = srv_.Joined(v1::ROLE_VIEWER, /*skip_state=*/true, "watcher");
+  auto h = viewer->History();
+  ASSERT_TRUE(h.ok()) << h.status();
+  EXPECT_EQ(h->object(), "clay");
+  ASSERT_EQ(h->entries_size(), 2);
+  EXPECT_EQ(h->entries(0).author(), "7002");
+  EXPECT_EQ(h->entries(0).seq(), 8u);
+  EXPECT_FALSE(h->entries(0).undone());
+  EXPECT_EQ(h->entries(1).author(), "7001");
+  EXPECT_EQ(h->entries(1).seq(), 4u);
+  EXPECT_TRUE(h->entries(1).undone());
+  EXPECT_GT(h->entries(1).time_ms(), 0u);
+  auto mine = a->History("clay", "7001", 1);
+  ASSERT_TRUE(mine.ok()) << mine.status();
+  ASSERT_EQ(mine->entries_size(), 1);
+  EXPECT_EQ(mine->entries(0).seq(), 4u);
+
+  auto too_many = viewer->History("clay", "", 5000);
+  EXPECT_EQ(too_many.status().code(), Status::Code::kInvalidArgument) << too_many.status();
+  EXPECT_NE(too_many.status().message().find("HistoryRequest.limit=5000"), std::string::npos)
+      << too_many.status();
+  EXPECT_NE(too_many.status().message().find("[0, 1000]"), std::string::npos) << too_many.status();
+  auto control = viewer->History("clay", "a\tb");
+  EXPECT_EQ(control.status().code(), Status::Code::kInvalidArgument) << control.status();
+  EXPECT_NE(control.status().message().find("HistoryRequest.author"), std::string::npos);
+  auto unknown = viewer->History("marble");
+  EXPECT_EQ(unknown.status().code(), Status::Code::kNotFound) << unknown.status();
+  EXPECT_NE(unknown.status().message().find("HistoryRequest.object"), std::string::npos);
+  // The session answered and stays usable.
+  EXPECT_TRUE(viewer->History().ok());
+}
+
+// `sculpt history` lists what the server holds, as a table or JSON, filtered by author.
+TEST_F(UndoClientTest, SculptHistoryCliListsRecentEditsWithAuthorKindTimeAndUndone) {
+  constexpr uint64_t kA = 616161, kB = 626262;
+  {
+    auto a = Sculptor("alice", kA);
+    auto b = Sculptor("bob", kB);
+    ASSERT_TRUE(a->SendStroke(StrokeOf('a')).ok());
+    ASSERT_TRUE(a->WaitAllAcked(seconds(20)));
+    ASSERT_TRUE(b->SendStroke(StrokeOf('b')).ok());
+    ASSERT_TRUE(b->WaitAllAcked(seconds(20)));
+    auto undo = a->Undo();
+    SKIP_IF_SERVER_LACKS_UNDO(undo.status());
+    ASSERT_TRUE(undo.ok()) << undo.status();
+  }
+  const std::string server = "--server 127.0.0.1:" + std::to_string(srv_.port());
+  const auto [code, json_text] = RunSculpt(srv_.dir(), "history " + server + " --json");
+  ASSERT_EQ(code, 0) << json_text;
+  const auto j = nlohmann::json::parse(json_text.substr(json_text.find('{')));
+  EXPECT_EQ(j["object"], "clay");
+  EXPECT_EQ(j["held"], 2);
+  ASSERT_EQ(j["entries"].size(), 2u) << json_text;
+  EXPECT_EQ(j["entries"][0]["author"], std::to_string(kB));
+  EXPECT_EQ(j["entries"][0]["kind"], "press");
+  EXPECT_EQ(j["entries"][0]["seq"], 8);
+  EXPECT_EQ(j["entries"][0]["undone"], false);
+  EXPECT_EQ(j["entries"][1]["author"], std::to_string(kA));
+  EXPECT_EQ(j["entries"][1]["undone"], true);
+  EXPECT_GT(j["entries"][1]["time_ms"].get<uint64_t>(), 0u);
+  EXPECT_EQ(j["entries"][1]["time"].get<std::string>().back(), 'Z');
+
+  const auto [by_code, by_a] =
+      RunSculpt(srv_.dir(), "history " + server + " --author " + std::to_string(kA) + " --json");
+  ASSERT_EQ(by_code, 0) << by_a;
+  const auto ja = nlohmann::json::parse(by_a.substr(by_a.find('{')));
+  ASSERT_EQ(ja["entries"].size(), 1u) << by_a;
+  EXPECT_EQ(ja["entries"][0]["seq"], 4);
+  EXPECT_EQ(ja["matching"], 1);
+
+  const auto [table_code, table] = RunSculpt(srv_.dir(), "history " + server + " --limit 1");
+  ASSERT_EQ(table_code, 0) << table;
+  EXPECT_NE(table.find("1 shown, 2 matching"), std::string::npos) << table;
+  EXPECT_NE(table.find(std::to_string(kB)), std::string::npos) << table;
+  EXPECT_EQ(table.find(std::to_string(kA)), std::string::npos) << table;
+
+  const auto [limit_code, limit_text] =
+      RunSculpt(srv_.dir(), "history " + server + " --limit 5000");
+  EXPECT_TRUE(limit_code != 0 && limit_code != 1)
+      << "--limit beyond 1000 is a bad option: " << limit_code << " " << limit_text;
+  EXPECT_NE(limit_text.find("--limit"), std::string::npos) << limit_text;
+  const auto [unknown_code, unknown] =
+      RunSculpt(srv_.dir(), "history " + server + " --object marble");
+  EXPECT_EQ(unknown_code, 1) << unknown;
+  EXPECT_NE(unknown.find("HistoryRequest.object"), std::string::npos) << unknown;
+  const auto [help_code, help] = RunSculpt(srv_.dir(), "history --help");
+  EXPECT_EQ(help_code, 0) << help;
+  for (const char* flag : {"--server", "--object", "--author", "--limit", "--json"}) {
+    EXPECT_NE(help.find(flag), std::string::npos) << flag << " missing from --help";
+  }
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cinttypes>
 #include <cstdio>
 #include <filesystem>
@@ -66,6 +67,18 @@ class UndoSceneTest : public ::testing::Test {
     r.set_redo(redo);
     std::promise<v1::UndoAck> p;
     scene.Undo(client, r, [&p](v1::UndoAck a) { p.set_value(std::move(a)); });
+    return p.get_future().get();
+  }
+
+  static v1::HistoryAnswer History(Scene& scene, const std::string& object = "clay",
+                                   const std::string& author = "", uint32_t limit = 50) {
+    codec::HistoryQuery q;
+    q.request_id = 99;
+    q.object = object;
+    q.author = author;
+    q.limit = limit;
+    std::promise<v1::HistoryAnswer> p;
+    scene.History(q, [&p](v1::HistoryAnswer a) { p.set_value(std::move(a)); });
     return p.get_future().get();
   }
 
@@ -422,6 +435,93 @@ TEST_F(UndoSceneTest, UndoOfAStrokeThatCutOffAnIslandWhichWasRemoved) {
   ASSERT_TRUE(Undo(*scene_, kA, 2, /*redo=*/true).accepted());
   EXPECT_GT(sample(*scene_, {9.5, 0, 0}), 0.0) << "the redo did not cut the tip off again";
   EXPECT_EQ(scene_->StateHash("clay"), with_cut) << "redo differs from before the undo";
+}
+
+uint64_t WallMs() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count());
+}
+
+// The history view: the object's edits newest first with author, kind, commit time, sequence and
+// whether each is undone; filtered by author, cut at the limit; the same after a restart that
+// replays the log and after one that loads the history kept with a snapshot.
+TEST_F(UndoSceneTest, HistoryListsEditsNewestFirstWithAuthorKindTimeAndUndone) {
+  constexpr uint64_t kA = 11, kB = 22;
+  const uint64_t t0 = WallMs();
+  ASSERT_TRUE(
+      Submit(*scene_, {kA, 1, v1::EDIT_KIND_PRESS, {-1, 0, 11.5}, {1, 0, 11.2}, 3}).status.ok());
+  ASSERT_TRUE(
+      Submit(*scene_, {kB, 1, v1::EDIT_KIND_ADD, {0, 1, 11.8}, {0, -1, 11.8}, 4, 1.5}).status.ok());
+  ASSERT_TRUE(
+      Submit(*scene_, {kA, 2, v1::EDIT_KIND_SMOOTH, {-1, 0, 11.6}, {1, 0, 11.6}, 2, 2.0, 1.0})
+          .status.ok());
+  const uint64_t t1 = WallMs();
+  ASSERT_TRUE(Undo(*scene_, kA, 1).accepted());  // A's smooth
+
+  const v1::HistoryAnswer all = History(*scene_);
+  ASSERT_FALSE(all.has_error()) << all.error().ShortDebugString();
+  EXPECT_EQ(all.request_id(), 99u);
+  EXPECT_EQ(all.object(), "clay");
+  EXPECT_EQ(all.matching(), 3u);
+  EXPECT_EQ(all.held(), 3u);
+  ASSERT_EQ(all.entries_size(), 3);
+  const uint64_t seqs[3] = {9, 7, 3};
+  const char* authors[3] = {"11", "22", "11"};
+  const v1::EditKind kinds[3] = {v1::EDIT_KIND_SMOOTH, v1::EDIT_KIND_ADD, v1::EDIT_KIND_PRESS};
+  const uint32_t poses[3] = {2, 4, 3};
+  for (int i = 0; i < 3; ++i) {
+    const v1::HistoryEntry& e = all.entries(i);
+    EXPECT_EQ(e.seq(), seqs[i]) << i;
+    EXPECT_EQ(e.author(), authors[i]) << i;
+    EXPECT_EQ(e.kind(), kinds[i]) << i;
+    EXPECT_EQ(e.poses(), poses[i]) << i;
+    EXPECT_FALSE(e.sweep()) << i;
+    EXPECT_GE(e.time_ms(), t0) << i;
+    EXPECT_LE(e.time_ms(), t1) << i;
+    EXPECT_EQ(e.undone(), i == 0) << i;
+    EXPECT_EQ(e.undoable(), i != 0) << i;
+  }
+  EXPECT_LE(all.entries(1).time_ms(), all.entries(0).time_ms());
+
+  const v1::HistoryAnswer b = History(*scene_, "clay", "22");
+  ASSERT_EQ(b.entries_size(), 1);
+  EXPECT_EQ(b.entries(0).seq(), 7u);
+  EXPECT_EQ(b.matching(), 1u);
+  EXPECT_EQ(b.held(), 3u);
+  const v1::HistoryAnswer two = History(*scene_, "clay", "", 2);
+  ASSERT_EQ(two.entries_size(), 2);
+  EXPECT_EQ(two.entries(1).seq(), 7u);
+  EXPECT_EQ(two.matching(), 3u);
+  EXPECT_EQ(History(*scene_, "clay", "nobody").entries_size(), 0);
+
+  // Recovery replays the log through the history with each stroke's logged commit time, then a
+  // snapshot keeps the history (times included) beside the object.
+  scene_.reset();
+  scene_ = Open("a");
+  ASSERT_TRUE(scene_);
+  const v1::HistoryAnswer replayed = History(*scene_);
+  EXPECT_EQ(replayed.SerializeAsString(), all.SerializeAsString())
+      << replayed.ShortDebugString() << "\nvs\n"
+      << all.ShortDebugString();
+  scene_->FlushAndSnapshot();
+  scene_.reset();
+  scene_ = Open("a");
+  ASSERT_TRUE(scene_);
+  const v1::HistoryAnswer loaded = History(*scene_);
+  EXPECT_EQ(loaded.SerializeAsString(), all.SerializeAsString())
+      << loaded.ShortDebugString() << "\nvs\n"
+      << all.ShortDebugString();
+}
+
+TEST_F(UndoSceneTest, HistoryOfAnUnknownObjectIsNotFound) {
+  const v1::HistoryAnswer a = History(*scene_, "marble");
+  ASSERT_TRUE(a.has_error());
+  EXPECT_EQ(a.error().code(), v1::ERROR_CODE_NOT_FOUND);
+  EXPECT_EQ(a.error().field(), "HistoryRequest.object");
+  EXPECT_EQ(a.error().value(), "marble");
+  EXPECT_EQ(a.entries_size(), 0);
+  EXPECT_EQ(a.request_id(), 99u);
 }
 
 }  // namespace
