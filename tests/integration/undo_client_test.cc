@@ -239,16 +239,21 @@ TEST_F(UndoClientTest, TwoAuthorsUndoAtOnceAndAPartialReplicaConverges) {
   EXPECT_EQ(srv_.scene().replication_stats().divergences.load(), 0u);
 }
 
-/// Runs `sculpt ARGS` with stdout and stderr in one file; returns the exit status and the text.
-std::pair<int, std::string> RunSculpt(const std::filesystem::path& dir, const std::string& args) {
+/// Runs `TOOL ARGS` from the build's bin folder with stdout and stderr in one file; returns the
+/// exit status and the text.
+std::pair<int, std::string> RunTool(const std::filesystem::path& dir, const std::string& tool,
+                                    const std::string& args) {
   const std::filesystem::path out = dir / "sculpt_out.txt";
-  const std::string cmd = "env -u SCULPT_TOKEN " + std::string(SCULPT_BIN_DIR) + "/sculpt " + args +
-                          " > " + out.string() + " 2>&1";
+  const std::string cmd = "env -u SCULPT_TOKEN " + std::string(SCULPT_BIN_DIR) + "/" + tool + " " +
+                          args + " > " + out.string() + " 2>&1";
   const int status = std::system(cmd.c_str());
   std::ifstream in(out);
   std::stringstream text;
   text << in.rdbuf();
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
+}
+std::pair<int, std::string> RunSculpt(const std::filesystem::path& dir, const std::string& args) {
+  return RunTool(dir, "sculpt", args);
 }
 
 // The history view through the client library: a viewer reads it; refusals name the field.
@@ -353,6 +358,30 @@ TEST_F(UndoClientTest, SculptHistoryCliListsRecentEditsWithAuthorKindTimeAndUndo
   for (const char* flag : {"--server", "--object", "--author", "--limit", "--json"}) {
     EXPECT_NE(help.find(flag), std::string::npos) << flag << " missing from --help";
   }
+}
+
+
+// `sculpt-loadgen --undo-every N`: its undoing sculptor's undos are all accepted and reported.
+TEST_F(UndoClientTest, LoadgenUndoClientReportsUndoLatencyAndTheOthersAcks) {
+  auto probe = Sculptor("probe");
+  auto nothing = probe->Undo();
+  SKIP_IF_SERVER_LACKS_UNDO(nothing.status());
+  const auto [code, text] =
+      RunTool(srv_.dir(), "sculpt-loadgen",
+              "--server 127.0.0.1:" + std::to_string(srv_.port()) +
+                  " --sculptors 1 --seconds 1 --rate 60 --undo-every 3 --replay-replicas 0"
+                  " --leafdelta-replicas 0 --viewer-mesh-hz 0 --json");
+  ASSERT_EQ(code, 0) << text;
+  const auto j = nlohmann::json::parse(text.substr(text.find('{')));
+  ASSERT_TRUE(j.contains("undo_client")) << text;
+  const auto& u = j["undo_client"];
+  EXPECT_GT(u["undos_sent"].get<int>(), 0) << u.dump();
+  EXPECT_EQ(u["undos_accepted"], u["undos_sent"]) << u.dump();
+  EXPECT_EQ(u["undos_refused"], 0) << u.dump();
+  EXPECT_GT(u["undo_ms"]["p50_ms"].get<double>(), 0.0) << u.dump();
+  EXPECT_EQ(u["others_strokes_during_undo"].get<int>() + u["others_strokes_otherwise"].get<int>(),
+            j["clients"][0]["strokes_acked"].get<int>())
+      << "every stroke of the others is counted once";
 }
 
 }  // namespace
