@@ -1,5 +1,5 @@
 /// @brief `sculpt`: the command-line client. Subcommands: demo, info, export, play, thesis, skin,
-/// undo, redo.
+/// undo, redo, history.
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -12,6 +12,7 @@
 #include <tuple>
 
 #include "demo.h"
+#include "history_cmd.h"
 #include "play_cmd.h"
 #include "sculpt/client/client.h"
 #include "sculpt/levelset/sculpture.h"
@@ -266,6 +267,11 @@ int main(int argc, char** argv) {
   undo_token.fallback = redo_token.fallback = "sculpt-dev-sculptor";
   sculpt::client::AddTokenFlags(*undo_cmd, &undo_token, "Sculptor token");
   sculpt::client::AddTokenFlags(*redo_cmd, &redo_token, "Sculptor token");
+  sculpt::client::HistoryCmdOptions history_opts;
+  CLI::App* history_cmd = sculpt::client::AddHistoryCommand(app, history_opts);
+  sculpt::client::TokenFlags history_token;
+  history_token.fallback = sculpt::client::HistoryFallbackToken("viewer");
+  sculpt::client::AddTokenFlags(*history_cmd, &history_token, "Token of the --role");
 
   CLI11_PARSE(app, argc, argv);
 
@@ -274,8 +280,12 @@ int main(int argc, char** argv) {
                                    std::tuple{export_cmd, &export_token, &ex.token},
                                    std::tuple{play_cmd, &play_token, &play.token},
                                    std::tuple{undo_cmd, &undo_token, &undo_opts.token},
-                                   std::tuple{redo_cmd, &redo_token, &redo_opts.token}}) {
+                                   std::tuple{redo_cmd, &redo_token, &redo_opts.token},
+                                   std::tuple{history_cmd, &history_token, &history_opts.token}}) {
     if (!cmd->parsed()) continue;
+    if (cmd == history_cmd) {
+      flags->fallback = sculpt::client::HistoryFallbackToken(history_opts.role);
+    }
     auto t = sculpt::client::ResolveTokenFlags(*flags);
     if (!t.ok()) {
       spdlog::error("{}: {}", cmd->get_name(), t.status().ToString());
@@ -287,6 +297,7 @@ int main(int argc, char** argv) {
   if (*skin_cmd) return sculpt::client::RunSkin(skin_opts);
   if (*undo_cmd) return sculpt::client::RunUndo(undo_opts);
   if (*redo_cmd) return sculpt::client::RunUndo(redo_opts);
+  if (*history_cmd) return sculpt::client::RunHistory(history_opts);
 
   if (*thesis_cmd) {
     std::printf("%s\n", sculpt::client::RunThesisReproduction().c_str());

@@ -10,6 +10,7 @@
 #include <future>
 #include <mutex>
 #include <random>
+#include <set>
 #include <thread>
 
 #include <openssl/err.h>
@@ -234,6 +235,12 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
         return OnAckLocked(m.ack());
       case v1::ServerMessage::kUndoAck:
         return OnUndoAckLocked(std::move(*m.mutable_undo_ack()));
+      case v1::ServerMessage::kHistory:
+        if (history_waiting.erase(m.history().request_id()) > 0) {
+          history_answers[m.history().request_id()] = std::move(*m.mutable_history());
+          cv.notify_all();
+        }
+        return;
       case v1::ServerMessage::kPresence: {
         ++stats.presence;
         Event e;
@@ -373,6 +380,23 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
     Event e;
     e.type = Event::Type::kError;
     e.error = error;
+    // A history request refused before it was read (the rate limit names it in the value) or by
+    // a server that does not know it: every waiting one would meet the same answer.
+    const auto names_history = [](const std::string& s) {
+      return s.rfind("HistoryRequest", 0) == 0;
+    };
+    if (!history_waiting.empty() &&
+        (names_history(error.field()) || names_history(error.value()) ||
+         (error.code() == v1::ERROR_CODE_MALFORMED && error.field() == "ClientMessage.body"))) {
+      for (uint64_t id : history_waiting) {
+        v1::HistoryAnswer a;
+        a.set_request_id(id);
+        *a.mutable_error() = error;
+        history_answers[id] = std::move(a);
+      }
+      history_waiting.clear();
+      cv.notify_all();
+    }
     if (error.client_seq() == 0 && error.code() == v1::ERROR_CODE_MALFORMED &&
         error.field() == "ClientMessage.body") {
       // A server older than undo does not know the message: every pending request would meet
@@ -590,6 +614,10 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
   uint64_t next_seq = 1;
   std::map<uint64_t, Pending> pending;  // strokes and undo requests, by client_seq
   std::map<uint64_t, v1::UndoAck> undo_answers;
+  // History view requests sent and not answered, and answers not yet taken, by request_id.
+  uint64_t next_history_id = 1;
+  std::set<uint64_t> history_waiting;
+  std::map<uint64_t, v1::HistoryAnswer> history_answers;
   uint64_t last_fresh_global_seq = 0;
 
   std::vector<Event> outbox;
@@ -989,6 +1017,46 @@ StatusOr<v1::UndoAck> Client::Undo(const std::string& object) {
 
 StatusOr<v1::UndoAck> Client::Redo(const std::string& object) {
   return UndoOrRedo(*this, object, /*redo=*/true, impl_->options.timeout);
+}
+
+StatusOr<v1::HistoryAnswer> Client::History(const std::string& object, const std::string& author,
+                                            uint32_t limit) {
+  Impl& d = *impl_;
+  std::unique_lock<std::mutex> lock(d.mu);
+  if (d.phase != Impl::Phase::kJoined) return FailedPrecondition("History needs a joined scene");
+  std::string name = object;
+  if (name.empty()) {
+    if (d.scene_info.objects_size() == 0) {
+      return InvalidArgument("HistoryRequest.object=(none) outside the scene's objects: scene " +
+                             d.scene_info.scene() + " has no objects");
+    }
+    name = d.scene_info.objects(0).name();
+  }
+  const uint64_t id = d.next_history_id++;
+  v1::ClientMessage m;
+  v1::HistoryRequest* h = m.mutable_history();
+  h->set_request_id(id);
+  h->set_object(name);
+  h->set_author(author);
+  h->set_limit(limit);
+  d.history_waiting.insert(id);
+  d.QueueLocked(Impl::Frame(m), 0);
+  const auto timeout = d.options.timeout;
+  d.cv.wait_for(lock, timeout, [&] {
+    return d.history_answers.count(id) > 0 || d.phase == Impl::Phase::kDisconnected;
+  });
+  d.history_waiting.erase(id);
+  auto answer = d.history_answers.find(id);
+  if (answer == d.history_answers.end()) {
+    return Status(Status::Code::kUnavailable,
+                  d.phase == Impl::Phase::kDisconnected
+                      ? "connection lost before the HistoryAnswer (" + d.disconnect_reason + ")"
+                      : "no HistoryAnswer within " + Ms(timeout));
+  }
+  v1::HistoryAnswer a = std::move(answer->second);
+  d.history_answers.erase(answer);
+  if (a.has_error()) return ErrorToStatus(a.error());
+  return a;
 }
 
 Status Client::SendHover(const Vec3& position, double radius) {

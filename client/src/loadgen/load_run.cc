@@ -63,6 +63,18 @@ struct Observed {
   std::vector<std::string> first_errors;  // a few messages, for the report
   std::vector<std::string> disconnects;
   uint64_t presence = 0;
+  std::vector<std::pair<Clock::time_point, double>> acked_at;  // receipt time, latency
+};
+
+// The undo client's requests and answers (issue 15).
+struct UndoSeen {
+  std::mutex mu;
+  std::map<uint64_t, Clock::time_point> sent;  // by client_seq
+  std::vector<std::pair<Clock::time_point, Clock::time_point>> in_flight;  // sent, answered
+  std::vector<double> undo_ms;
+  std::vector<double> replayed;
+  uint64_t refused = 0;
+  std::vector<std::string> first_refusals;
 };
 
 struct SimClient {
@@ -96,6 +108,7 @@ Client::EventHandler MakeHandler(std::shared_ptr<Observed> seen) {
         if (!e.ack.duplicate()) {
           seen->latencies_ms.push_back(e.latency_ms);
           seen->edit_ms.push_back(e.ack.summary().elapsed_ms());
+          seen->acked_at.emplace_back(Clock::now(), e.latency_ms);
         }
         break;
       case Event::Type::kError:
@@ -139,6 +152,7 @@ Status CheckOptions(const LoadOptions& o) {
   if (o.leafdelta_replicas < 0 || o.leafdelta_replicas > 64) {
     return bad("leafdelta-replicas", o.leafdelta_replicas, "[0, 64]");
   }
+  if (o.undo_every < 0 || o.undo_every > 1000) return bad("undo-every", o.undo_every, "[0, 1000]");
   // A stroke spans (K - 1) / rate seconds; its t_ms offsets are 16-bit milliseconds.
   if ((o.poses_per_stroke - 1) * 1000.0 / o.rate_hz > 65535) {
     return InvalidArgument("--poses-per-stroke / --rate: a stroke spans more than 65.535 s");
@@ -194,6 +208,45 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
     for (const auto& [name, bytes] : joined->state) state_bytes_at_join += bytes.size();
   }
   const double setup_s = Seconds(Clock::now() - t_setup);
+
+  // The undo client (issue 15): a sculptor outside `clients`, so the totals stay the others'.
+  std::unique_ptr<SimClient> undoer;
+  auto undo_seen = std::make_shared<UndoSeen>();
+  if (o.undo_every > 0) {
+    undoer = std::make_unique<SimClient>();
+    undoer->name = "undoer";
+    undoer->sculptor = true;
+    ClientOptions co;
+    co.tls = o.tls;
+    co.io = io[0];
+    co.skip_state = true;
+    undoer->client = std::make_unique<Client>(co);
+    const Client::EventHandler base = MakeHandler(undoer->seen);
+    undoer->client->SetEventHandler([base, undo_seen](const Event& e) {
+      if (e.type != Event::Type::kUndoAck) return base(e);
+      const auto now = Clock::now();
+      std::lock_guard<std::mutex> lock(undo_seen->mu);
+      auto it = undo_seen->sent.find(e.undo_ack.client_seq());
+      if (it != undo_seen->sent.end()) undo_seen->in_flight.emplace_back(it->second, now);
+      if (!e.undo_ack.accepted()) {
+        ++undo_seen->refused;
+        if (undo_seen->first_refusals.size() < 3) {
+          undo_seen->first_refusals.push_back(ErrorToStatus(e.undo_ack.error()).message());
+        }
+        return;
+      }
+      undo_seen->undo_ms.push_back(e.latency_ms);
+      undo_seen->replayed.push_back(e.undo_ack.replayed());
+    });
+    SCULPT_RETURN_IF_ERROR(undoer->client->Connect(host, port));
+    auto welcome =
+        undoer->client->Hello(o.sculptor_token, v1::ROLE_SCULPTOR, "loadgen-undoer", NewClientId());
+    if (!welcome.ok()) {
+      return Status(welcome.status().code(), "undoer: " + welcome.status().message());
+    }
+    auto joined = undoer->client->Join(o.scene);
+    if (!joined.ok()) return Status(joined.status().code(), "undoer: " + joined.status().message());
+  }
 
   // Replica clients: whole-object replicas in replay and in leaf-delta mode.
   auto times = std::make_shared<SendTimes>();
@@ -343,6 +396,14 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
         t_start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(
                       stroke_period * static_cast<double>(i) / std::max(1, o.sculptors)));
   }
+  if (undoer) {
+    // Its walk starts where sculptor-0's does, so the others' strokes overlap what it undoes.
+    undoer->walk = std::make_unique<SurfaceWalk>(Mix(o.seed * 0x100000001b3ull), center, radius,
+                                                 o.depth, o.walk_speed);
+    undoer->next_send = t_start + std::chrono::duration_cast<Clock::duration>(
+                                      std::chrono::duration<double>(stroke_period * 0.5));
+  }
+  int undoer_turns = 0;
 
   // The driver: one thread paces every sculptor; a stroke carries the poses sampled since the
   // previous one, timestamped at the sampling rate.
@@ -353,7 +414,23 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
     for (SimClient& c : clients) {
       if (c.sculptor && c.next_send < t_stop && (!due || c.next_send < due->next_send)) due = &c;
     }
+    if (undoer && undoer->next_send < t_stop && (!due || undoer->next_send < due->next_send)) {
+      due = undoer.get();
+    }
     if (due == nullptr) break;
+    if (due == undoer.get() && ++undoer_turns % o.undo_every == 0) {
+      std::this_thread::sleep_until(due->next_send);
+      std::lock_guard<std::mutex> lock(undo_seen->mu);
+      const auto seq = due->client->SendUndo(object->name());
+      if (seq.ok()) {
+        undo_seen->sent[*seq] = Clock::now();
+      } else {
+        ++due->send_failures;
+      }
+      due->next_send +=
+          std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(stroke_period));
+      continue;
+    }
     std::this_thread::sleep_until(due->next_send);
     if (!due->client->connected()) {
       // The server dropped it: reconnect (resending what is un-acked), at most once a period.
@@ -393,6 +470,10 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
     if (!c.sculptor) continue;
     const auto left = std::max(Clock::duration::zero(), drain_deadline - Clock::now());
     c.client->WaitAllAcked(std::chrono::duration_cast<std::chrono::milliseconds>(left));
+  }
+  if (undoer) {
+    const auto left = std::max(Clock::duration::zero(), drain_deadline - Clock::now());
+    undoer->client->WaitAllAcked(std::chrono::duration_cast<std::chrono::milliseconds>(left));
   }
   uint64_t last_seq = 0;
   for (SimClient& c : clients) last_seq = std::max(last_seq, c.client->stats().last_global_seq);
@@ -521,6 +602,41 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
         {"surface_radius", Round3(radius)}}},
       {"clients", per_client},
   };
+
+  if (undoer) {
+    // The others' strokes in flight (sent .. acked) while an undo was (sent .. answered).
+    std::vector<double> during, otherwise;
+    std::lock_guard<std::mutex> ulock(undo_seen->mu);
+    for (SimClient& c : clients) {
+      if (!c.sculptor) continue;
+      std::lock_guard<std::mutex> lock(c.seen->mu);
+      for (const auto& [at, ms] : c.seen->acked_at) {
+        const auto sent_at = at - std::chrono::duration_cast<Clock::duration>(
+                                      std::chrono::duration<double, std::milli>(ms));
+        const bool overlaps =
+            std::any_of(undo_seen->in_flight.begin(), undo_seen->in_flight.end(),
+                        [&](const auto& u) { return sent_at <= u.second && at >= u.first; });
+        (overlaps ? during : otherwise).push_back(ms);
+      }
+    }
+    std::vector<double> replayed = undo_seen->replayed;
+    std::sort(replayed.begin(), replayed.end());
+    const ClientStats st = undoer->client->stats();
+    json u = {{"undo_every", o.undo_every},
+              {"strokes_acked", st.acks},
+              {"undos_sent", st.undos_sent},
+              {"undos_accepted", undo_seen->undo_ms.size()},
+              {"undos_refused", undo_seen->refused},
+              {"undo_ms", LatencyJson(undo_seen->undo_ms)},
+              {"replayed_p50", Percentile(replayed, 0.5)},
+              {"replayed_max", replayed.empty() ? 0.0 : replayed.back()},
+              {"others_stroke_ack_during_undo", LatencyJson(during)},
+              {"others_strokes_during_undo", during.size()},
+              {"others_stroke_ack_otherwise", LatencyJson(otherwise)},
+              {"others_strokes_otherwise", otherwise.size()}};
+    if (!undo_seen->first_refusals.empty()) u["first_refusals"] = undo_seen->first_refusals;
+    report["undo_client"] = std::move(u);
+  }
 
   // Replication (issue 4): bytes each replica client received during the run, per second.
   uint64_t mode_bytes[3] = {0, 0, 0};

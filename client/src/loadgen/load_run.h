@@ -41,6 +41,11 @@ struct LoadOptions {
   /// One extra client runs the 1 kHz haptic loop (proxy model) on its own replica's snapshots,
   /// its simulated device pressing in and out of the object's top during the run (issue 5).
   bool haptic_client = false;
+  /// One more sculptor (issue 15) that walks and strokes like the others and, every
+  /// undo_every-th turn, undoes its own most recent stroke instead (0: no such client). The
+  /// report's `undo_client` gives the undo latency and the other sculptors' stroke->ack latency
+  /// for strokes in flight during an undo and otherwise.
+  int undo_every = 0;
 };
 
 /// Late join: one replica client subscribes to the whole object; bytes and time until its

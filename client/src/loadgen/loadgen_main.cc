@@ -74,6 +74,9 @@ int main(int argc, char** argv) {
   bool late_join = false;
   app.add_flag("--late-join", late_join,
                "Only measure a late join: one replica loads the whole object (bytes, ms)");
+  app.add_option("--undo-every", o.undo_every,
+                 "Add one sculptor that undoes its own last stroke every N-th turn (0: none)")
+      ->capture_default_str();
   app.add_flag("--json", as_json, "Print the JSON report (otherwise a short summary)");
   CLI11_PARSE(app, argc, argv);
   for (auto [flags, token] :

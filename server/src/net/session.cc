@@ -442,12 +442,13 @@ void Session::Handle(const std::string& payload) {
     case v1::ClientMessage::kPaint: return OnPaint(msg.paint());
     case v1::ClientMessage::kModelIntent: return OnModelIntent(msg.model_intent());
     case v1::ClientMessage::kUndo: return OnUndo(msg.undo());
+    case v1::ClientMessage::kHistory: return OnHistory(msg.history());
     case v1::ClientMessage::BODY_NOT_SET: break;
   }
   SendError(ProtocolError(
       v1::ERROR_CODE_MALFORMED, "ClientMessage.body", "unknown or empty",
       "{hello, join, stroke, hover, bye, subscribe, set_interest, divergence, viewer_subscribe, "
-      "skin_ball_edit, contour_subscribe, skin_sweep, paint, model_intent, undo}",
+      "skin_ball_edit, contour_subscribe, skin_sweep, paint, model_intent, undo, history}",
       "unknown message"));
   Violation();
 }
@@ -953,6 +954,40 @@ void Session::OnUndo(const v1::UndoRequest& u) {
   server_.scene().Undo(client_id_, u, [self = shared_from_this()](v1::UndoAck a) {
     self->OnUndoAck(std::move(a));
   });
+}
+
+// The history view: any joined session (viewers too) may read it; a request costs tokens of the
+// request bucket, and a refusal is answered in a HistoryAnswer naming the field.
+void Session::OnHistory(const v1::HistoryRequest& h) {
+  if (!Charge("HistoryRequest", kHistoryCost, Clock::now())) return;
+  auto refuse = [&](v1::Error error) {
+    v1::HistoryAnswer a;
+    a.set_request_id(h.request_id());
+    *a.mutable_error() = std::move(error);
+    OnHistoryAnswer(std::move(a));
+    Violation();
+  };
+  if (!joined_) {
+    return refuse(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, "HistoryRequest",
+                                "before JoinScene", "after JoinScene", "join a scene first"));
+  }
+  auto query = codec::DecodeHistoryRequest(h);
+  if (!query.ok()) return refuse(ToWireError(query.status(), 0));
+  server_.scene().History(
+      std::move(query).value(),
+      [self = shared_from_this()](v1::HistoryAnswer a) { self->OnHistoryAnswer(std::move(a)); });
+}
+
+void Session::OnHistoryAnswer(v1::HistoryAnswer a) {
+  if (!strand_.running_in_this_thread()) {
+    return asio::post(strand_, [self = shared_from_this(), a = std::move(a)]() mutable {
+      self->OnHistoryAnswer(std::move(a));
+    });
+  }
+  if (closing_) return;
+  v1::ServerMessage m;
+  *m.mutable_history() = std::move(a);
+  Send(m);
 }
 
 void Session::Violation() {

@@ -49,6 +49,7 @@ class Session : public std::enable_shared_from_this<Session> {
   static constexpr double kSetInterestCost = 1;  // a region of leaves is sent
   static constexpr double kDivergenceCost = 2;   // a log line
   static constexpr double kHoverCost = 0.05;     // presence only
+  static constexpr double kHistoryCost = 1;      // up to 1000 history entries are sent
 
   /// `transport` must run on `strand`.
   Session(Server& server, Strand strand, std::shared_ptr<Transport> transport, uint64_t id);
@@ -94,6 +95,7 @@ class Session : public std::enable_shared_from_this<Session> {
   void OnPaintAck(v1::PaintAck ack);
   void OnModelAck(v1::ModelAck ack);
   void OnUndoAck(v1::UndoAck ack);
+  void OnHistoryAnswer(v1::HistoryAnswer answer);
   void OnJoinState(StatusOr<JoinState> state);
   void OnSubscriptionRefused(bool* flag, Status status);
 
@@ -115,6 +117,7 @@ class Session : public std::enable_shared_from_this<Session> {
   void OnPaint(const v1::PaintEdit& p);
   void OnModelIntent(const v1::ModelIntent& mi);
   void OnUndo(const v1::UndoRequest& u);
+  void OnHistory(const v1::HistoryRequest& h);
 
   // Checks shared by the edits that are not strokes: joined, sculptor, the stroke bucket.
   bool MayEdit(const char* what, uint64_t client_seq);

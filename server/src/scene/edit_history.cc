@@ -43,8 +43,10 @@ bool ReadsVolume(const levelset::EditRequest& r, const levelset::EditSettings& s
 std::string Quoted(const std::string& s) { return "\"" + s + "\""; }
 
 // The serialized history: this magic, then the sizes of the structs written as they are in
-// memory (a build with other layouts refuses the bytes rather than misreading them).
-constexpr char kMagic[4] = {'S', 'E', 'H', '1'};
+// memory (a build with other layouts refuses the bytes rather than misreading them). SEH2 adds
+// each record's commit time after its seq; SEH1 files (without it) still load, times unknown.
+constexpr char kMagic[4] = {'S', 'E', 'H', '2'};
+constexpr char kMagicV1[4] = {'S', 'E', 'H', '1'};
 static_assert(std::is_trivially_copyable_v<levelset::EditRequest>);
 static_assert(std::is_trivially_copyable_v<levelset::EditSettings>);
 static_assert(std::is_trivially_copyable_v<ReplayState>);
@@ -181,11 +183,13 @@ PreparedEdit EditHistory::PrepareSweep(const levelset::Sculpture& sculpture,
   return p;
 }
 
-StatusOr<levelset::EditResult> EditHistory::ApplySweep(levelset::Sculpture& sculpture,
-                                                       uint64_t seq, const std::string& author,
-                                                       const levelset::SweepRequest& request) {
+StatusOr<levelset::EditResult> EditHistory::ApplySweep(levelset::Sculpture& sculpture, uint64_t seq,
+                                                       const std::string& author,
+                                                       const levelset::SweepRequest& request,
+                                                       uint64_t wall_ms) {
   SCULPT_RETURN_IF_ERROR(levelset::ValidateSweep(sculpture, request));
   PreparedEdit p = PrepareSweep(sculpture, request);
+  p.wall_ms = wall_ms;
   StatusOr<levelset::EditResult> res = levelset::ApplySweep(sculpture, request);
   if (res.ok()) Commit(std::move(p), seq, author, *res, sculpture);
   return res;
@@ -200,6 +204,7 @@ void EditHistory::Commit(PreparedEdit prepared, uint64_t seq, const std::string&
   }
   Record r;
   r.seq = seq;
+  r.wall_ms = prepared.wall_ms;
   r.author = author;
   r.requests = std::move(prepared.requests);
   r.sweep = std::move(prepared.sweep);
@@ -237,8 +242,10 @@ void EditHistory::Commit(PreparedEdit prepared, uint64_t seq, const std::string&
 
 StatusOr<levelset::EditResult> EditHistory::Apply(
     levelset::Sculpture& sculpture, uint64_t seq, const std::string& author,
-    const std::vector<levelset::EditRequest>& requests, const levelset::EditSettings& settings) {
+    const std::vector<levelset::EditRequest>& requests, const levelset::EditSettings& settings,
+    uint64_t wall_ms) {
   PreparedEdit p = Prepare(sculpture, requests, settings);
+  p.wall_ms = wall_ms;
   StatusOr<levelset::EditResult> res = levelset::ApplyEdits(sculpture, requests, settings);
   if (res.ok()) Commit(std::move(p), seq, author, *res, sculpture);
   return res;
@@ -253,6 +260,7 @@ std::string EditHistory::Serialize() const {
   Put(out, static_cast<uint32_t>(records_.size()));
   for (const Record& r : records_) {
     Put(out, r.seq);
+    Put(out, r.wall_ms);
     PutString(out, r.author);
     Put(out, static_cast<uint8_t>(r.sweep.has_value()));
     if (r.sweep) PutSweep(out, *r.sweep);
@@ -290,9 +298,11 @@ StatusOr<EditHistory> EditHistory::Parse(std::string_view in, EditHistoryOptions
   SCULPT_RETURN_IF_ERROR(ValidateEditHistoryOptions(options));
   EditHistory h(options);
   uint32_t req_size = 0, set_size = 0, n = 0;
-  if (in.size() < 4 || std::memcmp(in.data(), kMagic, 4) != 0) {
-    return DataLoss("edit history: magic outside {SEH1}");
+  if (in.size() < 4 ||
+      (std::memcmp(in.data(), kMagic, 4) != 0 && std::memcmp(in.data(), kMagicV1, 4) != 0)) {
+    return DataLoss("edit history: magic outside {SEH1, SEH2}");
   }
+  const bool has_times = std::memcmp(in.data(), kMagic, 4) == 0;
   in.remove_prefix(4);
   if (!Get(in, &req_size) || !Get(in, &set_size) || !Get(in, &h.first_id_) ||
       !GetString(in, &h.cleared_) || !Get(in, &n)) {
@@ -309,7 +319,8 @@ StatusOr<EditHistory> EditHistory::Parse(std::string_view in, EditHistoryOptions
     Record r;
     uint32_t nreq = 0;
     uint8_t has_sweep = 0;
-    if (!Get(in, &r.seq) || !GetString(in, &r.author) || !Get(in, &has_sweep)) {
+    if (!Get(in, &r.seq) || (has_times && !Get(in, &r.wall_ms)) || !GetString(in, &r.author) ||
+        !Get(in, &has_sweep)) {
       return DataLoss(where + " truncated");
     }
     if (has_sweep) {
@@ -438,6 +449,7 @@ std::vector<HistoryEntry> EditHistory::Entries(const std::string& author) const 
     e.poses = static_cast<uint32_t>(r.requests.size());
     e.undone = !r.active;
     e.undoable = r.stack == Stack::kUndo;
+    e.wall_ms = r.wall_ms;
     out.push_back(e);
   }
   return out;

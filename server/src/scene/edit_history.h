@@ -61,6 +61,7 @@ struct HistoryEntry {
   uint32_t poses = 0;
   bool undone = false;
   bool undoable = false;  // on its author's undo stack (within the depth)
+  uint64_t wall_ms = 0;   // server wall clock at commit, ms since 1970 (0: unknown)
 };
 
 /// What an edit is about to read and overwrite, taken by Prepare before it is applied.
@@ -74,6 +75,8 @@ struct PreparedEdit {
   levelset::CellImage image;
   /// Empty when the edit can be recorded; otherwise why not (Commit then clears the history).
   std::string not_undoable;
+  /// Server wall clock at commit (ms since 1970), shown by the history view; the caller sets it.
+  uint64_t wall_ms = 0;
 };
 
 /// The undo history of one sculpted object: every level-set edit batch applied to it, in order,
@@ -102,22 +105,26 @@ class EditHistory {
                        const levelset::EditSettings& settings) const;
   /// Right after that edit succeeded: records it under `author` as its newest undoable edit
   /// (clearing the author's redo stack, as a new stroke does in every editor) with the global
-  /// sequence the log gave it. `sculpture` is the object after the edit. Trims the history to its
-  /// bounds. Do not call for an edit the kernel refused (it changed nothing).
+  /// sequence the log gave it (and prepared.wall_ms as its time). `sculpture` is the object after
+  /// the edit. Trims the history to its bounds. Do not call for an edit the kernel refused (it
+  /// changed nothing).
   void Commit(PreparedEdit prepared, uint64_t seq, const std::string& author,
               const levelset::EditResult& result, const levelset::Sculpture& sculpture);
   /// Prepare, ApplyEdits, Commit. The kernel's error otherwise (nothing recorded then).
+  /// `wall_ms` is the commit time the history view shows (0: unknown).
   StatusOr<levelset::EditResult> Apply(levelset::Sculpture& sculpture, uint64_t seq,
                                        const std::string& author,
                                        const std::vector<levelset::EditRequest>& requests,
-                                       const levelset::EditSettings& settings);
+                                       const levelset::EditSettings& settings,
+                                       uint64_t wall_ms = 0);
   /// The same for a sweep (levelset::ApplySweep), which reads and writes its block voxel by
   /// voxel and moves volume and reference volume together: Commit takes it like a batch.
   PreparedEdit PrepareSweep(const levelset::Sculpture& sculpture,
                             const levelset::SweepRequest& request) const;
   StatusOr<levelset::EditResult> ApplySweep(levelset::Sculpture& sculpture, uint64_t seq,
                                             const std::string& author,
-                                            const levelset::SweepRequest& request);
+                                            const levelset::SweepRequest& request,
+                                            uint64_t wall_ms = 0);
 
   /// Takes back `author`'s most recent edit that is not undone. FailedPrecondition when the
   /// author has nothing to undo; OutOfRange when its edits within reach are exhausted and older
@@ -159,12 +166,15 @@ class EditHistory {
   uint64_t MemoryBytes() const { return bytes_; }
   /// The held edits, oldest first; only `author`'s when it is not empty.
   std::vector<HistoryEntry> Entries(const std::string& author = {}) const;
+  /// Why the history was last cleared (empty if never): edits before that cannot be undone.
+  const std::string& cleared_reason() const { return cleared_; }
   const EditHistoryOptions& options() const { return options_; }
 
  private:
   enum class Stack : uint8_t { kNone, kUndo, kRedo };
   struct Record {
     uint64_t seq = 0;
+    uint64_t wall_ms = 0;  // commit time, for the history view
     std::string author;
     std::vector<levelset::EditRequest> requests;  // empty for a sweep
     std::optional<levelset::SweepRequest> sweep;

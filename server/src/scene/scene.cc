@@ -41,6 +41,13 @@ double NowSeconds() {
       .count();
 }
 
+// The server's wall clock, ms since 1970: when a stroke was committed (the history view).
+uint64_t WallClockMs() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count());
+}
+
 StatusOr<levelset::Sculpture> MakeShape(const SceneConfig& scene, const ObjectConfig& o) {
   levelset::SculptureOptions opts;
   opts.voxel_size = scene.voxel_size;
@@ -172,7 +179,8 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
     batch.push_back(codec::EditFromRecord(*r));
     if (r->pose_index() + 1 >= r->pose_count()) {
       // An edit the live server refused after logging it is refused identically here.
-      (void)history.Apply(s, rec.seq, HistoryAuthor(r->client_id()), batch, settings);
+      (void)history.Apply(s, rec.seq, HistoryAuthor(r->client_id()), batch, settings,
+                          r->commit_ms());
       batch.clear();
     }
     return Status::Ok();
@@ -406,6 +414,7 @@ struct Scene::StrokeOp final : EditOp {
       v1::EditRecord r = MakeRecord(client, stroke.client_seq, i, stroke.object, stroke.edits[i]);
       r.set_global_seq(first_seq + i);
       r.set_pose_count(n);
+      if (i + 1 == n) r.set_commit_ms(commit_ms = WallClockMs());
       batch.push_back(codec::EditFromRecord(r));
       SCULPT_RETURN_IF_ERROR(levelset::ValidateEditRequest(it->second, batch.back(),
                                                            scene.settings_));
@@ -425,8 +434,9 @@ struct Scene::StrokeOp final : EditOp {
     replay.footprint = levelset::FootprintOf(sculpture, batch, scene.settings_);
     // Recorded in the object's undo history (the pre-image of what it writes), as recovery
     // records it.
-    auto res = scene.HistoryOf(stroke.object)
-                   .Apply(sculpture, last_seq, HistoryAuthor(client), batch, scene.settings_);
+    auto res =
+        scene.HistoryOf(stroke.object)
+            .Apply(sculpture, last_seq, HistoryAuthor(client), batch, scene.settings_, commit_ms);
     if (res.ok()) {
       result = std::move(res).value();
       a.dirty_leaves = result.dirty_leaves;
@@ -455,6 +465,7 @@ struct Scene::StrokeOp final : EditOp {
   codec::DecodedStroke stroke;
   StrokeDone done;
   uint64_t last_seq = 0;
+  uint64_t commit_ms = 0;  // logged with the last pose: the history view's time
   std::vector<levelset::EditRequest> batch;
   levelset::EditResult result;
 };

@@ -18,6 +18,7 @@
 
 #include "config/server_config.h"
 #include "scene/commit.h"
+#include "sculpt/codec/history.h"
 #include "sculpt/codec/stroke.h"
 #include "sculpt/core/latency_histogram.h"
 #include "sculpt/core/status.h"
@@ -211,6 +212,12 @@ class Scene {
   void Undo(uint64_t client_id, v1::UndoRequest request, std::function<void(v1::UndoAck)> done);
   /// Strokes `client_id` can undo / redo on `object` now (tests, tools); 0 for an unknown object.
   std::pair<size_t, size_t> UndoDepth(const std::string& object, uint64_t client_id);
+  /// The history view (issue 15, undo.cc; the query already checked by DecodeHistoryRequest):
+  /// the object's edits as its undo history holds them, newest first, at most query.limit, only
+  /// query.author's when set; read on the compute thread between two edits, changing nothing.
+  /// `done` gets the answer there (it must only post); its error is NotFound for an unknown
+  /// object.
+  void History(codec::HistoryQuery query, std::function<void(v1::HistoryAnswer)> done);
 
   /// Tasks queued for the compute thread and not yet started (edits, joins, subscriptions).
   size_t compute_queue_depth() const { return queue_depth_.load(std::memory_order_relaxed); }

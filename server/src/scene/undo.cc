@@ -30,6 +30,18 @@ std::string HistoryPath(const std::string& data_dir, const std::string& object) 
   return (std::filesystem::path(data_dir) / "history" / (object + ".bin")).string();
 }
 
+v1::EditKind KindToProto(levelset::EditKind k) {
+  switch (k) {
+    case levelset::EditKind::kPress: return v1::EDIT_KIND_PRESS;
+    case levelset::EditKind::kAdd: return v1::EDIT_KIND_ADD;
+    case levelset::EditKind::kSubtract: return v1::EDIT_KIND_SUBTRACT;
+    case levelset::EditKind::kSmooth: return v1::EDIT_KIND_SMOOTH;
+    case levelset::EditKind::kInflate: return v1::EDIT_KIND_INFLATE;
+    case levelset::EditKind::kDeflate: return v1::EDIT_KIND_DEFLATE;
+  }
+  return v1::EDIT_KIND_UNSPECIFIED;
+}
+
 v1::UndoAck Refused(const Status& st, const v1::UndoRequest& r) {
   v1::UndoAck a;
   a.set_client_seq(r.client_seq());
@@ -219,6 +231,44 @@ void Scene::LoadHistory(const std::string& object, uint64_t snapshot_seq) {
   auto parsed = EditHistory::Parse(payload, o);
   if (!parsed.ok()) return refuse(parsed.status().ToString());
   h = std::move(parsed).value();
+}
+
+void Scene::History(codec::HistoryQuery query, std::function<void(v1::HistoryAnswer)> done) {
+  auto once = AnswerOnce(std::move(done));
+  auto refuse = [once, id = query.request_id, object = query.object](const Status& st) {
+    v1::HistoryAnswer a;
+    a.set_request_id(id);
+    a.set_object(object);
+    *a.mutable_error() = ToWireError(st, 0);
+    once(std::move(a));
+  };
+  Post("history", refuse, [this, query = std::move(query), once, refuse] {
+    if (!sculptures_.count(query.object)) {
+      return refuse(
+          NotFound("HistoryRequest.object=" + query.object + " outside the scene's objects"));
+    }
+    const EditHistory& h = HistoryOf(query.object);
+    const std::vector<HistoryEntry> entries = h.Entries(query.author);
+    v1::HistoryAnswer a;
+    a.set_request_id(query.request_id);
+    a.set_object(query.object);
+    a.set_matching(static_cast<uint32_t>(entries.size()));
+    a.set_held(static_cast<uint32_t>(h.size()));
+    a.set_cleared(h.cleared_reason());
+    for (auto it = entries.rbegin();
+         it != entries.rend() && a.entries_size() < static_cast<int>(query.limit); ++it) {
+      v1::HistoryEntry* e = a.add_entries();
+      e->set_seq(it->seq);
+      e->set_author(it->author);
+      e->set_kind(KindToProto(it->kind));
+      e->set_sweep(it->sweep);
+      e->set_poses(it->poses);
+      e->set_time_ms(it->wall_ms);
+      e->set_undone(it->undone);
+      e->set_undoable(it->undoable);
+    }
+    once(std::move(a));
+  });
 }
 
 std::pair<size_t, size_t> Scene::UndoDepth(const std::string& object, uint64_t client_id) {

@@ -230,6 +230,16 @@ class Client {
   StatusOr<v1::UndoAck> Undo(const std::string& object = "");
   StatusOr<v1::UndoAck> Redo(const std::string& object = "");
 
+  /// The history view (issue 15): `object`'s recent edits (empty: the scene's first object) as
+  /// the server's undo history holds them, newest first, only `author`'s when set (the name
+  /// undo files edits under: the client id in decimal), at most `limit` (0: the server's 50;
+  /// it accepts up to 1000). Viewers may ask. Waits up to options.timeout. A refusal comes back
+  /// as ErrorToStatus(error): InvalidArgument naming the field (limit above 1000, a name over 64
+  /// bytes), NotFound for an unknown object, MALFORMED from a server that does not know the
+  /// request; FailedPrecondition when not joined; Unavailable on timeout or a lost connection.
+  StatusOr<v1::HistoryAnswer> History(const std::string& object = "",
+                                      const std::string& author = "", uint32_t limit = 0);
+
   /// Waits until no stroke is pending (acked or refused) and every event up to then has been
   /// delivered (handler returned, or queued). False on timeout, or early when the connection is
   /// lost with strokes pending.
