@@ -408,6 +408,8 @@ void Session::OnRead(ReadResult r) {
 
 void Session::Handle(const std::string& payload) {
   if (draining_) return;  // being disconnected: only the pending acks go out
+  // The scene schedules the compute work this message asks for as this session's (fair share).
+  const Scene::RequesterScope requester(id_);
   const Clock::time_point received = Clock::now();
   v1::ClientMessage msg;
   if (!msg.ParseFromString(payload)) {

@@ -18,6 +18,7 @@
 
 #include "config/server_config.h"
 #include "scene/commit.h"
+#include "scene/fair_queue.h"
 #include "sculpt/codec/stroke.h"
 #include "sculpt/core/latency_histogram.h"
 #include "sculpt/core/status.h"
@@ -212,6 +213,25 @@ class Scene {
   /// Strokes `client_id` can undo / redo on `object` now (tests, tools); 0 for an unknown object.
   std::pair<size_t, size_t> UndoDepth(const std::string& object, uint64_t client_id);
 
+  /// The client session on whose behalf the calling thread calls into the scene (set by the
+  /// session around each request it handles). The compute work of requests made while it is
+  /// alive (edits, late joins) is that session's: each session gets a fair share of the compute
+  /// thread by measured cost, so one session's heavy or many requests delay only itself (beyond
+  /// the one job of it in service). Without one (tests, tools, the scene itself), work is the
+  /// scene's own, served after everything posted before it.
+  class RequesterScope {
+   public:
+    explicit RequesterScope(uint64_t session_id);
+    ~RequesterScope();
+    RequesterScope(const RequesterScope&) = delete;
+    RequesterScope& operator=(const RequesterScope&) = delete;
+
+   private:
+    uint64_t previous_;
+  };
+  /// The calling thread's RequesterScope session, 0 for none.
+  static uint64_t CurrentRequester();
+
   /// Tasks queued for the compute thread and not yet started (edits, joins, subscriptions).
   size_t compute_queue_depth() const { return queue_depth_.load(std::memory_order_relaxed); }
   /// Edits applied and waiting for the edit log to become durable before they are acknowledged.
@@ -223,6 +243,10 @@ class Scene {
   struct TaskStats {
     std::atomic<uint64_t> failures{0};       // tasks (or mesh chunks) that threw
     std::atomic<uint64_t> joins_refused{0};  // late joins over limits.max_pending_joins
+    // Compute-thread jobs chosen while an older job of another session waited (fair sharing at
+    // work), and sessions with a job waiting now.
+    std::atomic<uint64_t> passed_over{0};
+    std::atomic<size_t> waiting_sessions{0};
   };
   TaskStats& task_stats() { return task_stats_; }
 
@@ -260,6 +284,16 @@ class Scene {
   void Post(const char* operation, std::function<void()> run) {
     Post(operation, nullptr, std::move(run));
   }
+  // The same for work a client session asked for (`requester`: its id, 0 for the scene's own):
+  // in order with the session's other work, shared fairly with other sessions' (FairQueue).
+  void Post(uint64_t requester, const char* operation, std::function<void(const Status&)> fail,
+            std::function<void()> run);
+  void Post(uint64_t requester, const char* operation, std::function<void()> run) {
+    Post(requester, operation, nullptr, std::move(run));
+  }
+  // The scene's background work that needs no earlier job done first: ahead of everything.
+  void PostFirst(const char* operation, std::function<void(const Status&)> fail,
+                 std::function<void()> run);
   void JoinLoop();
   // The commit pipeline (commit.h, commit.cc): every edit kind is an EditOp, nested here so
   // that it reaches the parts of the scene it edits.
@@ -407,7 +441,7 @@ class Scene {
   void Observe(const char* step, const char* operation, uint64_t seq);
   std::mutex jobs_mu_;
   std::condition_variable jobs_cv_;
-  std::deque<Job> jobs_;
+  FairQueue<Job> jobs_;                 // guarded by jobs_mu_
   std::atomic<size_t> queue_depth_{0};  // jobs_.size(), read without jobs_mu_
   bool stop_ = false;
   std::thread thread_;
