@@ -314,8 +314,8 @@ namespace {
 thread_local uint64_t current_requester = 0;
 }  // namespace
 
-Scene::RequesterScope::RequesterScope(uint64_t session_id) : previous_(current_requester) {
-  current_requester = session_id;
+Scene::RequesterScope::RequesterScope(uint64_t requester) : previous_(current_requester) {
+  current_requester = requester;
 }
 
 Scene::RequesterScope::~RequesterScope() { current_requester = previous_; }

@@ -213,15 +213,17 @@ class Scene {
   /// Strokes `client_id` can undo / redo on `object` now (tests, tools); 0 for an unknown object.
   std::pair<size_t, size_t> UndoDepth(const std::string& object, uint64_t client_id);
 
-  /// The client session on whose behalf the calling thread calls into the scene (set by the
-  /// session around each request it handles). The compute work of requests made while it is
-  /// alive (edits, late joins) is that session's: each session gets a fair share of the compute
-  /// thread by measured cost, so one session's heavy or many requests delay only itself (beyond
-  /// the one job of it in service). Without one (tests, tools, the scene itself), work is the
-  /// scene's own, served after everything posted before it.
+  /// Whose share of the compute thread the calling thread's requests take (set by a session
+  /// around each request it handles: its named user's, else its source address's key, never 0).
+  /// The compute work of requests made while it is alive (edits, subscriptions, interest moves,
+  /// late-join copies, unsubscriptions) is that requester's: each requester gets a fair share
+  /// of the compute thread by measured cost and its own work keeps its order, so one client's
+  /// heavy or many requests delay another's by at most the one job of it in service. Without
+  /// one (tests, tools, the scene itself), work is the scene's own, served after everything
+  /// posted before it.
   class RequesterScope {
    public:
-    explicit RequesterScope(uint64_t session_id);
+    explicit RequesterScope(uint64_t requester);
     ~RequesterScope();
     RequesterScope(const RequesterScope&) = delete;
     RequesterScope& operator=(const RequesterScope&) = delete;
@@ -229,7 +231,7 @@ class Scene {
    private:
     uint64_t previous_;
   };
-  /// The calling thread's RequesterScope session, 0 for none.
+  /// The calling thread's RequesterScope key, 0 for none.
   static uint64_t CurrentRequester();
 
   /// Tasks queued for the compute thread and not yet started (edits, joins, subscriptions).
@@ -243,8 +245,8 @@ class Scene {
   struct TaskStats {
     std::atomic<uint64_t> failures{0};       // tasks (or mesh chunks) that threw
     std::atomic<uint64_t> joins_refused{0};  // late joins over limits.max_pending_joins
-    // Compute-thread jobs chosen while an older job of another session waited (fair sharing at
-    // work), and sessions with a job waiting now.
+    // Compute-thread jobs chosen while an older job of another requester waited (fair sharing
+    // at work), and requesters (RequesterScope) with a job waiting now.
     std::atomic<uint64_t> passed_over{0};
     std::atomic<size_t> waiting_sessions{0};
   };
@@ -284,8 +286,8 @@ class Scene {
   void Post(const char* operation, std::function<void()> run) {
     Post(operation, nullptr, std::move(run));
   }
-  // The same for work a client session asked for (`requester`: its id, 0 for the scene's own):
-  // in order with the session's other work, shared fairly with other sessions' (FairQueue).
+  // The same for work a client asked for (`requester`: CurrentRequester(), 0 for the scene's
+  // own): in order with the requester's other work, shared fairly with others' (FairQueue).
   void Post(uint64_t requester, const char* operation, std::function<void(const Status&)> fail,
             std::function<void()> run);
   void Post(uint64_t requester, const char* operation, std::function<void()> run) {
