@@ -10,12 +10,16 @@ hosts.
 
   tests/bench/abuse_bench.py --bin build/bin [--seconds 10] [--abuses rejoin,set_interest,...]
 
+Abuses: rejoin, set_interest, reconnect, idle, slowloris, heavy (strokes with the largest tool
+and the most poses the limits allow).
+
 Reported per abuse: the victim's stroke->ack p50/p99/max (ms) and strokes sent/acked/lost with
 and without the abuser, the p99 ratio, sculptd's peak and final RSS (MB), its CPU seconds, and the
 abuser's own counts (attempts, answers, refusals, connections held).
 """
 import argparse
 import json
+import math
 import os
 import shutil
 import socket
@@ -81,6 +85,24 @@ def vec(x, y, z):
 def set_interest(obj, half):
     box = f_bytes(1, vec(-half, -half, -half)) + f_bytes(2, vec(half, half, half))
     return frame(f_bytes(7, f_bytes(1, obj.encode()) + f_bytes(2, box)))
+
+
+EDIT_ADD, EDIT_SUBTRACT, TOOL_SPHERE, TOOL_CAPSULE = 2, 3, 1, 4
+
+
+def stroke(seq, obj, kind, radius, points, tool=TOOL_SPHERE, speed=60.0):
+    """A Stroke (ClientMessage field 3): a `tool` of `radius` at `points` (world), the
+    poses packed as the codec packs them (int16 offsets at 256 units a voxel from the origin,
+    then a uint16 t_ms), 16 ms apart."""
+    units_per_world = 256.0 / 0.5  # the built-in scene's voxel_size
+    poses = b"".join(
+        struct.pack("<hhhH", *(int(round(c * units_per_world)) for c in p), 16 * i)
+        for i, p in enumerate(points))
+    body = (f_varint(1, seq) + f_bytes(2, obj.encode()) + f_varint(3, kind) +
+            f_varint(4, tool) + f_bytes(5, vec(radius, radius, radius)) +
+            f_float(6, speed) + f_bytes(8, vec(0.0, 0.0, 0.0)) + f_varint(10, len(points)) +
+            f_bytes(11, poses))
+    return frame(f_bytes(3, body))
 
 
 def read_frames(sock, buf):
@@ -181,6 +203,8 @@ class Abuser:
                 k = body_field(f)
                 if k == 6:
                     self.count("errors")
+                elif k == 4:
+                    self.count("acks")
             if closed:
                 self.count("closed_by_server")
                 return False
@@ -222,6 +246,38 @@ class Abuser:
                 finally:
                     s.close()
         self.run_threads(loop, threads)
+
+    # Heavy strokes within every limit: the largest tool the scene allows (a sphere of
+    # max_tool_size 16), the longest stroke (max_poses_per_stroke 32, poses 1 world unit apart
+    # along the equator, as a drag), adding and taking away in turn (so the object keeps its
+    # size), `rate` strokes a second (far below the stroke and pose budgets, 30/s: each such
+    # stroke costs the server seconds), acknowledgements read.
+    def heavy(self, rate=1.0, radius=16.0, poses=32):
+        ring = [(24.0 * math.cos(i / 24.0), 24.0 * math.sin(i / 24.0), 0.0) for i in range(poses)]
+
+        def loop(_):
+            seq = 0
+            while not self.stop.is_set():
+                s = self.enter(ROLE_SCULPTOR, True, 13000 + seq)
+                if not s:
+                    time.sleep(0.1)
+                    continue
+                reader = threading.Thread(target=self.drain, args=(s, 1e9), daemon=True)
+                reader.start()
+                try:
+                    next_t = time.time()
+                    while not self.stop.is_set():
+                        seq += 1
+                        kind = EDIT_ADD if seq % 2 else EDIT_SUBTRACT
+                        s.sendall(stroke(seq, "clay", kind, radius, ring))
+                        self.count("attempts")
+                        next_t += 1.0 / rate
+                        time.sleep(max(0.0, next_t - time.time()))
+                except OSError:
+                    self.count("closed_by_server")
+                finally:
+                    s.close()
+        self.run_threads(loop, 1)
 
     # Reconnect flood: sculptor connections opened, authenticated, joined (no state) and
     # dropped in a loop.
@@ -439,7 +495,7 @@ def main():
     p.add_argument("--seconds", type=float, default=10, help="victim's sending phase, each run")
     p.add_argument("--hz", type=int, default=60, help="victim's pose samples per second")
     p.add_argument("--poses-per-stroke", type=int, default=4, help="victim's poses per stroke")
-    p.add_argument("--abuses", default="rejoin,set_interest,reconnect,idle,slowloris")
+    p.add_argument("--abuses", default="rejoin,set_interest,reconnect,idle,slowloris,heavy")
     p.add_argument("--source", default="127.0.0.2", help="abuser's source address")
     p.add_argument("--config", help="sculptd --config file (default: the built-in scene)")
     p.add_argument("--server-arg", action="append", help="extra sculptd serve argument")

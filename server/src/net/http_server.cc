@@ -585,6 +585,13 @@ std::string HttpServer::MetricsText() {
   w.Counter("sculpt_late_joins_refused_total",
             "Late joins refused over limits.max_pending_joins (RESOURCE_EXHAUSTED)",
             static_cast<double>(scene.task_stats().joins_refused.load()));
+  w.Counter("sculpt_compute_jobs_passed_over_total",
+            "Times the compute thread served a client's job while an older job of another "
+            "client (user or source address) waited (fair sharing by measured cost)",
+            static_cast<double>(scene.task_stats().passed_over.load()));
+  w.Gauge("sculpt_compute_waiting_sessions",
+          "Clients (users or source addresses) with work queued for the scene's compute thread",
+          static_cast<double>(scene.task_stats().waiting_sessions.load()));
   w.Gauge("sculpt_http_connections", "Open HTTP connections and WebSocket sessions",
           static_cast<double>(open_->load()));
   w.Counter("sculpt_http_connections_refused_total",

@@ -31,6 +31,14 @@ constexpr auto kByeGrace = std::chrono::milliseconds(500);
 // How long a client being disconnected for violations waits for its accepted strokes' acks.
 constexpr auto kDrainLimit = std::chrono::seconds(5);
 
+// Whose share of the scene's compute thread a session's requests take (Scene::RequesterScope):
+// a named user's, wherever it connects from, else its source address's, like the rate budgets.
+// More sessions or reconnecting buy no larger share. Never 0 (the scene's own work).
+uint64_t ComputeOwner(bool named, const std::string& user, const std::string& source) {
+  const uint64_t h = std::hash<std::string>{}(named ? "user " + user : "source " + source);
+  return h == 0 ? 1 : h;
+}
+
 // The id a named user's client_id is filed under: 64 bits of BLAKE2b(user, client_id), never 0.
 uint64_t BoundClientId(const std::string& user, uint64_t client_id) {
   std::string in = user;
@@ -408,6 +416,8 @@ void Session::OnRead(ReadResult r) {
 
 void Session::Handle(const std::string& payload) {
   if (draining_) return;  // being disconnected: only the pending acks go out
+  // The compute work this message asks for is scheduled as its owner's (a fair share).
+  const Scene::RequesterScope requester(ComputeOwner(user_budget_ != nullptr, user_, source_));
   const Clock::time_point received = Clock::now();
   v1::ClientMessage msg;
   if (!msg.ParseFromString(payload)) {
@@ -1098,6 +1108,7 @@ void Session::FinishClose() {
   state_ = State::kClosed;
   transport_->Close();
   close_timer_.cancel();
+  const Scene::RequesterScope requester(ComputeOwner(user_budget_ != nullptr, user_, source_));
   if (subscribed_) server_.scene().Unsubscribe(id_);
   if (joined_) server_.scene().UnsubscribeContours(id_);
   if (viewing_) server_.scene().UnsubscribeViewer(id_);

@@ -107,7 +107,7 @@ void Scene::Commit(std::shared_ptr<EditOp> op) {
     out.client_seq = op->client_seq();
     op->Answer(out);
   };
-  Post(operation, fail, [this, op] { RunCommit(op); });
+  Post(CurrentRequester(), operation, fail, [this, op] { RunCommit(op); });
 }
 
 void Scene::ObserveCommitsForTesting(std::function<void(const CommitEvent&)> observer) {

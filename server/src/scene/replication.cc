@@ -88,7 +88,8 @@ void Scene::Subscribe(ReplicaSink sink, v1::Subscribe req, std::function<void(St
   auto once = AnswerOnce(std::move(done));
   auto cb = std::make_shared<std::function<void(Status)>>(once);
   auto fail = [once](const Status& st) { once(st); };
-  Post("subscribe", fail, [this, sink = std::move(sink), req = std::move(req), cb]() mutable {
+  const uint64_t who = CurrentRequester();
+  Post(who, "subscribe", fail, [this, sink = std::move(sink), req = std::move(req), cb]() mutable {
     auto it = sculptures_.find(req.object());
     if (it == sculptures_.end()) {
       return (*cb)(NotFound("Subscribe.object=" + req.object() + " outside the scene's objects"));
@@ -124,7 +125,7 @@ void Scene::SetInterest(uint64_t session_id, v1::SetInterest req, std::function<
   auto once = AnswerOnce(std::move(done));
   auto cb = std::make_shared<std::function<void(Status)>>(once);
   auto fail = [once](const Status& st) { once(st); };
-  Post("set interest", fail, [this, session_id, req = std::move(req), cb] {
+  Post(CurrentRequester(), "set interest", fail, [this, session_id, req = std::move(req), cb] {
     auto s = subs_.find(session_id);
     if (s == subs_.end() || s->second.object != req.object()) {
       return (*cb)(FailedPrecondition("SetInterest.object=" + req.object() +
@@ -142,7 +143,7 @@ void Scene::SetInterest(uint64_t session_id, v1::SetInterest req, std::function<
 }
 
 void Scene::Unsubscribe(uint64_t session_id) {
-  Post("unsubscribe", [this, session_id] { subs_.erase(session_id); });
+  Post(CurrentRequester(), "unsubscribe", [this, session_id] { subs_.erase(session_id); });
 }
 
 void Scene::ReportDivergence(uint64_t session_id, const v1::DivergenceReport& r) {

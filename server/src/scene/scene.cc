@@ -318,11 +318,38 @@ Scene::~Scene() {
   if (snapshots_) (void)snapshots_->WaitIdle();
 }
 
+namespace {
+thread_local uint64_t current_requester = 0;
+}  // namespace
+
+Scene::RequesterScope::RequesterScope(uint64_t requester) : previous_(current_requester) {
+  current_requester = requester;
+}
+
+Scene::RequesterScope::~RequesterScope() { current_requester = previous_; }
+
+uint64_t Scene::CurrentRequester() { return current_requester; }
+
 void Scene::Post(const char* operation, std::function<void(const Status&)> fail,
                  std::function<void()> run) {
+  Post(FairQueue<Job>::kSystem, operation, std::move(fail), std::move(run));
+}
+
+void Scene::Post(uint64_t requester, const char* operation,
+                 std::function<void(const Status&)> fail, std::function<void()> run) {
   {
     std::lock_guard<std::mutex> lock(jobs_mu_);
-    jobs_.push_back({operation, std::move(run), std::move(fail)});
+    jobs_.Push(requester, {operation, std::move(run), std::move(fail)});
+    queue_depth_.store(jobs_.size(), std::memory_order_relaxed);
+  }
+  jobs_cv_.notify_one();
+}
+
+void Scene::PostFirst(const char* operation, std::function<void(const Status&)> fail,
+                      std::function<void()> run) {
+  {
+    std::lock_guard<std::mutex> lock(jobs_mu_);
+    jobs_.PushPriority({operation, std::move(run), std::move(fail)});
     queue_depth_.store(jobs_.size(), std::memory_order_relaxed);
   }
   jobs_cv_.notify_one();
@@ -371,11 +398,15 @@ void Scene::Run() {
       std::unique_lock<std::mutex> lock(jobs_mu_);
       jobs_cv_.wait(lock, [this] { return stop_ || !jobs_.empty(); });
       if (jobs_.empty()) return;  // stop_ and drained
-      job = std::move(jobs_.front());
-      jobs_.pop_front();
+      uint64_t requester = 0;
+      job = jobs_.Pop(&requester);
       queue_depth_.store(jobs_.size(), std::memory_order_relaxed);
+      task_stats_.passed_over.store(jobs_.passed_over(), std::memory_order_relaxed);
+      task_stats_.waiting_sessions.store(jobs_.waiting_requesters(), std::memory_order_relaxed);
       if (fault_hook_) hook = fault_hook_;
     }
+    // The job's wall time is what it kept every other requester waiting: its requester's cost.
+    const auto started = std::chrono::steady_clock::now();
     // The exception boundary: OpenVDB (and allocation) may throw from any task. The scene's
     // members stay as the task left them and its requester is told it failed. An edit that threw
     // after reaching the log is still in the log, so the next recovery applies it even though
@@ -387,6 +418,10 @@ void Scene::Run() {
     if (!s.ok() && job.fail) {
       (void)RunGuarded("compute thread", job.operation, task_stats_, [&] { job.fail(s); });
     }
+    const auto cost = std::chrono::duration_cast<std::chrono::nanoseconds>(
+        std::chrono::steady_clock::now() - started);
+    std::lock_guard<std::mutex> lock(jobs_mu_);
+    jobs_.Done(static_cast<uint64_t>(cost.count()));
   }
 }
 
@@ -667,7 +702,7 @@ void Scene::RequestJoinState(std::function<void(StatusOr<JoinState>)> done) {
         done(std::move(result));
       }));
   auto fail = [answer](const Status& st) { answer(st); };
-  Post("join state copy", fail, [this, answer, fail] {
+  Post(CurrentRequester(), "join state copy", fail, [this, answer, fail] {
     // Only the deep copies happen on the compute thread (milliseconds); serialising them waits
     // for the join worker, so a late joiner never stalls the others' edits.
     auto info = std::make_shared<v1::SceneInfo>();

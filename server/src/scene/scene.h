@@ -18,6 +18,7 @@
 
 #include "config/server_config.h"
 #include "scene/commit.h"
+#include "scene/fair_queue.h"
 #include "sculpt/codec/history.h"
 #include "sculpt/codec/stroke.h"
 #include "sculpt/core/latency_histogram.h"
@@ -219,6 +220,27 @@ class Scene {
   /// object.
   void History(codec::HistoryQuery query, std::function<void(v1::HistoryAnswer)> done);
 
+  /// Whose share of the compute thread the calling thread's requests take (set by a session
+  /// around each request it handles: its named user's, else its source address's key, never 0).
+  /// The compute work of requests made while it is alive (edits, subscriptions, interest moves,
+  /// late-join copies, unsubscriptions) is that requester's: each requester gets a fair share
+  /// of the compute thread by measured cost and its own work keeps its order, so one client's
+  /// heavy or many requests delay another's by at most the one job of it in service. Without
+  /// one (tests, tools, the scene itself), work is the scene's own, served after everything
+  /// posted before it.
+  class RequesterScope {
+   public:
+    explicit RequesterScope(uint64_t requester);
+    ~RequesterScope();
+    RequesterScope(const RequesterScope&) = delete;
+    RequesterScope& operator=(const RequesterScope&) = delete;
+
+   private:
+    uint64_t previous_;
+  };
+  /// The calling thread's RequesterScope key, 0 for none.
+  static uint64_t CurrentRequester();
+
   /// Tasks queued for the compute thread and not yet started (edits, joins, subscriptions).
   size_t compute_queue_depth() const { return queue_depth_.load(std::memory_order_relaxed); }
   /// Edits applied and waiting for the edit log to become durable before they are acknowledged.
@@ -230,6 +252,10 @@ class Scene {
   struct TaskStats {
     std::atomic<uint64_t> failures{0};       // tasks (or mesh chunks) that threw
     std::atomic<uint64_t> joins_refused{0};  // late joins over limits.max_pending_joins
+    // Compute-thread jobs chosen while an older job of another requester waited (fair sharing
+    // at work), and requesters (RequesterScope) with a job waiting now.
+    std::atomic<uint64_t> passed_over{0};
+    std::atomic<size_t> waiting_sessions{0};
   };
   TaskStats& task_stats() { return task_stats_; }
 
@@ -267,6 +293,16 @@ class Scene {
   void Post(const char* operation, std::function<void()> run) {
     Post(operation, nullptr, std::move(run));
   }
+  // The same for work a client asked for (`requester`: CurrentRequester(), 0 for the scene's
+  // own): in order with the requester's other work, shared fairly with others' (FairQueue).
+  void Post(uint64_t requester, const char* operation, std::function<void(const Status&)> fail,
+            std::function<void()> run);
+  void Post(uint64_t requester, const char* operation, std::function<void()> run) {
+    Post(requester, operation, nullptr, std::move(run));
+  }
+  // The scene's background work that needs no earlier job done first: ahead of everything.
+  void PostFirst(const char* operation, std::function<void(const Status&)> fail,
+                 std::function<void()> run);
   void JoinLoop();
   // The commit pipeline (commit.h, commit.cc): every edit kind is an EditOp, nested here so
   // that it reaches the parts of the scene it edits.
@@ -414,7 +450,7 @@ class Scene {
   void Observe(const char* step, const char* operation, uint64_t seq);
   std::mutex jobs_mu_;
   std::condition_variable jobs_cv_;
-  std::deque<Job> jobs_;
+  FairQueue<Job> jobs_;                 // guarded by jobs_mu_
   std::atomic<size_t> queue_depth_{0};  // jobs_.size(), read without jobs_mu_
   bool stop_ = false;
   std::thread thread_;

@@ -642,7 +642,8 @@ void Scene::SubscribeContours(ReplicaSink sink, v1::ContourSubscribe req,
   auto once = AnswerOnce(std::move(done));
   auto cb = std::make_shared<std::function<void(Status)>>(once);
   auto fail = [once](const Status& st) { once(st); };
-  Post("contours", fail, [this, sink = std::move(sink), req = std::move(req), cb]() mutable {
+  const uint64_t who = CurrentRequester();
+  Post(who, "contours", fail, [this, sink = std::move(sink), req = std::move(req), cb]() mutable {
     const uint64_t session = sink.session_id;
     // The scene decides which effects it computes: without contours, no skin contour or slice
     // is encoded for anyone (principle 2 of ARCHITECTURE.md).
@@ -708,7 +709,7 @@ void Scene::SendSlices(const std::string& object, const std::vector<levelset::In
 }
 
 void Scene::UnsubscribeContours(uint64_t session_id) {
-  Post("contour unsubscribe", [this, session_id] {
+  Post(CurrentRequester(), "contour unsubscribe", [this, session_id] {
     for (auto& [name, entry] : skins_->skins) entry.subs.erase(session_id);
     for (auto& [object, subs] : skins_->slices) subs.erase(session_id);
   });

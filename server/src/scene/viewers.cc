@@ -41,7 +41,8 @@ void Scene::SubscribeViewer(ReplicaSink sink, v1::ViewerSubscribe req,
   auto once = AnswerOnce(std::move(done));
   auto cb = std::make_shared<std::function<void(Status)>>(once);
   auto fail = [once](const Status& st) { once(st); };
-  Post("viewer", fail, [this, sink = std::move(sink), req = std::move(req), cb]() mutable {
+  const uint64_t who = CurrentRequester();
+  Post(who, "viewer", fail, [this, sink = std::move(sink), req = std::move(req), cb]() mutable {
     auto it = sculptures_.find(req.object());
     if (it == sculptures_.end()) {
       return (*cb)(NotFound("ViewerSubscribe.object=" + req.object() +
@@ -80,7 +81,7 @@ void Scene::SubscribeViewer(ReplicaSink sink, v1::ViewerSubscribe req,
 }
 
 void Scene::UnsubscribeViewer(uint64_t session_id) {
-  Post("viewer unsubscribe", [this, session_id] {
+  Post(CurrentRequester(), "viewer unsubscribe", [this, session_id] {
     viewers_.erase(session_id);
     viewer_count_ = static_cast<int>(viewers_.size());
     if (viewers_.empty()) dirty_chunks_.clear();  // no meshing while nobody watches
@@ -127,7 +128,7 @@ void Scene::MesherLoop() {
     auto work = std::make_shared<std::promise<std::vector<MeshWork>>>();
     auto fut = work->get_future();
     auto fail = [work](const Status&) { work->set_value({}); };
-    Post("mesh snapshot", fail, [this, work] {
+    PostFirst("mesh snapshot", fail, [this, work] {
       const auto t0 = Clock::now();
       std::map<std::string, MeshWork> by_object;
       for (auto& [id, v] : viewers_) {
