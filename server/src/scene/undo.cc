@@ -242,7 +242,7 @@ void Scene::History(codec::HistoryQuery query, std::function<void(v1::HistoryAns
     *a.mutable_error() = ToWireError(st, 0);
     once(std::move(a));
   };
-  Post("history", refuse, [this, query = std::move(query), once, refuse] {
+  Post(CurrentRequester(), "history", refuse, [this, query = std::move(query), once, refuse] {
     if (!sculptures_.count(query.object)) {
       return refuse(
           NotFound("HistoryRequest.object=" + query.object + " outside the scene's objects"));
