@@ -12,11 +12,12 @@
 #include "net/frame_key.h"
 #include "net/server.h"
 #include "net/untrusted_text.h"
+#include "net/wire_acks.h"
 #include "net/wire_error.h"
 #include "scene/models.h"
 #include "scene/paint.h"
-#include "scene/skins.h"
 #include "sculpt/codec/frame.h"
+#include "sculpt/codec/skin_messages.h"
 #include "sculpt/codec/stroke.h"
 
 namespace sculpt::server {
@@ -734,13 +735,17 @@ void Session::OnContourSubscribe(const v1::ContourSubscribe& c) {
                             "before JoinScene", "after JoinScene", "join a scene first"));
     return Violation();
   }
-  if (const Status st = ValidateContourSubscribe(c); !st.ok()) {
-    SendStatus(st);
+  auto request = codec::DecodeContourSubscribe(c);
+  if (!request.ok()) {
+    SendStatus(request.status());
     return Violation();
   }
-  server_.scene().SubscribeContours(Sink(), c, [self = shared_from_this()](Status st) {
-    if (!st.ok()) self->OnSubscriptionRefused(nullptr, std::move(st));
-  });
+  server_.scene().SubscribeContours(Sink(), std::move(request).value(),
+                                    [self = shared_from_this()](Status st) {
+                                      if (!st.ok()) {
+                                        self->OnSubscriptionRefused(nullptr, std::move(st));
+                                      }
+                                    });
 }
 
 // Ball edits, sweeps, paints and model intents are strokes too: joined sculptors only, the
@@ -887,30 +892,28 @@ void Session::OnPartialFrame(bool partial) {
 
 void Session::OnSkinBallEdit(const v1::SkinBallEdit& e) {
   if (!MayEdit("SkinBallEdit", e.client_seq())) return;
-  if (const Status st = ValidateSkinBallEdit(e); !st.ok()) {
-    v1::SkinAck a;
-    a.set_client_seq(e.client_seq());
-    *a.mutable_error() = ToWireError(st, e.client_seq());
-    OnSkinAck(std::move(a));
+  auto edit = codec::DecodeSkinBallEdit(e);
+  if (!edit.ok()) {
+    OnSkinAck(ToWireAck(SkinOutcome{edit.status(), e.client_seq()}));
     return Violation();
   }
-  server_.scene().EditSkin(client_id_, e, [self = shared_from_this()](v1::SkinAck a) {
-    self->OnSkinAck(std::move(a));
-  });
+  server_.scene().EditSkin(client_id_, std::move(edit).value(),
+                           [self = shared_from_this()](const SkinOutcome& o) {
+                             self->OnSkinAck(ToWireAck(o));
+                           });
 }
 
 void Session::OnSkinSweep(const v1::SkinSweep& s) {
   if (!MayEdit("SkinSweep", s.client_seq())) return;
-  if (const Status st = ValidateSkinSweep(s); !st.ok()) {
-    v1::SkinAck a;
-    a.set_client_seq(s.client_seq());
-    *a.mutable_error() = ToWireError(st, s.client_seq());
-    OnSkinAck(std::move(a));
+  auto sweep = codec::DecodeSkinSweep(s);
+  if (!sweep.ok()) {
+    OnSkinAck(ToWireAck(SkinOutcome{sweep.status(), s.client_seq()}));
     return Violation();
   }
-  server_.scene().SweepSkin(client_id_, s, [self = shared_from_this()](v1::SkinAck a) {
-    self->OnSkinAck(std::move(a));
-  });
+  server_.scene().SweepSkin(client_id_, std::move(sweep).value(),
+                            [self = shared_from_this()](const SkinOutcome& o) {
+                              self->OnSkinAck(ToWireAck(o));
+                            });
 }
 
 void Session::OnPaint(const v1::PaintEdit& p) {

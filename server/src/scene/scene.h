@@ -18,6 +18,8 @@
 
 #include "config/server_config.h"
 #include "scene/commit.h"
+#include "scene/outcomes.h"
+#include "sculpt/codec/skin_messages.h"
 #include "sculpt/codec/stroke.h"
 #include "sculpt/core/latency_histogram.h"
 #include "sculpt/core/status.h"
@@ -164,20 +166,23 @@ class Scene {
   };
   MeshStats& mesh_stats() { return mesh_stats_; }
 
-  /// Ball skins (issue 6, skins.cc). A ball edit (v1::SkinBallEdit, fields already checked by
-  /// ValidateSkinBallEdit) rebuilds at most two sections and sends contour subscribers of the
-  /// skin an update with only those; logged (a SkinEditRecord after 0x03, replayed by
-  /// recovery); `done` gets the SkinAck once durable (refusals carry the Error, at once). A
-  /// resend (client_seq not above the client's last ball edit) is acknowledged as a duplicate
-  /// and not applied again.
-  void EditSkin(uint64_t client_id, v1::SkinBallEdit edit, std::function<void(v1::SkinAck)> done);
-  /// Sweeps a skin's outline into an object: logged (a SkinSweepRecord, replayed by recovery),
-  /// applied, replicated as leaf deltas; `done` once durable. A resend (client_seq not above
-  /// the client's last sweep) is acknowledged as a duplicate and not applied again.
-  void SweepSkin(uint64_t client_id, v1::SkinSweep sweep, std::function<void(v1::SkinAck)> done);
+  /// Ball skins (issue 6, skins.cc). A ball edit (decoded by codec::DecodeSkinBallEdit; its
+  /// index is checked against the skin here) rebuilds at most two sections and sends contour
+  /// subscribers of the skin an update with only those; logged (a SkinEditRecord after 0x03,
+  /// replayed by recovery); `done` gets the outcome once durable (a refusal, naming the field,
+  /// at once). A resend (client_seq not above the client's last ball edit) is acknowledged as a
+  /// duplicate and not applied again.
+  void EditSkin(uint64_t client_id, codec::BallEdit edit, std::function<void(SkinOutcome)> done);
+  /// Sweeps a skin's outline into an object (decoded by codec::DecodeSkinSweep): logged (a
+  /// SkinSweepRecord, replayed by recovery), applied, replicated as leaf deltas; `done` once
+  /// durable. A resend (client_seq not above the client's last sweep) is acknowledged as a
+  /// duplicate and not applied again.
+  void SweepSkin(uint64_t client_id, codec::SkinSweepRequest sweep,
+                 std::function<void(SkinOutcome)> done);
   /// A skin's contours (a snapshot now, then updates) or an object's slice (now and after each
-  /// edit of the object) to `sink`. NotFound / InvalidArgument naming the field.
-  void SubscribeContours(ReplicaSink sink, v1::ContourSubscribe request,
+  /// edit of the object) to `sink` (decoded by codec::DecodeContourSubscribe). NotFound naming
+  /// the skin or object; FailedPrecondition when the scene computes no contours.
+  void SubscribeContours(ReplicaSink sink, codec::ContourRequest request,
                          std::function<void(Status)> done);
   void UnsubscribeContours(uint64_t session_id);
   /// A copy of a skin as the server holds it (tests, tools). NotFound for an unknown skin.

@@ -1,0 +1,25 @@
+/// @brief Edit outcomes → sculpt.v1 acks.
+#include "net/wire_acks.h"
+
+#include "net/wire_error.h"
+
+namespace sculpt::server {
+
+v1::SkinAck ToWireAck(const SkinOutcome& o) {
+  v1::SkinAck a;
+  a.set_client_seq(o.client_seq);
+  a.set_accepted(o.status.ok());
+  if (!o.status.ok()) {
+    *a.mutable_error() = ToWireError(o.status, o.client_seq);
+  } else {
+    a.set_duplicate(o.duplicate);
+    a.set_changed_sections(o.changed_sections);
+    a.set_balls(o.balls);
+    a.set_volume_after(o.volume_after);
+    a.set_dirty_leaves(o.dirty_leaves);
+  }
+  a.set_global_seq(o.global_seq);
+  return a;
+}
+
+}  // namespace sculpt::server
