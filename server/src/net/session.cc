@@ -15,8 +15,8 @@
 #include "net/wire_acks.h"
 #include "net/wire_error.h"
 #include "scene/models.h"
-#include "scene/paint.h"
 #include "sculpt/codec/frame.h"
+#include "sculpt/codec/paint_messages.h"
 #include "sculpt/codec/skin_messages.h"
 #include "sculpt/codec/stroke.h"
 
@@ -919,22 +919,20 @@ void Session::OnSkinSweep(const v1::SkinSweep& s) {
 void Session::OnPaint(const v1::PaintEdit& p) {
   if (!MayEdit("PaintEdit", p.client_seq())) return;
   auto refuse = [&](const Status& st) {
-    v1::PaintAck a;
-    a.set_client_seq(p.client_seq());
-    *a.mutable_error() = ToWireError(st, p.client_seq());
-    OnPaintAck(std::move(a));
+    OnPaintAck(ToWireAck(PaintOutcome{st, p.client_seq()}));
     Violation();
   };
   auto limits = server_.scene().LimitsFor(p.object());
   if (!limits.ok()) {
     return refuse(NotFound("PaintEdit.object=" + p.object() + " outside the scene's objects"));
   }
-  const Status st =
-      ValidatePaintEdit(p, *limits, static_cast<int>(server_.config().scene.materials.size()));
-  if (!st.ok()) return refuse(st);
-  server_.scene().Paint(client_id_, p, [self = shared_from_this()](v1::PaintAck a) {
-    self->OnPaintAck(std::move(a));
-  });
+  auto paint = codec::DecodePaintEdit(p, *limits,
+                                      static_cast<int>(server_.config().scene.materials.size()));
+  if (!paint.ok()) return refuse(paint.status());
+  server_.scene().Paint(client_id_, std::move(paint).value(),
+                        [self = shared_from_this()](const PaintOutcome& o) {
+                          self->OnPaintAck(ToWireAck(o));
+                        });
 }
 
 void Session::OnModelIntent(const v1::ModelIntent& mi) {

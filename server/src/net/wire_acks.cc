@@ -22,4 +22,19 @@ v1::SkinAck ToWireAck(const SkinOutcome& o) {
   return a;
 }
 
+v1::PaintAck ToWireAck(const PaintOutcome& o) {
+  v1::PaintAck a;
+  a.set_client_seq(o.client_seq);
+  a.set_accepted(o.status.ok());
+  if (!o.status.ok()) {
+    *a.mutable_error() = ToWireError(o.status, o.client_seq);
+  } else {
+    a.set_duplicate(o.duplicate);
+    a.set_changed_voxels(o.changed_voxels);
+    a.set_dirty_leaves(o.dirty_leaves);
+  }
+  a.set_global_seq(o.global_seq);
+  return a;
+}
+
 }  // namespace sculpt::server

@@ -11,6 +11,8 @@ namespace sculpt::server {
 /// A SkinAck: accepted with the outcome's details, or refused with the Error of its status (the
 /// outcome's client_seq in both). Fields left at zero are not sent (proto3).
 v1::SkinAck ToWireAck(const SkinOutcome& outcome);
+/// A PaintAck, likewise.
+v1::PaintAck ToWireAck(const PaintOutcome& outcome);
 
 }  // namespace sculpt::server
 

@@ -23,6 +23,18 @@ struct SkinOutcome {
   uint32_t dirty_leaves = 0;      // sweep
 };
 
+/// What became of a paint or fill.
+struct PaintOutcome {
+  /// Not ok: refused, naming the field; nothing was applied.
+  Status status;
+  uint64_t client_seq = 0;
+  /// The paint's sequence in the log (0 for a duplicate or a paint refused before logging).
+  uint64_t global_seq = 0;
+  bool duplicate = false;
+  uint32_t changed_voxels = 0;
+  uint32_t dirty_leaves = 0;
+};
+
 }  // namespace sculpt::server
 
 #endif  // SCULPT_SERVER_SCENE_OUTCOMES_H_

@@ -19,6 +19,7 @@
 #include "config/server_config.h"
 #include "scene/commit.h"
 #include "scene/outcomes.h"
+#include "sculpt/codec/paint_messages.h"
 #include "sculpt/codec/skin_messages.h"
 #include "sculpt/codec/stroke.h"
 #include "sculpt/core/latency_histogram.h"
@@ -188,12 +189,12 @@ class Scene {
   /// A copy of a skin as the server holds it (tests, tools). NotFound for an unknown skin.
   StatusOr<skin::Skin> SkinCopy(const std::string& name);
 
-  /// Paints or fills material fractions (issue 7, paint.cc; v1::PaintEdit, fields already
-  /// checked by ValidatePaintEdit): logged (a PaintRecord, replayed by recovery), applied,
-  /// replicated as leaf deltas, marked for viewers; `done` gets the PaintAck once durable
-  /// (refusals carry the Error). A resend (client_seq not above the client's last paint) is
-  /// acknowledged as a duplicate and not applied again.
-  void Paint(uint64_t client_id, v1::PaintEdit edit, std::function<void(v1::PaintAck)> done);
+  /// Paints or fills material fractions (issue 7, paint.cc; decoded by codec::DecodePaintEdit):
+  /// logged (a PaintRecord, replayed by recovery), applied, replicated as leaf deltas, marked for
+  /// viewers; `done` gets the outcome once durable (a refusal, naming the field, at once). A
+  /// resend (client_seq not above the client's last paint) is acknowledged as a duplicate and
+  /// not applied again.
+  void Paint(uint64_t client_id, codec::Paint paint, std::function<void(PaintOutcome)> done);
 
   /// Edits an object's hyperpatch model (issue 7, models.cc; v1::ModelIntent, fields already
   /// checked by ValidateModelIntent): corner and cell checked against the model, the intent

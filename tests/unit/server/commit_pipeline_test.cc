@@ -156,9 +156,15 @@ class CommitPipelineTest : public ::testing::TestWithParam<Kind> {
         *e.mutable_position() = F(0, 0, 24 - 0.5 * i);
         e.set_material(1);
         e.set_weight(0.5);
-        scene_->Paint(client, e, [&](v1::PaintAck k) {
-          Answer a{k.accepted(), k.duplicate(), k.global_seq(), {}};
-          p.set_value(k.has_error() ? from_error(a, k.error()) : a);
+        // The session refuses an unknown object before decoding; the scene is asked anyway.
+        auto limits = scene_->LimitsFor("clay");
+        EXPECT_TRUE(limits.ok());
+        auto paint = codec::DecodePaintEdit(e, *limits, 2);
+        EXPECT_TRUE(paint.ok()) << paint.status();
+        scene_->Paint(client, std::move(paint).value(), [&](const PaintOutcome& k) {
+          Answer a{k.status.ok(), k.duplicate, k.global_seq, {}};
+          if (!k.status.ok()) a.error_field = codec::SplitFieldError(k.status).field;
+          p.set_value(a);
         });
         break;
       }

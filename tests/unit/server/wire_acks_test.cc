@@ -49,5 +49,35 @@ TEST(WireAcksTest, SkinAckOfARefusalSendsNoAcceptedDetails) {
   EXPECT_EQ(ToWireAck(o).SerializeAsString(), expected.SerializeAsString());
 }
 
+TEST(WireAcksTest, PaintAckOfAnAcceptedPaint) {
+  PaintOutcome o;
+  o.client_seq = 2;
+  o.global_seq = 77;
+  o.changed_voxels = 300;
+  o.dirty_leaves = 4;
+  const v1::PaintAck a = ToWireAck(o);
+  EXPECT_TRUE(a.accepted());
+  EXPECT_FALSE(a.has_error());
+  EXPECT_EQ(a.client_seq(), 2u);
+  EXPECT_EQ(a.global_seq(), 77u);
+  EXPECT_EQ(a.changed_voxels(), 300u);
+  EXPECT_EQ(a.dirty_leaves(), 4u);
+}
+
+TEST(WireAcksTest, PaintAckOfARefusalCarriesTheError) {
+  const v1::PaintAck a =
+      ToWireAck(PaintOutcome{FailedPrecondition("PaintEdit.object=clay outside objects with "
+                                                "materials"),
+                             6});
+  EXPECT_FALSE(a.accepted());
+  ASSERT_TRUE(a.has_error());
+  EXPECT_EQ(a.error().code(), v1::ERROR_CODE_FAILED_PRECONDITION);
+  EXPECT_EQ(a.error().field(), "PaintEdit.object");
+  EXPECT_EQ(a.error().value(), "clay");
+  EXPECT_EQ(a.error().allowed_range(), "objects with materials");
+  EXPECT_EQ(a.client_seq(), 6u);
+  EXPECT_EQ(a.global_seq(), 0u);
+}
+
 }  // namespace
 }  // namespace sculpt::server
