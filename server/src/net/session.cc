@@ -14,8 +14,8 @@
 #include "net/untrusted_text.h"
 #include "net/wire_acks.h"
 #include "net/wire_error.h"
-#include "scene/models.h"
 #include "sculpt/codec/frame.h"
+#include "sculpt/codec/model_messages.h"
 #include "sculpt/codec/paint_messages.h"
 #include "sculpt/codec/skin_messages.h"
 #include "sculpt/codec/stroke.h"
@@ -937,16 +937,18 @@ void Session::OnPaint(const v1::PaintEdit& p) {
 
 void Session::OnModelIntent(const v1::ModelIntent& mi) {
   if (!MayEdit("ModelIntent", mi.client_seq())) return;
-  if (const Status st = ValidateModelIntent(mi); !st.ok()) {
-    v1::ModelAck a;
-    a.set_client_seq(mi.client_seq());
-    *a.mutable_error() = ToWireError(st, mi.client_seq());
-    OnModelAck(std::move(a));
+  auto edit = codec::DecodeModelIntent(mi);
+  if (!edit.ok()) {
+    ModelOutcome refused;
+    refused.status = edit.status();
+    refused.client_seq = mi.client_seq();
+    OnModelAck(ToWireAck(refused));
     return Violation();
   }
-  server_.scene().EditModel(client_id_, mi, [self = shared_from_this()](v1::ModelAck a) {
-    self->OnModelAck(std::move(a));
-  });
+  server_.scene().EditModel(client_id_, std::move(edit).value(),
+                            [self = shared_from_this()](const ModelOutcome& o) {
+                              self->OnModelAck(ToWireAck(o));
+                            });
 }
 
 void Session::OnUndo(const v1::UndoRequest& u) {

@@ -37,4 +37,28 @@ v1::PaintAck ToWireAck(const PaintOutcome& o) {
   return a;
 }
 
+v1::ModelAck ToWireAck(const ModelOutcome& o) {
+  v1::ModelAck a;
+  a.set_client_seq(o.client_seq);
+  if (o.rejection) {
+    a.set_accepted(false);
+    a.set_reason(o.rejection->reason);
+    a.set_cell(o.rejection->cell);
+    a.set_direction(o.rejection->direction);
+    a.set_span(o.rejection->span);
+    a.set_detail(o.rejection->detail);
+  } else if (!o.status.ok()) {
+    a.set_accepted(false);
+    *a.mutable_error() = ToWireError(o.status, o.client_seq);
+  } else {
+    a.set_accepted(true);
+    a.set_duplicate(o.duplicate);
+    a.set_global_seq(o.global_seq);
+    a.set_moved_coefficients(o.moved_coefficients);
+  }
+  a.set_model_version(o.model_version);
+  a.set_model_hash(o.model_hash);
+  return a;
+}
+
 }  // namespace sculpt::server

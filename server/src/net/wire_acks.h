@@ -13,6 +13,9 @@ namespace sculpt::server {
 v1::SkinAck ToWireAck(const SkinOutcome& outcome);
 /// A PaintAck, likewise.
 v1::PaintAck ToWireAck(const PaintOutcome& outcome);
+/// A ModelAck: a validity refusal carries its reason, cell, direction, span and detail (no
+/// Error); any other refusal the Error.
+v1::ModelAck ToWireAck(const ModelOutcome& outcome);
 
 }  // namespace sculpt::server
 

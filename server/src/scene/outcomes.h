@@ -4,6 +4,8 @@
 #define SCULPT_SERVER_SCENE_OUTCOMES_H_
 
 #include <cstdint>
+#include <optional>
+#include <string>
 
 #include "sculpt/core/status.h"
 
@@ -33,6 +35,30 @@ struct PaintOutcome {
   bool duplicate = false;
   uint32_t changed_voxels = 0;
   uint32_t dirty_leaves = 0;
+};
+
+/// A model intent the validity check refused (hetero::Rejection, as the ack reports it).
+struct ModelRejection {
+  std::string reason;  // the reason code, e.g. "SKIN_INTERSECT"
+  int32_t cell = -1;
+  int32_t direction = -1;
+  int32_t span = -1;
+  std::string detail;
+};
+
+/// What became of a model intent.
+struct ModelOutcome {
+  /// Not ok: refused, naming the field (or by validity: then `rejection` says why).
+  Status status;
+  uint64_t client_seq = 0;
+  /// The intent's sequence in the log (accepted and not a duplicate).
+  uint64_t global_seq = 0;
+  bool duplicate = false;
+  uint32_t moved_coefficients = 0;
+  /// The model after it (unchanged when refused); 0 when the model is unknown.
+  uint64_t model_version = 0;
+  uint64_t model_hash = 0;
+  std::optional<ModelRejection> rejection;
 };
 
 }  // namespace sculpt::server

@@ -19,6 +19,7 @@
 #include "config/server_config.h"
 #include "scene/commit.h"
 #include "scene/outcomes.h"
+#include "sculpt/codec/model_messages.h"
 #include "sculpt/codec/paint_messages.h"
 #include "sculpt/codec/skin_messages.h"
 #include "sculpt/codec/stroke.h"
@@ -196,14 +197,14 @@ class Scene {
   /// not applied again.
   void Paint(uint64_t client_id, codec::Paint paint, std::function<void(PaintOutcome)> done);
 
-  /// Edits an object's hyperpatch model (issue 7, models.cc; v1::ModelIntent, fields already
-  /// checked by ValidateModelIntent): corner and cell checked against the model, the intent
+  /// Edits an object's hyperpatch model (issue 7, models.cc; decoded by
+  /// codec::DecodeModelIntent): corner and cell checked against the model, the intent
   /// expanded by the library and validity checked after ordering. Refused (reason code, cell,
   /// direction, span) → `done` at once, nothing logged or changed; accepted → logged (a
   /// ModelRecord after 0x02, replayed by recovery), applied, `done` once durable. The voxelised
   /// sculpture is not re-voxelised. A resend is acknowledged as a duplicate.
-  void EditModel(uint64_t client_id, v1::ModelIntent intent,
-                 std::function<void(v1::ModelAck)> done);
+  void EditModel(uint64_t client_id, codec::ModelEdit edit,
+                 std::function<void(ModelOutcome)> done);
   /// The model of a `model` object (tests, tools). NotFound for an object without one.
   StatusOr<ModelSummary> ModelInfo(const std::string& object);
 

@@ -124,10 +124,6 @@ class CommitPipelineTest : public ::testing::TestWithParam<Kind> {
   // session's checks (an unknown object, skin or corner).
   Answer Do(uint64_t client, uint64_t client_seq, int i, bool bad = false) {
     std::promise<Answer> p;
-    auto from_error = [](Answer a, const v1::Error& e) {
-      a.error_field = e.field();
-      return a;
-    };
     switch (GetParam()) {
       case Kind::kStroke: {
         v1::ClientMessage m =
@@ -209,9 +205,12 @@ class CommitPipelineTest : public ::testing::TestWithParam<Kind> {
         m.set_displacement_y(-0.01 * (i % 3));
         m.set_displacement_z(0);
         m.set_cell(-1);
-        scene_->EditModel(client, m, [&](v1::ModelAck k) {
-          Answer a{k.accepted(), k.duplicate(), k.global_seq(), {}};
-          p.set_value(k.has_error() ? from_error(a, k.error()) : a);
+        auto edit = codec::DecodeModelIntent(m);
+        EXPECT_TRUE(edit.ok()) << edit.status();
+        scene_->EditModel(client, std::move(edit).value(), [&](const ModelOutcome& k) {
+          Answer a{k.status.ok() && !k.rejection, k.duplicate, k.global_seq, {}};
+          if (!k.status.ok()) a.error_field = codec::SplitFieldError(k.status).field;
+          p.set_value(a);
         });
         break;
       }

@@ -79,5 +79,54 @@ TEST(WireAcksTest, PaintAckOfARefusalCarriesTheError) {
   EXPECT_EQ(a.global_seq(), 0u);
 }
 
+TEST(WireAcksTest, ModelAckOfAValidityRefusalCarriesTheReasonAndNoError) {
+  ModelOutcome o;
+  o.status = FailedPrecondition("ModelIntent=SKIN_INTERSECT outside intents that keep the model "
+                                "valid");
+  o.client_seq = 8;
+  o.rejection = ModelRejection{"SKIN_INTERSECT", 1, -1, -1, "slices 2 and 3 cross"};
+  o.model_version = 4;
+  o.model_hash = 0xabcdef;
+  const v1::ModelAck a = ToWireAck(o);
+  EXPECT_FALSE(a.accepted());
+  EXPECT_FALSE(a.has_error());
+  EXPECT_EQ(a.reason(), "SKIN_INTERSECT");
+  EXPECT_EQ(a.cell(), 1);
+  EXPECT_EQ(a.direction(), -1);
+  EXPECT_EQ(a.span(), -1);
+  EXPECT_EQ(a.detail(), "slices 2 and 3 cross");
+  EXPECT_EQ(a.model_version(), 4u);
+  EXPECT_EQ(a.model_hash(), 0xabcdefu);
+  EXPECT_EQ(a.global_seq(), 0u);
+}
+
+TEST(WireAcksTest, ModelAckOfAFieldRefusalCarriesTheError) {
+  ModelOutcome o;
+  o.status = InvalidArgument("ModelIntent.corner=99 outside [0, 15]");
+  o.client_seq = 2;
+  const v1::ModelAck a = ToWireAck(o);
+  EXPECT_FALSE(a.accepted());
+  ASSERT_TRUE(a.has_error());
+  EXPECT_EQ(a.error().field(), "ModelIntent.corner");
+  EXPECT_EQ(a.error().value(), "99");
+  EXPECT_EQ(a.error().allowed_range(), "[0, 15]");
+  EXPECT_TRUE(a.reason().empty());
+}
+
+TEST(WireAcksTest, ModelAckOfAnAcceptedIntent) {
+  ModelOutcome o;
+  o.client_seq = 1;
+  o.global_seq = 50;
+  o.moved_coefficients = 12;
+  o.model_version = 2;
+  o.model_hash = 99;
+  const v1::ModelAck a = ToWireAck(o);
+  EXPECT_TRUE(a.accepted());
+  EXPECT_EQ(a.global_seq(), 50u);
+  EXPECT_EQ(a.moved_coefficients(), 12u);
+  EXPECT_EQ(a.model_version(), 2u);
+  EXPECT_EQ(a.model_hash(), 99u);
+}
+
 }  // namespace
 }  // namespace sculpt::server
