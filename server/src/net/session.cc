@@ -17,6 +17,7 @@
 #include "sculpt/codec/frame.h"
 #include "sculpt/codec/model_messages.h"
 #include "sculpt/codec/paint_messages.h"
+#include "sculpt/codec/replica_messages.h"
 #include "sculpt/codec/skin_messages.h"
 #include "sculpt/codec/stroke.h"
 
@@ -433,7 +434,7 @@ void Session::Handle(const std::string& payload) {
       if (!subscribed_ || !Charge("DivergenceReport", kDivergenceCost, received)) return;
       v1::DivergenceReport r = msg.divergence();
       r.set_object(Printable(r.object()));
-      server_.scene().ReportDivergence(id_, r);
+      server_.scene().ReportDivergence(id_, codec::DecodeDivergenceReport(r));
       return;
     }
     case v1::ClientMessage::kViewerSubscribe: return OnViewerSubscribe(msg.viewer_subscribe());
@@ -710,7 +711,10 @@ void Session::OnSubscribe(const v1::Subscribe& sub) {
                                  server_.config().limits.request_burst);
   if (!Charge("Subscribe", cost, Clock::now())) return;
   auto done = BeginSubscription("Subscribe", &subscribed_, "use SetInterest to move the region");
-  if (done) server_.scene().Subscribe(Sink(), sub, std::move(done));
+  if (!done) return;
+  auto request = codec::DecodeSubscribe(sub);
+  if (!request.ok()) return done(request.status());
+  server_.scene().Subscribe(Sink(), std::move(request).value(), std::move(done));
 }
 
 void Session::OnSetInterest(const v1::SetInterest& si) {
@@ -719,13 +723,19 @@ void Session::OnSetInterest(const v1::SetInterest& si) {
                                  server_.config().limits.request_burst);
   if (!Charge("SetInterest", cost, Clock::now())) return;
   auto done = BeginSubscription("SetInterest", nullptr, "");
-  if (done) server_.scene().SetInterest(id_, si, std::move(done));
+  if (!done) return;
+  auto request = codec::DecodeSetInterest(si);
+  if (!request.ok()) return done(request.status());
+  server_.scene().SetInterest(id_, std::move(request).value(), std::move(done));
 }
 
 void Session::OnViewerSubscribe(const v1::ViewerSubscribe& vs) {
   if (!Charge("ViewerSubscribe", kSubscribeCost, Clock::now())) return;
   auto done = BeginSubscription("ViewerSubscribe", &viewing_, "already subscribed to meshes");
-  if (done) server_.scene().SubscribeViewer(Sink(), vs, std::move(done));
+  if (!done) return;
+  auto request = codec::DecodeViewerSubscribe(vs);
+  if (!request.ok()) return done(request.status());
+  server_.scene().SubscribeViewer(Sink(), std::move(request).value(), std::move(done));
 }
 
 void Session::OnContourSubscribe(const v1::ContourSubscribe& c) {

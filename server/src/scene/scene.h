@@ -21,6 +21,7 @@
 #include "scene/outcomes.h"
 #include "sculpt/codec/model_messages.h"
 #include "sculpt/codec/paint_messages.h"
+#include "sculpt/codec/replica_messages.h"
 #include "sculpt/codec/skin_messages.h"
 #include "sculpt/codec/stroke.h"
 #include "sculpt/core/latency_histogram.h"
@@ -135,27 +136,30 @@ class Scene {
   void FlushAndSnapshot();
   /// State hash of one object, taken on the compute thread (0 for an unknown object).
   uint64_t StateHash(const std::string& object);
-  /// Registers a replica of one object (v1::Subscribe, validated here: object, mode, interest
-  /// box, have_seq) and sends it, through `sink`, the leaf records that bring its region to the
-  /// current sequence, then every later edit touching the region. Runs on the compute thread,
-  /// between two edits; `done` gets the refusal (InvalidArgument/NotFound naming the field).
-  void Subscribe(ReplicaSink sink, v1::Subscribe request, std::function<void(Status)> done);
-  /// Moves a subscription's box: sends the leaves of the new region. FailedPrecondition when the
-  /// session has no subscription to the object.
-  void SetInterest(uint64_t session_id, v1::SetInterest request, std::function<void(Status)> done);
+  /// Registers a replica of one object (decoded by codec::DecodeSubscribe; checked here: the
+  /// object, the interest box's extent, have_seq) and sends it, through `sink`, the leaf records
+  /// that bring its region to the current sequence, then every later edit touching the region.
+  /// Runs on the compute thread, between two edits; `done` gets the refusal
+  /// (InvalidArgument/NotFound naming the field).
+  void Subscribe(ReplicaSink sink, codec::ReplicaSubscription request,
+                 std::function<void(Status)> done);
+  /// Moves a subscription's box (decoded by codec::DecodeSetInterest): sends the leaves of the
+  /// new region. FailedPrecondition when the session has no subscription to the object.
+  void SetInterest(uint64_t session_id, codec::InterestChange request,
+                   std::function<void(Status)> done);
   void Unsubscribe(uint64_t session_id);
   /// A replica's hash mismatch: logged with both hashes and counted.
-  void ReportDivergence(uint64_t session_id, const v1::DivergenceReport& report);
+  void ReportDivergence(uint64_t session_id, const codec::Divergence& report);
   /// Hash of every voxel of an index box of one object, on the compute thread (tests); 0 for an
   /// unknown object.
   uint64_t RegionHash(const std::string& object, const levelset::VoxelBox& box);
   ReplicationStats& replication_stats() { return repl_stats_; }
 
-  /// Registers a viewer of one object's Draco mesh chunks (v1::ViewerSubscribe): it gets every
+  /// Registers a viewer of one object's Draco mesh chunks (codec::DecodeViewerSubscribe): it gets every
   /// chunk holding surface, then the chunks edits change, re-meshed on the mesher thread at most
   /// max_rate_hz times a second (capped by scene.mesh_max_rate_hz), several edits coalesced.
   /// Nothing is meshed while no viewer is subscribed.
-  void SubscribeViewer(ReplicaSink sink, v1::ViewerSubscribe request,
+  void SubscribeViewer(ReplicaSink sink, codec::ViewerSubscription request,
                        std::function<void(Status)> done);
   void UnsubscribeViewer(uint64_t session_id);
   /// Runs `fn` on the object between two edits (tests, tools); false for an unknown object.
@@ -300,12 +304,13 @@ class Scene {
   struct Sub {
     ReplicaSink sink;
     std::string object;
-    v1::ReplicaMode mode = v1::REPLICA_MODE_REPLAY;
+    codec::ReplicaMode mode = codec::ReplicaMode::kReplay;
     bool whole = true;
     levelset::VoxelBox held;  // interest dilated by the halo (when !whole)
   };
   // The index box an interest box selects (dilated by the halo); InvalidArgument naming `field`.
-  StatusOr<levelset::VoxelBox> HeldBox(const levelset::Sculpture& s, const v1::Box3* interest,
+  StatusOr<levelset::VoxelBox> HeldBox(const levelset::Sculpture& s,
+                                       const std::optional<codec::InterestBox>& interest,
                                        const char* field) const;
   void SendRegion(Sub& sub, const levelset::Sculpture& sculpture, uint64_t have_seq,
                   bool replace);
