@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "sculpt/codec/skin_messages.h"
 #include "sculpt/core/status.h"
 #include "sculpt/core/vec3.h"
 #include "sculpt/levelset/edit.h"
@@ -41,11 +42,11 @@ struct SkinConfig {
   std::vector<std::array<double, 4>> balls;  // x, y, r, theta (radians)
 };
 
-/// Limits of a skin's balls (config and wire), world units and radians.
-inline constexpr size_t kMaxSkinBalls = 4096;
-inline constexpr double kMaxSkinCoordinate = 1e6;
-inline constexpr double kMinSkinRadius = 1e-3;
-inline constexpr double kMaxSkinTheta = 64;
+/// Limits of a skin's balls (config and wire), world units and radians: the wire decoder's.
+using codec::kMaxSkinBalls;
+using codec::kMaxSkinCoordinate;
+using codec::kMinSkinRadius;
+using codec::kMaxSkinTheta;
 
 /// The effects the scene calls for; nothing else is computed (ARCHITECTURE principle 2).
 struct EffectsConfig {

@@ -12,11 +12,13 @@
 #include "net/frame_key.h"
 #include "net/server.h"
 #include "net/untrusted_text.h"
+#include "net/wire_acks.h"
 #include "net/wire_error.h"
-#include "scene/models.h"
-#include "scene/paint.h"
-#include "scene/skins.h"
 #include "sculpt/codec/frame.h"
+#include "sculpt/codec/model_messages.h"
+#include "sculpt/codec/paint_messages.h"
+#include "sculpt/codec/replica_messages.h"
+#include "sculpt/codec/skin_messages.h"
 #include "sculpt/codec/stroke.h"
 
 namespace sculpt::server {
@@ -442,7 +444,7 @@ void Session::Handle(const std::string& payload) {
       if (!subscribed_ || !Charge("DivergenceReport", kDivergenceCost, received)) return;
       v1::DivergenceReport r = msg.divergence();
       r.set_object(Printable(r.object()));
-      server_.scene().ReportDivergence(id_, r);
+      server_.scene().ReportDivergence(id_, codec::DecodeDivergenceReport(r));
       return;
     }
     case v1::ClientMessage::kViewerSubscribe: return OnViewerSubscribe(msg.viewer_subscribe());
@@ -720,7 +722,10 @@ void Session::OnSubscribe(const v1::Subscribe& sub) {
                                  server_.config().limits.request_burst);
   if (!Charge("Subscribe", cost, Clock::now())) return;
   auto done = BeginSubscription("Subscribe", &subscribed_, "use SetInterest to move the region");
-  if (done) server_.scene().Subscribe(Sink(), sub, std::move(done));
+  if (!done) return;
+  auto request = codec::DecodeSubscribe(sub);
+  if (!request.ok()) return done(request.status());
+  server_.scene().Subscribe(Sink(), std::move(request).value(), std::move(done));
 }
 
 void Session::OnSetInterest(const v1::SetInterest& si) {
@@ -729,13 +734,19 @@ void Session::OnSetInterest(const v1::SetInterest& si) {
                                  server_.config().limits.request_burst);
   if (!Charge("SetInterest", cost, Clock::now())) return;
   auto done = BeginSubscription("SetInterest", nullptr, "");
-  if (done) server_.scene().SetInterest(id_, si, std::move(done));
+  if (!done) return;
+  auto request = codec::DecodeSetInterest(si);
+  if (!request.ok()) return done(request.status());
+  server_.scene().SetInterest(id_, std::move(request).value(), std::move(done));
 }
 
 void Session::OnViewerSubscribe(const v1::ViewerSubscribe& vs) {
   if (!Charge("ViewerSubscribe", kSubscribeCost, Clock::now())) return;
   auto done = BeginSubscription("ViewerSubscribe", &viewing_, "already subscribed to meshes");
-  if (done) server_.scene().SubscribeViewer(Sink(), vs, std::move(done));
+  if (!done) return;
+  auto request = codec::DecodeViewerSubscribe(vs);
+  if (!request.ok()) return done(request.status());
+  server_.scene().SubscribeViewer(Sink(), std::move(request).value(), std::move(done));
 }
 
 void Session::OnContourSubscribe(const v1::ContourSubscribe& c) {
@@ -745,13 +756,17 @@ void Session::OnContourSubscribe(const v1::ContourSubscribe& c) {
                             "before JoinScene", "after JoinScene", "join a scene first"));
     return Violation();
   }
-  if (const Status st = ValidateContourSubscribe(c); !st.ok()) {
-    SendStatus(st);
+  auto request = codec::DecodeContourSubscribe(c);
+  if (!request.ok()) {
+    SendStatus(request.status());
     return Violation();
   }
-  server_.scene().SubscribeContours(Sink(), c, [self = shared_from_this()](Status st) {
-    if (!st.ok()) self->OnSubscriptionRefused(nullptr, std::move(st));
-  });
+  server_.scene().SubscribeContours(Sink(), std::move(request).value(),
+                                    [self = shared_from_this()](Status st) {
+                                      if (!st.ok()) {
+                                        self->OnSubscriptionRefused(nullptr, std::move(st));
+                                      }
+                                    });
 }
 
 // Ball edits, sweeps, paints and model intents are strokes too: joined sculptors only, the
@@ -898,65 +913,63 @@ void Session::OnPartialFrame(bool partial) {
 
 void Session::OnSkinBallEdit(const v1::SkinBallEdit& e) {
   if (!MayEdit("SkinBallEdit", e.client_seq())) return;
-  if (const Status st = ValidateSkinBallEdit(e); !st.ok()) {
-    v1::SkinAck a;
-    a.set_client_seq(e.client_seq());
-    *a.mutable_error() = ToWireError(st, e.client_seq());
-    OnSkinAck(std::move(a));
+  auto edit = codec::DecodeSkinBallEdit(e);
+  if (!edit.ok()) {
+    OnSkinAck(ToWireAck(SkinOutcome{edit.status(), e.client_seq()}));
     return Violation();
   }
-  server_.scene().EditSkin(client_id_, e, [self = shared_from_this()](v1::SkinAck a) {
-    self->OnSkinAck(std::move(a));
-  });
+  server_.scene().EditSkin(client_id_, std::move(edit).value(),
+                           [self = shared_from_this()](const SkinOutcome& o) {
+                             self->OnSkinAck(ToWireAck(o));
+                           });
 }
 
 void Session::OnSkinSweep(const v1::SkinSweep& s) {
   if (!MayEdit("SkinSweep", s.client_seq())) return;
-  if (const Status st = ValidateSkinSweep(s); !st.ok()) {
-    v1::SkinAck a;
-    a.set_client_seq(s.client_seq());
-    *a.mutable_error() = ToWireError(st, s.client_seq());
-    OnSkinAck(std::move(a));
+  auto sweep = codec::DecodeSkinSweep(s);
+  if (!sweep.ok()) {
+    OnSkinAck(ToWireAck(SkinOutcome{sweep.status(), s.client_seq()}));
     return Violation();
   }
-  server_.scene().SweepSkin(client_id_, s, [self = shared_from_this()](v1::SkinAck a) {
-    self->OnSkinAck(std::move(a));
-  });
+  server_.scene().SweepSkin(client_id_, std::move(sweep).value(),
+                            [self = shared_from_this()](const SkinOutcome& o) {
+                              self->OnSkinAck(ToWireAck(o));
+                            });
 }
 
 void Session::OnPaint(const v1::PaintEdit& p) {
   if (!MayEdit("PaintEdit", p.client_seq())) return;
   auto refuse = [&](const Status& st) {
-    v1::PaintAck a;
-    a.set_client_seq(p.client_seq());
-    *a.mutable_error() = ToWireError(st, p.client_seq());
-    OnPaintAck(std::move(a));
+    OnPaintAck(ToWireAck(PaintOutcome{st, p.client_seq()}));
     Violation();
   };
   auto limits = server_.scene().LimitsFor(p.object());
   if (!limits.ok()) {
     return refuse(NotFound("PaintEdit.object=" + p.object() + " outside the scene's objects"));
   }
-  const Status st =
-      ValidatePaintEdit(p, *limits, static_cast<int>(server_.config().scene.materials.size()));
-  if (!st.ok()) return refuse(st);
-  server_.scene().Paint(client_id_, p, [self = shared_from_this()](v1::PaintAck a) {
-    self->OnPaintAck(std::move(a));
-  });
+  auto paint = codec::DecodePaintEdit(p, *limits,
+                                      static_cast<int>(server_.config().scene.materials.size()));
+  if (!paint.ok()) return refuse(paint.status());
+  server_.scene().Paint(client_id_, std::move(paint).value(),
+                        [self = shared_from_this()](const PaintOutcome& o) {
+                          self->OnPaintAck(ToWireAck(o));
+                        });
 }
 
 void Session::OnModelIntent(const v1::ModelIntent& mi) {
   if (!MayEdit("ModelIntent", mi.client_seq())) return;
-  if (const Status st = ValidateModelIntent(mi); !st.ok()) {
-    v1::ModelAck a;
-    a.set_client_seq(mi.client_seq());
-    *a.mutable_error() = ToWireError(st, mi.client_seq());
-    OnModelAck(std::move(a));
+  auto edit = codec::DecodeModelIntent(mi);
+  if (!edit.ok()) {
+    ModelOutcome refused;
+    refused.status = edit.status();
+    refused.client_seq = mi.client_seq();
+    OnModelAck(ToWireAck(refused));
     return Violation();
   }
-  server_.scene().EditModel(client_id_, mi, [self = shared_from_this()](v1::ModelAck a) {
-    self->OnModelAck(std::move(a));
-  });
+  server_.scene().EditModel(client_id_, std::move(edit).value(),
+                            [self = shared_from_this()](const ModelOutcome& o) {
+                              self->OnModelAck(ToWireAck(o));
+                            });
 }
 
 void Session::OnUndo(const v1::UndoRequest& u) {

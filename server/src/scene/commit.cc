@@ -254,7 +254,7 @@ void Scene::Replicate(const std::string& object, const levelset::Sculpture& scul
       touches = sub.whole || replay->footprint.whole_object || sub.held.Intersects(fb);
       if (!touches) continue;
     }
-    if (fits && sub.mode == v1::REPLICA_MODE_REPLAY) {
+    if (fits && sub.mode == codec::ReplicaMode::kReplay) {
       if (!broadcast) {
         v1::ServerMessage m;
         v1::EditBroadcast* b = m.mutable_edit();
@@ -288,7 +288,7 @@ void Scene::Replicate(const std::string& object, const levelset::Sculpture& scul
       }
       // A leaf-delta replica whose region the edit touched hears of the sequence even when no
       // leaf it holds changed.
-      if (!cells.empty() || (touches && sub.mode == v1::REPLICA_MODE_LEAF_DELTA)) {
+      if (!cells.empty() || (touches && sub.mode == codec::ReplicaMode::kLeafDelta)) {
         sub.sink.send(delta_frame(cells));
       }
     }

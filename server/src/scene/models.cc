@@ -1,5 +1,4 @@
-/// @brief Hyperpatch models as scene objects (issue 7, seed 001 §10.4-10.5): checks off the wire,
-/// the edit-log form recovery replays, the content hash, model files beside snapshots, and the
+/// @brief Hyperpatch models as scene objects (issue 7, seed 001 §10.4-10.5): the edit-log form recovery replays, the content hash, model files beside snapshots, and the
 /// scene's model path (expand deterministically, check validity after ordering, log, apply, ack
 /// once durable). The Scene's part runs on the compute thread.
 #include "scene/models.h"
@@ -15,11 +14,10 @@
 #include <future>
 #include <sstream>
 
-#include "net/wire_error.h"
 #include "scene/answer_once.h"
 #include "scene/log_payload.h"
 #include "scene/scene.h"
-#include "sculpt/codec/stroke.h"
+#include "sculpt/codec/model_messages.h"
 #include "sculpt/core/check.h"
 #include "sculpt/hetero/model_io.h"
 #include "sculpt/hetero/validity.h"
@@ -32,31 +30,13 @@ namespace {
 
 // Sweeps take 0x00 (skins.cc), paints 0x01 (paint.cc); no serialised EditRecord starts with
 // any of them (field number 0 is not a valid tag).
-constexpr size_t kMaxNameBytes = 64;
 constexpr const char* kModelFileHeader = "sculpt-model-state";
-
-Status CheckComponent(const std::string& field, double v) {
-  if (!std::isfinite(v) || std::fabs(v) > hetero::kMaxDisplacement) {
-    return InvalidArgument(field + "=" + FormatNumber(v) + " outside finite [" +
-                           FormatNumber(-hetero::kMaxDisplacement) + ", " +
-                           FormatNumber(hetero::kMaxDisplacement) + "]");
-  }
-  return Status::Ok();
-}
 
 // The library names fields "intent.*"; on the wire they are the message's.
 Status Rename(const Status& s) {
   std::string m = s.message();
   if (m.rfind("intent.", 0) == 0) m = "ModelIntent." + m.substr(7);
   return Status(s.code(), m);
-}
-
-v1::ModelAck Refused(const Status& st, uint64_t client_seq) {
-  v1::ModelAck a;
-  a.set_client_seq(client_seq);
-  a.set_accepted(false);
-  *a.mutable_error() = ToWireError(st, client_seq);
-  return a;
 }
 
 template <typename T>
@@ -70,43 +50,6 @@ void Mix(uint64_t* h, const T& v) {
 }
 
 }  // namespace
-
-// ---------------------------------------------------------------------------------------------
-// Checks off the wire
-
-Status ValidateModelIntent(const v1::ModelIntent& m) {
-  if (m.object().empty() || m.object().size() > kMaxNameBytes) {
-    return InvalidArgument("ModelIntent.object=" + m.object() + " outside names of 1..64 bytes");
-  }
-  if (m.offset_size() != 3) {
-    return InvalidArgument("ModelIntent.offset size=" + std::to_string(m.offset_size()) +
-                           " outside {3}");
-  }
-  for (int a = 0; a < 3; ++a) {
-    if (m.offset(a) < -1 || m.offset(a) > 1) {
-      return InvalidArgument("ModelIntent.offset[" + std::to_string(a) + "]=" +
-                             std::to_string(m.offset(a)) + " outside [-1, 1]");
-    }
-  }
-  SCULPT_RETURN_IF_ERROR(CheckComponent("ModelIntent.displacement_x", m.displacement_x()));
-  SCULPT_RETURN_IF_ERROR(CheckComponent("ModelIntent.displacement_y", m.displacement_y()));
-  SCULPT_RETURN_IF_ERROR(CheckComponent("ModelIntent.displacement_z", m.displacement_z()));
-  if (m.cell() < -1) {
-    return InvalidArgument("ModelIntent.cell=" + std::to_string(m.cell()) +
-                           " outside -1 (none) or a cell index >= 0");
-  }
-  return Status::Ok();
-}
-
-hetero::EditIntent IntentFromMessage(const v1::ModelIntent& m) {
-  hetero::EditIntent i;
-  i.corner = m.corner();
-  for (int a = 0; a < 3 && a < m.offset_size(); ++a) i.offset[static_cast<size_t>(a)] = m.offset(a);
-  i.displacement = {m.displacement_x(), m.displacement_y(), m.displacement_z()};
-  i.cell = m.cell();
-  if (m.set_flags()) i.set_flags = hetero::CornerFlags{m.geometry_c1(), m.material_c1()};
-  return i;
-}
 
 uint64_t ModelHash(const hetero::CompositeModel& model) {
   uint64_t h = 14695981039346656037ull;
@@ -227,7 +170,9 @@ void Scene::ReplayModelIntent(uint64_t seq, const v1::ModelRecord& r) {
   auto it = models_.find(r.intent().object());
   if (it == models_.end() || seq <= it->second->file_seq) return;
   ModelState& st = *it->second;
-  auto out = hetero::ApplyIntent(&st.model, &st.checker, IntentFromMessage(r.intent()));
+  // The record embeds the intent's wire form, checked when it was made.
+  auto out = hetero::ApplyIntent(&st.model, &st.checker,
+                                 codec::ModelEditFromRecord(r.intent()).intent);
   if (!out.ok() || !out->applied) {
     spdlog::warn("model intent at seq {} refused on replay: {}", seq,
                  out.ok() ? out->rejection.ToString() : out.status().ToString());
@@ -278,32 +223,32 @@ StatusOr<ModelSummary> Scene::ModelInfo(const std::string& object) {
 // checked for validity on a copy of the model (a rejection is answered with its reason, nothing
 // logged); Apply puts the copy in place. The voxelised sculpture is not re-voxelised.
 struct Scene::ModelOp final : EditOp {
-  ModelOp(uint64_t client, v1::ModelIntent m, std::function<void(v1::ModelAck)> d)
-      : client(client), intent(std::move(m)), done(std::move(d)) {}
+  ModelOp(uint64_t client, codec::ModelEdit m, std::function<void(ModelOutcome)> d)
+      : client(client), edit(std::move(m)), done(std::move(d)) {}
   const char* operation() const override { return "model intent"; }
   ResendStream stream() const override { return ResendStream::kModels; }
   uint64_t client_id() const override { return client; }
-  uint64_t client_seq() const override { return intent.client_seq(); }
+  uint64_t client_seq() const override { return edit.client_seq; }
 
   Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
-    auto it = scene.models_.find(intent.object());
+    auto it = scene.models_.find(edit.object);
     if (it == scene.models_.end()) {
-      return NotFound("ModelIntent.object=" + intent.object() +
-                      " outside the scene's model objects");
+      return NotFound("ModelIntent.object=" + edit.object + " outside the scene's model objects");
     }
     state = it->second;
     const hetero::CompositeModel& model = state->model;
-    if (intent.corner() >= model.coefficient_count()) {
-      return InvalidArgument("ModelIntent.corner=" + std::to_string(intent.corner()) +
+    const hetero::EditIntent& intent = edit.intent;
+    if (intent.corner >= model.coefficient_count()) {
+      return InvalidArgument("ModelIntent.corner=" + std::to_string(intent.corner) +
                              " outside [0, " + std::to_string(model.coefficient_count() - 1) + "]");
     }
-    if (intent.cell() >= static_cast<int64_t>(model.cell_count())) {
-      return InvalidArgument("ModelIntent.cell=" + std::to_string(intent.cell()) +
+    if (intent.cell >= static_cast<int64_t>(model.cell_count())) {
+      return InvalidArgument("ModelIntent.cell=" + std::to_string(intent.cell) +
                              " outside [-1, " + std::to_string(model.cell_count() - 1) + "]");
     }
     next_model = state->model;
     next_checker = state->checker;
-    auto out = hetero::ApplyIntent(&next_model, &next_checker, IntentFromMessage(intent));
+    auto out = hetero::ApplyIntent(&next_model, &next_checker, intent);
     if (!out.ok()) return Rename(out.status());
     if (!out->applied) {
       rejection = out->rejection;
@@ -312,10 +257,11 @@ struct Scene::ModelOp final : EditOp {
                                 " outside intents that keep the model valid");
     }
     moved = out->moves.size();
+    // The log record is the storage format and stays protobuf; it embeds the intent's wire form.
     v1::ModelRecord rec;
     rec.set_global_seq(first_seq);
     rec.set_client_id(client);
-    *rec.mutable_intent() = intent;
+    *rec.mutable_intent() = codec::EncodeModelIntent(edit);
     rec.set_model_version(state->version + 1);
     records->push_back(ModelPayload(rec));
     return Status::Ok();
@@ -330,7 +276,7 @@ struct Scene::ModelOp final : EditOp {
   }
 
   void Duplicate(Scene& scene) override {
-    auto it = scene.models_.find(intent.object());
+    auto it = scene.models_.find(edit.object);
     if (it != scene.models_.end()) Describe(*it->second);
   }
 
@@ -341,37 +287,28 @@ struct Scene::ModelOp final : EditOp {
   }
 
   void Answer(const CommitOutcome& o) override {
-    v1::ModelAck ack;
+    ModelOutcome a;
+    a.status = o.status;
+    a.client_seq = o.client_seq;
     if (rejection) {
       const hetero::Rejection& r = *rejection;
-      ack.set_client_seq(o.client_seq);
-      ack.set_accepted(false);
-      ack.set_reason(hetero::ReasonName(r.reason));
-      ack.set_cell(r.cell);
-      ack.set_direction(r.direction);
-      ack.set_span(r.span);
-      ack.set_detail(r.ToString());
-    } else if (!o.status.ok()) {
-      ack = Refused(o.status, o.client_seq);
-    } else {
-      ack.set_client_seq(o.client_seq);
-      ack.set_accepted(true);
-      ack.set_duplicate(o.duplicate);
+      a.rejection = ModelRejection{hetero::ReasonName(r.reason), r.cell, r.direction, r.span,
+                                   r.ToString()};
+    } else if (o.status.ok()) {
+      a.duplicate = o.duplicate;
       if (!o.duplicate) {
-        ack.set_global_seq(o.global_seq_first);
-        ack.set_moved_coefficients(static_cast<uint32_t>(moved));
+        a.global_seq = o.global_seq_first;
+        a.moved_coefficients = static_cast<uint32_t>(moved);
       }
     }
-    if (version > 0 || hash != 0) {
-      ack.set_model_version(version);
-      ack.set_model_hash(hash);
-    }
-    done(ack);
+    a.model_version = version;
+    a.model_hash = hash;
+    done(std::move(a));
   }
 
   uint64_t client;
-  v1::ModelIntent intent;
-  std::function<void(v1::ModelAck)> done;
+  codec::ModelEdit edit;
+  std::function<void(ModelOutcome)> done;
   std::shared_ptr<ModelState> state;
   hetero::CompositeModel next_model;
   hetero::ValidityChecker next_checker;
@@ -381,8 +318,8 @@ struct Scene::ModelOp final : EditOp {
   uint64_t hash = 0;
 };
 
-void Scene::EditModel(uint64_t client_id, v1::ModelIntent m,
-                      std::function<void(v1::ModelAck)> done) {
+void Scene::EditModel(uint64_t client_id, codec::ModelEdit m,
+                      std::function<void(ModelOutcome)> done) {
   Commit(std::make_shared<ModelOp>(client_id, std::move(m), AnswerOnce(std::move(done))));
 }
 

@@ -1,6 +1,7 @@
-/// @brief Hyperpatch models as scene objects (issue 7, seed 001 §8.1, §10.4-10.5): the checks of a
-/// ModelIntent off the wire, its edit-log form (a leading 0x02 byte, then a v1::ModelRecord) that
-/// recovery replays, a content hash, and the model files written beside snapshots. The scene's
+/// @brief Hyperpatch models as scene objects (issue 7, seed 001 §8.1, §10.4-10.5): the edit-log
+/// form of a model intent (a leading 0x02 byte, then a v1::ModelRecord: the storage format,
+/// protobuf) that recovery replays, a content hash, and the model files written beside
+/// snapshots. sculpt/codec/model_messages.h decodes the ModelIntent off the wire; the scene's
 /// model path (Scene::EditModel) lives in models.cc.
 #ifndef SCULPT_SERVER_SCENE_MODELS_H_
 #define SCULPT_SERVER_SCENE_MODELS_H_
@@ -14,15 +15,6 @@
 #include "sculpt/v1/sculpt.pb.h"
 
 namespace sculpt::server {
-
-/// The fields a ModelIntent carries that need no model: object name 1..64 bytes, exactly 3
-/// offsets each in {-1, 0, 1}, a finite displacement with every component within
-/// ±hetero::kMaxDisplacement, cell >= -1. InvalidArgument "ModelIntent.<field>=<value> outside
-/// <range>". Indices against the model (corner, cell) are checked where the model lives.
-Status ValidateModelIntent(const v1::ModelIntent& intent);
-
-/// The library's intent of a (validated) message.
-hetero::EditIntent IntentFromMessage(const v1::ModelIntent& intent);
 
 /// FNV-1a over the model's content (materials, coefficient positions and fractions bit for bit,
 /// cells' pool indices, corner flags); cell versions are not content and are left out.

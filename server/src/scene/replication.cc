@@ -20,21 +20,19 @@ std::shared_ptr<const std::string> Frame(const v1::ServerMessage& m) {
   return f;
 }
 
-Vec3 V(const v1::Vec3f& v) { return {v.x(), v.y(), v.z()}; }
-
 }  // namespace
 
-StatusOr<levelset::VoxelBox> Scene::HeldBox(const levelset::Sculpture& s, const v1::Box3* interest,
+StatusOr<levelset::VoxelBox> Scene::HeldBox(const levelset::Sculpture& s,
+                                            const std::optional<codec::InterestBox>& interest,
                                             const char* field) const {
   if (!interest) {
     const levelset::Aabb b = s.WorldBounds();
     return levelset::WorldToVoxelBox(s, b.min, b.max).Dilated(kReplicaHaloVoxels);
   }
+  // Finite corners are the decoder's check; the extent in voxels needs the object.
   const std::string f(field);
-  const Vec3 lo = V(interest->min());
-  const Vec3 hi = V(interest->max());
-  SCULPT_RETURN_IF_ERROR(CheckFinitePoint(f + ".min", lo));
-  SCULPT_RETURN_IF_ERROR(CheckFinitePoint(f + ".max", hi));
+  const Vec3 lo = interest->min;
+  const Vec3 hi = interest->max;
   const double dx = s.voxel_size();
   const double limit = kMaxInterestVoxels * dx;
   const char* axis[3] = {"x", "y", "z"};
@@ -84,56 +82,54 @@ void Scene::SendRegion(Sub& sub, const levelset::Sculpture& sculpture, uint64_t 
   sub.sink.send(std::move(frame));
 }
 
-void Scene::Subscribe(ReplicaSink sink, v1::Subscribe req, std::function<void(Status)> done) {
+void Scene::Subscribe(ReplicaSink sink, codec::ReplicaSubscription req,
+                      std::function<void(Status)> done) {
   auto once = AnswerOnce(std::move(done));
   auto cb = std::make_shared<std::function<void(Status)>>(once);
   auto fail = [once](const Status& st) { once(st); };
   const uint64_t who = CurrentRequester();
   Post(who, "subscribe", fail, [this, sink = std::move(sink), req = std::move(req), cb]() mutable {
-    auto it = sculptures_.find(req.object());
+    auto it = sculptures_.find(req.object);
     if (it == sculptures_.end()) {
-      return (*cb)(NotFound("Subscribe.object=" + req.object() + " outside the scene's objects"));
-    }
-    if (req.mode() != v1::REPLICA_MODE_REPLAY && req.mode() != v1::REPLICA_MODE_LEAF_DELTA) {
-      return (*cb)(InvalidArgument("Subscribe.mode=" + std::to_string(req.mode()) +
-                                   " outside {1 (REPLAY), 2 (LEAF_DELTA)}"));
+      return (*cb)(NotFound("Subscribe.object=" + req.object + " outside the scene's objects"));
     }
     const uint64_t now = applied_seq_.load();
-    if (req.have_seq() > now) {
-      return (*cb)(InvalidArgument("Subscribe.have_seq=" + std::to_string(req.have_seq()) +
+    if (req.have_seq > now) {
+      return (*cb)(InvalidArgument("Subscribe.have_seq=" + std::to_string(req.have_seq) +
                                    " outside [0, " + std::to_string(now) +
                                    "] (the server's sequence); subscribe with 0 to load anew"));
     }
     Sub sub;
     sub.sink = std::move(sink);
-    sub.object = req.object();
-    sub.mode = req.mode();
-    sub.whole = !req.has_interest();
-    auto held = HeldBox(it->second, sub.whole ? nullptr : &req.interest(), "Subscribe.interest");
+    sub.object = req.object;
+    sub.mode = req.mode;
+    sub.whole = !req.interest;
+    auto held = HeldBox(it->second, req.interest, "Subscribe.interest");
     if (!held.ok()) return (*cb)(held.status());
     sub.held = *held;
     // A replica holding state from before this process started (or before the oldest version
     // kept) cannot be brought forward by leaf versions: it gets its region anew.
-    const bool replace = req.have_seq() == 0 || req.have_seq() < versions_floor_;
+    const bool replace = req.have_seq == 0 || req.have_seq < versions_floor_;
     (*cb)(Status::Ok());
-    SendRegion(sub, it->second, req.have_seq(), replace);
+    SendRegion(sub, it->second, req.have_seq, replace);
     subs_[sub.sink.session_id] = std::move(sub);
   });
 }
 
-void Scene::SetInterest(uint64_t session_id, v1::SetInterest req, std::function<void(Status)> done) {
+void Scene::SetInterest(uint64_t session_id, codec::InterestChange req,
+                        std::function<void(Status)> done) {
   auto once = AnswerOnce(std::move(done));
   auto cb = std::make_shared<std::function<void(Status)>>(once);
   auto fail = [once](const Status& st) { once(st); };
   Post(CurrentRequester(), "set interest", fail, [this, session_id, req = std::move(req), cb] {
     auto s = subs_.find(session_id);
-    if (s == subs_.end() || s->second.object != req.object()) {
-      return (*cb)(FailedPrecondition("SetInterest.object=" + req.object() +
+    if (s == subs_.end() || s->second.object != req.object) {
+      return (*cb)(FailedPrecondition("SetInterest.object=" + req.object +
                                       " outside this session's subscriptions"));
     }
-    const levelset::Sculpture& sculpture = sculptures_.at(req.object());
-    const bool whole = !req.has_interest();
-    auto held = HeldBox(sculpture, whole ? nullptr : &req.interest(), "SetInterest.interest");
+    const levelset::Sculpture& sculpture = sculptures_.at(req.object);
+    const bool whole = !req.interest;
+    auto held = HeldBox(sculpture, req.interest, "SetInterest.interest");
     if (!held.ok()) return (*cb)(held.status());
     s->second.whole = whole;
     s->second.held = *held;
@@ -146,10 +142,10 @@ void Scene::Unsubscribe(uint64_t session_id) {
   Post(CurrentRequester(), "unsubscribe", [this, session_id] { subs_.erase(session_id); });
 }
 
-void Scene::ReportDivergence(uint64_t session_id, const v1::DivergenceReport& r) {
+void Scene::ReportDivergence(uint64_t session_id, const codec::Divergence& r) {
   repl_stats_.divergences++;
   spdlog::warn("replica {} diverged on {} at seq {}: server hash {:016x}, replica hash {:016x}",
-               session_id, r.object(), r.global_seq(), r.expected_hash(), r.actual_hash());
+               session_id, r.object, r.global_seq, r.expected_hash, r.actual_hash);
 }
 
 uint64_t Scene::RegionHash(const std::string& object, const levelset::VoxelBox& box) {

@@ -19,7 +19,12 @@
 #include "config/server_config.h"
 #include "scene/commit.h"
 #include "scene/fair_queue.h"
+#include "scene/outcomes.h"
 #include "sculpt/codec/history.h"
+#include "sculpt/codec/model_messages.h"
+#include "sculpt/codec/paint_messages.h"
+#include "sculpt/codec/replica_messages.h"
+#include "sculpt/codec/skin_messages.h"
 #include "sculpt/codec/stroke.h"
 #include "sculpt/core/latency_histogram.h"
 #include "sculpt/core/status.h"
@@ -133,27 +138,30 @@ class Scene {
   void FlushAndSnapshot();
   /// State hash of one object, taken on the compute thread (0 for an unknown object).
   uint64_t StateHash(const std::string& object);
-  /// Registers a replica of one object (v1::Subscribe, validated here: object, mode, interest
-  /// box, have_seq) and sends it, through `sink`, the leaf records that bring its region to the
-  /// current sequence, then every later edit touching the region. Runs on the compute thread,
-  /// between two edits; `done` gets the refusal (InvalidArgument/NotFound naming the field).
-  void Subscribe(ReplicaSink sink, v1::Subscribe request, std::function<void(Status)> done);
-  /// Moves a subscription's box: sends the leaves of the new region. FailedPrecondition when the
-  /// session has no subscription to the object.
-  void SetInterest(uint64_t session_id, v1::SetInterest request, std::function<void(Status)> done);
+  /// Registers a replica of one object (decoded by codec::DecodeSubscribe; checked here: the
+  /// object, the interest box's extent, have_seq) and sends it, through `sink`, the leaf records
+  /// that bring its region to the current sequence, then every later edit touching the region.
+  /// Runs on the compute thread, between two edits; `done` gets the refusal
+  /// (InvalidArgument/NotFound naming the field).
+  void Subscribe(ReplicaSink sink, codec::ReplicaSubscription request,
+                 std::function<void(Status)> done);
+  /// Moves a subscription's box (decoded by codec::DecodeSetInterest): sends the leaves of the
+  /// new region. FailedPrecondition when the session has no subscription to the object.
+  void SetInterest(uint64_t session_id, codec::InterestChange request,
+                   std::function<void(Status)> done);
   void Unsubscribe(uint64_t session_id);
   /// A replica's hash mismatch: logged with both hashes and counted.
-  void ReportDivergence(uint64_t session_id, const v1::DivergenceReport& report);
+  void ReportDivergence(uint64_t session_id, const codec::Divergence& report);
   /// Hash of every voxel of an index box of one object, on the compute thread (tests); 0 for an
   /// unknown object.
   uint64_t RegionHash(const std::string& object, const levelset::VoxelBox& box);
   ReplicationStats& replication_stats() { return repl_stats_; }
 
-  /// Registers a viewer of one object's Draco mesh chunks (v1::ViewerSubscribe): it gets every
+  /// Registers a viewer of one object's Draco mesh chunks (codec::DecodeViewerSubscribe): it gets every
   /// chunk holding surface, then the chunks edits change, re-meshed on the mesher thread at most
   /// max_rate_hz times a second (capped by scene.mesh_max_rate_hz), several edits coalesced.
   /// Nothing is meshed while no viewer is subscribed.
-  void SubscribeViewer(ReplicaSink sink, v1::ViewerSubscribe request,
+  void SubscribeViewer(ReplicaSink sink, codec::ViewerSubscription request,
                        std::function<void(Status)> done);
   void UnsubscribeViewer(uint64_t session_id);
   /// Runs `fn` on the object between two edits (tests, tools); false for an unknown object.
@@ -166,40 +174,43 @@ class Scene {
   };
   MeshStats& mesh_stats() { return mesh_stats_; }
 
-  /// Ball skins (issue 6, skins.cc). A ball edit (v1::SkinBallEdit, fields already checked by
-  /// ValidateSkinBallEdit) rebuilds at most two sections and sends contour subscribers of the
-  /// skin an update with only those; logged (a SkinEditRecord after 0x03, replayed by
-  /// recovery); `done` gets the SkinAck once durable (refusals carry the Error, at once). A
-  /// resend (client_seq not above the client's last ball edit) is acknowledged as a duplicate
-  /// and not applied again.
-  void EditSkin(uint64_t client_id, v1::SkinBallEdit edit, std::function<void(v1::SkinAck)> done);
-  /// Sweeps a skin's outline into an object: logged (a SkinSweepRecord, replayed by recovery),
-  /// applied, replicated as leaf deltas; `done` once durable. A resend (client_seq not above
-  /// the client's last sweep) is acknowledged as a duplicate and not applied again.
-  void SweepSkin(uint64_t client_id, v1::SkinSweep sweep, std::function<void(v1::SkinAck)> done);
+  /// Ball skins (issue 6, skins.cc). A ball edit (decoded by codec::DecodeSkinBallEdit; its
+  /// index is checked against the skin here) rebuilds at most two sections and sends contour
+  /// subscribers of the skin an update with only those; logged (a SkinEditRecord after 0x03,
+  /// replayed by recovery); `done` gets the outcome once durable (a refusal, naming the field,
+  /// at once). A resend (client_seq not above the client's last ball edit) is acknowledged as a
+  /// duplicate and not applied again.
+  void EditSkin(uint64_t client_id, codec::BallEdit edit, std::function<void(SkinOutcome)> done);
+  /// Sweeps a skin's outline into an object (decoded by codec::DecodeSkinSweep): logged (a
+  /// SkinSweepRecord, replayed by recovery), applied, replicated as leaf deltas; `done` once
+  /// durable. A resend (client_seq not above the client's last sweep) is acknowledged as a
+  /// duplicate and not applied again.
+  void SweepSkin(uint64_t client_id, codec::SkinSweepRequest sweep,
+                 std::function<void(SkinOutcome)> done);
   /// A skin's contours (a snapshot now, then updates) or an object's slice (now and after each
-  /// edit of the object) to `sink`. NotFound / InvalidArgument naming the field.
-  void SubscribeContours(ReplicaSink sink, v1::ContourSubscribe request,
+  /// edit of the object) to `sink` (decoded by codec::DecodeContourSubscribe). NotFound naming
+  /// the skin or object; FailedPrecondition when the scene computes no contours.
+  void SubscribeContours(ReplicaSink sink, codec::ContourRequest request,
                          std::function<void(Status)> done);
   void UnsubscribeContours(uint64_t session_id);
   /// A copy of a skin as the server holds it (tests, tools). NotFound for an unknown skin.
   StatusOr<skin::Skin> SkinCopy(const std::string& name);
 
-  /// Paints or fills material fractions (issue 7, paint.cc; v1::PaintEdit, fields already
-  /// checked by ValidatePaintEdit): logged (a PaintRecord, replayed by recovery), applied,
-  /// replicated as leaf deltas, marked for viewers; `done` gets the PaintAck once durable
-  /// (refusals carry the Error). A resend (client_seq not above the client's last paint) is
-  /// acknowledged as a duplicate and not applied again.
-  void Paint(uint64_t client_id, v1::PaintEdit edit, std::function<void(v1::PaintAck)> done);
+  /// Paints or fills material fractions (issue 7, paint.cc; decoded by codec::DecodePaintEdit):
+  /// logged (a PaintRecord, replayed by recovery), applied, replicated as leaf deltas, marked for
+  /// viewers; `done` gets the outcome once durable (a refusal, naming the field, at once). A
+  /// resend (client_seq not above the client's last paint) is acknowledged as a duplicate and
+  /// not applied again.
+  void Paint(uint64_t client_id, codec::Paint paint, std::function<void(PaintOutcome)> done);
 
-  /// Edits an object's hyperpatch model (issue 7, models.cc; v1::ModelIntent, fields already
-  /// checked by ValidateModelIntent): corner and cell checked against the model, the intent
+  /// Edits an object's hyperpatch model (issue 7, models.cc; decoded by
+  /// codec::DecodeModelIntent): corner and cell checked against the model, the intent
   /// expanded by the library and validity checked after ordering. Refused (reason code, cell,
   /// direction, span) → `done` at once, nothing logged or changed; accepted → logged (a
   /// ModelRecord after 0x02, replayed by recovery), applied, `done` once durable. The voxelised
   /// sculpture is not re-voxelised. A resend is acknowledged as a duplicate.
-  void EditModel(uint64_t client_id, v1::ModelIntent intent,
-                 std::function<void(v1::ModelAck)> done);
+  void EditModel(uint64_t client_id, codec::ModelEdit edit,
+                 std::function<void(ModelOutcome)> done);
   /// The model of a `model` object (tests, tools). NotFound for an object without one.
   StatusOr<ModelSummary> ModelInfo(const std::string& object);
 
@@ -336,12 +347,13 @@ class Scene {
   struct Sub {
     ReplicaSink sink;
     std::string object;
-    v1::ReplicaMode mode = v1::REPLICA_MODE_REPLAY;
+    codec::ReplicaMode mode = codec::ReplicaMode::kReplay;
     bool whole = true;
     levelset::VoxelBox held;  // interest dilated by the halo (when !whole)
   };
   // The index box an interest box selects (dilated by the halo); InvalidArgument naming `field`.
-  StatusOr<levelset::VoxelBox> HeldBox(const levelset::Sculpture& s, const v1::Box3* interest,
+  StatusOr<levelset::VoxelBox> HeldBox(const levelset::Sculpture& s,
+                                       const std::optional<codec::InterestBox>& interest,
                                        const char* field) const;
   void SendRegion(Sub& sub, const levelset::Sculpture& sculpture, uint64_t have_seq,
                   bool replace);

@@ -17,12 +17,12 @@
 #include <future>
 #include <iterator>
 
-#include "net/wire_error.h"
 #include "scene/answer_once.h"
 #include "scene/edit_history.h"
 #include "scene/log_payload.h"
 #include "scene/scene.h"
 #include "sculpt/codec/frame.h"
+#include "sculpt/codec/skin_messages.h"
 #include "sculpt/codec/stroke.h"
 #include "sculpt/core/check.h"
 #include "sculpt/levelset/slice.h"
@@ -36,7 +36,6 @@ namespace {
 
 // No serialised EditRecord starts with a zero byte (field number 0 is not a valid tag); paints
 // take 0x01 (paint.cc), model intents 0x02 (models.cc), ball edits 0x03.
-constexpr size_t kMaxNameBytes = 64;
 // Slices are quantised to an eighth of their sample spacing.
 constexpr double kSliceQuantumPerStep = 1.0 / 8;
 
@@ -57,24 +56,6 @@ void SetBalls(const skin::Skin& sk, v1::ContourUpdate* u) {
   }
 }
 
-Status CheckName(const std::string& field, const std::string& name) {
-  if (name.empty() || name.size() > kMaxNameBytes) {
-    return InvalidArgument(field + "=" + name + " outside names of 1.." +
-                           std::to_string(kMaxNameBytes) + " bytes");
-  }
-  return Status::Ok();
-}
-
-Vec3 V(const v1::Vec3f& v) { return {v.x(), v.y(), v.z()}; }
-
-v1::SkinAck Refused(const Status& st, uint64_t client_seq) {
-  v1::SkinAck a;
-  a.set_client_seq(client_seq);
-  a.set_accepted(false);
-  *a.mutable_error() = ToWireError(st, client_seq);
-  return a;
-}
-
 std::vector<skin::Polyline2> ToPolylines(const std::vector<std::vector<levelset::PlanePoint>>& in) {
   std::vector<skin::Polyline2> out;
   out.reserve(in.size());
@@ -88,10 +69,10 @@ std::vector<skin::Polyline2> ToPolylines(const std::vector<std::vector<levelset:
 
 // The scene's check of a ball edit's index against the skin it edits (the live path and
 // recovery alike).
-Status CheckBallIndex(const skin::Skin& sk, const v1::SkinBallEdit& e) {
+Status CheckBallIndex(const skin::Skin& sk, const codec::BallEdit& e) {
   const size_t n = sk.balls().size();
-  const size_t i = e.index();
-  const bool add = e.op() == v1::SKIN_BALL_OP_ADD;
+  const size_t i = e.index;
+  const bool add = e.op == codec::BallOp::kAdd;
   if (add ? i > n : i >= n) {
     return InvalidArgument("SkinBallEdit.index=" + std::to_string(i) + " outside [0, " +
                            std::to_string(add ? n : n - 1) + "]");
@@ -104,26 +85,26 @@ Status CheckBallIndex(const skin::Skin& sk, const v1::SkinBallEdit& e) {
 }
 
 // Applies a ball edit whose index passed CheckBallIndex; the skin names an inadmissible pair.
-StatusOr<skin::SkinChange> ApplyBallEdit(skin::Skin& sk, const v1::SkinBallEdit& e) {
-  const size_t i = e.index();
-  const v1::SkinBall& b = e.ball();
-  switch (e.op()) {
-    case v1::SKIN_BALL_OP_ADD:
-      return sk.InsertBall(i, {{b.x(), b.y()}, b.r(), b.theta()});
-    case v1::SKIN_BALL_OP_MOVE: {
+StatusOr<skin::SkinChange> ApplyBallEdit(skin::Skin& sk, const codec::BallEdit& e) {
+  const size_t i = e.index;
+  switch (e.op) {
+    case codec::BallOp::kAdd:
+      return sk.InsertBall(i, {{e.x, e.y}, e.r, e.theta});
+    case codec::BallOp::kMove: {
       skin::OrientedBall o = sk.balls()[i];
-      o.c = {b.x(), b.y()};
-      o.r = b.r();
+      o.c = {e.x, e.y};
+      o.r = e.r;
       return sk.SetBall(i, o);
     }
-    case v1::SKIN_BALL_OP_ORIENT: {
+    case codec::BallOp::kOrient: {
       skin::OrientedBall o = sk.balls()[i];
-      o.theta = b.theta();
+      o.theta = e.theta;
       return sk.SetBall(i, o);
     }
-    default:
-      return sk.RemoveBall(i);
+    case codec::BallOp::kRemove:
+      break;
   }
+  return sk.RemoveBall(i);
 }
 
 std::string SkinFilePath(const std::string& data_dir, const std::string& name) {
@@ -131,81 +112,6 @@ std::string SkinFilePath(const std::string& data_dir, const std::string& name) {
 }
 
 }  // namespace
-
-// ---------------------------------------------------------------------------------------------
-// Checks off the wire
-
-Status ValidateSkinBallEdit(const v1::SkinBallEdit& e) {
-  SCULPT_RETURN_IF_ERROR(CheckName("SkinBallEdit.skin", e.skin()));
-  if (e.op() < v1::SKIN_BALL_OP_ADD || e.op() > v1::SKIN_BALL_OP_ORIENT) {
-    return InvalidArgument("SkinBallEdit.op=" + std::to_string(e.op()) +
-                           " outside {1 (ADD), 2 (MOVE), 3 (REMOVE), 4 (ORIENT)}");
-  }
-  if (e.index() >= kMaxSkinBalls) {
-    return InvalidArgument("SkinBallEdit.index=" + std::to_string(e.index()) + " outside [0, " +
-                           std::to_string(kMaxSkinBalls - 1) + "]");
-  }
-  const v1::SkinBall& b = e.ball();
-  const bool position = e.op() == v1::SKIN_BALL_OP_ADD || e.op() == v1::SKIN_BALL_OP_MOVE;
-  const bool theta = e.op() == v1::SKIN_BALL_OP_ADD || e.op() == v1::SKIN_BALL_OP_ORIENT;
-  if (position) {
-    SCULPT_RETURN_IF_ERROR(
-        CheckRange("SkinBallEdit.ball.x", b.x(), -kMaxSkinCoordinate, kMaxSkinCoordinate));
-    SCULPT_RETURN_IF_ERROR(
-        CheckRange("SkinBallEdit.ball.y", b.y(), -kMaxSkinCoordinate, kMaxSkinCoordinate));
-    SCULPT_RETURN_IF_ERROR(
-        CheckRange("SkinBallEdit.ball.r", b.r(), kMinSkinRadius, kMaxSkinCoordinate));
-  }
-  if (theta) {
-    SCULPT_RETURN_IF_ERROR(
-        CheckRange("SkinBallEdit.ball.theta", b.theta(), -kMaxSkinTheta, kMaxSkinTheta));
-  }
-  return Status::Ok();
-}
-
-Status ValidateSkinSweep(const v1::SkinSweep& s) {
-  SCULPT_RETURN_IF_ERROR(CheckName("SkinSweep.skin", s.skin()));
-  SCULPT_RETURN_IF_ERROR(CheckName("SkinSweep.object", s.object()));
-  if (s.mode() != v1::SKIN_SWEEP_MODE_EXTRUDE && s.mode() != v1::SKIN_SWEEP_MODE_REVOLVE) {
-    return InvalidArgument("SkinSweep.mode=" + std::to_string(s.mode()) +
-                           " outside {1 (EXTRUDE), 2 (REVOLVE)}");
-  }
-  if (s.kind() != v1::EDIT_KIND_ADD && s.kind() != v1::EDIT_KIND_SUBTRACT) {
-    return InvalidArgument("SkinSweep.kind=" + std::to_string(s.kind()) +
-                           " outside {2 (ADD), 3 (SUBTRACT)}");
-  }
-  if (s.mode() == v1::SKIN_SWEEP_MODE_EXTRUDE) {
-    SCULPT_RETURN_IF_ERROR(CheckRange("SkinSweep.depth", s.depth(), 0, kMaxSkinCoordinate));
-    if (!(s.depth() > 0)) {
-      return InvalidArgument("SkinSweep.depth=" + FormatNumber(s.depth()) + " outside (0, " +
-                             FormatNumber(kMaxSkinCoordinate) + "]");
-    }
-  } else {
-    SCULPT_RETURN_IF_ERROR(
-        CheckRange("SkinSweep.axis_x", s.axis_x(), -kMaxSkinCoordinate, kMaxSkinCoordinate));
-    SCULPT_RETURN_IF_ERROR(
-        CheckRange("SkinSweep.axis_y", s.axis_y(), -kMaxSkinCoordinate, kMaxSkinCoordinate));
-    SCULPT_RETURN_IF_ERROR(
-        CheckRange("SkinSweep.axis_angle", s.axis_angle(), -kMaxSkinTheta, kMaxSkinTheta));
-  }
-  return Status::Ok();
-}
-
-Status ValidateContourSubscribe(const v1::ContourSubscribe& c) {
-  if (!c.skin().empty()) return CheckName("ContourSubscribe.skin", c.skin());
-  if (!c.has_slice()) {
-    return InvalidArgument("ContourSubscribe.skin= outside names of 1..64 bytes (or set slice)");
-  }
-  const v1::ContourSlice& s = c.slice();
-  SCULPT_RETURN_IF_ERROR(CheckName("ContourSubscribe.slice.object", s.object()));
-  if (c.unsubscribe()) return Status::Ok();
-  const levelset::SweepPlane plane{V(s.origin()), V(s.u()), V(s.v())};
-  SCULPT_RETURN_IF_ERROR(levelset::ValidatePlane("ContourSubscribe.slice", plane));
-  SCULPT_RETURN_IF_ERROR(CheckRange("ContourSubscribe.slice.step", s.step(), 1e-3, 1e3));
-  SCULPT_RETURN_IF_ERROR(CheckRange("ContourSubscribe.slice.half_extent", s.half_extent(),
-                                    s.step(), 0.5 * (levelset::kMaxSliceSamples - 1) * s.step()));
-  return Status::Ok();
-}
 
 // ---------------------------------------------------------------------------------------------
 // Sweeps in the edit log
@@ -363,8 +269,11 @@ void Scene::ReplayBallEdit(uint64_t seq, const v1::SkinEditRecord& r) {
   }
   SkinState::Entry& entry = it->second;
   if (seq <= entry.file_seq) return;  // the skin file holds it
-  Status st = CheckBallIndex(entry.skin, r.edit());
-  if (st.ok()) st = ApplyBallEdit(entry.skin, r.edit()).status();
+  // The record embeds the edit in its wire form (the log's storage format): decoded as live.
+  auto edit = codec::DecodeSkinBallEdit(r.edit());
+  Status st = edit.status();
+  if (st.ok()) st = CheckBallIndex(entry.skin, *edit);
+  if (st.ok()) st = ApplyBallEdit(entry.skin, *edit).status();
   if (!st.ok()) {
     spdlog::warn("ball edit at seq {} refused on replay: {}", seq, st.ToString());
     return;
@@ -401,17 +310,17 @@ bool Scene::SaveSkins(uint64_t seq) {
 // the changed sections), Apply puts the copy in place and sends the skin's contour subscribers
 // the sections that changed. Nothing changes before the record is in the log.
 struct Scene::BallEditOp final : EditOp {
-  BallEditOp(uint64_t client, v1::SkinBallEdit e, std::function<void(v1::SkinAck)> d)
+  BallEditOp(uint64_t client, codec::BallEdit e, std::function<void(SkinOutcome)> d)
       : client(client), edit(std::move(e)), done(std::move(d)) {}
   const char* operation() const override { return "ball edit"; }
   ResendStream stream() const override { return ResendStream::kBallEdits; }
   uint64_t client_id() const override { return client; }
-  uint64_t client_seq() const override { return edit.client_seq(); }
+  uint64_t client_seq() const override { return edit.client_seq; }
 
   Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
-    auto it = scene.skins_->skins.find(edit.skin());
+    auto it = scene.skins_->skins.find(edit.skin);
     if (it == scene.skins_->skins.end()) {
-      return NotFound("SkinBallEdit.skin=" + edit.skin() + " outside the scene's skins");
+      return NotFound("SkinBallEdit.skin=" + edit.skin + " outside the scene's skins");
     }
     SkinState::Entry& entry = it->second;
     balls = entry.skin.balls().size();
@@ -420,28 +329,28 @@ struct Scene::BallEditOp final : EditOp {
     auto c = ApplyBallEdit(*next, edit);
     if (!c.ok()) {
       // The skin names the inadmissible pair (digest Def 2.6); the refusal names the ball.
-      const v1::SkinBall& b = edit.ball();
       return Status(c.status().code(),
-                    "SkinBallEdit.ball=(" + FormatNumber(b.x()) + ", " + FormatNumber(b.y()) +
-                        ", r " + FormatNumber(b.r()) + ", theta " + FormatNumber(b.theta()) +
-                        ") at index " + std::to_string(edit.index()) +
+                    "SkinBallEdit.ball=(" + FormatNumber(edit.x) + ", " + FormatNumber(edit.y) +
+                        ", r " + FormatNumber(edit.r) + ", theta " + FormatNumber(edit.theta) +
+                        ") at index " + std::to_string(edit.index) +
                         " outside balls admissible with their neighbours (no contact point "
                         "inside a neighbour's disk; no nested, concentric or coincident pair), at "
                         "least 2 balls: " +
                         c.status().message());
     }
     change = std::move(c).value();
+    // The log record is the storage format and stays protobuf; it embeds the edit's wire form.
     v1::SkinEditRecord rec;
     rec.set_global_seq(first_seq);
     rec.set_client_id(client);
-    *rec.mutable_edit() = edit;
+    *rec.mutable_edit() = codec::EncodeSkinBallEdit(edit);
     rec.set_skin_version(entry.version + 1);
     records->push_back(SkinEditPayload(rec));
     return Status::Ok();
   }
 
   Applied Apply(Scene& scene) override {
-    SkinState::Entry& entry = scene.skins_->skins.at(edit.skin());
+    SkinState::Entry& entry = scene.skins_->skins.at(edit.skin);
     entry.skin = std::move(*next);
     next.reset();
     ++entry.version;
@@ -449,11 +358,11 @@ struct Scene::BallEditOp final : EditOp {
     if (!entry.subs.empty()) {
       auto bytes = skin::EncodeSkinUpdate(entry.skin, change);
       if (!bytes.ok()) {
-        spdlog::error("skin {}: update not encoded: {}", edit.skin(), bytes.status().ToString());
+        spdlog::error("skin {}: update not encoded: {}", edit.skin, bytes.status().ToString());
       } else {
         v1::ServerMessage m;
         v1::ContourUpdate* u = m.mutable_contour();
-        u->set_skin(edit.skin());
+        u->set_skin(edit.skin);
         u->set_data(std::move(bytes).value());
         u->set_sections(static_cast<uint32_t>(change.changed.size()));
         u->set_skin_version(entry.version);
@@ -466,34 +375,34 @@ struct Scene::BallEditOp final : EditOp {
   }
 
   void Duplicate(Scene& scene) override {
-    auto it = scene.skins_->skins.find(edit.skin());
+    auto it = scene.skins_->skins.find(edit.skin);
     if (it != scene.skins_->skins.end()) balls = it->second.skin.balls().size();
   }
 
   void Answer(const CommitOutcome& o) override {
-    if (!o.status.ok()) return done(Refused(o.status, o.client_seq));
-    v1::SkinAck a;
-    a.set_client_seq(o.client_seq);
-    a.set_accepted(true);
-    a.set_duplicate(o.duplicate);
-    if (!o.duplicate) {
-      a.set_changed_sections(static_cast<uint32_t>(change.changed.size()));
-      a.set_global_seq(o.global_seq_first);
+    SkinOutcome a;
+    a.status = o.status;
+    a.client_seq = o.client_seq;
+    if (o.status.ok()) {
+      a.duplicate = o.duplicate;
+      if (!o.duplicate) {
+        a.changed_sections = static_cast<uint32_t>(change.changed.size());
+        a.global_seq = o.global_seq_first;
+      }
+      a.balls = static_cast<uint32_t>(balls);
     }
-    a.set_balls(static_cast<uint32_t>(balls));
-    done(a);
+    done(std::move(a));
   }
 
   uint64_t client;
-  v1::SkinBallEdit edit;
-  std::function<void(v1::SkinAck)> done;
+  codec::BallEdit edit;
+  std::function<void(SkinOutcome)> done;
   std::optional<skin::Skin> next;
   skin::SkinChange change;
   size_t balls = 0;
 };
 
-void Scene::EditSkin(uint64_t client_id, v1::SkinBallEdit e,
-                     std::function<void(v1::SkinAck)> done) {
+void Scene::EditSkin(uint64_t client_id, codec::BallEdit e, std::function<void(SkinOutcome)> done) {
   Commit(std::make_shared<BallEditOp>(client_id, std::move(e), AnswerOnce(std::move(done))));
 }
 
@@ -501,30 +410,32 @@ void Scene::EditSkin(uint64_t client_id, v1::SkinBallEdit e,
 // kernel request is built from the record, checked against the object, and applied from it.
 // Replicas get the changed leaves (a sweep has no replay form).
 struct Scene::SweepOp final : EditOp {
-  SweepOp(uint64_t client, v1::SkinSweep s, std::function<void(v1::SkinAck)> d)
+  SweepOp(uint64_t client, codec::SkinSweepRequest s, std::function<void(SkinOutcome)> d)
       : client(client), sweep(std::move(s)), done(std::move(d)) {}
   const char* operation() const override { return "skin sweep"; }
   ResendStream stream() const override { return ResendStream::kSweeps; }
   uint64_t client_id() const override { return client; }
-  uint64_t client_seq() const override { return sweep.client_seq(); }
+  uint64_t client_seq() const override { return sweep.client_seq; }
 
   Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
-    auto it = scene.skins_->skins.find(sweep.skin());
+    auto it = scene.skins_->skins.find(sweep.skin);
     if (it == scene.skins_->skins.end()) {
-      return NotFound("SkinSweep.skin=" + sweep.skin() + " outside the scene's skins");
+      return NotFound("SkinSweep.skin=" + sweep.skin + " outside the scene's skins");
     }
-    auto obj = scene.sculptures_.find(sweep.object());
+    auto obj = scene.sculptures_.find(sweep.object);
     if (obj == scene.sculptures_.end()) {
-      return NotFound("SkinSweep.object=" + sweep.object() + " outside the scene's objects");
+      return NotFound("SkinSweep.object=" + sweep.object + " outside the scene's objects");
     }
     const SkinState::Entry& entry = it->second;
+    const bool revolve = sweep.mode == levelset::SweepRequest::Mode::kRevolve;
+    // The log record is the storage format and stays protobuf (its enums are the wire's).
     v1::SkinSweepRecord rec;
     rec.set_client_id(client);
-    rec.set_client_seq(sweep.client_seq());
-    rec.set_object(sweep.object());
-    rec.set_mode(sweep.mode());
-    rec.set_kind(sweep.kind());
-    rec.set_depth(sweep.depth());
+    rec.set_client_seq(sweep.client_seq);
+    rec.set_object(sweep.object);
+    rec.set_mode(revolve ? v1::SKIN_SWEEP_MODE_REVOLVE : v1::SKIN_SWEEP_MODE_EXTRUDE);
+    rec.set_kind(sweep.add ? v1::EDIT_KIND_ADD : v1::EDIT_KIND_SUBTRACT);
+    rec.set_depth(sweep.depth);
     for (const Vec3& v : {entry.plane.origin, entry.plane.u, entry.plane.v}) {
       rec.add_plane(v.x);
       rec.add_plane(v.y);
@@ -534,9 +445,9 @@ struct Scene::SweepOp final : EditOp {
       rec.add_outline(p.x);
       rec.add_outline(p.y);
     }
-    if (sweep.mode() == v1::SKIN_SWEEP_MODE_REVOLVE) {
-      for (double v : {sweep.axis_x(), sweep.axis_y(), std::cos(sweep.axis_angle()),
-                       std::sin(sweep.axis_angle())}) {
+    if (revolve) {
+      for (double v : {sweep.axis_x, sweep.axis_y, std::cos(sweep.axis_angle),
+                       std::sin(sweep.axis_angle)}) {
         rec.add_axis(v);
       }
     }
@@ -550,11 +461,11 @@ struct Scene::SweepOp final : EditOp {
 
   Applied Apply(Scene& scene) override {
     Applied a;
-    a.object = sweep.object();
+    a.object = sweep.object;
     a.bounds_may_change = true;
-    auto res = levelset::ApplySweep(scene.sculptures_.at(sweep.object()), request);
+    auto res = levelset::ApplySweep(scene.sculptures_.at(sweep.object), request);
     // Not recorded in the undo history: the strokes before it can no longer be taken back.
-    scene.HistoryOf(sweep.object()).Clear("a sweep changed " + sweep.object());
+    scene.HistoryOf(sweep.object).Clear("a sweep changed " + sweep.object);
     if (!res.ok()) {
       a.status = res.status();
       return a;
@@ -566,31 +477,31 @@ struct Scene::SweepOp final : EditOp {
   }
 
   void Answer(const CommitOutcome& o) override {
-    v1::SkinAck ack;
-    if (!o.status.ok()) {
-      ack = Refused(o.status, o.client_seq);
-    } else {
-      ack.set_client_seq(o.client_seq);
-      ack.set_accepted(true);
-      ack.set_duplicate(o.duplicate);
+    SkinOutcome a;
+    a.status = o.status;
+    a.client_seq = o.client_seq;
+    if (o.status.ok()) {
+      a.duplicate = o.duplicate;
       if (!o.duplicate) {
-        ack.set_volume_after(volume_after);
-        ack.set_dirty_leaves(static_cast<uint32_t>(dirty_leaves));
+        a.volume_after = volume_after;
+        a.dirty_leaves = static_cast<uint32_t>(dirty_leaves);
       }
     }
-    if (o.records > 0) ack.set_global_seq(o.global_seq_first);
-    done(ack);
+    // Also for a sweep the kernel refused after it was logged: it holds that sequence.
+    if (o.records > 0) a.global_seq = o.global_seq_first;
+    done(std::move(a));
   }
 
   uint64_t client;
-  v1::SkinSweep sweep;
-  std::function<void(v1::SkinAck)> done;
+  codec::SkinSweepRequest sweep;
+  std::function<void(SkinOutcome)> done;
   levelset::SweepRequest request;
   double volume_after = 0;
   size_t dirty_leaves = 0;
 };
 
-void Scene::SweepSkin(uint64_t client_id, v1::SkinSweep s, std::function<void(v1::SkinAck)> done) {
+void Scene::SweepSkin(uint64_t client_id, codec::SkinSweepRequest s,
+                      std::function<void(SkinOutcome)> done) {
   Commit(std::make_shared<SweepOp>(client_id, std::move(s), AnswerOnce(std::move(done))));
 }
 
@@ -637,7 +548,7 @@ bool PlaneCrosses(const levelset::SweepPlane& plane, const std::vector<levelset:
 
 }  // namespace
 
-void Scene::SubscribeContours(ReplicaSink sink, v1::ContourSubscribe req,
+void Scene::SubscribeContours(ReplicaSink sink, codec::ContourRequest req,
                               std::function<void(Status)> done) {
   auto once = AnswerOnce(std::move(done));
   auto cb = std::make_shared<std::function<void(Status)>>(once);
@@ -647,17 +558,17 @@ void Scene::SubscribeContours(ReplicaSink sink, v1::ContourSubscribe req,
     const uint64_t session = sink.session_id;
     // The scene decides which effects it computes: without contours, no skin contour or slice
     // is encoded for anyone (principle 2 of ARCHITECTURE.md).
-    if (!config_.scene.effects.contours && !req.unsubscribe()) {
+    if (!config_.scene.effects.contours && !req.unsubscribe) {
       return (*cb)(FailedPrecondition(
           "scene.effects.contours=false outside {true}: this scene computes no skin contours or "
           "slices (set contours = true under [scene.effects])"));
     }
-    if (!req.skin().empty()) {
-      auto it = skins_->skins.find(req.skin());
+    if (!req.skin.empty()) {
+      auto it = skins_->skins.find(req.skin);
       if (it == skins_->skins.end()) {
-        return (*cb)(NotFound("ContourSubscribe.skin=" + req.skin() + " outside the scene's skins"));
+        return (*cb)(NotFound("ContourSubscribe.skin=" + req.skin + " outside the scene's skins"));
       }
-      if (req.unsubscribe()) {
+      if (req.unsubscribe) {
         it->second.subs.erase(session);
         return (*cb)(Status::Ok());
       }
@@ -666,7 +577,7 @@ void Scene::SubscribeContours(ReplicaSink sink, v1::ContourSubscribe req,
       (*cb)(Status::Ok());
       v1::ServerMessage m;
       v1::ContourUpdate* u = m.mutable_contour();
-      u->set_skin(req.skin());
+      u->set_skin(req.skin);
       u->set_data(std::move(bytes).value());
       u->set_sections(static_cast<uint32_t>(it->second.skin.sections().size()));
       u->set_skin_version(it->second.version);
@@ -675,25 +586,25 @@ void Scene::SubscribeContours(ReplicaSink sink, v1::ContourSubscribe req,
       it->second.subs[session] = std::move(sink);
       return;
     }
-    const v1::ContourSlice& s = req.slice();
-    if (sculptures_.find(s.object()) == sculptures_.end()) {
-      return (*cb)(NotFound("ContourSubscribe.slice.object=" + s.object() +
+    const std::string& object = req.object;
+    if (sculptures_.find(object) == sculptures_.end()) {
+      return (*cb)(NotFound("ContourSubscribe.slice.object=" + object +
                             " outside the scene's objects"));
     }
-    if (req.unsubscribe()) {
-      skins_->slices[s.object()].erase(session);
+    if (req.unsubscribe) {
+      skins_->slices[object].erase(session);
       return (*cb)(Status::Ok());
     }
     SkinState::SliceSub sub;
     sub.sink = std::move(sink);
-    sub.request.plane = {V(s.origin()), V(s.u()), V(s.v())};
-    sub.request.half_extent = s.half_extent();
-    sub.request.step = s.step();
-    auto lines = levelset::SliceContours(sculptures_.at(s.object()), sub.request);
+    sub.request.plane = req.plane;
+    sub.request.half_extent = req.half_extent;
+    sub.request.step = req.step;
+    auto lines = levelset::SliceContours(sculptures_.at(object), sub.request);
     if (!lines.ok()) return (*cb)(lines.status());
     (*cb)(Status::Ok());
-    SendSlice(s.object(), sub.sink, sub.request.step, *lines, applied_seq_.load());
-    skins_->slices[s.object()][session] = std::move(sub);
+    SendSlice(object, sub.sink, sub.request.step, *lines, applied_seq_.load());
+    skins_->slices[object][session] = std::move(sub);
   });
 }
 

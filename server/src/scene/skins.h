@@ -1,7 +1,8 @@
-/// @brief Ball skins on the server (issue 6): checks of the skin messages off the wire, the
-/// edit-log forms of sweeps (a leading zero byte, then a v1::SkinSweepRecord) and of ball edits
-/// (a leading 0x03 byte, then a v1::SkinEditRecord) that recovery replays, and the skin files
-/// written beside snapshots.
+/// @brief Ball skins on the server (issue 6): the edit-log forms of sweeps (a leading zero byte,
+/// then a v1::SkinSweepRecord) and of ball edits (a leading 0x03 byte, then a v1::SkinEditRecord)
+/// that recovery replays, and the skin files written beside snapshots. These records are the
+/// storage format and stay protobuf; the skin messages off the wire are decoded before the scene
+/// by sculpt/codec/skin_messages.h.
 #ifndef SCULPT_SERVER_SCENE_SKINS_H_
 #define SCULPT_SERVER_SCENE_SKINS_H_
 
@@ -14,17 +15,6 @@
 #include "sculpt/v1/sculpt.pb.h"
 
 namespace sculpt::server {
-
-/// Every field of a ball edit: client_seq, skin name, op, the ball fields the op uses (finite,
-/// within kMaxSkinCoordinate, r >= kMinSkinRadius, |theta| <= kMaxSkinTheta). InvalidArgument
-/// "SkinBallEdit.<field>=<value> outside <range>". The index and admissibility are checked
-/// against the skin by the scene.
-Status ValidateSkinBallEdit(const v1::SkinBallEdit& edit);
-/// Every field of a sweep request (mode, kind, depth or axis, names).
-Status ValidateSkinSweep(const v1::SkinSweep& sweep);
-/// A contour subscription: a skin name, or a slice (object, finite unit orthogonal axes, extent
-/// and step in range).
-Status ValidateContourSubscribe(const v1::ContourSubscribe& request);
 
 /// The edit-log payload of a sweep record (read back by DecodeLogRecord, commit.h).
 std::string SweepPayload(const v1::SkinSweepRecord& record);

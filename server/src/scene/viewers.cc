@@ -36,27 +36,24 @@ struct Scene::MeshWork {
   mesh::QuantizationFrame frame;
 };
 
-void Scene::SubscribeViewer(ReplicaSink sink, v1::ViewerSubscribe req,
+void Scene::SubscribeViewer(ReplicaSink sink, codec::ViewerSubscription req,
                             std::function<void(Status)> done) {
   auto once = AnswerOnce(std::move(done));
   auto cb = std::make_shared<std::function<void(Status)>>(once);
   auto fail = [once](const Status& st) { once(st); };
   const uint64_t who = CurrentRequester();
   Post(who, "viewer", fail, [this, sink = std::move(sink), req = std::move(req), cb]() mutable {
-    auto it = sculptures_.find(req.object());
+    auto it = sculptures_.find(req.object);
     if (it == sculptures_.end()) {
-      return (*cb)(NotFound("ViewerSubscribe.object=" + req.object() +
+      return (*cb)(NotFound("ViewerSubscribe.object=" + req.object +
                             " outside the scene's objects"));
     }
+    // The decoder checked a requested rate; the default and the cap are the scene's.
     const double max_rate = config_.scene.mesh_max_rate_hz;
-    double rate = req.max_rate_hz();
+    double rate = req.max_rate_hz;
     if (rate == 0) rate = std::min(10.0, max_rate);
-    if (!std::isfinite(rate) || rate < 0.1 || rate > 120) {
-      return (*cb)(InvalidArgument("ViewerSubscribe.max_rate_hz=" + FormatNumber(rate) +
-                                   " outside [0.1, 120] (0: the server's default)"));
-    }
     rate = std::min(rate, max_rate);
-    if (!mesh_frames_.count(req.object())) {
+    if (!mesh_frames_.count(req.object)) {
       // One quantisation frame per object for as long as the server runs, wide enough for
       // every edit the bounds margin allows, so chunk seams quantise identically.
       const double dx = config_.scene.voxel_size;
@@ -64,11 +61,11 @@ void Scene::SubscribeViewer(ReplicaSink sink, v1::ViewerSubscribe req,
           (config_.scene.bounds_margin + 2 * config_.scene.max_tool_size) / dx + 2 * config_.scene.half_width;
       auto frame = mesh::FrameAround(it->second, pad);
       if (!frame.ok()) return (*cb)(frame.status());
-      mesh_frames_[req.object()] = *frame;
+      mesh_frames_[req.object] = *frame;
     }
     Viewer v;
     v.sink = std::move(sink);
-    v.object = req.object();
+    v.object = req.object;
     v.period_s = 1.0 / rate;
     (*cb)(Status::Ok());
     viewers_[v.sink.session_id] = std::move(v);

@@ -17,6 +17,7 @@
 
 #include "integration/raw_client.h"
 #include "scene/commit.h"
+#include "scene/outcomes.h"
 #include "scene/scene.h"
 #include "sculpt/hetero/composite_model.h"
 #include "sculpt/hetero/construction.h"
@@ -50,6 +51,12 @@ struct Answer {
   uint64_t global_seq = 0;
   std::string error_field;
 };
+
+Answer FromSkin(const SkinOutcome& k) {
+  Answer a{k.status.ok(), k.duplicate, k.global_seq, {}};
+  if (!k.status.ok()) a.error_field = codec::SplitFieldError(k.status).field;
+  return a;
+}
 
 v1::Vec3f F(double x, double y, double z) {
   v1::Vec3f v;
@@ -117,10 +124,6 @@ class CommitPipelineTest : public ::testing::TestWithParam<Kind> {
   // session's checks (an unknown object, skin or corner).
   Answer Do(uint64_t client, uint64_t client_seq, int i, bool bad = false) {
     std::promise<Answer> p;
-    auto from_error = [](Answer a, const v1::Error& e) {
-      a.error_field = e.field();
-      return a;
-    };
     switch (GetParam()) {
       case Kind::kStroke: {
         v1::ClientMessage m =
@@ -149,9 +152,15 @@ class CommitPipelineTest : public ::testing::TestWithParam<Kind> {
         *e.mutable_position() = F(0, 0, 24 - 0.5 * i);
         e.set_material(1);
         e.set_weight(0.5);
-        scene_->Paint(client, e, [&](v1::PaintAck k) {
-          Answer a{k.accepted(), k.duplicate(), k.global_seq(), {}};
-          p.set_value(k.has_error() ? from_error(a, k.error()) : a);
+        // The session refuses an unknown object before decoding; the scene is asked anyway.
+        auto limits = scene_->LimitsFor("clay");
+        EXPECT_TRUE(limits.ok());
+        auto paint = codec::DecodePaintEdit(e, *limits, 2);
+        EXPECT_TRUE(paint.ok()) << paint.status();
+        scene_->Paint(client, std::move(paint).value(), [&](const PaintOutcome& k) {
+          Answer a{k.status.ok(), k.duplicate, k.global_seq, {}};
+          if (!k.status.ok()) a.error_field = codec::SplitFieldError(k.status).field;
+          p.set_value(a);
         });
         break;
       }
@@ -163,9 +172,10 @@ class CommitPipelineTest : public ::testing::TestWithParam<Kind> {
         s.set_mode(v1::SKIN_SWEEP_MODE_EXTRUDE);
         s.set_kind(i % 2 ? v1::EDIT_KIND_SUBTRACT : v1::EDIT_KIND_ADD);
         s.set_depth(1.0 + 0.25 * i);
-        scene_->SweepSkin(client, s, [&](v1::SkinAck k) {
-          Answer a{k.accepted(), k.duplicate(), k.global_seq(), {}};
-          p.set_value(k.has_error() ? from_error(a, k.error()) : a);
+        auto sweep = codec::DecodeSkinSweep(s);
+        EXPECT_TRUE(sweep.ok()) << sweep.status();
+        scene_->SweepSkin(client, std::move(sweep).value(), [&](const SkinOutcome& k) {
+          p.set_value(FromSkin(k));
         });
         break;
       }
@@ -178,9 +188,10 @@ class CommitPipelineTest : public ::testing::TestWithParam<Kind> {
         e.mutable_ball()->set_x(0.1 * (i + 1));
         e.mutable_ball()->set_y(0.05 * i);
         e.mutable_ball()->set_r(3);
-        scene_->EditSkin(client, e, [&](v1::SkinAck k) {
-          Answer a{k.accepted(), k.duplicate(), k.global_seq(), {}};
-          p.set_value(k.has_error() ? from_error(a, k.error()) : a);
+        auto edit = codec::DecodeSkinBallEdit(e);
+        EXPECT_TRUE(edit.ok()) << edit.status();
+        scene_->EditSkin(client, std::move(edit).value(), [&](const SkinOutcome& k) {
+          p.set_value(FromSkin(k));
         });
         break;
       }
@@ -194,9 +205,12 @@ class CommitPipelineTest : public ::testing::TestWithParam<Kind> {
         m.set_displacement_y(-0.01 * (i % 3));
         m.set_displacement_z(0);
         m.set_cell(-1);
-        scene_->EditModel(client, m, [&](v1::ModelAck k) {
-          Answer a{k.accepted(), k.duplicate(), k.global_seq(), {}};
-          p.set_value(k.has_error() ? from_error(a, k.error()) : a);
+        auto edit = codec::DecodeModelIntent(m);
+        EXPECT_TRUE(edit.ok()) << edit.status();
+        scene_->EditModel(client, std::move(edit).value(), [&](const ModelOutcome& k) {
+          Answer a{k.status.ok() && !k.rejection, k.duplicate, k.global_seq, {}};
+          if (!k.status.ok()) a.error_field = codec::SplitFieldError(k.status).field;
+          p.set_value(a);
         });
         break;
       }
