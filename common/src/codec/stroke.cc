@@ -382,18 +382,6 @@ v1::Vec3f ToProto(const Vec3& v) {
 
 namespace {
 
-v1::EditKind EditKindToProto(levelset::EditKind k) {
-  switch (k) {
-    case levelset::EditKind::kPress: return v1::EDIT_KIND_PRESS;
-    case levelset::EditKind::kAdd: return v1::EDIT_KIND_ADD;
-    case levelset::EditKind::kSubtract: return v1::EDIT_KIND_SUBTRACT;
-    case levelset::EditKind::kSmooth: return v1::EDIT_KIND_SMOOTH;
-    case levelset::EditKind::kInflate: return v1::EDIT_KIND_INFLATE;
-    case levelset::EditKind::kDeflate: return v1::EDIT_KIND_DEFLATE;
-  }
-  return v1::EDIT_KIND_UNSPECIFIED;
-}
-
 v1::ToolKind ToolKindToProto(levelset::ToolKind k) {
   switch (k) {
     case levelset::ToolKind::kSphere: return v1::TOOL_KIND_SPHERE;
@@ -405,6 +393,18 @@ v1::ToolKind ToolKindToProto(levelset::ToolKind k) {
 }
 
 }  // namespace
+
+v1::EditKind EditKindToProto(levelset::EditKind k) {
+  switch (k) {
+    case levelset::EditKind::kPress: return v1::EDIT_KIND_PRESS;
+    case levelset::EditKind::kAdd: return v1::EDIT_KIND_ADD;
+    case levelset::EditKind::kSubtract: return v1::EDIT_KIND_SUBTRACT;
+    case levelset::EditKind::kSmooth: return v1::EDIT_KIND_SMOOTH;
+    case levelset::EditKind::kInflate: return v1::EDIT_KIND_INFLATE;
+    case levelset::EditKind::kDeflate: return v1::EDIT_KIND_DEFLATE;
+  }
+  return v1::EDIT_KIND_UNSPECIFIED;
+}
 
 v1::EditRecord RecordFromEdit(const levelset::EditRequest& e) {
   v1::EditRecord r;

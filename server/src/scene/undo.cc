@@ -30,18 +30,6 @@ std::string HistoryPath(const std::string& data_dir, const std::string& object) 
   return (std::filesystem::path(data_dir) / "history" / (object + ".bin")).string();
 }
 
-v1::EditKind KindToProto(levelset::EditKind k) {
-  switch (k) {
-    case levelset::EditKind::kPress: return v1::EDIT_KIND_PRESS;
-    case levelset::EditKind::kAdd: return v1::EDIT_KIND_ADD;
-    case levelset::EditKind::kSubtract: return v1::EDIT_KIND_SUBTRACT;
-    case levelset::EditKind::kSmooth: return v1::EDIT_KIND_SMOOTH;
-    case levelset::EditKind::kInflate: return v1::EDIT_KIND_INFLATE;
-    case levelset::EditKind::kDeflate: return v1::EDIT_KIND_DEFLATE;
-  }
-  return v1::EDIT_KIND_UNSPECIFIED;
-}
-
 v1::UndoAck Refused(const Status& st, const v1::UndoRequest& r) {
   v1::UndoAck a;
   a.set_client_seq(r.client_seq());
@@ -260,7 +248,7 @@ void Scene::History(codec::HistoryQuery query, std::function<void(v1::HistoryAns
       v1::HistoryEntry* e = a.add_entries();
       e->set_seq(it->seq);
       e->set_author(it->author);
-      e->set_kind(KindToProto(it->kind));
+      e->set_kind(codec::EditKindToProto(it->kind));
       e->set_sweep(it->sweep);
       e->set_poses(it->poses);
       e->set_time_ms(it->wall_ms);

@@ -17,6 +17,7 @@ namespace sculpt::v1 {
 class Stroke;
 class EditRecord;
 class Vec3f;
+enum EditKind : int;  // as protoc declares it, so the generated header stays out
 }  // namespace sculpt::v1
 
 namespace sculpt::codec {
@@ -95,6 +96,8 @@ levelset::EditRequest EditFromRecord(const v1::EditRecord& record);
 v1::EditRecord RecordFromEdit(const levelset::EditRequest& edit);
 /// A world vector on the wire (float).
 v1::Vec3f ToProto(const Vec3& v);
+/// An edit kind on the wire.
+v1::EditKind EditKindToProto(levelset::EditKind kind);
 
 }  // namespace sculpt::codec
 
