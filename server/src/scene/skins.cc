@@ -221,6 +221,13 @@ struct Scene::SkinState {
   };
   std::map<std::string, Entry> skins;
   std::map<std::string, std::map<uint64_t, SliceSub>> slices;  // object -> session -> sub
+
+  /// The skin named `name`, or NotFound naming `field`, the request field that named it.
+  StatusOr<Entry*> Find(const std::string& field, const std::string& name) {
+    auto it = skins.find(name);
+    if (it == skins.end()) return NotFound(field + "=" + name + " outside the scene's skins");
+    return &it->second;
+  }
 };
 
 Status Scene::OpenSkins() {
@@ -318,11 +325,9 @@ struct Scene::BallEditOp final : EditOp {
   uint64_t client_seq() const override { return edit.client_seq; }
 
   Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
-    auto it = scene.skins_->skins.find(edit.skin);
-    if (it == scene.skins_->skins.end()) {
-      return NotFound("SkinBallEdit.skin=" + edit.skin + " outside the scene's skins");
-    }
-    SkinState::Entry& entry = it->second;
+    SCULPT_ASSIGN_OR_RETURN(SkinState::Entry * found,
+                            scene.skins_->Find("SkinBallEdit.skin", edit.skin));
+    SkinState::Entry& entry = *found;
     balls = entry.skin.balls().size();
     SCULPT_RETURN_IF_ERROR(CheckBallIndex(entry.skin, edit));
     next.emplace(entry.skin);
@@ -418,15 +423,13 @@ struct Scene::SweepOp final : EditOp {
   uint64_t client_seq() const override { return sweep.client_seq; }
 
   Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
-    auto it = scene.skins_->skins.find(sweep.skin);
-    if (it == scene.skins_->skins.end()) {
-      return NotFound("SkinSweep.skin=" + sweep.skin + " outside the scene's skins");
-    }
+    SCULPT_ASSIGN_OR_RETURN(SkinState::Entry * found,
+                            scene.skins_->Find("SkinSweep.skin", sweep.skin));
     auto obj = scene.sculptures_.find(sweep.object);
     if (obj == scene.sculptures_.end()) {
       return NotFound("SkinSweep.object=" + sweep.object + " outside the scene's objects");
     }
-    const SkinState::Entry& entry = it->second;
+    const SkinState::Entry& entry = *found;
     const bool revolve = sweep.mode == levelset::SweepRequest::Mode::kRevolve;
     // The log record is the storage format and stays protobuf (its enums are the wire's).
     v1::SkinSweepRecord rec;
@@ -564,26 +567,25 @@ void Scene::SubscribeContours(ReplicaSink sink, codec::ContourRequest req,
           "slices (set contours = true under [scene.effects])"));
     }
     if (!req.skin.empty()) {
-      auto it = skins_->skins.find(req.skin);
-      if (it == skins_->skins.end()) {
-        return (*cb)(NotFound("ContourSubscribe.skin=" + req.skin + " outside the scene's skins"));
-      }
+      auto found = skins_->Find("ContourSubscribe.skin", req.skin);
+      if (!found.ok()) return (*cb)(found.status());
+      SkinState::Entry& entry = **found;
       if (req.unsubscribe) {
-        it->second.subs.erase(session);
+        entry.subs.erase(session);
         return (*cb)(Status::Ok());
       }
-      auto bytes = skin::EncodeSkinSnapshot(it->second.skin);
+      auto bytes = skin::EncodeSkinSnapshot(entry.skin);
       if (!bytes.ok()) return (*cb)(bytes.status());
       (*cb)(Status::Ok());
       v1::ServerMessage m;
       v1::ContourUpdate* u = m.mutable_contour();
       u->set_skin(req.skin);
       u->set_data(std::move(bytes).value());
-      u->set_sections(static_cast<uint32_t>(it->second.skin.sections().size()));
-      u->set_skin_version(it->second.version);
-      SetBalls(it->second.skin, u);
+      u->set_sections(static_cast<uint32_t>(entry.skin.sections().size()));
+      u->set_skin_version(entry.version);
+      SetBalls(entry.skin, u);
       sink.send(Frame(m));
-      it->second.subs[session] = std::move(sink);
+      entry.subs[session] = std::move(sink);
       return;
     }
     const std::string& object = req.object;
@@ -630,11 +632,11 @@ StatusOr<skin::Skin> Scene::SkinCopy(const std::string& name) {
   std::promise<StatusOr<skin::Skin>> p;
   auto fail = [&p](const Status& st) { p.set_value(st); };
   Post("skin copy", fail, [&] {
-    auto it = skins_->skins.find(name);
-    if (it == skins_->skins.end()) {
-      p.set_value(NotFound("skin=" + name + " outside the scene's skins"));
+    auto found = skins_->Find("skin", name);
+    if (found.ok()) {
+      p.set_value((*found)->skin);
     } else {
-      p.set_value(it->second.skin);
+      p.set_value(found.status());
     }
   });
   return p.get_future().get();
