@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "integration/raw_client.h"
+#include "integration/raw_server.h"
 #include "net/server.h"
 #include "net/users.h"
 #include "scene/scene.h"
@@ -28,44 +29,12 @@ using Ms = std::chrono::milliseconds;
 const char kSculptor[] = "limits-sculptor-1";
 const char kViewer[] = "limits-viewer-22";
 
-class LimitsTest : public ::testing::Test {
+class LimitsTest : public sculpt::testing::RawServerTest {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("sculptd_limits_" +
-            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-            std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    config_.listen = "127.0.0.1:0";
-    config_.data_dir = (dir_ / "data").string();
-    config_.sculptor_token = kSculptor;
-    config_.viewer_token = kViewer;
-    config_.scene.objects[0].radius = 12;
+    Prepare("sculptd_limits", kSculptor, kViewer);
     config_.limits.auth_timeout_ms = 2000;
     config_.limits.violations_before_disconnect = 100;
-  }
-  void Start() {
-    auto scene = Scene::Open(config_);
-    ASSERT_TRUE(scene.ok()) << scene.status();
-    scene_ = std::move(scene).value();
-    server_ = std::make_unique<Server>(io_, config_, *scene_);
-    auto port = server_->Start();
-    ASSERT_TRUE(port.ok()) << port.status();
-    port_ = *port;
-    guard_.emplace(io_.get_executor());
-    for (int i = 0; i < 2; ++i) threads_.emplace_back([this] { io_.run(); });
-  }
-  void TearDown() override {
-    if (server_) {
-      server_->Stop();
-      scene_->Flush();
-      guard_.reset();
-      io_.stop();
-      for (auto& t : threads_) t.join();
-      server_.reset();
-      scene_.reset();
-    }
-    fs::remove_all(dir_);
   }
   std::unique_ptr<RawClient> Entered(v1::Role role) {
     auto c = std::make_unique<RawClient>(port_);
@@ -97,15 +66,6 @@ class LimitsTest : public ::testing::Test {
     c->Send(RawClient::PressStroke(1, {0, 0, 13.3}));
     return c->ReadUntil(v1::ServerMessage::kAck).has_value();
   }
-
-  fs::path dir_;
-  ServerConfig config_;
-  asio::io_context io_;
-  std::optional<asio::executor_work_guard<asio::io_context::executor_type>> guard_;
-  std::vector<std::thread> threads_;
-  std::unique_ptr<Scene> scene_;
-  std::unique_ptr<Server> server_;
-  uint16_t port_ = 0;
 };
 
 TEST_F(LimitsTest, RefusesConnectionsBeyondThePerSourceCap) {

@@ -17,6 +17,7 @@
 #include <tbb/global_control.h>
 
 #include "integration/raw_client.h"
+#include "integration/raw_server.h"
 #include "net/server.h"
 #include "scene/scene.h"
 
@@ -29,52 +30,15 @@ using sculpt::testing::RawClient;
 const char kSculptor[] = "sculptor-secret-1";
 const char kViewer[] = "viewer-secret-22";
 
-class ServerTest : public ::testing::Test {
+class ServerTest : public sculpt::testing::RawServerTest {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("sculptd_test_" + std::string(::testing::UnitTest::GetInstance()
-                                              ->current_test_info()
-                                              ->name()) +
-            "_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    config_.listen = "127.0.0.1:0";
-    config_.data_dir = (dir_ / "data").string();
-    config_.sculptor_token = kSculptor;
-    config_.viewer_token = kViewer;
+    Prepare("sculptd_test", kSculptor, kViewer);
     config_.scene.voxel_size = 0.5;
-    config_.scene.objects[0].radius = 12;
     config_.limits.auth_timeout_ms = 300;
     config_.limits.strokes_per_second = 2000;
     config_.limits.stroke_burst = 200;
     config_.limits.violations_before_disconnect = 5;
-  }
-  void Start() {
-    auto scene = Scene::Open(config_);
-    ASSERT_TRUE(scene.ok()) << scene.status();
-    scene_ = std::move(scene).value();
-    server_ = std::make_unique<Server>(io_, config_, *scene_);
-    auto port = server_->Start();
-    ASSERT_TRUE(port.ok()) << port.status();
-    port_ = *port;
-    guard_.emplace(io_.get_executor());
-    for (int i = 0; i < 2; ++i) threads_.emplace_back([this] { io_.run(); });
-  }
-  void Stop() {
-    if (!server_) return;
-    server_->Stop();
-    scene_->Flush();
-    guard_.reset();
-    io_.stop();
-    for (auto& t : threads_) t.join();
-    threads_.clear();
-    server_.reset();
-    scene_.reset();
-    io_.restart();
-  }
-  void TearDown() override {
-    Stop();
-    fs::remove_all(dir_);
   }
   // A sculptor that is in the scene.
   std::unique_ptr<RawClient> Sculptor(uint64_t client_id = RawClient::kAutoId) {
@@ -94,15 +58,6 @@ class ServerTest : public ::testing::Test {
     EXPECT_TRUE(m.has_value());
     return m ? m->error() : v1::Error{};
   }
-
-  fs::path dir_;
-  ServerConfig config_;
-  asio::io_context io_;
-  std::optional<asio::executor_work_guard<asio::io_context::executor_type>> guard_;
-  std::vector<std::thread> threads_;
-  std::unique_ptr<Scene> scene_;
-  std::unique_ptr<Server> server_;
-  uint16_t port_ = 0;
 };
 
 TEST_F(ServerTest, HelloJoinStrokeAck) {
