@@ -239,6 +239,21 @@ StatusOr<uint64_t> PlayClientId(const PlayOptions& options, ClientOptions* co) {
   return id;
 }
 
+/// Connects, says hello as a sculptor and joins `scene`. On failure `stage` names the step that
+/// failed ("connect", "hello" or "join"), for the report.
+StatusOr<JoinedScene> ConnectAsSculptor(Client& client, const PlayOptions& options,
+                                        const std::string& host, uint16_t port,
+                                        const std::string& scene, uint64_t client_id,
+                                        std::string* stage) {
+  *stage = "connect";
+  SCULPT_RETURN_IF_ERROR(client.Connect(host, port));
+  *stage = "hello";
+  SCULPT_RETURN_IF_ERROR(
+      client.Hello(options.token, v1::ROLE_SCULPTOR, options.name, client_id).status());
+  *stage = "join";
+  return client.Join(scene);
+}
+
 double Smoothstep(double u) {
   u = std::clamp(u, 0.0, 1.0);
   return u * u * (3 - 2 * u);
@@ -356,11 +371,9 @@ int RunHaptics(const PlayOptions& options, const std::string& host, uint16_t por
     Print({{"server", options.server}, {"ok", false}, {"stage", stage}, {"error", s.message()}});
     return 1;
   };
-  if (Status s = client.Connect(host, port); !s.ok()) return fail("connect", s);
-  auto welcome = client.Hello(options.token, v1::ROLE_SCULPTOR, options.name, *client_id);
-  if (!welcome.ok()) return fail("hello", welcome.status());
-  auto joined = client.Join(scene);
-  if (!joined.ok()) return fail("join", joined.status());
+  std::string stage;
+  auto joined = ConnectAsSculptor(client, options, host, port, scene, *client_id, &stage);
+  if (!joined.ok()) return fail(stage, joined.status());
   if (Status st = ResolveObject(joined->info, options.object, &stroke_template, &script);
       !st.ok()) {
     return fail("join", st);
@@ -756,11 +769,9 @@ int RunPlay(const PlayOptions& options) {
     Print({{"server", options.server}, {"ok", false}, {"stage", stage}, {"error", s.message()}});
     return 1;
   };
-  if (Status s = client.Connect(host, port); !s.ok()) return fail("connect", s);
-  auto welcome = client.Hello(options.token, v1::ROLE_SCULPTOR, options.name, *client_id);
-  if (!welcome.ok()) return fail("hello", welcome.status());
-  auto joined = client.Join(scene);
-  if (!joined.ok()) return fail("join", joined.status());
+  std::string stage;
+  auto joined = ConnectAsSculptor(client, options, host, port, scene, *client_id, &stage);
+  if (!joined.ok()) return fail(stage, joined.status());
   if (Status st = ResolveObject(joined->info, options.object, &defaults, &*strokes); !st.ok()) {
     return fail("join", st);
   }

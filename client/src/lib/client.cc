@@ -687,7 +687,7 @@ Status Client::Connect(const std::string& host, uint16_t port) {
         host, std::to_string(port),
         [c, resolver, done](boost::system::error_code ec, tcp::resolver::results_type results) {
           if (ec) {
-            done->set_value({ec});
+            done->set_value(Outcome{ec, false, {}});
             return;
           }
           asio::async_connect(c->socket, results,
@@ -697,7 +697,7 @@ Status Client::Connect(const std::string& host, uint16_t port) {
                                     boost::system::error_code ignored;
                                     c->socket.set_option(tcp::no_delay(true), ignored);
                                   }
-                                  done->set_value({ec});
+                                  done->set_value(Outcome{ec, false, {}});
                                   return;
                                 }
                                 boost::system::error_code ignored;

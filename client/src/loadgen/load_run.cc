@@ -120,6 +120,9 @@ Client::EventHandler MakeHandler(std::shared_ptr<Observed> seen) {
       case Event::Type::kPresence:
         ++seen->presence;
         break;
+      case Event::Type::kUndoAck:
+        // Only the undo client sends undos; its own handler times them (UndoSeen).
+        break;
       case Event::Type::kBye:
       case Event::Type::kDisconnected:
         if (seen->disconnects.size() < 5) seen->disconnects.push_back(e.reason);
