@@ -19,6 +19,7 @@
 
 #include "integration/prometheus_text.h"
 #include "integration/raw_client.h"
+#include "integration/raw_server.h"
 #include "net/beast.h"
 #include "net/http_server.h"
 #include "net/server.h"
@@ -156,55 +157,18 @@ HttpReply Get(uint16_t port, const std::string& target, const std::string& metho
                  method == "HEAD");
 }
 
-class HttpServerTest : public ::testing::Test {
+class HttpServerTest : public sculpt::testing::RawServerTest {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("sculptd_http_" +
-            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-            std::to_string(::getpid()));
-    fs::remove_all(dir_);
+    Prepare("sculptd_http", kSculptor, kViewer);
     fs::create_directories(dir_ / "web" / "assets");
-    config_.listen = "127.0.0.1:0";
-    config_.data_dir = (dir_ / "data").string();
-    config_.sculptor_token = kSculptor;
-    config_.viewer_token = kViewer;
     config_.scene.voxel_size = 0.5;
-    config_.scene.objects[0].radius = 12;
     config_.limits.auth_timeout_ms = 300;
     config_.limits.violations_before_disconnect = 5;
+    with_http_ = true;
     http_config_.listen = "127.0.0.1:0";
     http_config_.web_root = dir_ / "web";
     http_config_.idle_timeout_ms = 2000;
-  }
-  void Start() {
-    auto scene = Scene::Open(config_);
-    ASSERT_TRUE(scene.ok()) << scene.status();
-    scene_ = std::move(scene).value();
-    server_ = std::make_unique<Server>(io_, config_, *scene_);
-    auto port = server_->Start();
-    ASSERT_TRUE(port.ok()) << port.status();
-    port_ = *port;
-    http_ = std::make_unique<HttpServer>(io_, http_config_, *server_);
-    auto hport = http_->Start();
-    ASSERT_TRUE(hport.ok()) << hport.status();
-    http_port_ = *hport;
-    guard_.emplace(io_.get_executor());
-    for (int i = 0; i < 2; ++i) threads_.emplace_back([this] { io_.run(); });
-  }
-  void TearDown() override {
-    if (server_) {
-      server_->Stop();
-      http_->Stop();
-      scene_->Flush();
-      guard_.reset();
-      io_.stop();
-      for (auto& t : threads_) t.join();
-    }
-    http_.reset();
-    server_.reset();
-    scene_.reset();
-    fs::remove_all(dir_);
   }
   void WriteFile(const std::string& rel, const std::string& text) {
     std::ofstream(dir_ / "web" / rel, std::ios::binary) << text;
@@ -226,17 +190,6 @@ class HttpServerTest : public ::testing::Test {
     return c;
   }
 
-  fs::path dir_;
-  ServerConfig config_;
-  HttpConfig http_config_;
-  asio::io_context io_;
-  std::optional<asio::executor_work_guard<asio::io_context::executor_type>> guard_;
-  std::vector<std::thread> threads_;
-  std::unique_ptr<Scene> scene_;
-  std::unique_ptr<Server> server_;
-  std::unique_ptr<HttpServer> http_;
-  uint16_t port_ = 0;
-  uint16_t http_port_ = 0;
 };
 
 TEST_F(HttpServerTest, WebSocketHelloJoinStrokeAck) {

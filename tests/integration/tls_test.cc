@@ -18,6 +18,7 @@
 
 #include "integration/in_process_server.h"
 #include "integration/raw_client.h"
+#include "integration/raw_server.h"
 #include "net/beast.h"
 #include "net/http_server.h"
 #include "net/server.h"
@@ -134,53 +135,18 @@ bool ClosedWithin(tcp::socket& s, int ms) {
   return false;
 }
 
-class TlsTest : public ::testing::Test {
+class TlsTest : public sculpt::testing::RawServerTest {
  protected:
   void SetUp() override {
     ASSERT_TRUE(Pki::Get().ok) << "openssl could not make the test certificates";
-    dir_ = fs::temp_directory_path() /
-           ("sculpt_tls_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) +
-            "_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    config_.listen = "127.0.0.1:0";
-    config_.data_dir = (dir_ / "data").string();
+    Prepare("sculpt_tls");
     config_.scene.voxel_size = 0.5;
     config_.limits.auth_timeout_ms = 400;
     config_.tls.cert_file = pki().File("server.pem");
     config_.tls.key_file = pki().File("server.key");
+    with_http_ = true;
     http_config_.listen = "127.0.0.1:0";
     http_config_.web_root = dir_ / "web";
-  }
-  void TearDown() override {
-    if (server_) {
-      server_->Stop();
-      if (http_) http_->Stop();
-      scene_->Flush();
-      guard_.reset();
-      io_.stop();
-      for (auto& t : threads_) t.join();
-    }
-    http_.reset();
-    server_.reset();
-    scene_.reset();
-    fs::remove_all(dir_);
-  }
-  Status StartServer() {
-    auto scene = Scene::Open(config_);
-    if (!scene.ok()) return scene.status();
-    scene_ = std::move(scene).value();
-    server_ = std::make_unique<Server>(io_, config_, *scene_);
-    auto port = server_->Start();
-    if (!port.ok()) return port.status();
-    port_ = *port;
-    http_ = std::make_unique<HttpServer>(io_, http_config_, *server_);
-    auto hport = http_->Start();
-    if (!hport.ok()) return hport.status();
-    http_port_ = *hport;
-    guard_.emplace(io_.get_executor());
-    for (int i = 0; i < 2; ++i) threads_.emplace_back([this] { io_.run(); });
-    return Status::Ok();
   }
   static const Pki& pki() { return Pki::Get(); }
   client::ClientOptions TlsOptions() {
@@ -211,21 +177,10 @@ class TlsTest : public ::testing::Test {
     return ::testing::AssertionSuccess();
   }
 
-  fs::path dir_;
-  ServerConfig config_;
-  HttpConfig http_config_;
-  asio::io_context io_;
-  std::optional<asio::executor_work_guard<asio::io_context::executor_type>> guard_;
-  std::vector<std::thread> threads_;
-  std::unique_ptr<Scene> scene_;
-  std::unique_ptr<Server> server_;
-  std::unique_ptr<HttpServer> http_;
-  uint16_t port_ = 0;
-  uint16_t http_port_ = 0;
 };
 
 TEST_F(TlsTest, StrokesAckedOverTls) {
-  ASSERT_TRUE(StartServer().ok());
+  ASSERT_TRUE(TryStart().ok());
   client::Client c(TlsOptions());
   ASSERT_TRUE(Enter(c).ok());
   EXPECT_TRUE(StrokesAcked(c, 40));
@@ -237,7 +192,7 @@ TEST_F(TlsTest, StrokesAckedOverTls) {
 }
 
 TEST_F(TlsTest, WebSocketOverTlsThroughTheSameSessions) {
-  ASSERT_TRUE(StartServer().ok());
+  ASSERT_TRUE(TryStart().ok());
   client::Client tcp_client(TlsOptions());
   ASSERT_TRUE(Enter(tcp_client).ok());
   WssClient ws(http_port_, pki().File("ca.pem"));
@@ -270,7 +225,7 @@ TEST_F(TlsTest, WebSocketOverTlsThroughTheSameSessions) {
 }
 
 TEST_F(TlsTest, PlaintextOnTheTlsPortsIsClosedAndOthersUnaffected) {
-  ASSERT_TRUE(StartServer().ok());
+  ASSERT_TRUE(TryStart().ok());
   client::Client sculptor(TlsOptions());
   ASSERT_TRUE(Enter(sculptor).ok());
   // A native client speaking the plain protocol: its Hello is no TLS record.
@@ -311,7 +266,7 @@ TEST_F(TlsTest, PlaintextOnTheTlsPortsIsClosedAndOthersUnaffected) {
 }
 
 TEST_F(TlsTest, HandshakeThatNeverCompletesIsClosedWithinTheAuthTimeout) {
-  ASSERT_TRUE(StartServer().ok());
+  ASSERT_TRUE(TryStart().ok());
   asio::io_context io;
   tcp::socket silent_tcp(io), silent_http(io);
   silent_tcp.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port_));
@@ -326,7 +281,7 @@ TEST_F(TlsTest, HandshakeThatNeverCompletesIsClosedWithinTheAuthTimeout) {
 }
 
 TEST_F(TlsTest, WrongCertificateFailsWithAClearError) {
-  ASSERT_TRUE(StartServer().ok());
+  ASSERT_TRUE(TryStart().ok());
   // A CA that did not sign the server's certificate.
   client::ClientOptions o = TlsOptions();
   o.tls.ca_file = pki().File("other-ca.pem");
@@ -351,7 +306,7 @@ TEST_F(TlsTest, WrongCertificateFailsWithAClearError) {
 TEST_F(TlsTest, ExpiredCertificateFailsWithAClearError) {
   config_.tls.cert_file = pki().File("expired.pem");
   config_.tls.key_file = pki().File("expired.key");
-  ASSERT_TRUE(StartServer().ok());  // starts (with a warning in the log): clients refuse it
+  ASSERT_TRUE(TryStart().ok());  // starts (with a warning in the log): clients refuse it
   client::Client c(TlsOptions());
   const Status s = c.Connect("127.0.0.1", port_);
   EXPECT_EQ(s.code(), Status::Code::kUnavailable);
@@ -360,7 +315,7 @@ TEST_F(TlsTest, ExpiredCertificateFailsWithAClearError) {
 
 TEST_F(TlsTest, ClientCertificateRequiredAndMissingIsRefused) {
   config_.tls.client_ca_file = pki().File("ca.pem");
-  ASSERT_TRUE(StartServer().ok());
+  ASSERT_TRUE(TryStart().ok());
   client::Client without(TlsOptions());
   const Status s = Enter(without);
   EXPECT_FALSE(s.ok());
@@ -385,7 +340,7 @@ TEST_F(TlsTest, ClientCertificateRequiredAndMissingIsRefused) {
 
 TEST_F(TlsTest, RefusesStartWithAMissingCertificateNamingKeyAndFile) {
   config_.tls.cert_file = (dir_ / "nope.pem").string();
-  const Status s = StartServer();
+  const Status s = TryStart();
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);
   EXPECT_NE(s.message().find("tls.cert_file=" + config_.tls.cert_file), std::string::npos) << s;
@@ -442,7 +397,7 @@ TEST_F(TlsTest, PlaintextOnlyOnLoopbackUnlessAllowed) {
   // The HTTP port follows the same rule.
   http_config_.listen = "0.0.0.0:0";
   config_.tls = {};
-  const Status h = StartServer();
+  const Status h = TryStart();
   ASSERT_FALSE(h.ok());
   EXPECT_NE(h.message().find("http listen=0.0.0.0:0"), std::string::npos) << h;
 }

@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "integration/raw_client.h"
+#include "integration/raw_server.h"
 #include "net/server.h"
 #include "net/users.h"
 #include "scene/scene.h"
@@ -129,10 +130,10 @@ TEST_F(UsersFileTest, SavedTableLoadsBackWithOwnerOnlyModeAndHashesVerify) {
 }
 
 // A server whose users file holds alice and carol (sculptors) and bob (a viewer).
-class NamedUsersTest : public ::testing::Test {
+class NamedUsersTest : public sculpt::testing::RawServerTest {
  protected:
   void SetUp() override {
-    dir_ = TestDir("server");
+    Prepare("sculpt_users_server");
     tokens_["alice"] = NewToken();
     tokens_["bob"] = NewToken();
     tokens_["carol"] = NewToken();
@@ -142,32 +143,12 @@ class NamedUsersTest : public ::testing::Test {
     t.Put({"carol", UserRole::kSculptor, HashToken(tokens_["carol"]).value()});
     users_ = dir_ / "users.toml";
     ASSERT_TRUE(t.Save(users_.string()).ok());
-    config_.listen = "127.0.0.1:0";
-    config_.data_dir = (dir_ / "data").string();
     config_.users_file = users_.string();
     config_.scene.objects[0].radius = 12;
     config_.limits.auth_timeout_ms = 2000;
     config_.limits.auth_backoff_ms = 300;
     config_.limits.auth_free_failures = 3;
-    auto scene = Scene::Open(config_);
-    ASSERT_TRUE(scene.ok()) << scene.status();
-    scene_ = std::move(scene).value();
-    server_ = std::make_unique<Server>(io_, config_, *scene_);
-    auto port = server_->Start();
-    ASSERT_TRUE(port.ok()) << port.status();
-    port_ = *port;
-    guard_.emplace(io_.get_executor());
-    for (int i = 0; i < 2; ++i) threads_.emplace_back([this] { io_.run(); });
-  }
-  void TearDown() override {
-    server_->Stop();
-    scene_->Flush();
-    guard_.reset();
-    io_.stop();
-    for (auto& t : threads_) t.join();
-    server_.reset();
-    scene_.reset();
-    fs::remove_all(dir_);
+    Start();
   }
   // Sends a Hello as `name` and returns the Welcome or the Error that answers it.
   static std::optional<v1::ServerMessage> Hello(RawClient& c, const std::string& name,
@@ -195,15 +176,8 @@ class NamedUsersTest : public ::testing::Test {
     return w && w->has_welcome() ? w->welcome() : v1::Welcome{};
   }
 
-  fs::path dir_, users_;
+  fs::path users_;
   std::map<std::string, std::string> tokens_;
-  ServerConfig config_;
-  asio::io_context io_;
-  std::optional<asio::executor_work_guard<asio::io_context::executor_type>> guard_;
-  std::vector<std::thread> threads_;
-  std::unique_ptr<Scene> scene_;
-  std::unique_ptr<Server> server_;
-  uint16_t port_ = 0;
 };
 
 TEST_F(NamedUsersTest, AUserSculptsUnderItsNameAndPresenceShowsIt) {
