@@ -131,6 +131,31 @@ Client::EventHandler MakeHandler(std::shared_ptr<Observed> seen) {
   };
 }
 
+/// Connects, says hello and joins `scene`, the errors prefixed with `who`. A join the server
+/// refuses over its pending-join limit (RESOURCE_EXHAUSTED; the session stays open) is asked
+/// again with backoff from 10 ms to 1 s for up to 60 s, each retry counted in `retries`, so a
+/// client beside a join flood is measured rather than dropped.
+StatusOr<JoinedScene> EnterScene(Client& client, const std::string& host, uint16_t port,
+                                 const std::string& token, v1::Role role, const std::string& who,
+                                 const std::string& scene, std::atomic<uint64_t>* retries) {
+  const auto named = [&who](const Status& s) { return Status(s.code(), who + ": " + s.message()); };
+  if (Status s = client.Connect(host, port); !s.ok()) return named(s);
+  auto welcome = client.Hello(token, role, "loadgen-" + who, NewClientId());
+  if (!welcome.ok()) return named(welcome.status());
+  const auto give_up = Clock::now() + std::chrono::seconds(60);
+  auto backoff = std::chrono::milliseconds(10);
+  for (;;) {
+    auto joined = client.Join(scene);
+    if (joined.ok()) return joined;
+    if (joined.status().code() != Status::Code::kResourceExhausted || Clock::now() > give_up) {
+      return named(joined.status());
+    }
+    ++*retries;
+    std::this_thread::sleep_for(backoff);
+    backoff = std::min(2 * backoff, std::chrono::milliseconds(1000));
+  }
+}
+
 Status CheckOptions(const LoadOptions& o) {
   const auto bad = [](const std::string& field, double v, const std::string& range) {
     return InvalidArgument("--" + field + "=" + std::to_string(v) + " outside " + range);
@@ -177,6 +202,7 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
   std::vector<SimClient> clients(static_cast<size_t>(o.sculptors + o.viewers));
   v1::SceneInfo info;
   uint64_t state_bytes_at_join = 0;
+  std::atomic<uint64_t> join_retries{0};  // joins asked again after a pending-join refusal
   const auto t_setup = Clock::now();
   for (size_t i = 0; i < clients.size(); ++i) {
     SimClient& c = clients[i];
@@ -188,19 +214,13 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
     co.io = io[i % io.size()];
     c.client = std::make_unique<Client>(co);
     c.client->SetEventHandler(MakeHandler(c.seen));
-    SCULPT_RETURN_IF_ERROR(c.client->Connect(host, port));
-    // Fresh ids every run: the server remembers the highest client_seq per id across restarts,
-    // so an id derived from --seed would make a second run's strokes look like resends.
-    auto welcome = c.client->Hello(c.sculptor ? o.sculptor_token : o.viewer_token,
-                                   c.sculptor ? v1::ROLE_SCULPTOR : v1::ROLE_VIEWER,
-                                   "loadgen-" + c.name, NewClientId());
-    if (!welcome.ok()) {
-      return Status(welcome.status().code(), c.name + ": " + welcome.status().message());
-    }
-    auto joined = c.client->Join(o.scene);
-    if (!joined.ok()) {
-      return Status(joined.status().code(), c.name + ": " + joined.status().message());
-    }
+    // Fresh ids every run (EnterScene): the server remembers the highest client_seq per id
+    // across restarts, so an id derived from --seed would make a second run's strokes look like
+    // resends.
+    auto joined = EnterScene(*c.client, host, port, c.sculptor ? o.sculptor_token : o.viewer_token,
+                             c.sculptor ? v1::ROLE_SCULPTOR : v1::ROLE_VIEWER, c.name, o.scene,
+                             &join_retries);
+    if (!joined.ok()) return joined.status();
     if (i == 0) info = joined->info;
     if (!c.sculptor && o.viewer_mesh_hz > 0 && joined->info.objects_size() > 0) {
       c.view = std::make_unique<MeshView>(
@@ -241,14 +261,9 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
       undo_seen->undo_ms.push_back(e.latency_ms);
       undo_seen->replayed.push_back(e.undo_ack.replayed());
     });
-    SCULPT_RETURN_IF_ERROR(undoer->client->Connect(host, port));
-    auto welcome =
-        undoer->client->Hello(o.sculptor_token, v1::ROLE_SCULPTOR, "loadgen-undoer", NewClientId());
-    if (!welcome.ok()) {
-      return Status(welcome.status().code(), "undoer: " + welcome.status().message());
-    }
-    auto joined = undoer->client->Join(o.scene);
-    if (!joined.ok()) return Status(joined.status().code(), "undoer: " + joined.status().message());
+    auto joined = EnterScene(*undoer->client, host, port, o.sculptor_token, v1::ROLE_SCULPTOR,
+                             "undoer", o.scene, &join_retries);
+    if (!joined.ok()) return joined.status();
   }
 
   // Replica clients: whole-object replicas in replay and in leaf-delta mode.
@@ -266,12 +281,9 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
     co.skip_state = true;
     c.client = std::make_unique<Client>(co);
     c.client->SetEventHandler(MakeHandler(c.seen));
-    SCULPT_RETURN_IF_ERROR(c.client->Connect(host, port));
-    auto welcome = c.client->Hello(o.viewer_token, v1::ROLE_VIEWER, "loadgen-" + c.name,
-                                   NewClientId());
-    if (!welcome.ok()) return Status(welcome.status().code(), c.name + ": " + welcome.status().message());
-    auto joined = c.client->Join(o.scene);
-    if (!joined.ok()) return Status(joined.status().code(), c.name + ": " + joined.status().message());
+    auto joined = EnterScene(*c.client, host, port, o.viewer_token, v1::ROLE_VIEWER, c.name,
+                             o.scene, &join_retries);
+    if (!joined.ok()) return joined.status();
     ReplicaOptions ro;
     ro.object = o.object.empty() && joined->info.objects_size() > 0 ? joined->info.objects(0).name()
                                                                     : o.object;
@@ -340,10 +352,8 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
     co.io = io[0];
     co.skip_state = true;
     haptic_conn = std::make_unique<Client>(co);
-    SCULPT_RETURN_IF_ERROR(haptic_conn->Connect(host, port));
-    auto w = haptic_conn->Hello(o.viewer_token, v1::ROLE_VIEWER, "loadgen-haptic", NewClientId());
-    if (!w.ok()) return w.status();
-    auto j = haptic_conn->Join(o.scene);
+    auto j = EnterScene(*haptic_conn, host, port, o.viewer_token, v1::ROLE_VIEWER, "haptic",
+                        o.scene, &join_retries);
     if (!j.ok()) return j.status();
     ReplicaOptions ro;
     ro.object = object->name();
@@ -574,6 +584,7 @@ StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& o) {
       {"viewers_received_bytes", viewer_bytes},
       {"viewers_received_bytes_in_window", viewer_bytes_window},
       {"state_bytes_at_join", state_bytes_at_join},
+      {"join_retries", join_retries.load()},
       {"duration_s", Round3(duration_s)},
       {"send_s", Round3(Seconds(t_sent - t_start))},
       {"drain_s", Round3(Seconds(t_end - t_sent))},
@@ -765,10 +776,9 @@ StatusOr<nlohmann::ordered_json> RunLateJoin(const LoadOptions& o) {
   co.skip_state = true;
   co.timeout = std::chrono::seconds(60);
   Client client(co);
-  SCULPT_RETURN_IF_ERROR(client.Connect(host, port));
-  auto welcome = client.Hello(o.viewer_token, v1::ROLE_VIEWER, "loadgen-late-join", NewClientId());
-  if (!welcome.ok()) return welcome.status();
-  auto joined = client.Join(o.scene);
+  std::atomic<uint64_t> join_retries{0};
+  auto joined = EnterScene(client, host, port, o.viewer_token, v1::ROLE_VIEWER, "late-join",
+                           o.scene, &join_retries);
   if (!joined.ok()) return joined.status();
   ReplicaOptions ro;
   ro.object = o.object.empty() && joined->info.objects_size() > 0 ? joined->info.objects(0).name()

@@ -23,7 +23,8 @@ int main(int argc, char** argv) {
       "Report keys: strokes_sent, strokes_acked, strokes_refused, strokes_unacked,\n"
       "acks_in_order, duration_s, stroke_ack_p50_ms/p99_ms/max_ms, server_errors,\n"
       "bytes_up_per_client_per_s, bytes_down_per_client_per_s, viewers_received_bytes,\n"
-      "final_global_seq, clients[] (per-client counts)."};
+      "final_global_seq, join_retries (joins asked again after a pending-join refusal),\n"
+      "clients[] (per-client counts)."};
   app.add_option("--server", o.server, "sculptd address HOST:PORT")->required();
   app.add_option("--sculptors", o.sculptors, "Simulated sculptors")->capture_default_str();
   app.add_option("--viewers", o.viewers, "Simulated viewers")->capture_default_str();
