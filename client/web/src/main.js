@@ -149,7 +149,11 @@ class App {
     const t = this.meshes.totals();
     $('status').textContent = [
       s.state, s.role || '-', `seq ${s.globalSeq}`,
-      `ack p50 ${percentile(lat, 0.5).toFixed(1)} ms p99 ${percentile(lat, 0.99).toFixed(1)} ms`,
+      // A viewer sends no strokes, and a sculptor has no latency before its first ack: say so
+      // rather than show a latency of 0 ms.
+      s.role === 'viewer' ? 'no strokes (viewer)'
+        : lat.length === 0 ? 'no acks yet'
+          : `ack p50 ${percentile(lat, 0.5).toFixed(1)} ms p99 ${percentile(lat, 0.99).toFixed(1)} ms`,
       `${(s.bytesPerSecond / 1024).toFixed(1)} KB/s`, `${s.chunksPerSecond.toFixed(1)} chunks/s`,
       `${t.chunks} chunks ${t.faces} triangles`,
     ].join('  |  ');

@@ -107,6 +107,14 @@ try {
   const seqAfter = await viewer.evaluate(() => window.sculpt.stats.globalSeq);
   check('viewer: the drag reached its mesh', versionsAfter !== versionsBefore && seqAfter >= s.seq,
     `seq ${seqAfter} of ${s.seq}`);
+  // The status line shows a latency only where there is one: the sculptor's acks, not the viewer's.
+  await sleep(600);  // the status line is redrawn every 250 ms
+  const lines = { viewer: await viewer.evaluate(() => document.getElementById('status').textContent),
+    sculptor: await sculptor.evaluate(() => document.getElementById('status').textContent) };
+  check('status line: the viewer shows no ack latency, the sculptor its own',
+    lines.viewer.includes('no strokes (viewer)') && !lines.viewer.includes('ack p50')
+      && /ack p50 \d+\.\d ms/.test(lines.sculptor) && !/ack p50 0\.0 ms p99 0\.0 ms/.test(lines.sculptor),
+    JSON.stringify(lines));
 
   // 3. The viewer sees the sculptor's tool in presence while it hovers.
   for (let i = 0; i < 8; ++i) { await sculptor.mouse.move(400 + 3 * i, 320); await sleep(60); }
