@@ -5,7 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
+#include <cstdlib>
 #include <future>
 #include <map>
 #include <memory>
@@ -244,7 +246,7 @@ TEST_F(MeshFeedTest, ChunkThatThrowsIsSkippedCountedAndTheRestSent) {
   EXPECT_EQ(failures_.load(), 1);
 }
 
-TEST_F(MeshFeedTest, NothingIsMarkedOrMeshedWithoutViewersAndUnknownObjectsAreRefused) {
+TEST_F(MeshFeedTest, SleepsWithoutViewersAndRefusesUnknownObjects) {
   MakeFeed();
   Edits({{12, 0, 0}});
   std::this_thread::sleep_for(std::chrono::milliseconds(150));
@@ -273,9 +275,16 @@ TEST_F(MeshFeedTest, StopJoinsTheMesherEvenWhileItWaitsForTheComputeThread) {
     std::lock_guard<std::mutex> lock(compute_mu_);
     return !held_.empty();
   }));
-  auto stopped = std::async(std::launch::async, [&] { feed_->Stop(); });
-  ASSERT_EQ(stopped.wait_for(std::chrono::seconds(5)), std::future_status::ready)
-      << "Stop did not join the mesher";
+  std::promise<void> stopped;
+  std::thread stopper([&] {
+    feed_->Stop();
+    stopped.set_value();
+  });
+  if (stopped.get_future().wait_for(std::chrono::seconds(5)) != std::future_status::ready) {
+    ADD_FAILURE() << "Stop did not join the mesher";
+    std::abort();  // a hung stop: fail loudly instead of blocking the suite
+  }
+  stopper.join();
   // Stopped: a take that runs now sends nothing, and nothing more is posted.
   int posted = 0;
   {
