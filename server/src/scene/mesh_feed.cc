@@ -19,9 +19,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double Micros(Clock::duration d) {
-  return std::chrono::duration<double, std::micro>(d).count();
-}
+double Micros(Clock::duration d) { return std::chrono::duration<double, std::micro>(d).count(); }
 
 }  // namespace
 
@@ -203,8 +201,8 @@ void MeshFeed::Mesh(Work& w) {
       c.vertices = e->vertices;
       c.faces = e->faces;
     }
-    c.encode_ms = static_cast<float>(
-        std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+    c.encode_ms =
+        static_cast<float>(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
     codec::SharedFrame f = codec::EncodeMeshChunk(std::move(c));
     stats_.chunks_encoded++;
     stats_.chunk_bytes += f->size();

@@ -123,7 +123,7 @@ class MeshFeed {
   std::atomic<double> period_s_{0.1};
   std::mutex mu_;
   std::condition_variable cv_;
-  bool stop_ = false;                                // guarded by mu_
+  bool stop_ = false;                              // guarded by mu_
   std::function<void(const std::string&)> fault_;  // guarded by mu_
   std::thread thread_;
 };

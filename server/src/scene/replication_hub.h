@@ -22,10 +22,10 @@ namespace sculpt::server {
 
 /// Replication counters since start.
 struct ReplicationStats {
-  std::atomic<uint64_t> broadcasts{0};       // EditBroadcast frames built
-  std::atomic<uint64_t> leaf_deltas{0};      // LeafDelta frames built
-  std::atomic<uint64_t> resyncs{0};          // subscribe / interest answers
-  std::atomic<uint64_t> divergences{0};      // replicas' reports of a hash mismatch
+  std::atomic<uint64_t> broadcasts{0};   // EditBroadcast frames built
+  std::atomic<uint64_t> leaf_deltas{0};  // LeafDelta frames built
+  std::atomic<uint64_t> resyncs{0};      // subscribe / interest answers
+  std::atomic<uint64_t> divergences{0};  // replicas' reports of a hash mismatch
   std::atomic<uint64_t> broadcast_bytes{0};
   std::atomic<uint64_t> leaf_delta_bytes{0};
 };
@@ -105,8 +105,8 @@ class ReplicationHub {
     bool whole = true;
     levelset::VoxelBox held;  // interest dilated by the halo (when !whole)
   };
-  void SendRegion(Sub& sub, const levelset::Sculpture& sculpture, uint64_t seq,
-                  uint64_t have_seq, bool replace);
+  void SendRegion(Sub& sub, const levelset::Sculpture& sculpture, uint64_t seq, uint64_t have_seq,
+                  bool replace);
 
   std::map<uint64_t, Sub> subs_;  // by session
   std::map<std::string, levelset::LeafVersions> versions_;

@@ -171,10 +171,10 @@ class MeshFeedTest : public ::testing::Test {
   std::vector<std::unique_ptr<FakeViewer>> viewers_;
   std::unique_ptr<MeshFeed> feed_;
   std::mutex compute_mu_;
-  uint64_t seq_ = 0;              // guarded by compute_mu_
-  bool hold_tasks_ = false;       // guarded by compute_mu_
+  uint64_t seq_ = 0;         // guarded by compute_mu_
+  bool hold_tasks_ = false;  // guarded by compute_mu_
   std::vector<std::function<void()>> held_;
-  int posted_ = 0;                // guarded by compute_mu_
+  int posted_ = 0;  // guarded by compute_mu_
   std::atomic<int> failures_{0};
 };
 
