@@ -1,5 +1,5 @@
-/// @brief The one commit pipeline (Scene::Commit), the log-record decoder and the one way the
-/// changed leaves of an edit reach replicas.
+/// @brief The one commit pipeline (Scene::Commit) and the log-record decoder; the pipeline hands
+/// each edit's changed leaves to the replication hub and the mesh feed.
 #include "scene/commit.h"
 
 #include <spdlog/spdlog.h>
@@ -8,7 +8,6 @@
 
 #include "scene/log_payload.h"
 #include "scene/scene.h"
-#include "sculpt/codec/frame.h"
 #include "store/edit_log.h"
 
 namespace sculpt::server {
@@ -17,12 +16,6 @@ namespace {
 double NowSeconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
       .count();
-}
-
-std::shared_ptr<const std::string> Frame(const v1::ServerMessage& m) {
-  auto f = std::make_shared<std::string>();
-  codec::AppendMessage(m, f.get());
-  return f;
 }
 
 template <typename Record>
@@ -189,12 +182,11 @@ void Scene::RunCommit(const std::shared_ptr<EditOp>& op) {
   }
   if (applied.status.ok() && sculpture) {
     // Leaf versions always (cheap), so a replica subscribing later resyncs by version.
-    versions_[applied.object].Record(applied.dirty_leaves, last);
-    if (!viewers_.empty()) MarkDirtyChunks(applied.object, applied.dirty_leaves);
-    if (!subs_.empty()) {
-      Replicate(applied.object, *sculpture, applied.dirty_leaves, first, last, op->client_id(),
-                op->client_seq(), applied.replay ? &*applied.replay : nullptr);
-    }
+    replication_.RecordVersions(applied.object, applied.dirty_leaves, last);
+    mesh_feed_.MarkDirty(applied.object, applied.dirty_leaves);
+    replication_.Replicate(applied.object, *sculpture, applied.dirty_leaves, first, last,
+                           op->client_id(), op->client_seq(),
+                           applied.replay ? &*applied.replay : nullptr);
   }
   {
     std::lock_guard<std::mutex> lock(info_mu_);
@@ -211,88 +203,6 @@ void Scene::RunCommit(const std::shared_ptr<EditOp>& op) {
   });
   MaybeSnapshot();
   if (applied.status.ok() && sculpture) SendSlices(applied.object, applied.dirty_leaves);
-}
-
-// ---------------------------------------------------------------------------------------------
-// Replication: an EditBroadcast to replay replicas that hold the edit's footprint, the changed
-// leaves (inside what each holds) to every other replica of the object.
-
-void Scene::Replicate(const std::string& object, const levelset::Sculpture& sculpture,
-                      const std::vector<levelset::Int3>& dirty, uint64_t first_seq,
-                      uint64_t last_seq, uint64_t client_id, uint64_t client_seq,
-                      const Applied::Replay* replay) {
-  const levelset::LeafVersions& versions = versions_[object];
-  std::shared_ptr<const std::string> broadcast;    // built once, shared by replay replicas
-  std::shared_ptr<const std::string> whole_delta;  // built once, shared by whole-object replicas
-  const levelset::ReplayState after = levelset::CaptureReplayState(sculpture);
-  auto delta_frame = [&](const std::vector<levelset::Int3>& cells) {
-    v1::ServerMessage m;
-    v1::LeafDelta* d = m.mutable_leaf_delta();
-    d->set_object(object);
-    d->set_global_seq(last_seq);
-    d->set_records(levelset::EncodeLeafRecords(sculpture, cells, &versions));
-    d->set_record_count(static_cast<uint32_t>(cells.size()));
-    d->set_volume(after.volume);
-    d->set_reference_volume(after.reference_volume);
-    d->set_edits_since_reinit(after.edits_since_reinit);
-    d->set_client_id(client_id);
-    d->set_client_seq(client_seq);
-    auto f = Frame(m);
-    repl_stats_.leaf_deltas++;
-    repl_stats_.leaf_delta_bytes += f->size();
-    return f;
-  };
-  const levelset::VoxelBox fb =
-      replay ? levelset::VoxelBox{replay->footprint.min, replay->footprint.max}
-             : levelset::VoxelBox{};
-  for (auto& [id, sub] : subs_) {
-    if (sub.object != object) continue;
-    bool fits = false;
-    bool touches = false;
-    if (replay) {
-      fits = sub.whole || (!replay->footprint.whole_object && sub.held.Contains(fb));
-      touches = sub.whole || replay->footprint.whole_object || sub.held.Intersects(fb);
-      if (!touches) continue;
-    }
-    if (fits && sub.mode == codec::ReplicaMode::kReplay) {
-      if (!broadcast) {
-        v1::ServerMessage m;
-        v1::EditBroadcast* b = m.mutable_edit();
-        b->set_object(object);
-        b->set_global_seq_first(first_seq);
-        b->mutable_stroke()->ParseFromString(*replay->source);
-        b->mutable_stroke()->clear_object();  // the broadcast names it once
-        b->set_client_id(client_id);
-        b->set_volume(replay->before.volume);
-        b->set_reference_volume(replay->before.reference_volume);
-        b->set_edits_since_reinit(replay->before.edits_since_reinit);
-        b->set_leaves_hash(levelset::LeavesHash(sculpture, dirty));
-        b->set_dirty_leaves(static_cast<uint32_t>(dirty.size()));
-        broadcast = Frame(m);
-        repl_stats_.broadcasts++;
-        repl_stats_.broadcast_bytes += broadcast->size();
-      }
-      sub.sink.send(broadcast);
-    } else if (sub.whole) {
-      if (!whole_delta) whole_delta = delta_frame(dirty);
-      sub.sink.send(whole_delta);
-    } else {
-      // The edit reaches beyond what this replica holds (or has no replay form): its changed
-      // leaves inside the region.
-      std::vector<levelset::Int3> cells;
-      for (const levelset::Int3& c : dirty) {
-        const levelset::VoxelBox cb{c,
-                                    {c.x + levelset::kLeafDim - 1, c.y + levelset::kLeafDim - 1,
-                                     c.z + levelset::kLeafDim - 1}};
-        if (sub.held.Intersects(cb)) cells.push_back(c);
-      }
-      // A leaf-delta replica whose region the edit touched hears of the sequence even when no
-      // leaf it holds changed.
-      if (!cells.empty() || (touches && sub.mode == codec::ReplicaMode::kLeafDelta)) {
-        sub.sink.send(delta_frame(cells));
-      }
-    }
-  }
 }
 
 }  // namespace sculpt::server

@@ -20,6 +20,7 @@
 #include <variant>
 #include <vector>
 
+#include "scene/replication_hub.h"
 #include "sculpt/core/status.h"
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/region.h"
@@ -108,11 +109,7 @@ struct Applied {
   bool bounds_may_change = false;
   /// Set for edits replicas can replay (strokes): what an EditBroadcast carries. Without it,
   /// replicas get the changed leaves.
-  struct Replay {
-    const std::string* source = nullptr;  // the client's serialized Stroke
-    levelset::ReplayState before;
-    levelset::EditFootprint footprint;
-  };
+  using Replay = EditReplay;
   std::optional<Replay> replay;
 };
 

@@ -111,9 +111,33 @@ v1::EditRecord MakeRecord(uint64_t client_id, uint64_t client_seq, uint32_t pose
   return r;
 }
 
+// The mesh feed's chunking, rate cap and Draco settings from the scene file.
+MeshFeed::Options MeshFeedOptions(const SceneConfig& scene) {
+  MeshFeed::Options o;
+  o.chunk.chunk_voxels = scene.mesh_chunk_voxels;
+  o.max_rate_hz = scene.mesh_max_rate_hz;
+  o.frame_pad_voxels =
+      (scene.bounds_margin + 2 * scene.max_tool_size) / scene.voxel_size + 2 * scene.half_width;
+  o.position_bits = scene.mesh_position_bits;
+  o.speed = scene.mesh_speed;
+  return o;
+}
+
 }  // namespace
 
-Scene::Scene(const ServerConfig& config) : config_(config) {
+Scene::Scene(const ServerConfig& config)
+    : mesh_feed_(MeshFeedOptions(config.scene),
+                 MeshFeed::Source{
+                     [this](std::function<void()> run, std::function<void(const Status&)> fail) {
+                       PostFirst("mesh snapshot", std::move(fail), std::move(run));
+                     },
+                     [this](const std::string& object) -> const levelset::Sculpture* {
+                       auto it = sculptures_.find(object);
+                       return it == sculptures_.end() ? nullptr : &it->second;
+                     },
+                     [this] { return applied_seq_.load(); },
+                     [this] { task_stats_.failures++; }}),
+      config_(config) {
   settings_ = EditSettingsFor(config.scene);
 }
 
@@ -198,7 +222,7 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   scene->snapshots_ = std::move(rec.snapshots);
   scene->next_seq_ = rec.last_seq + 1;
   scene->applied_seq_ = rec.last_seq;
-  scene->versions_floor_ = rec.last_seq;
+  scene->replication_.set_versions_floor(rec.last_seq);
   // Snapshots carry the fraction grids; a data directory written under other materials would
   // give replicas and viewers a declaration the objects do not hold.
   for (auto& [name, sculpture] : scene->sculptures_) {
@@ -285,18 +309,12 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
        NowSeconds() - t0 >= kPromptSnapshotAfterSeconds)) {
     raw->Post("snapshot after replay", [raw] { raw->MaybeSnapshot(/*force=*/true); });
   }
-  scene->mesher_ = std::thread([raw] { raw->MesherLoop(); });
+  scene->mesh_feed_.Start();
   return scene;
 }
 
 Scene::~Scene() {
-  {
-    // The mesher first: it waits on jobs of the compute thread.
-    std::lock_guard<std::mutex> lock(mesher_mu_);
-    mesher_stop_ = true;
-  }
-  mesher_cv_.notify_all();
-  if (mesher_.joinable()) mesher_.join();
+  mesh_feed_.Stop();  // the mesher first: it waits on jobs of the compute thread
   {
     std::lock_guard<std::mutex> lock(jobs_mu_);
     stop_ = true;
@@ -356,6 +374,7 @@ void Scene::PostFirst(const char* operation, std::function<void(const Status&)> 
 }
 
 void Scene::InjectTaskFaultForTesting(std::function<void(const std::string&)> hook) {
+  mesh_feed_.InjectFaultForTesting(hook);
   std::lock_guard<std::mutex> lock(jobs_mu_);
   fault_hook_ = std::move(hook);
 }
@@ -792,6 +811,83 @@ uint64_t Scene::StateHash(const std::string& object) {
   Post("state hash", fail, [&] {
     auto it = sculptures_.find(object);
     p.set_value(it == sculptures_.end() ? 0 : it->second.StateHash());
+  });
+  return p.get_future().get();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Replicas and viewers: requests onto the compute thread, answered by the replication hub and the
+// mesh feed there.
+
+void Scene::Subscribe(ReplicaSink sink, codec::ReplicaSubscription req,
+                      std::function<void(Status)> done) {
+  auto once = AnswerOnce(std::move(done));
+  auto fail = [once](const Status& st) { once(st); };
+  Post(CurrentRequester(), "subscribe", fail,
+       [this, sink = std::move(sink), req = std::move(req), once]() mutable {
+         auto it = sculptures_.find(req.object);
+         replication_.Subscribe(std::move(sink), req,
+                                it == sculptures_.end() ? nullptr : &it->second,
+                                applied_seq_.load(), once);
+       });
+}
+
+void Scene::SetInterest(uint64_t session_id, codec::InterestChange req,
+                        std::function<void(Status)> done) {
+  auto once = AnswerOnce(std::move(done));
+  auto fail = [once](const Status& st) { once(st); };
+  Post(CurrentRequester(), "set interest", fail, [this, session_id, req = std::move(req), once] {
+    auto it = sculptures_.find(req.object);
+    replication_.SetInterest(session_id, req, it == sculptures_.end() ? nullptr : &it->second,
+                             applied_seq_.load(), once);
+  });
+}
+
+void Scene::Unsubscribe(uint64_t session_id) {
+  Post(CurrentRequester(), "unsubscribe", [this, session_id] {
+    replication_.Unsubscribe(session_id);
+  });
+}
+
+void Scene::ReportDivergence(uint64_t session_id, const codec::Divergence& report) {
+  replication_.ReportDivergence(session_id, report);
+}
+
+uint64_t Scene::RegionHash(const std::string& object, const levelset::VoxelBox& box) {
+  std::promise<uint64_t> p;
+  auto fail = [&p](const Status&) { p.set_value(0); };
+  Post("region hash", fail, [&] {
+    auto it = sculptures_.find(object);
+    p.set_value(it == sculptures_.end() ? 0 : levelset::RegionHash(it->second, box));
+  });
+  return p.get_future().get();
+}
+
+void Scene::SubscribeViewer(ReplicaSink sink, codec::ViewerSubscription req,
+                            std::function<void(Status)> done) {
+  auto once = AnswerOnce(std::move(done));
+  auto fail = [once](const Status& st) { once(st); };
+  Post(CurrentRequester(), "viewer", fail,
+       [this, sink = std::move(sink), req = std::move(req), once]() mutable {
+         auto it = sculptures_.find(req.object);
+         once(mesh_feed_.AddViewer(std::move(sink), req,
+                                   it == sculptures_.end() ? nullptr : &it->second));
+       });
+}
+
+void Scene::UnsubscribeViewer(uint64_t session_id) {
+  Post(CurrentRequester(), "viewer unsubscribe",
+       [this, session_id] { mesh_feed_.RemoveViewer(session_id); });
+}
+
+bool Scene::Inspect(const std::string& object,
+                    const std::function<void(const levelset::Sculpture&)>& fn) {
+  std::promise<bool> p;
+  auto fail = [&p](const Status&) { p.set_value(false); };
+  Post("inspect", fail, [&] {
+    auto it = sculptures_.find(object);
+    if (it != sculptures_.end()) fn(it->second);
+    p.set_value(it != sculptures_.end());
   });
   return p.get_future().get();
 }

@@ -19,7 +19,10 @@
 #include "config/server_config.h"
 #include "scene/commit.h"
 #include "scene/fair_queue.h"
+#include "scene/mesh_feed.h"
 #include "scene/outcomes.h"
+#include "scene/replica_sink.h"
+#include "scene/replication_hub.h"
 #include "sculpt/codec/history.h"
 #include "sculpt/codec/model_messages.h"
 #include "sculpt/codec/paint_messages.h"
@@ -30,8 +33,6 @@
 #include "sculpt/core/status.h"
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/region.h"
-#include "sculpt/mesh/chunk_mesher.h"
-#include "sculpt/mesh/draco_chunk_codec.h"
 #include "sculpt/levelset/sculpture.h"
 #include "sculpt/skin/skin.h"
 #include "sculpt/v1/sculpt.pb.h"
@@ -69,32 +70,6 @@ struct JoinState {
   v1::SceneInfo info;
   std::vector<std::pair<std::string, std::string>> objects;  // name, .vdb bytes
 };
-
-/// Where a subscription's messages go: `send` takes one length-prefixed ServerMessage frame
-/// (shared by every session that gets the same bytes), may be called from the compute thread,
-/// and must only post.
-struct ReplicaSink {
-  uint64_t session_id = 0;
-  uint64_t client_id = 0;
-  std::function<void(std::shared_ptr<const std::string>)> send;
-};
-
-/// Replication counters since start.
-struct ReplicationStats {
-  std::atomic<uint64_t> broadcasts{0};       // EditBroadcast frames built
-  std::atomic<uint64_t> leaf_deltas{0};      // LeafDelta frames built
-  std::atomic<uint64_t> resyncs{0};          // subscribe / interest answers
-  std::atomic<uint64_t> divergences{0};      // replicas' reports of a hash mismatch
-  std::atomic<uint64_t> broadcast_bytes{0};
-  std::atomic<uint64_t> leaf_delta_bytes{0};
-};
-
-/// Largest interest box edge accepted, in voxels; a replica wanting more subscribes to the
-/// whole object.
-inline constexpr int kMaxInterestVoxels = 1024;
-/// A subscription holds its interest box dilated by this many voxels, so edits touching the box
-/// usually fit (replayed) and the haptic look-ahead has material around the tool.
-inline constexpr int kReplicaHaloVoxels = 16;
 
 /// The scene actor. Edits are applied in global-sequence order on one compute thread (one
 /// writer per object); readers get copies. Thread safety: every public method may be called
@@ -155,7 +130,7 @@ class Scene {
   /// Hash of every voxel of an index box of one object, on the compute thread (tests); 0 for an
   /// unknown object.
   uint64_t RegionHash(const std::string& object, const levelset::VoxelBox& box);
-  ReplicationStats& replication_stats() { return repl_stats_; }
+  ReplicationStats& replication_stats() { return replication_.stats(); }
 
   /// Registers a viewer of one object's Draco mesh chunks (codec::DecodeViewerSubscribe): it gets every
   /// chunk holding surface, then the chunks edits change, re-meshed on the mesher thread at most
@@ -166,13 +141,8 @@ class Scene {
   void UnsubscribeViewer(uint64_t session_id);
   /// Runs `fn` on the object between two edits (tests, tools); false for an unknown object.
   bool Inspect(const std::string& object, const std::function<void(const levelset::Sculpture&)>& fn);
-  struct MeshStats {
-    std::atomic<uint64_t> chunks_encoded{0};
-    std::atomic<uint64_t> chunk_bytes{0};
-    std::atomic<uint64_t> updates{0};
-    std::atomic<uint64_t> snapshot_us{0};  // compute-thread time spent copying for the mesher
-  };
-  MeshStats& mesh_stats() { return mesh_stats_; }
+  using MeshStats = MeshFeed::Stats;
+  MeshStats& mesh_stats() { return mesh_feed_.stats(); }
 
   /// Ball skins (issue 6, skins.cc). A ball edit (decoded by codec::DecodeSkinBallEdit; its
   /// index is checked against the skin here) rebuilds at most two sections and sends contour
@@ -344,25 +314,6 @@ class Scene {
   void MaybeSnapshot(bool force = false);
   void ReleaseDurable(uint64_t durable_seq);
   void RefreshInfoLocked();
-  struct Sub {
-    ReplicaSink sink;
-    std::string object;
-    codec::ReplicaMode mode = codec::ReplicaMode::kReplay;
-    bool whole = true;
-    levelset::VoxelBox held;  // interest dilated by the halo (when !whole)
-  };
-  // The index box an interest box selects (dilated by the halo); InvalidArgument naming `field`.
-  StatusOr<levelset::VoxelBox> HeldBox(const levelset::Sculpture& s,
-                                       const std::optional<codec::InterestBox>& interest,
-                                       const char* field) const;
-  void SendRegion(Sub& sub, const levelset::Sculpture& sculpture, uint64_t have_seq,
-                  bool replace);
-  // Sends the leaves an edit changed to the object's replicas: an EditBroadcast to replay
-  // replicas holding its footprint when it has a `replay` form, else the changed leaves inside
-  // each replica's region.
-  void Replicate(const std::string& object, const levelset::Sculpture& sculpture,
-                 const std::vector<levelset::Int3>& dirty, uint64_t first_seq, uint64_t last_seq,
-                 uint64_t client_id, uint64_t client_seq, const Applied::Replay* replay);
   // Ball skins and contour subscriptions (skins.cc), compute thread only; saved under
   // data_dir/skins at each snapshot, the logged ball edits replayed past them at start.
   struct SkinState;
@@ -377,32 +328,10 @@ class Scene {
   std::map<std::string, std::shared_ptr<ModelState>> models_;
   Status OpenModels();
   bool SaveModels(uint64_t seq);  // false if a model file was not saved
-  std::map<uint64_t, Sub> subs_;                              // compute thread only
-  std::map<std::string, levelset::LeafVersions> versions_;    // compute thread only
-  uint64_t versions_floor_ = 0;  // leaf versions are known only for edits after this sequence
-  ReplicationStats repl_stats_;
-  // Viewers (viewers.cc). viewers_ and dirty_chunks_ on the compute thread; the cache of encoded
-  // chunks on the mesher thread only.
-  struct Viewer {
-    ReplicaSink sink;
-    std::string object;
-    double period_s = 0.1;
-    bool needs_full = true;
-  };
-  struct MeshWork;
-  void MesherLoop();
-  void MarkDirtyChunks(const std::string& object, const std::vector<levelset::Int3>& leaves);
-  std::map<uint64_t, Viewer> viewers_;
-  std::map<std::string, std::set<mesh::ChunkKey>> dirty_chunks_;
-  std::map<std::string, mesh::QuantizationFrame> mesh_frames_;
-  std::map<std::string, std::map<mesh::ChunkKey, std::shared_ptr<const std::string>>> mesh_cache_;
-  MeshStats mesh_stats_;
-  std::atomic<int> viewer_count_{0};
-  std::atomic<double> mesh_period_s_{0.1};
-  std::mutex mesher_mu_;
-  std::condition_variable mesher_cv_;
-  bool mesher_stop_ = false;
-  std::thread mesher_;
+  // Replicas (replication_hub.h) and viewers' mesh chunks (mesh_feed.h): driven from the
+  // compute thread; the feed meshes on its own thread, stopped first at shutdown.
+  ReplicationHub replication_;
+  MeshFeed mesh_feed_;
 
   ServerConfig config_;
   levelset::EditSettings settings_;
