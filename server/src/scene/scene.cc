@@ -620,7 +620,9 @@ void Scene::RefreshInfoLocked() {
     o.reference_volume = s.reference_volume();
   }
   info.skins.clear();
-  for (const SkinConfig& k : config_.scene.skins) info.skins.push_back({k.name, k.origin, k.u, k.v});
+  for (const SkinConfig& k : config_.scene.skins) {
+    info.skins.push_back({k.name, k.origin, k.u, k.v});
+  }
 }
 
 SceneSummary Scene::Info() const {

@@ -35,7 +35,7 @@ struct SkinSummary {
 /// The scene as of the last applied edit.
 struct SceneSummary {
   std::string scene;
-  uint64_t global_seq = 0;  // the last applied edit
+  uint64_t global_seq = 0;   // the last applied edit
   double min_tool_size = 0;  // world units
   double max_tool_size = 0;
   double max_speed = 0;

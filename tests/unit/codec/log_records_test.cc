@@ -337,10 +337,11 @@ TEST_F(LogRecordsTest, BallEditBytesAreTheServersTagThenSkinEditRecord) {
 
 TEST_F(LogRecordsTest, UndoBytesAreTheGoldenOnes) {
   // 0x04, then UndoRecord{global_seq 7, client_id 3, request{client_seq 2, "clay", redo}, "3"}.
-  const std::string golden("\x04\x08\x07\x10\x03\x1a\x0a\x08\x02\x12\x04"
-                           "clay\x18\x01\x22\x01"
-                           "3",
-                           20);
+  const std::string golden(
+      "\x04\x08\x07\x10\x03\x1a\x0a\x08\x02\x12\x04"
+      "clay\x18\x01\x22\x01"
+      "3",
+      20);
   EXPECT_EQ(EncodeLogRecord(UndoRecord{7, 3, 2, "clay", true, "3"}), golden);
 }
 
@@ -412,8 +413,7 @@ TEST_F(LogRecordsTest, RejectsSweepWithOddOutline) {
   r.add_outline(1);
   const auto back = DecodeAs<SweepRecord>(Tagged('\x00', r));
   EXPECT_EQ(back.request_status.code(), Status::Code::kInvalidArgument);
-  EXPECT_NE(back.request_status.message().find("SkinSweepRecord.outline.size=9"),
-            std::string::npos)
+  EXPECT_NE(back.request_status.message().find("SkinSweepRecord.outline.size=9"), std::string::npos)
       << back.request_status;
 }
 

@@ -23,9 +23,9 @@ struct ContourUpdateFrame {
   std::string object;
   /// skin::EncodeSkinSnapshot / EncodeSkinUpdate bytes, or skin::EncodeContours for a slice.
   std::string data;
-  uint32_t sections = 0;      // sections the bytes carry (an update: the changed ones only)
-  uint64_t global_seq = 0;    // slice: the edit sequence the cut shows
-  uint64_t skin_version = 0;  // skin: edits applied to it since start
+  uint32_t sections = 0;        // sections the bytes carry (an update: the changed ones only)
+  uint64_t global_seq = 0;      // slice: the edit sequence the cut shows
+  uint64_t skin_version = 0;    // skin: edits applied to it since start
   std::vector<SkinBall> balls;  // skin: the whole chain at skin_version
 };
 
