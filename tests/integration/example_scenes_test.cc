@@ -21,6 +21,7 @@
 #include "config/server_config.h"
 #include "integration/raw_client.h"
 #include "net/server.h"
+#include "net/wire_info.h"
 #include "scene/scene.h"
 #include "sculpt/client/client.h"
 #include "sculpt/levelset/materials.h"
@@ -106,7 +107,7 @@ class ExampleSceneTest : public ::testing::TestWithParam<Example> {
 
 TEST_P(ExampleSceneTest, VoxelisesSculptsPaintsAndExports) {
   const Example& ex = GetParam();
-  const v1::SceneInfo info = scene_->Info();
+  const v1::SceneInfo info = server::ToWireSceneInfo(scene_->Info());
   ASSERT_EQ(info.effects().materials_size(), ex.materials);
   ASSERT_EQ(info.objects_size(), 1);
   EXPECT_GT(info.objects(0).volume(), 1.0);

@@ -20,6 +20,7 @@
 #include "config/server_config.h"
 #include "integration/raw_client.h"
 #include "net/server.h"
+#include "net/wire_info.h"
 #include "scene/scene.h"
 #include "sculpt/client/client.h"
 #include "sculpt/client/replica.h"
@@ -183,7 +184,7 @@ class MaterialsServerTest : public ::testing::Test {
 };
 
 TEST_F(MaterialsServerTest, SceneInfoDeclaresTheMaterialsAndEveryObjectCarriesThem) {
-  const v1::SceneInfo info = scene_->Info();
+  const v1::SceneInfo info = server::ToWireSceneInfo(scene_->Info());
   ASSERT_EQ(info.effects().materials_size(), 3);
   EXPECT_EQ(info.effects().materials(1), "gold");
   ASSERT_EQ(info.effects().material_colours_size(), 9);

@@ -17,6 +17,7 @@
 
 #include "config/server_config.h"
 #include "net/server.h"
+#include "net/wire_info.h"
 #include "scene/scene.h"
 #include "sculpt/client/client.h"
 #include "sculpt/client/skin_client.h"
@@ -304,7 +305,7 @@ TEST_F(SkinServerTest, SceneWithoutContoursRefusesContourAndSliceSubscriptions) 
   config_.scene.effects.contours = false;
   StartServer();
   auto viewer = Joined(v1::ROLE_VIEWER);
-  EXPECT_FALSE(scene_->Info().effects().contours());
+  EXPECT_FALSE(server::ToWireSceneInfo(scene_->Info()).effects().contours());
   SkinClient follower(*viewer);
   ASSERT_TRUE(follower.FollowSkin(kSkin).ok());
   v1::ContourSlice slice = EquatorSlice();
@@ -351,7 +352,7 @@ TEST_F(SkinServerTest, SweepAddsAreaTimesDepthAndSurvivesRestart) {
   auto server_skin = scene_->SkinCopy(kSkin);
   ASSERT_TRUE(server_skin.ok());
   const double area = Area(server_skin->Outline());
-  const double volume_before = scene_->Info().objects(0).volume();
+  const double volume_before = server::ToWireSceneInfo(scene_->Info()).objects(0).volume();
   constexpr double kDepth = 4;
 
   v1::SkinSweep sweep;
@@ -376,12 +377,12 @@ TEST_F(SkinServerTest, SweepAddsAreaTimesDepthAndSurvivesRestart) {
   EXPECT_EQ(bad.error().field(), "SkinSweep.depth");
 
   const uint64_t hash = scene_->StateHash("clay");
-  const double volume = scene_->Info().objects(0).volume();
+  const double volume = server::ToWireSceneInfo(scene_->Info()).objects(0).volume();
   a->Close();
   StopServer();
   StartServer();  // recovery replays the logged sweep
   EXPECT_EQ(scene_->StateHash("clay"), hash);
-  EXPECT_NEAR(scene_->Info().objects(0).volume(), volume, 1e-6 * volume);
+  EXPECT_NEAR(server::ToWireSceneInfo(scene_->Info()).objects(0).volume(), volume, 1e-6 * volume);
 }
 
 // The same sections (count, ids when `ids`) with the same decoded points, point for point.

@@ -14,6 +14,7 @@
 #include "net/untrusted_text.h"
 #include "net/wire_acks.h"
 #include "net/wire_error.h"
+#include "net/wire_info.h"
 #include "sculpt/codec/frame.h"
 #include "sculpt/codec/model_messages.h"
 #include "sculpt/codec/paint_messages.h"
@@ -346,7 +347,7 @@ void Session::OnJoinState(StatusOr<JoinState> js) {
     return SendStatus(js.status());
   }
   v1::ServerMessage info;
-  *info.mutable_scene_info() = js->info;
+  *info.mutable_scene_info() = ToWireSceneInfo(js->info);
   Send(info);
   // The state goes out in chunks, queued behind nothing else of this session; other sessions
   // are not touched (late join without stalling the others).
@@ -357,7 +358,7 @@ void Session::OnJoinState(StatusOr<JoinState> js) {
       v1::ServerMessage m;
       v1::StateChunk* c = m.mutable_state_chunk();
       c->set_object(name);
-      c->set_global_seq(js->info.global_seq());
+      c->set_global_seq(js->info.global_seq);
       c->set_index(i);
       c->set_count(count);
       c->set_data(bytes.substr(i * kStateChunkBytes, kStateChunkBytes));
@@ -625,7 +626,7 @@ void Session::OnJoin(const v1::JoinScene& j) {
   if (j.skip_state()) {
     // A replica loads its region through Subscribe: scene info only.
     v1::ServerMessage info;
-    *info.mutable_scene_info() = server_.scene().Info();
+    *info.mutable_scene_info() = ToWireSceneInfo(server_.scene().Info());
     return Send(info);
   }
   server_.scene().RequestJoinState(
@@ -717,7 +718,7 @@ std::function<void(Status)> Session::BeginSubscription(const char* what, bool* f
 }
 
 void Session::OnSubscribe(const v1::Subscribe& sub) {
-  const double cost = RegionCost(server_.scene().Info(), sub.object(),
+  const double cost = RegionCost(ToWireSceneInfo(server_.scene().Info()), sub.object(),
                                  sub.has_interest() ? &sub.interest() : nullptr, kSubscribeCost,
                                  server_.config().limits.request_burst);
   if (!Charge("Subscribe", cost, Clock::now())) return;
@@ -729,7 +730,7 @@ void Session::OnSubscribe(const v1::Subscribe& sub) {
 }
 
 void Session::OnSetInterest(const v1::SetInterest& si) {
-  const double cost = RegionCost(server_.scene().Info(), si.object(),
+  const double cost = RegionCost(ToWireSceneInfo(server_.scene().Info()), si.object(),
                                  si.has_interest() ? &si.interest() : nullptr, kSetInterestCost,
                                  server_.config().limits.request_burst);
   if (!Charge("SetInterest", cost, Clock::now())) return;

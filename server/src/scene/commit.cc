@@ -6,7 +6,6 @@
 
 #include <chrono>
 
-#include "scene/log_payload.h"
 #include "scene/scene.h"
 #include "store/edit_log.h"
 
@@ -18,74 +17,44 @@ double NowSeconds() {
       .count();
 }
 
-template <typename Record>
-StatusOr<Record> Tagged(LogTag tag, uint64_t seq, const std::string& payload, const char* what) {
-  return ParseTaggedPayload<Record>(tag, seq, payload, what);
-}
-
 }  // namespace
 
 StatusOr<LoggedEdit> DecodeLogRecord(uint64_t seq, const std::string& payload) {
+  SCULPT_ASSIGN_OR_RETURN(codec::EditLogRecord record, codec::DecodeLogRecord(seq, payload));
   LoggedEdit e;
-  if (HasLogTag(payload, LogTag::kSweep)) {
-    SCULPT_ASSIGN_OR_RETURN(auto r, Tagged<v1::SkinSweepRecord>(LogTag::kSweep, seq, payload,
-                                                                "a sweep"));
-    e.stream = ResendStream::kSweeps;
-    e.client_id = r.client_id();
-    e.client_seq = r.client_seq();
-    e.object = r.object();
-    e.record = std::move(r);
-    return e;
-  }
-  if (HasLogTag(payload, LogTag::kPaint)) {
-    SCULPT_ASSIGN_OR_RETURN(auto r,
-                            Tagged<v1::PaintRecord>(LogTag::kPaint, seq, payload, "a paint"));
+  if (const auto* r = std::get_if<codec::StrokePoseRecord>(&record)) {
+    e.stream = ResendStream::kStrokes;
+    e.client_id = r->client_id;
+    e.client_seq = r->client_seq;
+    e.object = r->object;
+    // Logs written before strokes were grouped may end in part of one.
+    e.completes = r->completes();
+  } else if (const auto* p = std::get_if<codec::PaintRecord>(&record)) {
     e.stream = ResendStream::kPaints;
-    e.client_id = r.client_id();
-    e.client_seq = r.edit().client_seq();
-    e.object = r.edit().object();
-    e.record = std::move(r);
-    return e;
-  }
-  if (HasLogTag(payload, LogTag::kModel)) {
-    SCULPT_ASSIGN_OR_RETURN(auto r, Tagged<v1::ModelRecord>(LogTag::kModel, seq, payload,
-                                                            "a model intent"));
+    e.client_id = p->client_id;
+    e.client_seq = p->paint.client_seq;
+    e.object = p->paint.object;
+  } else if (const auto* w = std::get_if<codec::SweepRecord>(&record)) {
+    e.stream = ResendStream::kSweeps;
+    e.client_id = w->client_id;
+    e.client_seq = w->client_seq;
+    e.object = w->object;
+  } else if (const auto* m = std::get_if<codec::ModelRecord>(&record)) {
+    // Changes the model, not the voxels (Scene::OpenModels): no object.
     e.stream = ResendStream::kModels;
-    e.client_id = r.client_id();
-    e.client_seq = r.intent().client_seq();
-    e.record = std::move(r);  // changes the model, not the voxels (Scene::OpenModels)
-    return e;
-  }
-  if (HasLogTag(payload, LogTag::kSkinEdit)) {
-    SCULPT_ASSIGN_OR_RETURN(auto r, Tagged<v1::SkinEditRecord>(LogTag::kSkinEdit, seq, payload,
-                                                               "a ball edit"));
+    e.client_id = m->client_id;
+    e.client_seq = m->edit.client_seq;
+  } else if (const auto* b = std::get_if<codec::BallEditRecord>(&record)) {
     e.stream = ResendStream::kBallEdits;
-    e.client_id = r.client_id();
-    e.client_seq = r.edit().client_seq();
-    e.record = std::move(r);
-    return e;
-  }
-  if (HasLogTag(payload, LogTag::kUndo)) {
-    SCULPT_ASSIGN_OR_RETURN(auto r, Tagged<v1::UndoRecord>(LogTag::kUndo, seq, payload,
-                                                           "an undo"));
+    e.client_id = b->client_id;
+    e.client_seq = b->edit.client_seq;
+  } else if (const auto* u = std::get_if<codec::UndoRecord>(&record)) {
     e.stream = ResendStream::kUndos;
-    e.client_id = r.client_id();
-    e.client_seq = r.request().client_seq();
-    e.object = r.request().object();
-    e.record = std::move(r);
-    return e;
+    e.client_id = u->client_id;
+    e.client_seq = u->client_seq;
+    e.object = u->object;
   }
-  v1::EditRecord r;
-  if (!r.ParseFromString(payload)) {
-    return DataLoss("edit log record " + std::to_string(seq) + " does not parse");
-  }
-  e.stream = ResendStream::kStrokes;
-  e.client_id = r.client_id();
-  e.client_seq = r.client_seq();
-  e.object = r.object();
-  // Logs written before strokes were grouped may end in part of one.
-  e.completes = r.pose_index() + 1 >= r.pose_count();
-  e.record = std::move(r);
+  e.record = std::move(record);
   return e;
 }
 

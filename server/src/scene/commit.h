@@ -21,10 +21,10 @@
 #include <vector>
 
 #include "scene/replication_hub.h"
+#include "sculpt/codec/log_records.h"
 #include "sculpt/core/status.h"
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/region.h"
-#include "sculpt/v1/sculpt.pb.h"
 
 namespace sculpt::server {
 
@@ -67,8 +67,9 @@ class ResendFilter {
   std::map<Key, uint64_t> last_;
 };
 
-/// One edit-log record, decoded. Every payload is one of five records (log_payload.h tells them
-/// apart by the first byte); a stroke is one EditRecord per pose, logged as one group.
+/// One edit-log record, decoded, with what routing, recovery and the resend scan ask of every
+/// kind. The storage format is codec's (sculpt/codec/log_records.h); a stroke is one
+/// StrokePoseRecord per pose, logged as one group.
 struct LoggedEdit {
   ResendStream stream = ResendStream::kStrokes;
   uint64_t client_id = 0;
@@ -78,9 +79,7 @@ struct LoggedEdit {
   /// The record completes its edit (every record but a stroke's poses before its last): only a
   /// complete edit makes a resend a duplicate.
   bool completes = true;
-  std::variant<v1::EditRecord, v1::PaintRecord, v1::SkinSweepRecord, v1::ModelRecord,
-               v1::SkinEditRecord, v1::UndoRecord>
-      record;
+  codec::EditLogRecord record;
 };
 
 /// DataLoss naming the sequence when the payload does not parse.

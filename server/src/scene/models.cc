@@ -15,7 +15,6 @@
 #include <sstream>
 
 #include "scene/answer_once.h"
-#include "scene/log_payload.h"
 #include "scene/scene.h"
 #include "sculpt/codec/model_messages.h"
 #include "sculpt/core/check.h"
@@ -28,8 +27,6 @@
 namespace sculpt::server {
 namespace {
 
-// Sweeps take 0x00 (skins.cc), paints 0x01 (paint.cc); no serialised EditRecord starts with
-// any of them (field number 0 is not a valid tag).
 constexpr const char* kModelFileHeader = "sculpt-model-state";
 
 // The library names fields "intent.*"; on the wire they are the message's.
@@ -74,10 +71,7 @@ uint64_t ModelHash(const hetero::CompositeModel& model) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Model intents in the edit log; model files beside the snapshots
-
-
-std::string ModelPayload(const v1::ModelRecord& r) { return TaggedPayload(LogTag::kModel, r); }
+// Model files beside the snapshots
 
 
 Status SaveModelFile(const std::string& path, uint64_t seq, uint64_t version,
@@ -166,19 +160,18 @@ Status Scene::OpenModels() {
   return Status::Ok();
 }
 
-void Scene::ReplayModelIntent(uint64_t seq, const v1::ModelRecord& r) {
-  auto it = models_.find(r.intent().object());
+void Scene::ReplayModelIntent(uint64_t seq, const codec::ModelRecord& r) {
+  auto it = models_.find(r.edit.object);
   if (it == models_.end() || seq <= it->second->file_seq) return;
   ModelState& st = *it->second;
-  // The record embeds the intent's wire form, checked when it was made.
-  auto out = hetero::ApplyIntent(&st.model, &st.checker,
-                                 codec::ModelEditFromRecord(r.intent()).intent);
+  // Checked when it was made.
+  auto out = hetero::ApplyIntent(&st.model, &st.checker, r.edit.intent);
   if (!out.ok() || !out->applied) {
     spdlog::warn("model intent at seq {} refused on replay: {}", seq,
                  out.ok() ? out->rejection.ToString() : out.status().ToString());
     return;
   }
-  st.version = r.model_version();
+  st.version = r.model_version;
 }
 
 bool Scene::SaveModels(uint64_t seq) {
@@ -257,13 +250,12 @@ struct Scene::ModelOp final : EditOp {
                                 " outside intents that keep the model valid");
     }
     moved = out->moves.size();
-    // The log record is the storage format and stays protobuf; it embeds the intent's wire form.
-    v1::ModelRecord rec;
-    rec.set_global_seq(first_seq);
-    rec.set_client_id(client);
-    *rec.mutable_intent() = codec::EncodeModelIntent(edit);
-    rec.set_model_version(state->version + 1);
-    records->push_back(ModelPayload(rec));
+    codec::ModelRecord rec;
+    rec.global_seq = first_seq;
+    rec.client_id = client;
+    rec.edit = edit;
+    rec.model_version = state->version + 1;
+    records->push_back(codec::EncodeLogRecord(rec));
     return Status::Ok();
   }
 

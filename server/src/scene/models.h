@@ -1,7 +1,6 @@
-/// @brief Hyperpatch models as scene objects (issue 7, seed 001 §8.1, §10.4-10.5): the edit-log
-/// form of a model intent (a leading 0x02 byte, then a v1::ModelRecord: the storage format,
-/// protobuf) that recovery replays, a content hash, and the model files written beside
-/// snapshots. sculpt/codec/model_messages.h decodes the ModelIntent off the wire; the scene's
+/// @brief Hyperpatch models as scene objects (issue 7, seed 001 §8.1, §10.4-10.5): a content
+/// hash and the model files written beside snapshots. sculpt/codec/model_messages.h decodes the
+/// ModelIntent off the wire and sculpt/codec/log_records.h holds its edit-log record; the scene's
 /// model path (Scene::EditModel) lives in models.cc.
 #ifndef SCULPT_SERVER_SCENE_MODELS_H_
 #define SCULPT_SERVER_SCENE_MODELS_H_
@@ -12,16 +11,12 @@
 #include "sculpt/core/status.h"
 #include "sculpt/hetero/composite_model.h"
 #include "sculpt/hetero/grid_editor.h"
-#include "sculpt/v1/sculpt.pb.h"
 
 namespace sculpt::server {
 
 /// FNV-1a over the model's content (materials, coefficient positions and fractions bit for bit,
 /// cells' pool indices, corner flags); cell versions are not content and are left out.
 uint64_t ModelHash(const hetero::CompositeModel& model);
-
-/// The edit-log payload of a model record (read back by DecodeLogRecord, commit.h).
-std::string ModelPayload(const v1::ModelRecord& record);
 
 /// A model as saved beside the snapshots: the edit-log sequence it includes, its version and
 /// the model itself (model_io's JSON).

@@ -1,4 +1,4 @@
-/// @brief Painting material fractions (issue 7): the edit-log form that recovery replays, and
+/// @brief Painting material fractions (issue 7): replaying a logged paint, and
 /// the scene's paint path (check against the object, log, apply, replicate, answer once
 /// durable). The Scene's part runs on the compute thread.
 #include "scene/paint.h"
@@ -8,7 +8,6 @@
 #include <cmath>
 
 #include "scene/answer_once.h"
-#include "scene/log_payload.h"
 #include "scene/scene.h"
 #include "sculpt/codec/frame.h"
 #include "sculpt/core/check.h"
@@ -27,11 +26,9 @@ StatusOr<levelset::MaterialEditResult> ApplyPaint(levelset::Sculpture& sculpture
 // ---------------------------------------------------------------------------------------------
 // Paints in the edit log
 
-std::string PaintPayload(const v1::PaintRecord& r) { return TaggedPayload(LogTag::kPaint, r); }
-
-Status ReplayPaint(levelset::Sculpture& sculpture, uint64_t seq, const v1::PaintRecord& r) {
-  // The record embeds the paint's wire form, checked when it was made.
-  auto res = ApplyPaint(sculpture, codec::PaintFromRecord(r.edit()));
+Status ReplayPaint(levelset::Sculpture& sculpture, uint64_t seq, const codec::PaintRecord& r) {
+  // Checked when it was made, against the limits of its time.
+  auto res = ApplyPaint(sculpture, r.paint);
   if (!res.ok())
     spdlog::warn("paint at seq {} refused on replay: {}", seq, res.status().ToString());
   return Status::Ok();
@@ -60,14 +57,13 @@ struct Scene::PaintOp final : EditOp {
       return FailedPrecondition("PaintEdit.object=" + paint.object +
                                 " outside objects with materials");
     }
-    // The log record is the storage format and stays protobuf; it embeds the paint's wire form.
-    v1::PaintRecord record;
-    record.set_global_seq(first_seq);
-    record.set_client_id(client);
-    *record.mutable_edit() = codec::EncodePaintEdit(paint);
-    records->push_back(PaintPayload(record));
+    codec::PaintRecord record;
+    record.global_seq = first_seq;
+    record.client_id = client;
+    record.paint = paint;
+    records->push_back(codec::EncodeLogRecord(record));
     // Applied as recovery will apply the record (the wire's floats, exactly).
-    logged = codec::PaintFromRecord(record.edit());
+    logged = codec::AsLogged(paint);
     return Status::Ok();
   }
 

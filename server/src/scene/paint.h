@@ -1,18 +1,18 @@
 /// @brief Painting material fractions on the server (issue 7): applying a decoded paint
-/// (sculpt/codec/paint_messages.h decodes the PaintEdit off the wire), and its edit-log form (a
-/// leading 0x01 byte, then a v1::PaintRecord: the storage format, protobuf) that recovery
-/// replays. The scene's paint path (Scene::Paint) lives in paint.cc.
+/// (sculpt/codec/paint_messages.h decodes the PaintEdit off the wire) and replaying its edit-log
+/// record (sculpt/codec/log_records.h holds the storage format). The scene's paint path
+/// (Scene::Paint) lives in paint.cc.
 #ifndef SCULPT_SERVER_SCENE_PAINT_H_
 #define SCULPT_SERVER_SCENE_PAINT_H_
 
 #include <cstdint>
 #include <string>
 
+#include "sculpt/codec/log_records.h"
 #include "sculpt/codec/paint_messages.h"
 #include "sculpt/core/status.h"
 #include "sculpt/levelset/materials.h"
 #include "sculpt/levelset/sculpture.h"
-#include "sculpt/v1/sculpt.pb.h"
 
 namespace sculpt::server {
 
@@ -21,11 +21,10 @@ namespace sculpt::server {
 StatusOr<levelset::MaterialEditResult> ApplyPaint(levelset::Sculpture& sculpture,
                                                   const codec::Paint& paint);
 
-/// The edit-log payload of a paint record (read back by DecodeLogRecord, commit.h).
-std::string PaintPayload(const v1::PaintRecord& record);
 /// Recovery: applies a logged paint as the live server did. A paint the kernel refuses is
 /// refused identically (Ok, nothing applied), as live.
-Status ReplayPaint(levelset::Sculpture& sculpture, uint64_t seq, const v1::PaintRecord& record);
+Status ReplayPaint(levelset::Sculpture& sculpture, uint64_t seq,
+                   const codec::PaintRecord& record);
 
 }  // namespace sculpt::server
 

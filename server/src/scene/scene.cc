@@ -9,7 +9,6 @@
 #include <future>
 
 #include "sculpt/codec/frame.h"
-#include "sculpt/codec/settings.h"
 #include "sculpt/core/check.h"
 #include "scene/answer_once.h"
 #include "scene/edit_history.h"
@@ -99,18 +98,6 @@ StatusOr<levelset::Sculpture> MakeObject(const SceneConfig& scene, const ObjectC
   return s;
 }
 
-// The record of one pose. Live application goes through EditFromRecord(record) too, so the
-// server applies exactly the (float-rounded) edit that recovery and replicas replay.
-v1::EditRecord MakeRecord(uint64_t client_id, uint64_t client_seq, uint32_t pose,
-                          const std::string& object, const levelset::EditRequest& e) {
-  v1::EditRecord r = codec::RecordFromEdit(e);
-  r.set_client_id(client_id);
-  r.set_client_seq(client_seq);
-  r.set_pose_index(pose);
-  r.set_object(object);
-  return r;
-}
-
 // The mesh feed's chunking, rate cap and Draco settings from the scene file.
 MeshFeed::Options MeshFeedOptions(const SceneConfig& scene) {
   MeshFeed::Options o;
@@ -160,7 +147,7 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   };
   auto route = [&sc](const store::LogRecord& rec) -> StatusOr<std::string> {
     SCULPT_ASSIGN_OR_RETURN(LoggedEdit e, DecodeLogRecord(rec.seq, rec.payload));
-    if (auto* m = std::get_if<v1::ModelRecord>(&e.record)) return m->intent().object();
+    if (auto* m = std::get_if<codec::ModelRecord>(&e.record)) return m->edit.object;
     if (e.object.empty()) {
       // A ball edit changes no object (its skin is replayed below); any object lets it pass.
       if (sc.objects.empty()) {
@@ -181,30 +168,29 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   auto apply = [&settings, &batch, raw_scene](levelset::Sculpture& s,
                                               const store::LogRecord& rec) -> Status {
     SCULPT_ASSIGN_OR_RETURN(LoggedEdit e, DecodeLogRecord(rec.seq, rec.payload));
-    const auto* r = std::get_if<v1::EditRecord>(&e.record);
+    const auto* r = std::get_if<codec::StrokePoseRecord>(&e.record);
     if (!r) batch.clear();
     EditHistory& history = raw_scene->HistoryOf(e.object.empty() ? s.name() : e.object);
-    if (auto* w = std::get_if<v1::SkinSweepRecord>(&e.record)) {
-      history.Clear("a sweep changed " + w->object());
+    if (auto* w = std::get_if<codec::SweepRecord>(&e.record)) {
+      history.Clear("a sweep changed " + w->object);
       return ReplaySweep(s, rec.seq, *w);
     }
-    if (auto* p = std::get_if<v1::PaintRecord>(&e.record)) return ReplayPaint(s, rec.seq, *p);
-    if (auto* u = std::get_if<v1::UndoRecord>(&e.record)) {
-      const std::string author = HistoryAuthor(u->client_id());
-      auto out = u->request().redo() ? history.Redo(s, author) : history.Undo(s, author);
+    if (auto* p = std::get_if<codec::PaintRecord>(&e.record)) return ReplayPaint(s, rec.seq, *p);
+    if (auto* u = std::get_if<codec::UndoRecord>(&e.record)) {
+      const std::string author = HistoryAuthor(u->client_id);
+      auto out = u->redo ? history.Redo(s, author) : history.Undo(s, author);
       if (!out.ok()) {
-        spdlog::warn("{} at seq {} refused on replay: {}", u->request().redo() ? "redo" : "undo",
-                     rec.seq, out.status().ToString());
+        spdlog::warn("{} at seq {} refused on replay: {}", u->redo ? "redo" : "undo", rec.seq,
+                     out.status().ToString());
       }
       return Status::Ok();
     }
     if (!r) return Status::Ok();  // a model's or a skin's (replayed after recovery, below)
-    if (r->pose_index() == 0 || r->pose_count() <= 1) batch.clear();
-    batch.push_back(codec::EditFromRecord(*r));
-    if (r->pose_index() + 1 >= r->pose_count()) {
+    if (r->pose_index == 0 || r->pose_count <= 1) batch.clear();
+    batch.push_back(r->edit);
+    if (r->completes()) {
       // An edit the live server refused after logging it is refused identically here.
-      (void)history.Apply(s, rec.seq, HistoryAuthor(r->client_id()), batch, settings,
-                          r->commit_ms());
+      (void)history.Apply(s, rec.seq, HistoryAuthor(r->client_id), batch, settings, r->commit_ms);
       batch.clear();
     }
     return Status::Ok();
@@ -262,8 +248,8 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   SCULPT_RETURN_IF_ERROR(scene->log_->ForEachFrom(0, [&](const store::LogRecord& lr) -> Status {
     SCULPT_ASSIGN_OR_RETURN(LoggedEdit e, DecodeLogRecord(lr.seq, lr.payload));
     if (e.completes) scene->resend_.Record(e.stream, e.client_id, e.client_seq);
-    if (auto* b = std::get_if<v1::SkinEditRecord>(&e.record)) scene->ReplayBallEdit(lr.seq, *b);
-    if (auto* m = std::get_if<v1::ModelRecord>(&e.record)) scene->ReplayModelIntent(lr.seq, *m);
+    if (auto* b = std::get_if<codec::BallEditRecord>(&e.record)) scene->ReplayBallEdit(lr.seq, *b);
+    if (auto* m = std::get_if<codec::ModelRecord>(&e.record)) scene->ReplayModelIntent(lr.seq, *m);
     return Status::Ok();
   }));
   // Resends of edits whose records were dropped with the log before the last snapshot.
@@ -465,14 +451,20 @@ struct Scene::StrokeOp final : EditOp {
     const uint32_t n = static_cast<uint32_t>(stroke.edits.size());
     batch.reserve(n);
     for (uint32_t i = 0; i < n; ++i) {
-      v1::EditRecord r = MakeRecord(client, stroke.client_seq, i, stroke.object, stroke.edits[i]);
-      r.set_global_seq(first_seq + i);
-      r.set_pose_count(n);
-      if (i + 1 == n) r.set_commit_ms(commit_ms = WallClockMs());
-      batch.push_back(codec::EditFromRecord(r));
+      codec::StrokePoseRecord r;
+      r.global_seq = first_seq + i;
+      r.client_id = client;
+      r.client_seq = stroke.client_seq;
+      r.object = stroke.object;
+      r.pose_index = i;
+      r.pose_count = n;
+      if (i + 1 == n) r.commit_ms = commit_ms = WallClockMs();
+      r.edit = stroke.edits[i];
+      // Applied as logged (float-rounded), exactly as recovery and replicas replay it.
+      batch.push_back(codec::AsLogged(r.edit));
       SCULPT_RETURN_IF_ERROR(levelset::ValidateEditRequest(it->second, batch.back(),
                                                            scene.settings_));
-      records->push_back(r.SerializeAsString());
+      records->push_back(codec::EncodeLogRecord(r));
     }
     return Status::Ok();
   }
@@ -624,47 +616,35 @@ void Scene::OnSnapshotRoundDurable(uint64_t seq) {
 }
 
 void Scene::RefreshInfoLocked() {
-  info_.Clear();
-  info_.set_scene(config_.scene.name);
-  info_.set_global_seq(applied_seq_.load());
-  info_.set_min_tool_size(static_cast<float>(config_.scene.min_tool_size));
-  info_.set_max_tool_size(static_cast<float>(config_.scene.max_tool_size));
-  info_.set_max_speed(static_cast<float>(config_.scene.max_speed));
-  *info_.mutable_edit_settings() = codec::SettingsToProto(settings_);
-  info_.set_replica_halo_voxels(kReplicaHaloVoxels);
-  v1::Effects* e = info_.mutable_effects();
-  e->set_volume_preservation(config_.scene.effects.volume_preservation);
-  e->set_smoothing(config_.scene.effects.smoothing);
-  e->set_islands(config_.scene.effects.islands);
-  e->set_min_island_volume(config_.scene.effects.min_island_volume);
-  e->set_contours(config_.scene.effects.contours);
-  for (const levelset::MaterialDecl& m : config_.scene.materials) {
-    e->add_materials(m.name);
-    for (double c : m.colour) e->add_material_colours(static_cast<float>(c));
-  }
+  SceneSummary& info = info_;
+  info.scene = config_.scene.name;
+  info.global_seq = applied_seq_.load();
+  info.min_tool_size = config_.scene.min_tool_size;
+  info.max_tool_size = config_.scene.max_tool_size;
+  info.max_speed = config_.scene.max_speed;
+  info.edit_settings = settings_;
+  info.replica_halo_voxels = kReplicaHaloVoxels;
+  info.effects = config_.scene.effects;
+  info.materials = config_.scene.materials;
+  info.objects.clear();
   for (auto& [name, s] : sculptures_) {
-    v1::ObjectInfo* o = info_.add_objects();
-    o->set_name(name);
-    o->set_voxel_size(s.voxel_size());
-    o->set_half_width(static_cast<uint32_t>(s.half_width()));
+    ObjectSummary& o = info.objects.emplace_back();
+    o.name = name;
+    o.voxel_size = s.voxel_size();
+    o.half_width = static_cast<uint32_t>(s.half_width());
     auto b = bounds_.find(name);
-    const levelset::Aabb ab = b != bounds_.end() ? b->second : s.WorldBounds();
-    if (b == bounds_.end()) bounds_[name] = ab;
-    *o->mutable_bounds_min() = codec::ToProto(ab.min);
-    *o->mutable_bounds_max() = codec::ToProto(ab.max);
-    o->set_volume(s.volume());
-    o->set_reference_volume(s.reference_volume());
+    o.bounds = b != bounds_.end() ? b->second : s.WorldBounds();
+    if (b == bounds_.end()) bounds_[name] = o.bounds;
+    o.volume = s.volume();
+    o.reference_volume = s.reference_volume();
   }
+  info.skins.clear();
   for (const SkinConfig& k : config_.scene.skins) {
-    v1::SkinInfo* m = info_.add_skins();
-    m->set_name(k.name);
-    *m->mutable_origin() = codec::ToProto(k.origin);
-    *m->mutable_u() = codec::ToProto(k.u);
-    *m->mutable_v() = codec::ToProto(k.v);
+    info.skins.push_back({k.name, k.origin, k.u, k.v});
   }
 }
 
-v1::SceneInfo Scene::Info() const {
+SceneSummary Scene::Info() const {
   std::lock_guard<std::mutex> lock(info_mu_);
   return info_;
 }
@@ -724,7 +704,7 @@ void Scene::RequestJoinState(std::function<void(StatusOr<JoinState>)> done) {
   Post(CurrentRequester(), "join state copy", fail, [this, answer, fail] {
     // Only the deep copies happen on the compute thread (milliseconds); serialising them waits
     // for the join worker, so a late joiner never stalls the others' edits.
-    auto info = std::make_shared<v1::SceneInfo>();
+    auto info = std::make_shared<SceneSummary>();
     {
       std::lock_guard<std::mutex> lock(info_mu_);
       *info = info_;
@@ -742,7 +722,7 @@ void Scene::RequestJoinState(std::function<void(StatusOr<JoinState>)> done) {
         auto bytes = copy.SerializeVdb();
         if (!bytes.ok()) return answer(bytes.status());
         js.objects.emplace_back(name, std::move(bytes).value());
-        js.info.mutable_objects(static_cast<int>(i))->set_state_hash(copy.StateHash());
+        js.info.objects[i].state_hash = copy.StateHash();
       }
       answer(std::move(js));
     };

@@ -18,6 +18,7 @@
 
 #include "config/server_config.h"
 #include "scene/commit.h"
+#include "scene/scene_summary.h"
 #include "scene/fair_queue.h"
 #include "scene/mesh_feed.h"
 #include "scene/outcomes.h"
@@ -67,7 +68,7 @@ struct StrokeOutcome {
 
 /// The current state for a late joiner.
 struct JoinState {
-  v1::SceneInfo info;
+  SceneSummary info;  // each object's state_hash set
   std::vector<std::pair<std::string, std::string>> objects;  // name, .vdb bytes
 };
 
@@ -101,8 +102,8 @@ class Scene {
 
   /// Limits a stroke on `object` is decoded against; NotFound for an unknown object.
   StatusOr<codec::StrokeLimits> LimitsFor(const std::string& object) const;
-  /// Scene info as of the last applied edit.
-  v1::SceneInfo Info() const;
+  /// The scene as of the last applied edit (net/wire_info.h puts it on the wire).
+  SceneSummary Info() const;
   const std::string& name() const { return config_.scene.name; }
   uint64_t global_seq() const { return applied_seq_.load(); }
 
@@ -309,8 +310,8 @@ class Scene {
   // Queues `answer` until the log is durable up to `seq` (in sequence order with every other).
   void AnswerWhenDurable(uint64_t seq, std::function<void()> answer);
   // Recovery: replays a logged ball edit or model intent past the state their files hold.
-  void ReplayBallEdit(uint64_t seq, const v1::SkinEditRecord& record);
-  void ReplayModelIntent(uint64_t seq, const v1::ModelRecord& record);
+  void ReplayBallEdit(uint64_t seq, const codec::BallEditRecord& record);
+  void ReplayModelIntent(uint64_t seq, const codec::ModelRecord& record);
   void MaybeSnapshot(bool force = false);
   void ReleaseDurable(uint64_t durable_seq);
   void RefreshInfoLocked();
@@ -355,7 +356,7 @@ class Scene {
   std::string recovery_summary_;
 
   mutable std::mutex info_mu_;
-  v1::SceneInfo info_;
+  SceneSummary info_;
   std::map<std::string, levelset::Aabb> bounds_;
 
   mutable std::mutex pending_mu_;

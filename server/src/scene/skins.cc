@@ -19,9 +19,9 @@
 
 #include "scene/answer_once.h"
 #include "scene/edit_history.h"
-#include "scene/log_payload.h"
 #include "scene/scene.h"
-#include "sculpt/codec/frame.h"
+#include "sculpt/codec/contour_frames.h"
+#include "sculpt/codec/log_records.h"
 #include "sculpt/codec/skin_messages.h"
 #include "sculpt/codec/stroke.h"
 #include "sculpt/core/check.h"
@@ -34,26 +34,15 @@
 namespace sculpt::server {
 namespace {
 
-// No serialised EditRecord starts with a zero byte (field number 0 is not a valid tag); paints
-// take 0x01 (paint.cc), model intents 0x02 (models.cc), ball edits 0x03.
 // Slices are quantised to an eighth of their sample spacing.
 constexpr double kSliceQuantumPerStep = 1.0 / 8;
 
-std::shared_ptr<const std::string> Frame(const v1::ServerMessage& m) {
-  auto f = std::make_shared<std::string>();
-  codec::AppendMessage(m, f.get());
-  return f;
-}
-
 // The whole chain, so that a contour subscriber can draw the balls and address them by index.
-void SetBalls(const skin::Skin& sk, v1::ContourUpdate* u) {
-  for (const skin::OrientedBall& b : sk.balls()) {
-    v1::SkinBall* m = u->add_balls();
-    m->set_x(b.c.x);
-    m->set_y(b.c.y);
-    m->set_r(b.r);
-    m->set_theta(b.theta);
-  }
+std::vector<codec::SkinBall> Balls(const skin::Skin& sk) {
+  std::vector<codec::SkinBall> out;
+  out.reserve(sk.balls().size());
+  for (const skin::OrientedBall& b : sk.balls()) out.push_back({b.c.x, b.c.y, b.r, b.theta});
+  return out;
 }
 
 std::vector<skin::Polyline2> ToPolylines(const std::vector<std::vector<levelset::PlanePoint>>& in) {
@@ -114,60 +103,19 @@ std::string SkinFilePath(const std::string& data_dir, const std::string& name) {
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
-// Sweeps in the edit log
+// Sweeps in the edit log; skin files beside the snapshots
 
-std::string SweepPayload(const v1::SkinSweepRecord& r) { return TaggedPayload(LogTag::kSweep, r); }
-
-
-StatusOr<levelset::SweepRequest> SweepFromRecord(const v1::SkinSweepRecord& r) {
-  levelset::SweepRequest q;
-  if (r.plane_size() != 9) {
-    return InvalidArgument("SkinSweepRecord.plane.size=" + std::to_string(r.plane_size()) +
-                           " outside {9}");
-  }
-  if (r.outline_size() % 2 != 0) {
-    return InvalidArgument("SkinSweepRecord.outline.size=" + std::to_string(r.outline_size()) +
-                           " outside even numbers");
-  }
-  auto p = [&r](int i) { return Vec3{r.plane(i), r.plane(i + 1), r.plane(i + 2)}; };
-  q.plane = {p(0), p(3), p(6)};
-  q.add = r.kind() == v1::EDIT_KIND_ADD;
-  q.mode = r.mode() == v1::SKIN_SWEEP_MODE_REVOLVE ? levelset::SweepRequest::Mode::kRevolve
-                                                   : levelset::SweepRequest::Mode::kExtrude;
-  q.depth = r.depth();
-  if (q.mode == levelset::SweepRequest::Mode::kRevolve) {
-    if (r.axis_size() != 4) {
-      return InvalidArgument("SkinSweepRecord.axis.size=" + std::to_string(r.axis_size()) +
-                             " outside {4}");
-    }
-    q.axis_point = {r.axis(0), r.axis(1)};
-    q.axis_dir = {r.axis(2), r.axis(3)};
-  }
-  q.outline.reserve(r.outline_size() / 2);
-  for (int i = 0; i + 1 < r.outline_size(); i += 2) q.outline.push_back({r.outline(i), r.outline(i + 1)});
-  return q;
-}
-
-Status ReplaySweep(levelset::Sculpture& sculpture, uint64_t seq, const v1::SkinSweepRecord& r) {
-  auto q = SweepFromRecord(r);
-  if (!q.ok()) {
-    spdlog::warn("sweep at seq {} not replayed: {}", seq, q.status().ToString());
+Status ReplaySweep(levelset::Sculpture& sculpture, uint64_t seq, const codec::SweepRecord& r) {
+  if (!r.request_status.ok()) {
+    spdlog::warn("sweep at seq {} not replayed: {}", seq, r.request_status.ToString());
     return Status::Ok();
   }
-  (void)levelset::ApplySweep(sculpture, *q);
+  (void)levelset::ApplySweep(sculpture, r.request);
   return Status::Ok();
 }
 
-// ---------------------------------------------------------------------------------------------
-// Ball edits in the edit log; skin files beside the snapshots
-
-std::string SkinEditPayload(const v1::SkinEditRecord& r) {
-  return TaggedPayload(LogTag::kSkinEdit, r);
-}
-
-
-Status SaveSkinFile(const std::string& path, const v1::SavedSkin& saved) {
-  const std::string bytes = saved.SerializeAsString();
+Status SaveSkinFile(const std::string& path, const codec::SavedSkin& saved) {
+  const std::string bytes = codec::EncodeSavedSkin(saved);
   const std::string tmp = path + ".tmp";
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) return Internal("open " + tmp + ": " + std::strerror(errno));
@@ -195,12 +143,12 @@ Status SaveSkinFile(const std::string& path, const v1::SavedSkin& saved) {
   return store::FsyncDirectory(std::filesystem::path(path).parent_path().string());
 }
 
-StatusOr<v1::SavedSkin> LoadSkinFile(const std::string& path) {
+StatusOr<codec::SavedSkin> LoadSkinFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return NotFound("skin file " + path);
   const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  v1::SavedSkin saved;
-  if (!saved.ParseFromString(bytes)) return DataLoss("skin file " + path + " does not parse");
+  auto saved = codec::DecodeSavedSkin(bytes);
+  if (!saved.ok()) return DataLoss("skin file " + path + " does not parse");
   return saved;
 }
 
@@ -238,14 +186,14 @@ Status Scene::OpenSkins() {
     uint64_t file_seq = 0;
     auto saved = LoadSkinFile(SkinFilePath(config_.data_dir, c.name));
     if (saved.ok()) {
-      for (const v1::SkinBall& b : saved->balls()) balls.push_back({{b.x(), b.y()}, b.r(), b.theta()});
-      version = saved->version();
-      file_seq = saved->seq();
+      for (const codec::SkinBall& b : saved->balls) balls.push_back({{b.x, b.y}, b.r, b.theta});
+      version = saved->version;
+      file_seq = saved->seq;
       // Files written before the resend table held every edit kind carry their own.
-      for (const auto& [id, seq] : saved->last_edit_seq()) {
+      for (const auto& [id, seq] : saved->last_edit_seq) {
         resend_.Record(ResendStream::kBallEdits, id, seq);
       }
-      for (const auto& [id, seq] : saved->last_sweep_seq()) {
+      for (const auto& [id, seq] : saved->last_sweep_seq) {
         resend_.Record(ResendStream::kSweeps, id, seq);
       }
     } else if (saved.status().code() != Status::Code::kNotFound) {
@@ -267,25 +215,24 @@ Status Scene::OpenSkins() {
   return Status::Ok();
 }
 
-void Scene::ReplayBallEdit(uint64_t seq, const v1::SkinEditRecord& r) {
-  auto it = skins_->skins.find(r.edit().skin());
+void Scene::ReplayBallEdit(uint64_t seq, const codec::BallEditRecord& r) {
+  auto it = skins_->skins.find(r.edit.skin);
   if (it == skins_->skins.end()) {
     spdlog::warn("ball edit at seq {} names skin {}, which the scene does not define", seq,
-                 r.edit().skin());
+                 r.edit.skin);
     return;
   }
   SkinState::Entry& entry = it->second;
   if (seq <= entry.file_seq) return;  // the skin file holds it
-  // The record embeds the edit in its wire form (the log's storage format): decoded as live.
-  auto edit = codec::DecodeSkinBallEdit(r.edit());
-  Status st = edit.status();
-  if (st.ok()) st = CheckBallIndex(entry.skin, *edit);
-  if (st.ok()) st = ApplyBallEdit(entry.skin, *edit).status();
+  // The codec checked the logged edit as the live server checked it.
+  Status st = r.edit_status;
+  if (st.ok()) st = CheckBallIndex(entry.skin, r.edit);
+  if (st.ok()) st = ApplyBallEdit(entry.skin, r.edit).status();
   if (!st.ok()) {
     spdlog::warn("ball edit at seq {} refused on replay: {}", seq, st.ToString());
     return;
   }
-  entry.version = r.skin_version();
+  entry.version = r.skin_version;
 }
 
 bool Scene::SaveSkins(uint64_t seq) {
@@ -294,15 +241,11 @@ bool Scene::SaveSkins(uint64_t seq) {
   std::error_code ec;
   std::filesystem::create_directories(std::filesystem::path(config_.data_dir) / "skins", ec);
   for (const auto& [name, entry] : skins_->skins) {
-    v1::SavedSkin saved;
-    saved.set_seq(seq);
-    saved.set_version(entry.version);
+    codec::SavedSkin saved;
+    saved.seq = seq;
+    saved.version = entry.version;
     for (const skin::OrientedBall& o : entry.skin.balls()) {
-      v1::SkinBall* b = saved.add_balls();
-      b->set_x(o.c.x);
-      b->set_y(o.c.y);
-      b->set_r(o.r);
-      b->set_theta(o.theta);
+      saved.balls.push_back({o.c.x, o.c.y, o.r, o.theta});
     }
     // Written before the log rolls, so the segments a snapshot lets go are already covered.
     if (const Status s = SaveSkinFile(SkinFilePath(config_.data_dir, name), saved); !s.ok()) {
@@ -344,13 +287,12 @@ struct Scene::BallEditOp final : EditOp {
                         c.status().message());
     }
     change = std::move(c).value();
-    // The log record is the storage format and stays protobuf; it embeds the edit's wire form.
-    v1::SkinEditRecord rec;
-    rec.set_global_seq(first_seq);
-    rec.set_client_id(client);
-    *rec.mutable_edit() = codec::EncodeSkinBallEdit(edit);
-    rec.set_skin_version(entry.version + 1);
-    records->push_back(SkinEditPayload(rec));
+    codec::BallEditRecord rec;
+    rec.global_seq = first_seq;
+    rec.client_id = client;
+    rec.edit = edit;
+    rec.skin_version = entry.version + 1;
+    records->push_back(codec::EncodeLogRecord(rec));
     return Status::Ok();
   }
 
@@ -365,14 +307,13 @@ struct Scene::BallEditOp final : EditOp {
       if (!bytes.ok()) {
         spdlog::error("skin {}: update not encoded: {}", edit.skin, bytes.status().ToString());
       } else {
-        v1::ServerMessage m;
-        v1::ContourUpdate* u = m.mutable_contour();
-        u->set_skin(edit.skin);
-        u->set_data(std::move(bytes).value());
-        u->set_sections(static_cast<uint32_t>(change.changed.size()));
-        u->set_skin_version(entry.version);
-        SetBalls(entry.skin, u);
-        auto frame = Frame(m);
+        codec::ContourUpdateFrame u;
+        u.skin = edit.skin;
+        u.data = std::move(bytes).value();
+        u.sections = static_cast<uint32_t>(change.changed.size());
+        u.skin_version = entry.version;
+        u.balls = Balls(entry.skin);
+        auto frame = codec::EncodeContourUpdate(std::move(u));
         for (auto& [id, sink] : entry.subs) sink.send(frame);
       }
     }
@@ -430,35 +371,28 @@ struct Scene::SweepOp final : EditOp {
       return NotFound("SkinSweep.object=" + sweep.object + " outside the scene's objects");
     }
     const SkinState::Entry& entry = *found;
-    const bool revolve = sweep.mode == levelset::SweepRequest::Mode::kRevolve;
-    // The log record is the storage format and stays protobuf (its enums are the wire's).
-    v1::SkinSweepRecord rec;
-    rec.set_client_id(client);
-    rec.set_client_seq(sweep.client_seq);
-    rec.set_object(sweep.object);
-    rec.set_mode(revolve ? v1::SKIN_SWEEP_MODE_REVOLVE : v1::SKIN_SWEEP_MODE_EXTRUDE);
-    rec.set_kind(sweep.add ? v1::EDIT_KIND_ADD : v1::EDIT_KIND_SUBTRACT);
-    rec.set_depth(sweep.depth);
-    for (const Vec3& v : {entry.plane.origin, entry.plane.u, entry.plane.v}) {
-      rec.add_plane(v.x);
-      rec.add_plane(v.y);
-      rec.add_plane(v.z);
+    codec::SweepRecord rec;
+    rec.global_seq = first_seq;
+    rec.client_id = client;
+    rec.client_seq = sweep.client_seq;
+    rec.object = sweep.object;
+    // The record holds the request as the kernel applies it (its numbers are doubles both ways,
+    // so recovery applies the same one).
+    levelset::SweepRequest& q = rec.request;
+    q.mode = sweep.mode;
+    q.add = sweep.add;
+    q.depth = sweep.depth;
+    q.plane = entry.plane;
+    const skin::Polyline2 outline = entry.skin.Outline();
+    q.outline.reserve(outline.size());
+    for (const skin::Vec2& p : outline) q.outline.push_back({p.x, p.y});
+    if (sweep.mode == levelset::SweepRequest::Mode::kRevolve) {
+      q.axis_point = {sweep.axis_x, sweep.axis_y};
+      q.axis_dir = {std::cos(sweep.axis_angle), std::sin(sweep.axis_angle)};
     }
-    for (const skin::Vec2& p : entry.skin.Outline()) {
-      rec.add_outline(p.x);
-      rec.add_outline(p.y);
-    }
-    if (revolve) {
-      for (double v : {sweep.axis_x, sweep.axis_y, std::cos(sweep.axis_angle),
-                       std::sin(sweep.axis_angle)}) {
-        rec.add_axis(v);
-      }
-    }
-    // The request the kernel applies comes from the record, as recovery's does.
-    SCULPT_ASSIGN_OR_RETURN(request, SweepFromRecord(rec));
-    SCULPT_RETURN_IF_ERROR(levelset::ValidateSweep(obj->second, request));
-    rec.set_global_seq(first_seq);
-    records->push_back(SweepPayload(rec));
+    SCULPT_RETURN_IF_ERROR(levelset::ValidateSweep(obj->second, q));
+    request = q;
+    records->push_back(codec::EncodeLogRecord(rec));
     return Status::Ok();
   }
 
@@ -518,13 +452,12 @@ void SendSlice(const std::string& object, const ReplicaSink& sink, double step,
     spdlog::warn("slice of {}: not encoded: {}", object, bytes.status().ToString());
     return;
   }
-  v1::ServerMessage m;
-  v1::ContourUpdate* u = m.mutable_contour();
-  u->set_object(object);
-  u->set_data(std::move(bytes).value());
-  u->set_sections(static_cast<uint32_t>(lines.size()));
-  u->set_global_seq(seq);
-  sink.send(Frame(m));
+  codec::ContourUpdateFrame u;
+  u.object = object;
+  u.data = std::move(bytes).value();
+  u.sections = static_cast<uint32_t>(lines.size());
+  u.global_seq = seq;
+  sink.send(codec::EncodeContourUpdate(std::move(u)));
 }
 
 // True when the slice's plane passes through the world box of the changed leaves (the slice
@@ -577,14 +510,13 @@ void Scene::SubscribeContours(ReplicaSink sink, codec::ContourRequest req,
       auto bytes = skin::EncodeSkinSnapshot(entry.skin);
       if (!bytes.ok()) return (*cb)(bytes.status());
       (*cb)(Status::Ok());
-      v1::ServerMessage m;
-      v1::ContourUpdate* u = m.mutable_contour();
-      u->set_skin(req.skin);
-      u->set_data(std::move(bytes).value());
-      u->set_sections(static_cast<uint32_t>(entry.skin.sections().size()));
-      u->set_skin_version(entry.version);
-      SetBalls(entry.skin, u);
-      sink.send(Frame(m));
+      codec::ContourUpdateFrame u;
+      u.skin = req.skin;
+      u.data = std::move(bytes).value();
+      u.sections = static_cast<uint32_t>(entry.skin.sections().size());
+      u.skin_version = entry.version;
+      u.balls = Balls(entry.skin);
+      sink.send(codec::EncodeContourUpdate(std::move(u)));
       entry.subs[session] = std::move(sink);
       return;
     }

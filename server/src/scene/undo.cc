@@ -11,8 +11,8 @@
 #include "net/wire_error.h"
 #include "scene/answer_once.h"
 #include "scene/edit_history.h"
-#include "scene/log_payload.h"
 #include "scene/scene.h"
+#include "sculpt/codec/log_records.h"
 #include "store/durable_file.h"
 #include "store/resend_table.h"
 
@@ -88,12 +88,14 @@ struct Scene::UndoOp final : EditOp {
       // The history says why not (nothing ever, fell off the depth, cleared by a sweep).
       SCULPT_RETURN_IF_ERROR(h.UndoTarget(author).status());
     }
-    v1::UndoRecord rec;
-    rec.set_global_seq(first_seq);
-    rec.set_client_id(client);
-    *rec.mutable_request() = request;
-    rec.set_author(author);
-    records->push_back(TaggedPayload(LogTag::kUndo, rec));
+    codec::UndoRecord rec;
+    rec.global_seq = first_seq;
+    rec.client_id = client;
+    rec.client_seq = request.client_seq();
+    rec.object = request.object();
+    rec.redo = request.redo();
+    rec.author = author;
+    records->push_back(codec::EncodeLogRecord(rec));
     return Status::Ok();
   }
 

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "integration/raw_client.h"
+#include "net/wire_info.h"
 #include "scene/scene.h"
 
 namespace sculpt::server {
@@ -135,8 +136,8 @@ class UndoSceneTest : public ::testing::Test {
   // Volume and reference volume bit for bit, and the state hash.
   static void ExpectSameObject(Scene& a, Scene& b, const std::string& where) {
     EXPECT_EQ(a.StateHash("clay"), b.StateHash("clay")) << where;
-    const v1::ObjectInfo ia = a.Info().objects(0);
-    const v1::ObjectInfo ib = b.Info().objects(0);
+    const v1::ObjectInfo ia = ToWireSceneInfo(a.Info()).objects(0);
+    const v1::ObjectInfo ib = ToWireSceneInfo(b.Info()).objects(0);
     EXPECT_EQ(ia.volume(), ib.volume()) << where;
     EXPECT_EQ(ia.reference_volume(), ib.reference_volume()) << where;
   }
@@ -406,12 +407,12 @@ TEST_F(UndoSceneTest, UndoOfAStrokeThatCutOffAnIslandWhichWasRemoved) {
   scene_ = Open("a");
   ASSERT_TRUE(scene_);
   constexpr uint64_t kA = 11, kB = 22, kC = 33;
-  double reference0 = scene_->Info().objects(0).reference_volume();
+  double reference0 = ToWireSceneInfo(scene_->Info()).objects(0).reference_volume();
   const Edit cut{kA, 1, v1::EDIT_KIND_PRESS, {7, 0, -3}, {7, 0, 3}, 5, 2.0};
   const StrokeOutcome o = Submit(*scene_, cut);
   ASSERT_TRUE(o.status.ok());
   ASSERT_GE(o.last.islands_removed, 1) << "the press did not cut the tip off";
-  EXPECT_LT(scene_->Info().objects(0).reference_volume(), reference0);
+  EXPECT_LT(ToWireSceneInfo(scene_->Info()).objects(0).reference_volume(), reference0);
   auto sample = [](Scene& s, Vec3 p) {
     double v = 0;
     EXPECT_TRUE(s.Inspect("clay", [&](const levelset::Sculpture& x) { v = x.SampleWorld(p); }));

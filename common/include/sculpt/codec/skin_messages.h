@@ -41,6 +41,11 @@ struct BallEdit {
   double x = 0, y = 0, r = 0, theta = 0;
 };
 
+/// A ball of a skin as skin files and contour updates carry it (world units, radians).
+struct SkinBall {
+  double x = 0, y = 0, r = 0, theta = 0;
+};
+
 /// Checks a SkinBallEdit: skin name 1..64 bytes, op in {ADD, MOVE, REMOVE, ORIENT}, index below
 /// kMaxSkinBalls, the ball fields the op uses finite with |x|, |y| <= kMaxSkinCoordinate,
 /// r in [kMinSkinRadius, kMaxSkinCoordinate], |theta| <= kMaxSkinTheta. InvalidArgument

@@ -1,0 +1,19 @@
+/// @brief The scene's summary on the wire: SceneSummary (scene/scene_summary.h) to the
+/// sculpt.v1.SceneInfo a joiner gets.
+#ifndef SCULPT_SERVER_NET_WIRE_INFO_H_
+#define SCULPT_SERVER_NET_WIRE_INFO_H_
+
+#include "scene/scene_summary.h"
+
+namespace sculpt::v1 {
+class SceneInfo;
+}  // namespace sculpt::v1
+
+namespace sculpt::server {
+
+/// The wire form (numbers the wire carries as float are rounded to float). Does not fail.
+v1::SceneInfo ToWireSceneInfo(const SceneSummary& summary);
+
+}  // namespace sculpt::server
+
+#endif  // SCULPT_SERVER_NET_WIRE_INFO_H_
