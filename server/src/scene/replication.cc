@@ -40,10 +40,10 @@ StatusOr<levelset::VoxelBox> Scene::HeldBox(const levelset::Sculpture& s,
   const double h[3] = {hi.x, hi.y, hi.z};
   for (int a = 0; a < 3; ++a) {
     if (!(h[a] >= l[a]) || h[a] - l[a] > limit) {
-      return InvalidArgument(f + ".max." + axis[a] + "=" + FormatNumber(h[a]) + " outside [" +
-                             FormatNumber(l[a]) + ", " + FormatNumber(l[a] + limit) +
-                             "] (min to min + " + std::to_string(kMaxInterestVoxels) +
-                             " voxels; leave interest unset for the whole object)");
+      return Outside(f + ".max." + axis[a], FormatNumber(h[a]),
+                     std::string("[") + FormatNumber(l[a]) + ", " + FormatNumber(l[a] + limit) +
+                         std::string("] (min to min + ") + std::to_string(kMaxInterestVoxels) +
+                         " voxels; leave interest unset for the whole object)");
     }
   }
   return levelset::WorldToVoxelBox(s, lo, hi).Dilated(kReplicaHaloVoxels);
@@ -91,13 +91,14 @@ void Scene::Subscribe(ReplicaSink sink, codec::ReplicaSubscription req,
   Post(who, "subscribe", fail, [this, sink = std::move(sink), req = std::move(req), cb]() mutable {
     auto it = sculptures_.find(req.object);
     if (it == sculptures_.end()) {
-      return (*cb)(NotFound("Subscribe.object=" + req.object + " outside the scene's objects"));
+      return (*cb)(
+          Outside("Subscribe.object", req.object, "the scene's objects", Status::Code::kNotFound));
     }
     const uint64_t now = applied_seq_.load();
     if (req.have_seq > now) {
-      return (*cb)(InvalidArgument("Subscribe.have_seq=" + std::to_string(req.have_seq) +
-                                   " outside [0, " + std::to_string(now) +
-                                   "] (the server's sequence); subscribe with 0 to load anew"));
+      return (*cb)(Outside("Subscribe.have_seq", std::to_string(req.have_seq),
+                           std::string("[0, ") + std::to_string(now) +
+                               "] (the server's sequence); subscribe with 0 to load anew"));
     }
     Sub sub;
     sub.sink = std::move(sink);
@@ -124,8 +125,8 @@ void Scene::SetInterest(uint64_t session_id, codec::InterestChange req,
   Post(CurrentRequester(), "set interest", fail, [this, session_id, req = std::move(req), cb] {
     auto s = subs_.find(session_id);
     if (s == subs_.end() || s->second.object != req.object) {
-      return (*cb)(FailedPrecondition("SetInterest.object=" + req.object +
-                                      " outside this session's subscriptions"));
+      return (*cb)(Outside("SetInterest.object", req.object, "this session's subscriptions",
+                           Status::Code::kFailedPrecondition));
     }
     const levelset::Sculpture& sculpture = sculptures_.at(req.object);
     const bool whole = !req.interest;

@@ -74,12 +74,12 @@ Status CheckBallIndex(const skin::Skin& sk, const codec::BallEdit& e) {
   const size_t i = e.index;
   const bool add = e.op == codec::BallOp::kAdd;
   if (add ? i > n : i >= n) {
-    return InvalidArgument("SkinBallEdit.index=" + std::to_string(i) + " outside [0, " +
-                           std::to_string(add ? n : n - 1) + "]");
+    return Outside("SkinBallEdit.index", std::to_string(i),
+                   std::string("[0, ") + std::to_string(add ? n : n - 1) + "]");
   }
   if (add && n >= kMaxSkinBalls) {
-    return InvalidArgument("SkinBallEdit.op=ADD outside skins of at most " +
-                           std::to_string(kMaxSkinBalls) + " balls");
+    return Outside("SkinBallEdit.op", "ADD",
+                   std::string("skins of at most ") + std::to_string(kMaxSkinBalls) + " balls");
   }
   return Status::Ok();
 }
@@ -122,12 +122,11 @@ std::string SweepPayload(const v1::SkinSweepRecord& r) { return TaggedPayload(Lo
 StatusOr<levelset::SweepRequest> SweepFromRecord(const v1::SkinSweepRecord& r) {
   levelset::SweepRequest q;
   if (r.plane_size() != 9) {
-    return InvalidArgument("SkinSweepRecord.plane.size=" + std::to_string(r.plane_size()) +
-                           " outside {9}");
+    return Outside("SkinSweepRecord.plane.size", std::to_string(r.plane_size()), "{9}");
   }
   if (r.outline_size() % 2 != 0) {
-    return InvalidArgument("SkinSweepRecord.outline.size=" + std::to_string(r.outline_size()) +
-                           " outside even numbers");
+    return Outside("SkinSweepRecord.outline.size", std::to_string(r.outline_size()),
+                   "even numbers");
   }
   auto p = [&r](int i) { return Vec3{r.plane(i), r.plane(i + 1), r.plane(i + 2)}; };
   q.plane = {p(0), p(3), p(6)};
@@ -137,14 +136,14 @@ StatusOr<levelset::SweepRequest> SweepFromRecord(const v1::SkinSweepRecord& r) {
   q.depth = r.depth();
   if (q.mode == levelset::SweepRequest::Mode::kRevolve) {
     if (r.axis_size() != 4) {
-      return InvalidArgument("SkinSweepRecord.axis.size=" + std::to_string(r.axis_size()) +
-                             " outside {4}");
+      return Outside("SkinSweepRecord.axis.size", std::to_string(r.axis_size()), "{4}");
     }
     q.axis_point = {r.axis(0), r.axis(1)};
     q.axis_dir = {r.axis(2), r.axis(3)};
   }
   q.outline.reserve(r.outline_size() / 2);
-  for (int i = 0; i + 1 < r.outline_size(); i += 2) q.outline.push_back({r.outline(i), r.outline(i + 1)});
+  for (int i = 0; i + 1 < r.outline_size(); i += 2)
+    q.outline.push_back({r.outline(i), r.outline(i + 1)});
   return q;
 }
 
@@ -225,7 +224,8 @@ struct Scene::SkinState {
   /// The skin named `name`, or NotFound naming `field`, the request field that named it.
   StatusOr<Entry*> Find(const std::string& field, const std::string& name) {
     auto it = skins.find(name);
-    if (it == skins.end()) return NotFound(field + "=" + name + " outside the scene's skins");
+    if (it == skins.end())
+      return Outside(field, name, "the scene's skins", Status::Code::kNotFound);
     return &it->second;
   }
 };
@@ -334,14 +334,15 @@ struct Scene::BallEditOp final : EditOp {
     auto c = ApplyBallEdit(*next, edit);
     if (!c.ok()) {
       // The skin names the inadmissible pair (digest Def 2.6); the refusal names the ball.
-      return Status(c.status().code(),
-                    "SkinBallEdit.ball=(" + FormatNumber(edit.x) + ", " + FormatNumber(edit.y) +
-                        ", r " + FormatNumber(edit.r) + ", theta " + FormatNumber(edit.theta) +
-                        ") at index " + std::to_string(edit.index) +
-                        " outside balls admissible with their neighbours (no contact point "
-                        "inside a neighbour's disk; no nested, concentric or coincident pair), at "
-                        "least 2 balls: " +
-                        c.status().message());
+      return Outside(
+          "SkinBallEdit.ball",
+          std::string("(") + FormatNumber(edit.x) + ", " + FormatNumber(edit.y) + ", r " +
+              FormatNumber(edit.r) + std::string(", theta ") + FormatNumber(edit.theta) +
+              ") at index " + std::to_string(edit.index),
+          "balls admissible with their neighbours (no contact point inside a neighbour's disk; no "
+          "nested, concentric or coincident pair), at least 2 balls: " +
+              c.status().message(),
+          c.status().code());
     }
     change = std::move(c).value();
     // The log record is the storage format and stays protobuf; it embeds the edit's wire form.
@@ -427,7 +428,8 @@ struct Scene::SweepOp final : EditOp {
                             scene.skins_->Find("SkinSweep.skin", sweep.skin));
     auto obj = scene.sculptures_.find(sweep.object);
     if (obj == scene.sculptures_.end()) {
-      return NotFound("SkinSweep.object=" + sweep.object + " outside the scene's objects");
+      return Outside("SkinSweep.object", sweep.object, "the scene's objects",
+                     Status::Code::kNotFound);
     }
     const SkinState::Entry& entry = *found;
     const bool revolve = sweep.mode == levelset::SweepRequest::Mode::kRevolve;
@@ -562,9 +564,10 @@ void Scene::SubscribeContours(ReplicaSink sink, codec::ContourRequest req,
     // The scene decides which effects it computes: without contours, no skin contour or slice
     // is encoded for anyone (principle 2 of ARCHITECTURE.md).
     if (!config_.scene.effects.contours && !req.unsubscribe) {
-      return (*cb)(FailedPrecondition(
-          "scene.effects.contours=false outside {true}: this scene computes no skin contours or "
-          "slices (set contours = true under [scene.effects])"));
+      return (*cb)(Outside("scene.effects.contours", "false",
+                           "{true}: this scene computes no skin contours or slices (set contours = "
+                           "true under [scene.effects])",
+                           Status::Code::kFailedPrecondition));
     }
     if (!req.skin.empty()) {
       auto found = skins_->Find("ContourSubscribe.skin", req.skin);
@@ -590,8 +593,8 @@ void Scene::SubscribeContours(ReplicaSink sink, codec::ContourRequest req,
     }
     const std::string& object = req.object;
     if (sculptures_.find(object) == sculptures_.end()) {
-      return (*cb)(NotFound("ContourSubscribe.slice.object=" + object +
-                            " outside the scene's objects"));
+      return (*cb)(Outside("ContourSubscribe.slice.object", object, "the scene's objects",
+                           Status::Code::kNotFound));
     }
     if (req.unsubscribe) {
       skins_->slices[object].erase(session);

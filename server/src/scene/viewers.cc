@@ -45,8 +45,8 @@ void Scene::SubscribeViewer(ReplicaSink sink, codec::ViewerSubscription req,
   Post(who, "viewer", fail, [this, sink = std::move(sink), req = std::move(req), cb]() mutable {
     auto it = sculptures_.find(req.object);
     if (it == sculptures_.end()) {
-      return (*cb)(NotFound("ViewerSubscribe.object=" + req.object +
-                            " outside the scene's objects"));
+      return (*cb)(Outside("ViewerSubscribe.object", req.object, "the scene's objects",
+                           Status::Code::kNotFound));
     }
     // The decoder checked a requested rate; the default and the cap are the scene's.
     const double max_rate = config_.scene.mesh_max_rate_hz;
