@@ -303,9 +303,10 @@ TEST(CrashTest, FullDiskRefusesNamedAndResumesWhenSpaceReturns) {
   }
   ASSERT_LT(seq, 200u) << "the disk never filled";
   EXPECT_EQ(refused.status.code(), Status::Code::kResourceExhausted) << refused.status;
-  const codec::FieldError fe = codec::SplitFieldError(refused.status);
-  EXPECT_EQ(fe.field, "edit_log.free_bytes");
-  EXPECT_FALSE(fe.value.empty());
+  const Status::Violation* fe = refused.status.violation();
+  ASSERT_NE(fe, nullptr) << refused.status;
+  EXPECT_EQ(fe->field, "edit_log.free_bytes");
+  EXPECT_FALSE(fe->value.empty());
   EXPECT_NE(refused.status.message().find((mnt / "data" / "log").string()), std::string::npos)
       << refused.status;
   const uint64_t hash_refused = (*scene)->StateHash("clay");

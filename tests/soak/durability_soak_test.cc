@@ -15,6 +15,7 @@
 
 #include "scene/scene.h"
 #include "sculpt/codec/stroke.h"
+#include "sculpt/v1/sculpt.pb.h"
 
 namespace sculpt::server {
 namespace {

@@ -57,8 +57,9 @@ StatusOr<std::optional<std::string>> FrameReader::Next() {
   if (length > max_frame_bytes_) {
     // The header stays unconsumed, so every later call reports the same error: the stream
     // cannot be resynchronised and the caller must answer and close.
-    return ResourceExhausted("frame length=" + std::to_string(length) + " outside [0, " +
-                             std::to_string(max_frame_bytes_) + "]");
+    return Outside("frame length", std::to_string(length),
+                   std::string("[0, ") + std::to_string(max_frame_bytes_) + "]",
+                   Status::Code::kResourceExhausted);
   }
   if (available - kFrameHeaderBytes < length) return std::optional<std::string>();
   std::string payload(buffer_, offset_ + kFrameHeaderBytes, length);

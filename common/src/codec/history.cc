@@ -11,27 +11,29 @@ StatusOr<HistoryQuery> DecodeHistoryRequest(const v1::HistoryRequest& r) {
   const std::string bounds = std::to_string(kMaxHistoryNameBytes);
   // Names are echoed by size only: the text is the client's and may hold anything.
   if (r.object().empty() || r.object().size() > kMaxHistoryNameBytes) {
-    return InvalidArgument("HistoryRequest.object=(" + std::to_string(r.object().size()) +
-                           " bytes) outside names of 1.." + bounds + " bytes");
+    return Outside("HistoryRequest.object",
+                   std::string("(") + std::to_string(r.object().size()) + " bytes)",
+                   std::string("names of 1..") + bounds + " bytes");
   }
   if (r.author().size() > kMaxHistoryNameBytes) {
-    return InvalidArgument("HistoryRequest.author=(" + std::to_string(r.author().size()) +
-                           " bytes) outside names of 0.." + bounds +
-                           " bytes (empty: every author)");
+    return Outside("HistoryRequest.author",
+                   std::string("(") + std::to_string(r.author().size()) + " bytes)",
+                   std::string("names of 0..") + bounds + " bytes (empty: every author)");
   }
   const auto control = [](char c) {
     const auto u = static_cast<unsigned char>(c);
     return u < 0x20 || u == 0x7f;
   };
   if (std::any_of(r.author().begin(), r.author().end(), control)) {
-    return InvalidArgument("HistoryRequest.author=(" + std::to_string(r.author().size()) +
-                           " bytes with control characters) outside names without control "
-                           "characters");
+    return Outside(
+        "HistoryRequest.author",
+        std::string("(") + std::to_string(r.author().size()) + " bytes with control characters)",
+        "names without control characters");
   }
   if (r.limit() > kMaxHistoryLimit) {
-    return InvalidArgument("HistoryRequest.limit=" + std::to_string(r.limit()) + " outside [0, " +
-                           std::to_string(kMaxHistoryLimit) +
-                           "] (0: " + std::to_string(kDefaultHistoryLimit) + ")");
+    return Outside("HistoryRequest.limit", std::to_string(r.limit()),
+                   std::string("[0, ") + std::to_string(kMaxHistoryLimit) + std::string("] (0: ") +
+                       std::to_string(kDefaultHistoryLimit) + ")");
   }
   HistoryQuery q;
   q.request_id = r.request_id();

@@ -29,12 +29,11 @@ bool ParseTagged(std::string_view payload, Message* m) {
 // The kernel request a sweep record describes; InvalidArgument for a malformed record.
 Status SweepFromRecord(const v1::SkinSweepRecord& r, levelset::SweepRequest* q) {
   if (r.plane_size() != 9) {
-    return InvalidArgument("SkinSweepRecord.plane.size=" + std::to_string(r.plane_size()) +
-                           " outside {9}");
+    return Outside("SkinSweepRecord.plane.size", std::to_string(r.plane_size()), "{9}");
   }
   if (r.outline_size() % 2 != 0) {
-    return InvalidArgument("SkinSweepRecord.outline.size=" + std::to_string(r.outline_size()) +
-                           " outside even numbers");
+    return Outside("SkinSweepRecord.outline.size", std::to_string(r.outline_size()),
+                   "even numbers");
   }
   auto p = [&r](int i) { return Vec3{r.plane(i), r.plane(i + 1), r.plane(i + 2)}; };
   q->plane = {p(0), p(3), p(6)};
@@ -44,8 +43,7 @@ Status SweepFromRecord(const v1::SkinSweepRecord& r, levelset::SweepRequest* q) 
   q->depth = r.depth();
   if (q->mode == levelset::SweepRequest::Mode::kRevolve) {
     if (r.axis_size() != 4) {
-      return InvalidArgument("SkinSweepRecord.axis.size=" + std::to_string(r.axis_size()) +
-                             " outside {4}");
+      return Outside("SkinSweepRecord.axis.size", std::to_string(r.axis_size()), "{4}");
     }
     q->axis_point = {r.axis(0), r.axis(1)};
     q->axis_dir = {r.axis(2), r.axis(3)};

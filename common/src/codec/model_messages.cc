@@ -14,9 +14,9 @@ constexpr size_t kMaxNameBytes = 64;
 
 Status CheckComponent(const std::string& field, double v) {
   if (!std::isfinite(v) || std::fabs(v) > hetero::kMaxDisplacement) {
-    return InvalidArgument(field + "=" + FormatNumber(v) + " outside finite [" +
-                           FormatNumber(-hetero::kMaxDisplacement) + ", " +
-                           FormatNumber(hetero::kMaxDisplacement) + "]");
+    return Outside(field, FormatNumber(v),
+                   std::string("finite [") + FormatNumber(-hetero::kMaxDisplacement) + ", " +
+                       FormatNumber(hetero::kMaxDisplacement) + "]");
   }
   return Status::Ok();
 }
@@ -25,24 +25,22 @@ Status CheckComponent(const std::string& field, double v) {
 
 StatusOr<ModelEdit> DecodeModelIntent(const v1::ModelIntent& m) {
   if (m.object().empty() || m.object().size() > kMaxNameBytes) {
-    return InvalidArgument("ModelIntent.object=" + m.object() + " outside names of 1..64 bytes");
+    return Outside("ModelIntent.object", m.object(), "names of 1..64 bytes");
   }
   if (m.offset_size() != 3) {
-    return InvalidArgument("ModelIntent.offset size=" + std::to_string(m.offset_size()) +
-                           " outside {3}");
+    return Outside("ModelIntent.offset size", std::to_string(m.offset_size()), "{3}");
   }
   for (int a = 0; a < 3; ++a) {
     if (m.offset(a) < -1 || m.offset(a) > 1) {
-      return InvalidArgument("ModelIntent.offset[" + std::to_string(a) + "]=" +
-                             std::to_string(m.offset(a)) + " outside [-1, 1]");
+      return Outside(std::string("ModelIntent.offset[") + std::to_string(a) + "]",
+                     std::to_string(m.offset(a)), "[-1, 1]");
     }
   }
   SCULPT_RETURN_IF_ERROR(CheckComponent("ModelIntent.displacement_x", m.displacement_x()));
   SCULPT_RETURN_IF_ERROR(CheckComponent("ModelIntent.displacement_y", m.displacement_y()));
   SCULPT_RETURN_IF_ERROR(CheckComponent("ModelIntent.displacement_z", m.displacement_z()));
   if (m.cell() < -1) {
-    return InvalidArgument("ModelIntent.cell=" + std::to_string(m.cell()) +
-                           " outside -1 (none) or a cell index >= 0");
+    return Outside("ModelIntent.cell", std::to_string(m.cell()), "-1 (none) or a cell index >= 0");
   }
   return ModelEditFromRecord(m);
 }

@@ -36,16 +36,17 @@ levelset::ToolShape Paint::Tool() const {
 StatusOr<Paint> DecodePaintEdit(const v1::PaintEdit& e, const StrokeLimits& limits,
                                 int materials) {
   if (e.object().empty() || e.object().size() > kMaxNameBytes) {
-    return InvalidArgument("PaintEdit.object=" + e.object() + " outside names of 1..64 bytes");
+    return Outside("PaintEdit.object", e.object(), "names of 1..64 bytes");
   }
   if (materials <= 0) {
-    return FailedPrecondition("PaintEdit.object=" + e.object() +
-                              " outside scenes that declare materials (this one declares none)");
+    return Outside("PaintEdit.object", e.object(),
+                   "scenes that declare materials (this one declares none)",
+                   Status::Code::kFailedPrecondition);
   }
   if (e.tool() != v1::TOOL_KIND_SPHERE && e.tool() != v1::TOOL_KIND_ELLIPSOID &&
       e.tool() != v1::TOOL_KIND_BOX) {
-    return InvalidArgument("PaintEdit.tool=" + std::to_string(e.tool()) +
-                           " outside {1 (SPHERE), 2 (ELLIPSOID), 3 (BOX)}");
+    return Outside("PaintEdit.tool", std::to_string(e.tool()),
+                   "{1 (SPHERE), 2 (ELLIPSOID), 3 (BOX)}");
   }
   const double dx = limits.voxel_size;
   const double lo = 0.5 * dx;
@@ -83,8 +84,8 @@ StatusOr<Paint> DecodePaintEdit(const v1::PaintEdit& e, const StrokeLimits& limi
     return out;
   }
   if (e.material() >= static_cast<uint32_t>(materials)) {
-    return InvalidArgument("PaintEdit.material=" + std::to_string(e.material()) + " outside [0, " +
-                           std::to_string(materials - 1) + "]");
+    return Outside("PaintEdit.material", std::to_string(e.material()),
+                   std::string("[0, ") + std::to_string(materials - 1) + "]");
   }
   SCULPT_RETURN_IF_ERROR(CheckRange("PaintEdit.weight", e.weight(), 0.0, 1.0));
   out.material = e.material();

@@ -25,8 +25,7 @@ StatusOr<std::optional<InterestBox>> DecodeInterest(bool has, const v1::Box3& bo
 
 StatusOr<ReplicaSubscription> DecodeSubscribe(const v1::Subscribe& r) {
   if (r.mode() != v1::REPLICA_MODE_REPLAY && r.mode() != v1::REPLICA_MODE_LEAF_DELTA) {
-    return InvalidArgument("Subscribe.mode=" + std::to_string(r.mode()) +
-                           " outside {1 (REPLAY), 2 (LEAF_DELTA)}");
+    return Outside("Subscribe.mode", std::to_string(r.mode()), "{1 (REPLAY), 2 (LEAF_DELTA)}");
   }
   ReplicaSubscription out;
   out.object = r.object();
@@ -50,8 +49,8 @@ StatusOr<ViewerSubscription> DecodeViewerSubscribe(const v1::ViewerSubscribe& r)
   out.object = r.object();
   const double rate = r.max_rate_hz();
   if (rate != 0 && (!std::isfinite(rate) || rate < 0.1 || rate > 120)) {
-    return InvalidArgument("ViewerSubscribe.max_rate_hz=" + FormatNumber(rate) +
-                           " outside [0.1, 120] (0: the server's default)");
+    return Outside("ViewerSubscribe.max_rate_hz", FormatNumber(rate),
+                   "[0.1, 120] (0: the server's default)");
   }
   out.max_rate_hz = rate;
   return out;

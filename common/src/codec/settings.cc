@@ -8,8 +8,8 @@ namespace {
 
 Status EnumIn(const char* field, uint32_t v, uint32_t lo, uint32_t hi) {
   if (v < lo || v > hi) {
-    return InvalidArgument(std::string("EditSettingsMsg.") + field + "=" + std::to_string(v) +
-                           " outside [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    return Outside(std::string("EditSettingsMsg.") + field, std::to_string(v),
+                   std::string("[") + std::to_string(lo) + ", " + std::to_string(hi) + "]");
   }
   return Status::Ok();
 }

@@ -12,8 +12,8 @@ namespace {
 
 Status CheckName(const std::string& field, const std::string& name) {
   if (name.empty() || name.size() > kMaxSkinNameBytes) {
-    return InvalidArgument(field + "=" + name + " outside names of 1.." +
-                           std::to_string(kMaxSkinNameBytes) + " bytes");
+    return Outside(field, name,
+                   std::string("names of 1..") + std::to_string(kMaxSkinNameBytes) + " bytes");
   }
   return Status::Ok();
 }
@@ -25,12 +25,12 @@ Vec3 V(const v1::Vec3f& v) { return {v.x(), v.y(), v.z()}; }
 StatusOr<BallEdit> DecodeSkinBallEdit(const v1::SkinBallEdit& e) {
   SCULPT_RETURN_IF_ERROR(CheckName("SkinBallEdit.skin", e.skin()));
   if (e.op() < v1::SKIN_BALL_OP_ADD || e.op() > v1::SKIN_BALL_OP_ORIENT) {
-    return InvalidArgument("SkinBallEdit.op=" + std::to_string(e.op()) +
-                           " outside {1 (ADD), 2 (MOVE), 3 (REMOVE), 4 (ORIENT)}");
+    return Outside("SkinBallEdit.op", std::to_string(e.op()),
+                   "{1 (ADD), 2 (MOVE), 3 (REMOVE), 4 (ORIENT)}");
   }
   if (e.index() >= kMaxSkinBalls) {
-    return InvalidArgument("SkinBallEdit.index=" + std::to_string(e.index()) + " outside [0, " +
-                           std::to_string(kMaxSkinBalls - 1) + "]");
+    return Outside("SkinBallEdit.index", std::to_string(e.index()),
+                   std::string("[0, ") + std::to_string(kMaxSkinBalls - 1) + "]");
   }
   BallEdit out;
   out.client_seq = e.client_seq();
@@ -77,12 +77,10 @@ StatusOr<SkinSweepRequest> DecodeSkinSweep(const v1::SkinSweep& s) {
   SCULPT_RETURN_IF_ERROR(CheckName("SkinSweep.skin", s.skin()));
   SCULPT_RETURN_IF_ERROR(CheckName("SkinSweep.object", s.object()));
   if (s.mode() != v1::SKIN_SWEEP_MODE_EXTRUDE && s.mode() != v1::SKIN_SWEEP_MODE_REVOLVE) {
-    return InvalidArgument("SkinSweep.mode=" + std::to_string(s.mode()) +
-                           " outside {1 (EXTRUDE), 2 (REVOLVE)}");
+    return Outside("SkinSweep.mode", std::to_string(s.mode()), "{1 (EXTRUDE), 2 (REVOLVE)}");
   }
   if (s.kind() != v1::EDIT_KIND_ADD && s.kind() != v1::EDIT_KIND_SUBTRACT) {
-    return InvalidArgument("SkinSweep.kind=" + std::to_string(s.kind()) +
-                           " outside {2 (ADD), 3 (SUBTRACT)}");
+    return Outside("SkinSweep.kind", std::to_string(s.kind()), "{2 (ADD), 3 (SUBTRACT)}");
   }
   SkinSweepRequest out;
   out.client_seq = s.client_seq();
@@ -93,8 +91,8 @@ StatusOr<SkinSweepRequest> DecodeSkinSweep(const v1::SkinSweep& s) {
     out.mode = levelset::SweepRequest::Mode::kExtrude;
     SCULPT_RETURN_IF_ERROR(CheckRange("SkinSweep.depth", s.depth(), 0, kMaxSkinCoordinate));
     if (!(s.depth() > 0)) {
-      return InvalidArgument("SkinSweep.depth=" + FormatNumber(s.depth()) + " outside (0, " +
-                             FormatNumber(kMaxSkinCoordinate) + "]");
+      return Outside("SkinSweep.depth", FormatNumber(s.depth()),
+                     std::string("(0, ") + FormatNumber(kMaxSkinCoordinate) + "]");
     }
     out.depth = s.depth();
   } else {
@@ -121,7 +119,7 @@ StatusOr<ContourRequest> DecodeContourSubscribe(const v1::ContourSubscribe& c) {
     return out;
   }
   if (!c.has_slice()) {
-    return InvalidArgument("ContourSubscribe.skin= outside names of 1..64 bytes (or set slice)");
+    return Outside("ContourSubscribe.skin", "", "names of 1..64 bytes (or set slice)");
   }
   const v1::ContourSlice& s = c.slice();
   SCULPT_RETURN_IF_ERROR(CheckName("ContourSubscribe.slice.object", s.object()));

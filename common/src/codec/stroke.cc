@@ -1,4 +1,4 @@
-/// @brief Packed stroke poses, stroke validation into kernel edits, and validation-message parsing.
+/// @brief Packed stroke poses and stroke validation into kernel edits.
 #include "sculpt/codec/stroke.h"
 
 #include <algorithm>
@@ -24,9 +24,6 @@ constexpr size_t kMaxObjectNameBytes = 64;
 constexpr double kFirstPoseDt = 1.0 / 120.0;
 /// Two samples with the same timestamp still advance the press by this much.
 constexpr double kMinPoseDt = 0.001;
-
-constexpr std::string_view kOutside = " outside ";
-constexpr std::string_view kNotFinite = " is not finite";
 
 /// Joins the parts into one string. Used for every message instead of chains of `"[" + s + "]"`:
 /// g++ 12 reports a false -Wrestrict (GCC bug 105329) on `const char* + std::string&&`.
@@ -57,14 +54,6 @@ std::string Range(uint32_t lo, uint32_t hi) {
 
 std::string Triple(double x, double y, double z) {
   return Cat({"(", Num(x), ", ", Num(y), ", ", Num(z), ")"});
-}
-
-Status Outside(const std::string& field, const std::string& value, const std::string& range) {
-  return InvalidArgument(Cat({field, "=", value, kOutside, range}));
-}
-
-Status NotFinite(const std::string& field, const std::string& value) {
-  return InvalidArgument(Cat({field, "=", value, kNotFinite}));
 }
 
 /// A wire float: finite and in [lo, hi]. Printed as a float so `0.1` reads `0.1`, not the
@@ -332,27 +321,6 @@ StrokeLimits ReplicaLimits(double voxel_size) {
   l.bounds = {{-1e30, -1e30, -1e30}, {1e30, 1e30, 1e30}};
   l.bounds_margin = 0;
   return l;
-}
-
-FieldError SplitFieldError(const Status& status) {
-  FieldError out;
-  out.message = status.message();
-  const std::string& m = out.message;
-  const size_t eq = m.find('=');
-  if (eq == std::string::npos) return out;
-  out.field = m.substr(0, eq);
-  const size_t outside = m.find(kOutside, eq + 1);
-  const size_t not_finite = m.find(kNotFinite, eq + 1);
-  if (outside != std::string::npos && (not_finite == std::string::npos || outside < not_finite)) {
-    out.value = m.substr(eq + 1, outside - eq - 1);
-    out.allowed_range = m.substr(outside + kOutside.size());
-  } else if (not_finite != std::string::npos) {
-    out.value = m.substr(eq + 1, not_finite - eq - 1);
-    out.allowed_range = "finite numbers";
-  } else {
-    out.value = m.substr(eq + 1);
-  }
-  return out;
 }
 
 levelset::EditRequest EditFromRecord(const v1::EditRecord& record) {

@@ -16,11 +16,12 @@ StatusOr<RecordedDevice> RecordedDevice::FromPoints(std::vector<Point> points) {
   for (size_t i = 0; i < points.size(); ++i) {
     const std::string field = "RecordedDevice.points[" + std::to_string(i) + "].t";
     if (!std::isfinite(points[i].t)) {
-      return InvalidArgument(field + "=" + FormatNumber(points[i].t) + " is not finite");
+      return NotFinite(field, FormatNumber(points[i].t));
     }
     if (i > 0 && !(points[i].t > points[i - 1].t)) {
-      return InvalidArgument(field + "=" + FormatNumber(points[i].t) + " outside (" +
-                             FormatNumber(points[i - 1].t) + ", inf): times must increase");
+      return Outside(
+          field, FormatNumber(points[i].t),
+          std::string("(") + FormatNumber(points[i - 1].t) + ", inf): times must increase");
     }
   }
   return RecordedDevice(std::move(points));

@@ -103,9 +103,10 @@ std::vector<uint32_t> CompositeModel::CoincidentCoefficients(const Vec3& p, doub
 StatusOr<int> CompositeModel::AddCell(const std::array<uint32_t, 64>& coef) {
   for (int s = 0; s < 64; ++s) {
     if (coef[static_cast<size_t>(s)] >= positions_.size()) {
-      return InvalidArgument("cell.coef[" + std::to_string(s) + "]=" +
-                             std::to_string(coef[static_cast<size_t>(s)]) + " outside [0, " +
-                             std::to_string(static_cast<long long>(positions_.size()) - 1) + "]");
+      return Outside(std::string("cell.coef[") + std::to_string(s) + "]",
+                     std::to_string(coef[static_cast<size_t>(s)]),
+                     std::string("[0, ") +
+                         std::to_string(static_cast<long long>(positions_.size()) - 1) + "]");
     }
   }
   const int index = static_cast<int>(cells_.size());
@@ -119,8 +120,9 @@ StatusOr<int> CompositeModel::AddCell(const std::array<uint32_t, 64>& coef) {
 
 StatusOr<int> CompositeModel::AddPatch(const Hyperpatch& patch, double weld_tol) {
   if (patch.materials() != materials_) {
-    return InvalidArgument("patch.materials=" + std::to_string(patch.materials()) + " outside [" +
-                           std::to_string(materials_) + ", " + std::to_string(materials_) + "]");
+    return Outside(
+        "patch.materials", std::to_string(patch.materials()),
+        std::string("[") + std::to_string(materials_) + ", " + std::to_string(materials_) + "]");
   }
   SCULPT_RETURN_IF_ERROR(patch.Validate("patch.points"));
   std::array<uint32_t, 64> coef{};

@@ -38,9 +38,9 @@ StatusOr<AddCellResult> AddCellChecked(CompositeModel* model, ValidityChecker* c
                                        const Hyperpatch& patch, CellSource source) {
   SCULPT_RETURN_IF_ERROR(patch.Validate("cell.points"));
   if (patch.materials() != model->materials()) {
-    return InvalidArgument("cell.materials=" + std::to_string(patch.materials()) + " outside [" +
-                           std::to_string(model->materials()) + ", " +
-                           std::to_string(model->materials()) + "]");
+    return Outside("cell.materials", std::to_string(patch.materials()),
+                   std::string("[") + std::to_string(model->materials()) + ", " +
+                       std::to_string(model->materials()) + "]");
   }
   AddCellResult r;
   // Case 1 before touching the model (§7.3.2 note: Case 2 assumes valid cells).
@@ -79,8 +79,8 @@ StatusOr<Hyperpatch> LibraryBox(const Vec3& min, const Vec3& max, std::span<cons
   SCULPT_RETURN_IF_ERROR(CheckFinitePoint("box.max", max));
   for (int c = 0; c < 3; ++c) {
     if (!(max[c] > min[c])) {
-      return InvalidArgument("box.max[" + std::to_string(c) + "]=" + FormatNumber(max[c]) +
-                             " outside (" + FormatNumber(min[c]) + ", inf)");
+      return Outside(std::string("box.max[") + std::to_string(c) + "]", FormatNumber(max[c]),
+                     std::string("(") + FormatNumber(min[c]) + ", inf)");
     }
   }
   Hyperpatch h(static_cast<int>(a.size()));

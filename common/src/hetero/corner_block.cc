@@ -22,9 +22,9 @@ bool SameFractions(std::span<const double> a, std::span<const double> b, double 
 
 StatusOr<CornerBlock> BuildCornerBlock(const CompositeModel& model, uint32_t corner, double tol) {
   if (corner >= model.coefficient_count()) {
-    return InvalidArgument("corner=" + std::to_string(corner) + " outside [0, " +
-                           std::to_string(static_cast<long long>(model.coefficient_count()) - 1) +
-                           "]");
+    return Outside("corner", std::to_string(corner),
+                   std::string("[0, ") +
+                       std::to_string(static_cast<long long>(model.coefficient_count()) - 1) + "]");
   }
   const Vec3 p = model.position(corner);
   CornerBlock block;
@@ -53,7 +53,9 @@ StatusOr<CornerBlock> BuildCornerBlock(const CompositeModel& model, uint32_t cor
     }
   }
   if (hits.empty()) {
-    return NotFound("corner=" + std::to_string(corner) + " is not a corner of any cell");
+    const std::string value = std::to_string(corner);
+    return FieldViolation(Status::Code::kNotFound, "corner", value, "corners of the model's cells",
+                          "corner=" + value + " is not a corner of any cell");
   }
   block.corner = key;
   bool consistent = true;

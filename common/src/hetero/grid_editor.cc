@@ -12,9 +12,9 @@ namespace {
 
 Status CheckCorner(const CompositeModel& model, uint32_t corner, const std::string& field) {
   if (corner >= model.coefficient_count()) {
-    return InvalidArgument(field + "=" + std::to_string(corner) + " outside [0, " +
-                           std::to_string(static_cast<long long>(model.coefficient_count()) - 1) +
-                           "]");
+    return Outside(field, std::to_string(corner),
+                   std::string("[0, ") +
+                       std::to_string(static_cast<long long>(model.coefficient_count()) - 1) + "]");
   }
   return Status::Ok();
 }
@@ -101,35 +101,44 @@ StatusOr<std::vector<CoefficientMove>> ExpandIntent(const CompositeModel& model,
   } else if (block.regular && intent.cell == -1) {
     const auto& at = block.coefs[static_cast<size_t>(BlockIndex(e[0], e[1], e[2]))];
     if (at.empty()) {
-      return InvalidArgument("intent.offset=(" + std::to_string(e[0]) + ", " +
-                             std::to_string(e[1]) + ", " + std::to_string(e[2]) +
-                             ") names no coefficient at corner " + std::to_string(block.corner));
+      const std::string offset = std::string("(") + std::to_string(e[0]) + ", " +
+                                 std::to_string(e[1]) + ", " + std::to_string(e[2]) + ")";
+      const std::string corner = std::to_string(block.corner);
+      return FieldViolation(Status::Code::kInvalidArgument, "intent.offset", offset,
+                            "offsets naming a coefficient at corner " + corner,
+                            "intent.offset=" + offset + " names no coefficient at corner " + corner);
     }
     for (uint32_t q : at) moves[q] += intent.displacement;
   } else {
     // Irregular corner: the offset is in the named cell's index space, pointing into the cell.
     if (intent.cell < 0) {
-      return InvalidArgument("intent.cell=-1 outside [0, " +
-                             std::to_string(static_cast<long long>(model.cell_count()) - 1) +
-                             "] (required at an irregular corner)");
+      return Outside("intent.cell", "-1",
+                     std::string("[0, ") +
+                         std::to_string(static_cast<long long>(model.cell_count()) - 1) +
+                         "] (required at an irregular corner)");
     }
     int slot[3];
     if (!CornerSlot(model, intent.cell, model.position(block.corner), slot)) {
-      return InvalidArgument("intent.cell=" + std::to_string(intent.cell) +
-                             " does not meet corner " + std::to_string(block.corner));
+      const std::string cell = std::to_string(intent.cell);
+      const std::string corner = std::to_string(block.corner);
+      return FieldViolation(Status::Code::kInvalidArgument, "intent.cell", cell,
+                            "cells meeting corner " + corner,
+                            "intent.cell=" + cell + " does not meet corner " + corner);
     }
     int idx[3];
     for (int a = 0; a < 3; ++a) {
       idx[a] = slot[a] + e[static_cast<size_t>(a)];
       const int lo = slot[a] == 0 ? 0 : 2, hi = slot[a] == 0 ? 1 : 3;
       if (idx[a] < lo || idx[a] > hi) {
-        return InvalidArgument("intent.offset[" + std::to_string(a) + "]=" +
-                               std::to_string(e[static_cast<size_t>(a)]) + " outside [" +
-                               std::to_string(lo - slot[a]) + ", " + std::to_string(hi - slot[a]) +
-                               "] (points out of cell " + std::to_string(intent.cell) + ")");
+        return Outside(std::string("intent.offset[") + std::to_string(a) + "]",
+                       std::to_string(e[static_cast<size_t>(a)]),
+                       std::string("[") + std::to_string(lo - slot[a]) + ", " +
+                           std::to_string(hi - slot[a]) + std::string("] (points out of cell ") +
+                           std::to_string(intent.cell) + ")");
       }
     }
-    const uint32_t q = model.cell(intent.cell).coef[static_cast<size_t>(Hyperpatch::Index(idx[0], idx[1], idx[2]))];
+    const uint32_t q = model.cell(intent.cell)
+                           .coef[static_cast<size_t>(Hyperpatch::Index(idx[0], idx[1], idx[2]))];
     // Coincident copies (unshared entries at the same place) move together to keep C0.
     for (const auto& v : block.coefs) {
       if (std::find(v.begin(), v.end(), q) != v.end()) {

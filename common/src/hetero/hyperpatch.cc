@@ -48,18 +48,17 @@ Hyperpatch::Hyperpatch(int materials)
 
 StatusOr<Hyperpatch> Hyperpatch::Create(std::span<const ControlPoint> points, int materials) {
   if (points.size() != kCount) {
-    return InvalidArgument("hyperpatch.points.size=" + std::to_string(points.size()) +
-                           " outside [64, 64]");
+    return Outside("hyperpatch.points.size", std::to_string(points.size()), "[64, 64]");
   }
   SCULPT_RETURN_IF_ERROR(CheckRange("hyperpatch.materials", materials, 1, kMaxMaterials));
   Hyperpatch h(materials);
   for (int i = 0; i < kCount; ++i) {
     h.positions_[static_cast<size_t>(i)] = points[static_cast<size_t>(i)].p;
     if (static_cast<int>(points[static_cast<size_t>(i)].a.size()) != materials) {
-      return InvalidArgument("hyperpatch.points[" + std::to_string(i) + "].a.size=" +
-                             std::to_string(points[static_cast<size_t>(i)].a.size()) +
-                             " outside [" + std::to_string(materials) + ", " +
-                             std::to_string(materials) + "]");
+      return Outside(
+          std::string("hyperpatch.points[") + std::to_string(i) + "].a.size",
+          std::to_string(points[static_cast<size_t>(i)].a.size()),
+          std::string("[") + std::to_string(materials) + ", " + std::to_string(materials) + "]");
     }
     h.set_fractions(i, points[static_cast<size_t>(i)].a);
   }

@@ -11,9 +11,9 @@ namespace sculpt::hetero {
 
 Status ValidateFractions(const std::string& field, std::span<const double> a, int materials) {
   if (static_cast<int>(a.size()) != materials) {
-    return InvalidArgument(field + ".size=" + std::to_string(a.size()) + " outside [" +
-                           std::to_string(materials) + ", " + std::to_string(materials) +
-                           "] (one fraction per declared material)");
+    return Outside(field + ".size", std::to_string(a.size()),
+                   std::string("[") + std::to_string(materials) + ", " + std::to_string(materials) +
+                       "] (one fraction per declared material)");
   }
   double sum = 0;
   for (size_t i = 0; i < a.size(); ++i) {
@@ -21,9 +21,9 @@ Status ValidateFractions(const std::string& field, std::span<const double> a, in
     sum += a[i];
   }
   if (std::abs(sum - 1.0) > kSimplexSumTolerance) {
-    return InvalidArgument(field + ".sum=" + FormatNumber(sum) + " outside [" +
-                           FormatNumber(1.0 - kSimplexSumTolerance) + ", " +
-                           FormatNumber(1.0 + kSimplexSumTolerance) + "] (fractions sum to 1)");
+    return Outside(field + ".sum", FormatNumber(sum),
+                   std::string("[") + FormatNumber(1.0 - kSimplexSumTolerance) + ", " +
+                       FormatNumber(1.0 + kSimplexSumTolerance) + "] (fractions sum to 1)");
   }
   return Status::Ok();
 }

@@ -107,8 +107,8 @@ StatusOr<CompositeModel> ModelFromJson(const std::string& text, size_t max_cells
     const std::string f = "model.coefficients[" + std::to_string(q) + "]";
     SCULPT_RETURN_IF_ERROR(NeedArray(jc[q], f));
     if (jc[q].size() != static_cast<size_t>(3 + n)) {
-      return InvalidArgument(f + ".size=" + std::to_string(jc[q].size()) + " outside [" +
-                             std::to_string(3 + n) + ", " + std::to_string(3 + n) + "]");
+      return Outside(f + ".size", std::to_string(jc[q].size()),
+                     std::string("[") + std::to_string(3 + n) + ", " + std::to_string(3 + n) + "]");
     }
     Vec3 p;
     SCULPT_ASSIGN_OR_RETURN(p.x, NumberAt(jc[q][0], f + "[0]"));
@@ -132,15 +132,17 @@ StatusOr<CompositeModel> ModelFromJson(const std::string& text, size_t max_cells
     const std::string f = "model.cells[" + std::to_string(c) + "]";
     SCULPT_RETURN_IF_ERROR(NeedArray(jcells[c], f));
     if (jcells[c].size() != 64) {
-      return InvalidArgument(f + ".size=" + std::to_string(jcells[c].size()) + " outside [64, 64]");
+      return Outside(f + ".size", std::to_string(jcells[c].size()), "[64, 64]");
     }
     std::array<uint32_t, 64> idx{};
     for (size_t s = 0; s < 64; ++s) {
       const Json& v = jcells[c][s];
       if (!v.is_number_integer() || v.get<int64_t>() < 0 ||
           v.get<int64_t>() >= static_cast<int64_t>(model.coefficient_count())) {
-        return InvalidArgument(f + "[" + std::to_string(s) + "]=" + v.dump() + " outside [0, " +
-                               std::to_string(static_cast<long long>(model.coefficient_count()) - 1) + "]");
+        return Outside(f + "[" + std::to_string(s) + "]", v.dump(),
+                       std::string("[0, ") +
+                           std::to_string(static_cast<long long>(model.coefficient_count()) - 1) +
+                           "]");
       }
       idx[s] = static_cast<uint32_t>(v.get<int64_t>());
     }
@@ -158,8 +160,10 @@ StatusOr<CompositeModel> ModelFromJson(const std::string& text, size_t max_cells
       }
       const int64_t q = jk[i]["coefficient"].get<int64_t>();
       if (q < 0 || q >= static_cast<int64_t>(model.coefficient_count())) {
-        return InvalidArgument(f + ".coefficient=" + std::to_string(q) + " outside [0, " +
-                               std::to_string(static_cast<long long>(model.coefficient_count()) - 1) + "]");
+        return Outside(f + ".coefficient", std::to_string(q),
+                       std::string("[0, ") +
+                           std::to_string(static_cast<long long>(model.coefficient_count()) - 1) +
+                           "]");
       }
       CornerFlags flags;
       for (const char* key : {"geometry_c1", "material_c1"}) {

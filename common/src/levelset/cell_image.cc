@@ -72,9 +72,9 @@ StatusOr<CellImage> CellImage::ReadFrom(std::string_view& in) {
   if (!Get(in, &ncells) || !Get(in, &nleaves)) return DataLoss("cell image: counts truncated");
   constexpr size_t kCellBytes = 12 + 1 + 1 + 4 + 4;
   if (ncells > in.size() / kCellBytes || nleaves > ncells) {
-    return DataLoss("cell image: cells=" + std::to_string(ncells) + ", leaves=" +
-                    std::to_string(nleaves) + " outside what " + std::to_string(in.size()) +
-                    " bytes hold");
+    return Outside(
+        "cell image: cells", std::to_string(ncells) + ", leaves=" + std::to_string(nleaves),
+        std::string("what ") + std::to_string(in.size()) + " bytes hold", Status::Code::kDataLoss);
   }
   CellImage img;
   img.cells_.resize(ncells);
@@ -90,10 +90,12 @@ StatusOr<CellImage> CellImage::ReadFrom(std::string_view& in) {
     c.active = active != 0;
     if (o[0] % kLeafDim || o[1] % kLeafDim || o[2] % kLeafDim || c.level > 4 ||
         (c.level == 0 && c.leaf >= nleaves) || (i > 0 && !CellLess(img.cells_[i - 1].origin, c.origin))) {
-      return DataLoss("cell image: cell " + std::to_string(i) +
-                      " has an unaligned or unsorted origin, level=" + std::to_string(c.level) +
-                      " outside [0, 4] or leaf=" + std::to_string(c.leaf) + " outside [0, " +
-                      std::to_string(nleaves) + ")");
+      return Outside(std::string("cell image: cell ") + std::to_string(i) +
+                         " has an unaligned or unsorted origin, level",
+                     std::to_string(c.level),
+                     std::string("[0, 4] or leaf=") + std::to_string(c.leaf) + " outside [0, " +
+                         std::to_string(nleaves) + ")",
+                     Status::Code::kDataLoss);
     }
   }
   if (in.size() < static_cast<size_t>(nleaves) * sizeof(Leaf)) {

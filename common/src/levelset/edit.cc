@@ -1019,13 +1019,12 @@ Status ValidateEditSettings(const EditSettings& s) {
   SCULPT_RETURN_IF_ERROR(CheckRange("min_tool_voxels", s.min_tool_voxels, 0.25, 1e3));
   SCULPT_RETURN_IF_ERROR(CheckRange("max_tool_voxels", s.max_tool_voxels, s.min_tool_voxels, 1e3));
   if (s.reinit_spatial == SpatialScheme::kCentral) {
-    return InvalidArgument("reinit_spatial=central outside {upwind, weno5}");
+    return Outside("reinit_spatial", "central", "{upwind, weno5}");
   }
   if (s.motion.spatial == SpatialScheme::kCentral) {
-    return InvalidArgument(
-        "motion.spatial=central outside {upwind, weno5}: central differences with explicit time "
-        "steps are unstable for hyperbolic motion (seed 000 §4.3); use them only to reproduce "
-        "the thesis");
+    return Outside("motion.spatial", "central",
+                   "{upwind, weno5}: central differences with explicit time steps are unstable for "
+                   "hyperbolic motion (seed 000 §4.3); use them only to reproduce the thesis");
   }
   return Status::Ok();
 }
@@ -1049,7 +1048,7 @@ Status ValidateRequestFields(const Sculpture& sc, const EditRequest& r, const Ed
                              bool check_extent) {
   const int kind = static_cast<int>(r.kind);
   if (kind < 0 || kind > static_cast<int>(EditKind::kDeflate)) {
-    return InvalidArgument("edit.kind=" + std::to_string(kind) + " outside [0, 5]");
+    return Outside("edit.kind", std::to_string(kind), "[0, 5]");
   }
   SCULPT_RETURN_IF_ERROR(ValidateToolFor(sc, r.tool, s));
   const double dx = sc.voxel_size();
@@ -1068,8 +1067,9 @@ Status ValidateRequestFields(const Sculpture& sc, const EditRequest& r, const Ed
                                   8 * dx});
   const double scale = ToolScale(r.tool);
   if (scale > 4 * extent) {
-    return InvalidArgument("tool.size=" + Num(scale) + " outside [" + Num(s.min_tool_voxels * dx) +
-                           ", " + Num(4 * extent) + "] (4x the object's extent)");
+    return Outside("tool.size", Num(scale),
+                   std::string("[") + Num(s.min_tool_voxels * dx) + ", " + Num(4 * extent) +
+                       "] (4x the object's extent)");
   }
   return Status::Ok();
 }
@@ -1126,15 +1126,15 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
                                     const EditSettings& s, const ReplayState* replay) {
   SCULPT_RETURN_IF_ERROR(ValidateEditSettings(s));
   if (reqs.empty() || reqs.size() > kMaxEditsPerBatch) {
-    return InvalidArgument("edits=" + std::to_string(reqs.size()) + " outside [1, " +
-                           std::to_string(kMaxEditsPerBatch) + "]");
+    return Outside("edits", std::to_string(reqs.size()),
+                   std::string("[1, ") + std::to_string(kMaxEditsPerBatch) + "]");
   }
   for (size_t i = 0; i < reqs.size(); ++i) {
     SCULPT_RETURN_IF_ERROR(ValidateRequestFields(sculpture, reqs[i], s, replay == nullptr));
     if (reqs[i].kind != reqs.front().kind) {
-      return InvalidArgument("edits[" + std::to_string(i) + "].kind=" +
-                             EditKindName(reqs[i].kind) + " outside {" +
-                             EditKindName(reqs.front().kind) + "} (one kind per batch)");
+      return Outside(std::string("edits[") + std::to_string(i) + "].kind",
+                     EditKindName(reqs[i].kind),
+                     std::string("{") + EditKindName(reqs.front().kind) + "} (one kind per batch)");
     }
   }
   const auto t0 = std::chrono::steady_clock::now();
@@ -1497,7 +1497,7 @@ StatusOr<EditResult> ReinitializeRegion(Sculpture& sculpture, const Aabb& region
   }
   SCULPT_RETURN_IF_ERROR(CheckRange("iterations", iterations, 1, 100));
   if (motion.spatial == SpatialScheme::kCentral) {
-    return InvalidArgument("motion.spatial=central outside {upwind, weno5}");
+    return Outside("motion.spatial", "central", "{upwind, weno5}");
   }
   const auto t0 = std::chrono::steady_clock::now();
   Sculpture::Impl& impl = sculpture.impl();

@@ -138,19 +138,19 @@ void HashGrid(XXH3_state_t* st, const FloatGrid& g) {
 
 Status ValidateMaterialDecls(const std::vector<MaterialDecl>& materials) {
   if (materials.empty() || static_cast<int>(materials.size()) > kMaxSculptureMaterials) {
-    return InvalidArgument("materials.size=" + std::to_string(materials.size()) + " outside [1, " +
-                           std::to_string(kMaxSculptureMaterials) + "]");
+    return Outside("materials.size", std::to_string(materials.size()),
+                   std::string("[1, ") + std::to_string(kMaxSculptureMaterials) + "]");
   }
   std::set<std::string> names;
   for (size_t i = 0; i < materials.size(); ++i) {
     const std::string f = "materials[" + std::to_string(i) + "]";
     const MaterialDecl& m = materials[i];
     if (m.name.empty() || m.name.size() > kMaxNameBytes) {
-      return InvalidArgument(f + ".name.size=" + std::to_string(m.name.size()) + " outside [1, " +
-                             std::to_string(kMaxNameBytes) + "] bytes");
+      return Outside(f + ".name.size", std::to_string(m.name.size()),
+                     std::string("[1, ") + std::to_string(kMaxNameBytes) + "] bytes");
     }
     if (!names.insert(m.name).second) {
-      return InvalidArgument(f + ".name=" + m.name + " outside the names not yet declared");
+      return Outside(f + ".name", m.name, "the names not yet declared");
     }
     for (int c = 0; c < 3; ++c) {
       SCULPT_RETURN_IF_ERROR(
@@ -165,9 +165,9 @@ Status ValidateFractionVector(const std::string& field, std::span<const double> 
   // digits, so an excess of 2e-6 is visible in the message.
   static_assert(kFractionTolerance == hetero::kSimplexSumTolerance);
   if (static_cast<int>(a.size()) != materials) {
-    return InvalidArgument(field + ".size=" + std::to_string(a.size()) + " outside [" +
-                           std::to_string(materials) + ", " + std::to_string(materials) +
-                           "] (one fraction per declared material)");
+    return Outside(field + ".size", std::to_string(a.size()),
+                   std::string("[") + std::to_string(materials) + ", " + std::to_string(materials) +
+                       "] (one fraction per declared material)");
   }
   double sum = 0;
   for (size_t i = 0; i < a.size(); ++i) {
@@ -175,10 +175,12 @@ Status ValidateFractionVector(const std::string& field, std::span<const double> 
     sum += a[i];
   }
   if (std::abs(sum - 1.0) > kFractionTolerance) {
-    char buf[96];
-    std::snprintf(buf, sizeof buf, ".sum=%.9g outside [%.9g, %.9g] (fractions sum to 1)", sum,
+    char value[32];
+    char range[96];
+    std::snprintf(value, sizeof value, "%.9g", sum);
+    std::snprintf(range, sizeof range, "[%.9g, %.9g] (fractions sum to 1)",
                   1.0 - kFractionTolerance, 1.0 + kFractionTolerance);
-    return InvalidArgument(field + buf);
+    return Outside(field + ".sum", value, range);
   }
   return Status::Ok();
 }
@@ -527,8 +529,9 @@ Status AdoptMaterialGrids(Sculpture::Impl& impl, const openvdb::GridPtrVec& grid
   for (size_t m = 0; m < found.size(); ++m) {
     const auto& [index, g] = found[m];
     if (index != static_cast<int>(m)) {
-      return DataLoss("material grid index=" + std::to_string(index) + " outside {" +
-                      std::to_string(m) + "} (indices 0..n-1, each once)");
+      return Outside("material grid index", std::to_string(index),
+                     std::string("{") + std::to_string(m) + "} (indices 0..n-1, each once)",
+                     Status::Code::kDataLoss);
     }
     MaterialDecl d;
     if (auto name = g->getMetadata<openvdb::StringMetadata>(kNameMeta)) d.name = name->value();
@@ -582,13 +585,15 @@ StatusOr<MaterialCells> DecodeMaterialCells(const Sculpture::Impl& impl, std::st
   mc.n = static_cast<uint8_t>(block[0]);
   block.remove_prefix(1);
   if (mc.n != impl.fractions.size()) {
-    return DataLoss("leaf records: materials=" + std::to_string(mc.n) + " outside {" +
-                    std::to_string(impl.fractions.size()) + "} (the replica's declared materials)");
+    return Outside("leaf records: materials", std::to_string(mc.n),
+                   std::string("{") + std::to_string(impl.fractions.size()) +
+                       "} (the replica's declared materials)",
+                   Status::Code::kDataLoss);
   }
   const size_t entries = cells * mc.n;
   if (block.size() < entries) {
-    return DataLoss("leaf records: materials block size=" + std::to_string(block.size()) +
-                    " outside [" + std::to_string(entries) + ", ...)");
+    return Outside("leaf records: materials block size", std::to_string(block.size()),
+                   std::string("[") + std::to_string(entries) + ", ...)", Status::Code::kDataLoss);
   }
   mc.type.resize(entries);
   mc.uniform.assign(entries, 0.f);
@@ -607,12 +612,14 @@ StatusOr<MaterialCells> DecodeMaterialCells(const Sculpture::Impl& impl, std::st
       mc.first[e] = leaves * 512;
       ++leaves;
     } else {
-      return DataLoss("leaf records: material type=" + std::to_string(t) + " outside {0, 1}");
+      return Outside("leaf records: material type", std::to_string(t), "{0, 1}",
+                     Status::Code::kDataLoss);
     }
   }
   if (block.size() != leaves * 512 * 4) {
-    return DataLoss("leaf records: material value bytes=" + std::to_string(block.size()) +
-                    " outside {" + std::to_string(leaves * 512 * 4) + "}");
+    return Outside("leaf records: material value bytes", std::to_string(block.size()),
+                   std::string("{") + std::to_string(leaves * 512 * 4) + "}",
+                   Status::Code::kDataLoss);
   }
   const size_t total = leaves * 512;
   mc.values.resize(total);
@@ -630,9 +637,9 @@ StatusOr<MaterialCells> DecodeMaterialCells(const Sculpture::Impl& impl, std::st
         const size_t e = c * mc.n + m;
         const double x = mc.type[e] == 0 ? mc.uniform[e] : mc.values[mc.first[e] + v];
         if (!std::isfinite(x) || x < -kFractionTolerance || x > 1 + kFractionTolerance) {
-          return DataLoss("leaf records: record " + std::to_string(c) + " voxel " +
-                          std::to_string(v) + " fraction[" + std::to_string(m) +
-                          "]=" + FormatNumber(x) + " outside [0, 1]");
+          return Outside(std::string("leaf records: record ") + std::to_string(c) + " voxel " +
+                             std::to_string(v) + " fraction[" + std::to_string(m) + "]",
+                         FormatNumber(x), "[0, 1]", Status::Code::kDataLoss);
         }
         sum += x;
       }

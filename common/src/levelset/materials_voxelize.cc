@@ -51,9 +51,9 @@ StatusOr<VoxelizeResult> VoxelizeModel(Sculpture& sculpture, const hetero::Compo
   Sculpture::Impl& impl = sculpture.impl();
   const int n = model.materials();
   if (!impl.fractions.empty() && MaterialCount(sculpture) != n) {
-    return InvalidArgument("model.materials=" + std::to_string(n) + " outside {" +
-                           std::to_string(MaterialCount(sculpture)) +
-                           "} (the sculpture's declared materials)");
+    return Outside("model.materials", std::to_string(n),
+                   std::string("{") + std::to_string(MaterialCount(sculpture)) +
+                       "} (the sculpture's declared materials)");
   }
   VoxelizeResult res;
 
@@ -62,8 +62,9 @@ StatusOr<VoxelizeResult> VoxelizeModel(Sculpture& sculpture, const hetero::Compo
   auto mesh = hetero::ExternalBoundaryMesh(model, options.tessellation);
   if (!mesh.ok()) return mesh.status();
   if (mesh->open_edges > 0) {
-    return FailedPrecondition("model boundary has open_edges=" + std::to_string(mesh->open_edges) +
-                              " outside [0, 0] (cracks between partly shared faces)");
+    return Outside("model boundary has open_edges", std::to_string(mesh->open_edges),
+                   "[0, 0] (cracks between partly shared faces)",
+                   Status::Code::kFailedPrecondition);
   }
   std::vector<openvdb::Vec3s> points;
   points.reserve(mesh->vertices.size());

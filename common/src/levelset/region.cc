@@ -260,8 +260,8 @@ StatusOr<LeafApplyResult> ApplyLeafRecords(Sculpture& sculpture, std::string_vie
   uint64_t raw_size = 0;
   if (!Get(bytes, &raw_size)) return DataLoss("leaf records: size header missing");
   if (raw_size > kMaxRaw || raw_size < 8) {
-    return DataLoss("leaf records: raw_size=" + std::to_string(raw_size) + " outside [8, " +
-                    std::to_string(kMaxRaw) + "]");
+    return Outside("leaf records: raw_size", std::to_string(raw_size),
+                   std::string("[8, ") + std::to_string(kMaxRaw) + "]", Status::Code::kDataLoss);
   }
   const unsigned long long frame = ZSTD_getFrameContentSize(bytes.data(), bytes.size());
   if (frame != raw_size) return DataLoss("leaf records: zstd frame size does not match raw_size");
@@ -297,8 +297,9 @@ StatusOr<LeafApplyResult> ApplyLeafRecords(Sculpture& sculpture, std::string_vie
   };
   // Each record takes at least 21 bytes: a count above that is a lie, refused before reserving.
   if (n > s.size() / 21) {
-    return DataLoss("leaf records: count=" + std::to_string(n) + " outside [0, " +
-                    std::to_string(s.size() / 21) + "] for the payload size");
+    return Outside("leaf records: count", std::to_string(n),
+                   std::string("[0, ") + std::to_string(s.size() / 21) + "] for the payload size",
+                   Status::Code::kDataLoss);
   }
   std::vector<Rec> recs;
   recs.reserve(n);
@@ -311,8 +312,9 @@ StatusOr<LeafApplyResult> ApplyLeafRecords(Sculpture& sculpture, std::string_vie
     }
     for (int a = 0; a < 3; ++a) {
       if (o[a] % kLeafDim != 0 || o[a] < -kMaxCoord || o[a] > kMaxCoord) {
-        return DataLoss("leaf records: origin[" + std::to_string(a) + "]=" + std::to_string(o[a]) +
-                        " outside multiples of 8 in [-2^28, 2^28]");
+        return Outside(std::string("leaf records: origin[") + std::to_string(a) + "]",
+                       std::to_string(o[a]), "multiples of 8 in [-2^28, 2^28]",
+                       Status::Code::kDataLoss);
       }
     }
     r.o = {o[0], o[1], o[2]};
@@ -332,13 +334,15 @@ StatusOr<LeafApplyResult> ApplyLeafRecords(Sculpture& sculpture, std::string_vie
       int pop = 0;
       for (int b = 0; b < kMaskBytes; ++b) pop += __builtin_popcount(r.mask[b]);
       if (pop != r.count) {
-        return DataLoss("leaf records: count=" + std::to_string(r.count) + " of record " +
-                        std::to_string(i) + " outside {" + std::to_string(pop) +
-                        "} (its mask's population)");
+        return Outside("leaf records: count",
+                       std::to_string(r.count) + " of record " + std::to_string(i),
+                       std::string("{") + std::to_string(pop) + "} (its mask's population)",
+                       Status::Code::kDataLoss);
       }
       total_values += r.count;
     } else {
-      return DataLoss("leaf records: type=" + std::to_string(r.type) + " outside {0, 1}");
+      return Outside("leaf records: type", std::to_string(r.type), "{0, 1}",
+                     Status::Code::kDataLoss);
     }
     recs.push_back(r);
   }
@@ -348,8 +352,9 @@ StatusOr<LeafApplyResult> ApplyLeafRecords(Sculpture& sculpture, std::string_vie
     s = s.substr(0, total_values * 4);
   }
   if (s.size() != total_values * 4) {
-    return DataLoss("leaf records: value bytes=" + std::to_string(s.size()) + " outside {" +
-                    std::to_string(total_values * 4) + "}");
+    return Outside("leaf records: value bytes", std::to_string(s.size()),
+                   std::string("{") + std::to_string(total_values * 4) + "}",
+                   Status::Code::kDataLoss);
   }
   internal::MaterialCells materials;
   if (has_materials) {

@@ -234,9 +234,9 @@ WriteBackResult WriteBack(FloatGrid& grid, const DenseField& before, const Dense
 Status ValidateSculptureOptions(const SculptureOptions& o) {
   SCULPT_RETURN_IF_ERROR(CheckRange("voxel_size", o.voxel_size, kMinVoxelSize, kMaxVoxelSize));
   if (o.half_width < kMinHalfWidth || o.half_width > kMaxHalfWidth) {
-    return InvalidArgument("half_width=" + std::to_string(o.half_width) + " outside [" +
-                           std::to_string(kMinHalfWidth) + ", " + std::to_string(kMaxHalfWidth) +
-                           "] voxels");
+    return Outside("half_width", std::to_string(o.half_width),
+                   std::string("[") + std::to_string(kMinHalfWidth) + ", " +
+                       std::to_string(kMaxHalfWidth) + "] voxels");
   }
   return Status::Ok();
 }
@@ -299,8 +299,8 @@ StatusOr<Sculpture> Sculpture::MakeTorus(const SculptureOptions& o, Vec3 c, doub
   SCULPT_RETURN_IF_ERROR(ValidatePrimitiveSize(o, "torus.minor_radius", minor));
   SCULPT_RETURN_IF_ERROR(ValidatePrimitiveSize(o, "torus.major_radius", major));
   if (minor >= major) {
-    return InvalidArgument("torus.minor_radius=" + Num(minor) + " outside (0, major_radius=" +
-                           Num(major) + ")");
+    return Outside("torus.minor_radius", Num(minor),
+                   std::string("(0, major_radius=") + Num(major) + ")");
   }
   const double R = major + minor;
   auto* impl = FillFromSdf(o, c - Vec3{R, R, minor}, c + Vec3{R, R, minor},
@@ -468,7 +468,7 @@ StatusOr<Sculpture> Sculpture::DeserializeVdb(const std::string& bytes) {
 StatusOr<MeshStats> Sculpture::ExportMesh(const std::string& path, double adaptivity) const {
   const std::string ext = std::filesystem::path(path).extension().string();
   if (ext != ".obj" && ext != ".ply") {
-    return InvalidArgument("mesh path extension=" + ext + " outside {.obj, .ply}");
+    return Outside("mesh path extension", ext, "{.obj, .ply}");
   }
   std::vector<openvdb::Vec3s> points;
   std::vector<openvdb::Vec3I> tris;

@@ -173,14 +173,16 @@ Status ValidatePlane(const std::string& field, const SweepPlane& pl) {
   for (const auto& [name, a] : {std::pair<const char*, Vec3>{"u", pl.u}, {"v", pl.v}}) {
     const double l = a.Length();
     if (std::abs(l - 1) > kUnitTolerance) {
-      return InvalidArgument(field + "." + name + "=" + Point3(a) +
-                             " outside unit vectors (length " + FormatNumber(l) + ", within 1e-6 of 1)");
+      return Outside(
+          field + "." + name, Point3(a),
+          std::string("unit vectors (length ") + FormatNumber(l) + ", within 1e-6 of 1)");
     }
   }
   const double d = pl.u.Dot(pl.v);
   if (std::abs(d) > kUnitTolerance) {
-    return InvalidArgument(field + ".v=" + Point3(pl.v) + " outside vectors orthogonal to u (u.v=" +
-                           FormatNumber(d) + ", |u.v| <= 1e-6)");
+    return Outside(
+        field + ".v", Point3(pl.v),
+        std::string("vectors orthogonal to u (u.v=") + FormatNumber(d) + ", |u.v| <= 1e-6)");
   }
   return Status::Ok();
 }
@@ -203,14 +205,14 @@ double PolygonSignedDistance(const std::vector<PlanePoint>& poly, const PlanePoi
 Status ValidateSweep(const Sculpture& sculpture, const SweepRequest& r) {
   SCULPT_RETURN_IF_ERROR(ValidatePlane("sweep.plane", r.plane));
   if (r.outline.size() < 3 || r.outline.size() > kMaxSweepOutlinePoints) {
-    return InvalidArgument("sweep.outline.size=" + std::to_string(r.outline.size()) +
-                           " outside [3, " + std::to_string(kMaxSweepOutlinePoints) + "]");
+    return Outside("sweep.outline.size", std::to_string(r.outline.size()),
+                   std::string("[3, ") + std::to_string(kMaxSweepOutlinePoints) + "]");
   }
   for (size_t i = 0; i < r.outline.size(); ++i) {
     const PlanePoint& p = r.outline[i];
     if (!std::isfinite(p.x) || !std::isfinite(p.y)) {
-      return InvalidArgument("sweep.outline[" + std::to_string(i) + "]=(" + FormatNumber(p.x) +
-                             ", " + FormatNumber(p.y) + ") is not finite");
+      return NotFinite(std::string("sweep.outline[") + std::to_string(i) + "]",
+                       std::string("(") + FormatNumber(p.x) + ", " + FormatNumber(p.y) + ")");
     }
   }
   const double dx = sculpture.voxel_size();
@@ -222,8 +224,10 @@ Status ValidateSweep(const Sculpture& sculpture, const SweepRequest& r) {
     SCULPT_RETURN_IF_ERROR(CheckRange("sweep.axis_point.y", r.axis_point.y, -limit, limit));
     const double l = std::hypot(r.axis_dir.x, r.axis_dir.y);
     if (!std::isfinite(l) || std::abs(l - 1) > kUnitTolerance) {
-      return InvalidArgument("sweep.axis_dir=(" + FormatNumber(r.axis_dir.x) + ", " +
-                             FormatNumber(r.axis_dir.y) + ") outside unit vectors");
+      return Outside(
+          "sweep.axis_dir",
+          std::string("(") + FormatNumber(r.axis_dir.x) + ", " + FormatNumber(r.axis_dir.y) + ")",
+          "unit vectors");
     }
   }
   const Aabb s = SolidBounds(r);
@@ -232,9 +236,10 @@ Status ValidateSweep(const Sculpture& sculpture, const SweepRequest& r) {
                         (size.y / dx + 2 * sculpture.half_width() + 3) *
                         (size.z / dx + 2 * sculpture.half_width() + 3);
   if (!(voxels <= kMaxSweepBlockVoxels)) {
-    return InvalidArgument("sweep.block=" + FormatNumber(voxels) + " voxels outside [0, " +
-                           FormatNumber(kMaxSweepBlockVoxels) + "] (the swept solid " +
-                           Point3(size) + " world units is too large for one edit)");
+    return Outside("sweep.block", FormatNumber(voxels) + " voxels",
+                   std::string("[0, ") + FormatNumber(kMaxSweepBlockVoxels) +
+                       "] (the swept solid " + Point3(size) +
+                       " world units is too large for one edit)");
   }
   return Status::Ok();
 }

@@ -37,7 +37,7 @@ std::string Range(double lo, double hi) {
 
 Status CheckFinite(const std::string& field, double v) {
   if (std::isfinite(v)) return Status::Ok();
-  return InvalidArgument(field + "=" + FormatDouble(v) + " is not finite");
+  return NotFinite(field, FormatDouble(v));
 }
 
 Status CheckFiniteVec(const std::string& field, const Vec3& v) {
@@ -49,7 +49,7 @@ Status CheckFiniteVec(const std::string& field, const Vec3& v) {
 Status CheckInRange(const std::string& field, double v, double lo, double hi) {
   // Written as a negated conjunction so that NaN (if it ever got here) is rejected too.
   if (!(v >= lo && v <= hi)) {
-    return InvalidArgument(field + "=" + FormatDouble(v) + " outside " + Range(lo, hi));
+    return Outside(field, FormatDouble(v), Range(lo, hi));
   }
   return Status::Ok();
 }
@@ -399,9 +399,9 @@ Status ValidateTool(const ToolShape& tool, double min_size, double max_size) {
     return InvalidArgument("tool size range " + Range(min_size, max_size) + " is not valid");
   }
   if (!IsKnownKind(tool.kind)) {
-    return InvalidArgument("tool.kind=" + std::to_string(static_cast<int>(tool.kind)) +
-                           " outside [0, " + std::to_string(static_cast<int>(ToolKind::kCapsule)) +
-                           "]");
+    return Outside(
+        "tool.kind", std::to_string(static_cast<int>(tool.kind)),
+        std::string("[0, ") + std::to_string(static_cast<int>(ToolKind::kCapsule)) + "]");
   }
   SCULPT_RETURN_IF_ERROR(CheckFiniteVec("tool.center", tool.center));
   SCULPT_RETURN_IF_ERROR(CheckFiniteVec("tool.size", tool.size));

@@ -78,9 +78,9 @@ Status ValidateChunkKey(const ChunkKey& key) {
   for (const auto& [field, v] : {std::pair{"ChunkKey.x", key.x}, std::pair{"ChunkKey.y", key.y},
                                   std::pair{"ChunkKey.z", key.z}}) {
     if (v < -kMaxChunkKey || v > kMaxChunkKey) {
-      return InvalidArgument(std::string(field) + "=" + std::to_string(v) + " outside [" +
-                             std::to_string(-kMaxChunkKey) + ", " + std::to_string(kMaxChunkKey) +
-                             "]");
+      return Outside(std::string(field), std::to_string(v),
+                     std::string("[") + std::to_string(-kMaxChunkKey) + ", " +
+                         std::to_string(kMaxChunkKey) + "]");
     }
   }
   return Status::Ok();

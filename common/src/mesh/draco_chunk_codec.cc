@@ -40,8 +40,8 @@ Status ValidateDracoChunkOptions(const DracoChunkOptions& o) {
   SCULPT_RETURN_IF_ERROR(CheckRange("DracoChunkOptions.speed", o.speed, 0, kMaxDracoSpeed));
   SCULPT_RETURN_IF_ERROR(CheckFinitePoint("DracoChunkOptions.frame.origin", o.frame.origin));
   if (!(o.frame.range > 0)) {
-    return InvalidArgument("DracoChunkOptions.frame.range=" + FormatNumber(o.frame.range) +
-                           " outside (0, " + FormatNumber(kMaxFrameRange) + "]");
+    return Outside("DracoChunkOptions.frame.range", FormatNumber(o.frame.range),
+                   std::string("(0, ") + FormatNumber(kMaxFrameRange) + "]");
   }
   return CheckRange("DracoChunkOptions.frame.range", o.frame.range, 0, kMaxFrameRange);
 }
@@ -63,10 +63,11 @@ StatusOr<EncodedChunk> EncodeChunk(const TriangleMesh& mesh, const DracoChunkOpt
     for (int c = 0; c < 3; ++c) {
       const float p = mesh.positions[3 * v + c];
       if (!(p >= origin[c] && p <= origin[c] + range)) {
-        return InvalidArgument("vertex " + std::to_string(v) + " coordinate " +
-                               std::to_string(c) + "=" + FormatNumber(p) + " outside the frame [" +
-                               FormatNumber(origin[c]) + ", " + FormatNumber(origin[c] + range) +
-                               "]");
+        return Outside(
+            std::string("vertex ") + std::to_string(v) + " coordinate " + std::to_string(c),
+            FormatNumber(p),
+            std::string("the frame [") + FormatNumber(origin[c]) + ", " +
+                FormatNumber(origin[c] + range) + "]");
       }
     }
   }

@@ -19,21 +19,21 @@ StatusOr<std::unique_ptr<draco::Mesh>> ToDracoMesh(const TriangleMesh& mesh) {
   const uint32_t nv = static_cast<uint32_t>(mesh.vertex_count());
   for (size_t i = 0; i < mesh.indices.size(); ++i) {
     if (mesh.indices[i] >= nv) {
-      return InvalidArgument("TriangleMesh.indices[" + std::to_string(i) +
-                             "]=" + std::to_string(mesh.indices[i]) + " outside [0, " +
-                             std::to_string(nv) + ")");
+      return Outside(std::string("TriangleMesh.indices[") + std::to_string(i) + "]",
+                     std::to_string(mesh.indices[i]),
+                     std::string("[0, ") + std::to_string(nv) + ")");
     }
   }
   if (!mesh.colours.empty() && mesh.colours.size() != mesh.positions.size()) {
-    return InvalidArgument("TriangleMesh.colours.size=" + std::to_string(mesh.colours.size()) +
-                           " outside {0, " + std::to_string(mesh.positions.size()) +
-                           "} (none, or r, g, b per vertex)");
+    return Outside("TriangleMesh.colours.size", std::to_string(mesh.colours.size()),
+                   std::string("{0, ") + std::to_string(mesh.positions.size()) +
+                       "} (none, or r, g, b per vertex)");
   }
   for (size_t i = 0; i < mesh.colours.size(); ++i) {
     const float c = mesh.colours[i];
     if (!(c >= 0.f && c <= 1.f)) {
-      return InvalidArgument("TriangleMesh.colours[" + std::to_string(i) + "]=" +
-                             std::to_string(c) + " outside [0, 1]");
+      return Outside(std::string("TriangleMesh.colours[") + std::to_string(i) + "]",
+                     std::to_string(c), "[0, 1]");
     }
   }
   auto out = std::make_unique<draco::Mesh>();
@@ -110,9 +110,9 @@ StatusOr<TriangleMesh> FromDracoMesh(const draco::Mesh& mesh) {
     const draco::Mesh::Face& face = mesh.face(f);
     for (int c = 0; c < 3; ++c) {
       if (face[c].value() >= np) {
-        return InvalidArgument("Draco face " + std::to_string(f.value()) + " corner " +
-                               std::to_string(c) + "=" + std::to_string(face[c].value()) +
-                               " outside [0, " + std::to_string(np) + ")");
+        return Outside(
+            std::string("Draco face ") + std::to_string(f.value()) + " corner " + std::to_string(c),
+            std::to_string(face[c].value()), std::string("[0, ") + std::to_string(np) + ")");
       }
       out.indices.push_back(face[c].value());
     }

@@ -29,7 +29,7 @@ StatusOr<levelset::MeshStats> WriteGlb(const levelset::Sculpture& sculpture,
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   // Draco's encoder picks GLB or .gltf + .bin from the extension; only GLB is one file.
-  if (ext != ".glb") return InvalidArgument("GLB path extension=" + ext + " outside {.glb}");
+  if (ext != ".glb") return Outside("GLB path extension", ext, "{.glb}");
   TriangleMesh mesh = MeshWhole(sculpture);
   if (mesh.empty()) {
     return InvalidArgument("sculpture '" + sculpture.name() + "' has no surface to write");

@@ -112,7 +112,7 @@ Q Predict(const QLine& q, size_t k, const QLine* ctx) {
 
 Status Quantise(const std::vector<const Polyline2*>& lines, double step, std::vector<QLine>* out) {
   SCULPT_RETURN_IF_ERROR(CheckRange("step", step, 0, 1e300));
-  if (!(step > 0)) return InvalidArgument("step=" + FormatNumber(step) + " outside (0, inf)");
+  if (!(step > 0)) return Outside("step", FormatNumber(step), "(0, inf)");
   out->clear();
   out->reserve(lines.size());
   for (size_t i = 0; i < lines.size(); ++i) {
@@ -122,10 +122,11 @@ Status Quantise(const std::vector<const Polyline2*>& lines, double step, std::ve
       const Vec2 p = (*lines[i])[j];
       const double x = p.x / step, y = p.y / step;
       if (!p.IsFinite() || !(std::abs(x) < kMaxQuantised) || !(std::abs(y) < kMaxQuantised)) {
-        return InvalidArgument("polylines[" + std::to_string(i) + "][" + std::to_string(j) +
-                               "]=(" + FormatNumber(p.x) + ", " + FormatNumber(p.y) +
-                               ") / step=" + FormatNumber(step) +
-                               " is not finite or outside [-2^52, 2^52]");
+        return Outside(
+            std::string("polylines[") + std::to_string(i) + "][" + std::to_string(j) + "]",
+            std::string("(") + FormatNumber(p.x) + ", " + FormatNumber(p.y) +
+                std::string(") / step=") + FormatNumber(step) + " is not finite or",
+            "[-2^52, 2^52]");
       }
       q.push_back({static_cast<int64_t>(std::llround(x)), static_cast<int64_t>(std::llround(y))});
     }
@@ -479,13 +480,13 @@ Status DecodeCurveBody(std::string_view body, size_t message_size, Kind kind, do
     version += rc.Int(models->version);
     if (!rc.ok()) return Truncated("section entries");
     if (index < 0 || static_cast<uint64_t>(index) >= section_count) {
-      return InvalidArgument("contour.section_index=" + std::to_string(index) + " outside [0, " +
-                             std::to_string(section_count) + ")");
+      return Outside("contour.section_index", std::to_string(index),
+                     std::string("[0, ") + std::to_string(section_count) + ")");
     }
     if (id < 0 || static_cast<uint64_t>(id) > kMaxExactId || version < 0 ||
         static_cast<uint64_t>(version) > kMaxExactId) {
-      return InvalidArgument("contour.section_id/version=" + std::to_string(id) + "/" +
-                             std::to_string(version) + " outside [0, 2^53)");
+      return Outside("contour.section_id/version",
+                     std::to_string(id) + "/" + std::to_string(version), "[0, 2^53)");
     }
     e = {static_cast<uint64_t>(index), static_cast<uint64_t>(id), static_cast<uint64_t>(version)};
   }
@@ -501,9 +502,9 @@ Status DecodeCurveBody(std::string_view body, size_t message_size, Kind kind, do
     if (n < 0) return InvalidArgument("contour.points=" + std::to_string(n) + " for a polyline");
     total += static_cast<uint64_t>(n);
     if (static_cast<uint64_t>(n) > cap || total > cap) {
-      return InvalidArgument("contour.points=" + std::to_string(total) + " outside [0, " +
-                             std::to_string(cap) + "] for a " + std::to_string(message_size) +
-                             "-byte message");
+      return Outside("contour.points", std::to_string(total),
+                     std::string("[0, ") + std::to_string(cap) + "] for a " +
+                         std::to_string(message_size) + "-byte message");
     }
     counts.push_back(static_cast<uint64_t>(n));
   }
@@ -572,11 +573,11 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
   }
   const bool skc2 = magic[3] == '2';
   if (!r.Bytes(&kind, 1)) return Truncated("kind");
-  if (kind > kUpdate) return InvalidArgument("contour.kind=" + std::to_string(kind) + " outside [0, 2]");
+  if (kind > kUpdate) return Outside("contour.kind", std::to_string(kind), "[0, 2]");
   p.kind = static_cast<Kind>(kind);
   if (!r.Bytes(&p.step, 8)) return Truncated("step");
   if (!std::isfinite(p.step) || !(p.step > 0)) {
-    return InvalidArgument("contour.step=" + FormatNumber(p.step) + " outside (0, inf)");
+    return Outside("contour.step", FormatNumber(p.step), "(0, inf)");
   }
   if (!r.Bytes(&coding, 1)) return Truncated("coding");
   if (skc2 ? coding != kCurve : coding > kRans) {
@@ -587,15 +588,15 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
   if (p.kind == kPolylineSet) {
     if (!r.Varint(&nlines)) return Truncated("polyline count");
     if (nlines > kMaxContourPolylines) {
-      return InvalidArgument("contour.polylines=" + std::to_string(nlines) + " outside [0, " +
-                             std::to_string(kMaxContourPolylines) + "]");
+      return Outside("contour.polylines", std::to_string(nlines),
+                     std::string("[0, ") + std::to_string(kMaxContourPolylines) + "]");
     }
   } else {
     uint64_t entries = 0;
     if (!r.Varint(&p.section_count)) return Truncated("section count");
     if (p.section_count > kMaxContourPolylines) {
-      return InvalidArgument("contour.sections=" + std::to_string(p.section_count) +
-                             " outside [0, " + std::to_string(kMaxContourPolylines) + "]");
+      return Outside("contour.sections", std::to_string(p.section_count),
+                     std::string("[0, ") + std::to_string(kMaxContourPolylines) + "]");
     }
     entries = p.section_count;
     if (p.kind == kUpdate) {
@@ -604,8 +605,8 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
         return Truncated("update header");
       }
       if (entries > p.section_count) {
-        return InvalidArgument("contour.changed=" + std::to_string(entries) + " outside [0, " +
-                               std::to_string(p.section_count) + "]");
+        return Outside("contour.changed", std::to_string(entries),
+                       std::string("[0, ") + std::to_string(p.section_count) + "]");
       }
     }
     for (uint64_t i = 0; i < entries && !skc2; ++i) {
@@ -613,8 +614,8 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
       if (p.kind == kUpdate && !r.Varint(&idx)) return Truncated("section index");
       if (!r.Varint(&id) || !r.Varint(&ver)) return Truncated("section id");
       if (idx >= p.section_count) {
-        return InvalidArgument("contour.section_index=" + std::to_string(idx) + " outside [0, " +
-                               std::to_string(p.section_count) + ")");
+        return Outside("contour.section_index", std::to_string(idx),
+                       std::string("[0, ") + std::to_string(p.section_count) + ")");
       }
       p.index.push_back(idx);
       p.id.push_back(id);
@@ -647,9 +648,9 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
     // that would only make us allocate.
     const uint64_t cap = std::min<uint64_t>(kMaxContourPoints, 65536 + 256 * bytes.size());
     if (total > cap) {
-      return InvalidArgument("contour.points=" + std::to_string(total) + " outside [0, " +
-                             std::to_string(cap) + "] for a " + std::to_string(bytes.size()) +
-                             "-byte message");
+      return Outside("contour.points", std::to_string(total),
+                     std::string("[0, ") + std::to_string(cap) + "] for a " +
+                         std::to_string(bytes.size()) + "-byte message");
     }
     if (n == 0) continue;
     if (!r.Varint(&firsts[i][0]) || !r.Varint(&firsts[i][1])) return Truncated("first point");
@@ -778,8 +779,8 @@ StatusOr<std::string> EncodeSkinUpdate(const Skin& skin, const SkinChange& chang
   std::vector<Entry> entries;
   for (size_t k : change.changed) {
     if (k >= skin.sections().size()) {
-      return InvalidArgument("change.changed=" + std::to_string(k) + " outside [0, " +
-                             std::to_string(skin.sections().size()) + ")");
+      return Outside("change.changed", std::to_string(k),
+                     std::string("[0, ") + std::to_string(skin.sections().size()) + ")");
     }
     const Section& sec = skin.section(k);
     entries.push_back({k, sec.id, sec.version});
@@ -804,8 +805,9 @@ Status ContourView::Apply(std::string_view bytes) {
                              std::to_string(sections_.size()) + " sections");
     }
     if (p.inserted > p.index.size()) {
-      return InvalidArgument("contour.inserted=" + std::to_string(p.inserted) + " outside [0, " +
-                             std::to_string(p.index.size()) + "] (the changed sections)");
+      return Outside(
+          "contour.inserted", std::to_string(p.inserted),
+          std::string("[0, ") + std::to_string(p.index.size()) + "] (the changed sections)");
     }
     if (sections_.size() - p.removed + p.inserted != p.section_count) {
       return InvalidArgument("contour.sections=" + std::to_string(p.section_count) +

@@ -24,8 +24,8 @@ Status ValidateBall(const std::string& field, const OrientedBall& b) {
   SCULPT_RETURN_IF_ERROR(CheckRange(field + ".c.y", b.c.y, -kMaxCoordinate, kMaxCoordinate));
   SCULPT_RETURN_IF_ERROR(CheckRange(field + ".r", b.r, 0, kMaxCoordinate));
   if (!(b.r > 0)) {
-    return InvalidArgument(field + ".r=" + FormatNumber(b.r) + " outside (0, " +
-                           FormatNumber(kMaxCoordinate) + "]");
+    return Outside(field + ".r", FormatNumber(b.r),
+                   std::string("(0, ") + FormatNumber(kMaxCoordinate) + "]");
   }
   // An angle beyond 1e9 rad has lost every digit of its direction.
   SCULPT_RETURN_IF_ERROR(CheckRange(field + ".theta", b.theta, -1e9, 1e9));
@@ -77,8 +77,8 @@ Status CheckAdmissiblePair(size_t i, const OrientedBall& a, const OrientedBall& 
 
 Status ValidateChain(const std::vector<OrientedBall>& balls) {
   if (balls.size() < 2) {
-    return InvalidArgument("balls.size=" + std::to_string(balls.size()) +
-                           " outside [2, inf): a skin needs at least two balls");
+    return Outside("balls.size", std::to_string(balls.size()),
+                   "[2, inf): a skin needs at least two balls");
   }
   for (size_t i = 0; i < balls.size(); ++i) {
     SCULPT_RETURN_IF_ERROR(ValidateBall(Name(i), balls[i]));

@@ -311,7 +311,7 @@ StatusOr<Method> ParseMethod(const std::string& name) {
   if (name == "naive") return Method::kNaive;
   if (name == "offset") return Method::kOffset;
   if (name == "hybrid") return Method::kHybrid;
-  return InvalidArgument("method=" + name + " outside {naive, offset, hybrid}");
+  return Outside("method", name, "{naive, offset, hybrid}");
 }
 
 Polyline2 SampleCap(const OrientedBall& ball, int from_side, double tol) {
@@ -353,9 +353,9 @@ StatusOr<Skin> Skin::Build(std::vector<OrientedBall> balls, const SkinOptions& o
   // Below 1e-12 of the coordinates' magnitude the chord test compares rounding noise.
   const double lo = 1e-12 * extent;
   if (opt.chord_tolerance < lo) {
-    return InvalidArgument("chord_tolerance=" + FormatNumber(opt.chord_tolerance) + " outside [" +
-                           FormatNumber(lo) + ", inf) for coordinates up to " +
-                           FormatNumber(extent));
+    return Outside("chord_tolerance", FormatNumber(opt.chord_tolerance),
+                   std::string("[") + FormatNumber(lo) + ", inf) for coordinates up to " +
+                       FormatNumber(extent));
   }
   Skin skin;
   skin.balls_ = std::move(balls);
@@ -376,8 +376,8 @@ Section Skin::MakeSection(size_t k) {
 StatusOr<SkinChange> Skin::SetBall(size_t i, const OrientedBall& ball) {
   const size_t n = balls_.size();
   if (i >= n) {
-    return InvalidArgument("ball index=" + std::to_string(i) + " outside [0, " +
-                           std::to_string(n - 1) + "]");
+    return Outside("ball index", std::to_string(i),
+                   std::string("[0, ") + std::to_string(n - 1) + "]");
   }
   SCULPT_RETURN_IF_ERROR(ValidateBall(BallName(i), ball));
   if (i > 0) SCULPT_RETURN_IF_ERROR(CheckAdmissiblePair(i - 1, balls_[i - 1], ball));
@@ -399,8 +399,7 @@ StatusOr<SkinChange> Skin::SetBall(size_t i, const OrientedBall& ball) {
 StatusOr<SkinChange> Skin::InsertBall(size_t i, const OrientedBall& ball) {
   const size_t n = balls_.size();
   if (i > n) {
-    return InvalidArgument("ball index=" + std::to_string(i) + " outside [0, " +
-                           std::to_string(n) + "]");
+    return Outside("ball index", std::to_string(i), std::string("[0, ") + std::to_string(n) + "]");
   }
   SCULPT_RETURN_IF_ERROR(ValidateBall(BallName(i), ball));
   if (i > 0) SCULPT_RETURN_IF_ERROR(CheckAdmissiblePair(i - 1, balls_[i - 1], ball));
@@ -426,8 +425,8 @@ StatusOr<SkinChange> Skin::InsertBall(size_t i, const OrientedBall& ball) {
 StatusOr<SkinChange> Skin::RemoveBall(size_t i) {
   const size_t n = balls_.size();
   if (i >= n) {
-    return InvalidArgument("ball index=" + std::to_string(i) + " outside [0, " +
-                           std::to_string(n - 1) + "]");
+    return Outside("ball index", std::to_string(i),
+                   std::string("[0, ") + std::to_string(n - 1) + "]");
   }
   if (n <= 2) {
     return FailedPrecondition("balls.size=" + std::to_string(n) +

@@ -28,7 +28,7 @@ Status OneOf(const std::string& key, const std::string& v, std::initializer_list
     if (v == o) return Status::Ok();
     list += (list.empty() ? "" : ", ") + std::string(o);
   }
-  return InvalidArgument(key + "=" + v + " outside {" + list + "}");
+  return Outside(key, v, std::string("{") + list + "}");
 }
 
 template <typename T>
@@ -52,8 +52,8 @@ Status ValidateSkinConfig(const std::string& k, const SkinConfig& c) {
   SCULPT_RETURN_IF_ERROR(skin::ParseMethod(c.method).status());
   SCULPT_RETURN_IF_ERROR(Range(k + ".chord_tolerance", c.chord_tolerance, 0, 1e3));
   if (c.balls.size() < 2 || c.balls.size() > kMaxSkinBalls) {
-    return InvalidArgument(k + ".balls.size=" + std::to_string(c.balls.size()) + " outside [2, " +
-                           std::to_string(kMaxSkinBalls) + "]");
+    return Outside(k + ".balls.size", std::to_string(c.balls.size()),
+                   std::string("[2, ") + std::to_string(kMaxSkinBalls) + "]");
   }
   std::vector<skin::OrientedBall> balls;
   for (size_t i = 0; i < c.balls.size(); ++i) {
@@ -310,11 +310,11 @@ Status ParseHostPort(const std::string& text, std::string* host, uint16_t* port)
   int p = 0;
   for (size_t i = colon + 1; i < text.size(); ++i) {
     if (text[i] < '0' || text[i] > '9' || p > 65535) {
-      return InvalidArgument("listen port=" + text.substr(colon + 1) + " outside [0, 65535]");
+      return Outside("listen port", text.substr(colon + 1), "[0, 65535]");
     }
     p = p * 10 + (text[i] - '0');
   }
-  if (p > 65535) return InvalidArgument("listen port=" + std::to_string(p) + " outside [0, 65535]");
+  if (p > 65535) return Outside("listen port", std::to_string(p), "[0, 65535]");
   *host = h;
   *port = static_cast<uint16_t>(p);
   return Status::Ok();
@@ -417,12 +417,13 @@ Status ValidateConfig(const ServerConfig& c) {
   SCULPT_RETURN_IF_ERROR(Range("scene.mesh_max_rate_hz", s.mesh_max_rate_hz, 0.1, 120));
   SCULPT_RETURN_IF_ERROR(Range("scene.mesh_chunk_voxels", s.mesh_chunk_voxels, 8, 256));
   if (s.mesh_chunk_voxels % 8 != 0) {
-    return InvalidArgument("scene.mesh_chunk_voxels=" + std::to_string(s.mesh_chunk_voxels) +
-                           " outside multiples of 8 in [8, 256]");
+    return Outside("scene.mesh_chunk_voxels", std::to_string(s.mesh_chunk_voxels),
+                   "multiples of 8 in [8, 256]");
   }
   SCULPT_RETURN_IF_ERROR(OneOf("scene.effects.volume_preservation", s.effects.volume_preservation,
                                {"none", "shell", "global"}));
-  SCULPT_RETURN_IF_ERROR(OneOf("scene.effects.islands", s.effects.islands, {"keep", "remove_small"}));
+  SCULPT_RETURN_IF_ERROR(
+      OneOf("scene.effects.islands", s.effects.islands, {"keep", "remove_small"}));
   SCULPT_RETURN_IF_ERROR(
       Range("scene.effects.min_island_volume", s.effects.min_island_volume, 0, 1e30));
   if (!s.effects.materials.empty()) {
@@ -445,11 +446,12 @@ Status ValidateConfig(const ServerConfig& c) {
     SCULPT_RETURN_IF_ERROR(
         OneOf(k + ".primitive", o.primitive, {"sphere", "box", "capsule", "torus", "model"}));
     if (o.primitive == "model" && o.model.empty()) {
-      return InvalidArgument(k + ".model= outside paths of a hetero model JSON file (primitive "
-                             "\"model\" needs one)");
+      return Outside(k + ".model", "",
+                     "paths of a hetero model JSON file (primitive \"model\" needs one)");
     }
     if (o.primitive == "model" && s.materials.empty()) {
-      return InvalidArgument(k + ".primitive=model needs scene.materials (the model's materials, "
+      return InvalidArgument(k +
+                             ".primitive=model needs scene.materials (the model's materials, "
                              "same count, declared for every object)");
     }
     if (!o.center.IsFinite()) return InvalidArgument(k + ".center is not finite");

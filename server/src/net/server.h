@@ -23,6 +23,10 @@
 #include "net/users.h"
 #include "scene/scene.h"
 
+namespace sculpt::v1 {
+class Error;
+}  // namespace sculpt::v1
+
 namespace boost::asio::ssl {
 class context;
 }  // namespace boost::asio::ssl

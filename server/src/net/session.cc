@@ -21,6 +21,7 @@
 #include "sculpt/codec/replica_messages.h"
 #include "sculpt/codec/skin_messages.h"
 #include "sculpt/codec/stroke.h"
+#include "sculpt/codec/undo.h"
 
 namespace sculpt::server {
 namespace {
@@ -946,15 +947,15 @@ void Session::OnPaint(const v1::PaintEdit& p) {
   };
   auto limits = server_.scene().LimitsFor(p.object());
   if (!limits.ok()) {
-    return refuse(NotFound("PaintEdit.object=" + p.object() + " outside the scene's objects"));
+    return refuse(
+        Outside("PaintEdit.object", p.object(), "the scene's objects", Status::Code::kNotFound));
   }
-  auto paint = codec::DecodePaintEdit(p, *limits,
-                                      static_cast<int>(server_.config().scene.materials.size()));
+  auto paint =
+      codec::DecodePaintEdit(p, *limits, static_cast<int>(server_.config().scene.materials.size()));
   if (!paint.ok()) return refuse(paint.status());
-  server_.scene().Paint(client_id_, std::move(paint).value(),
-                        [self = shared_from_this()](const PaintOutcome& o) {
-                          self->OnPaintAck(ToWireAck(o));
-                        });
+  server_.scene().Paint(
+      client_id_, std::move(paint).value(),
+      [self = shared_from_this()](const PaintOutcome& o) { self->OnPaintAck(ToWireAck(o)); });
 }
 
 void Session::OnModelIntent(const v1::ModelIntent& mi) {
@@ -975,9 +976,20 @@ void Session::OnModelIntent(const v1::ModelIntent& mi) {
 
 void Session::OnUndo(const v1::UndoRequest& u) {
   if (!MayEdit("UndoRequest", u.client_seq())) return;
-  server_.scene().Undo(client_id_, u, [self = shared_from_this()](v1::UndoAck a) {
-    self->OnUndoAck(std::move(a));
-  });
+  auto command = codec::DecodeUndo(u);
+  if (!command.ok()) {
+    // Answered in the UndoAck like any refused undo (as the scene's refusals are), not counted
+    // as a violation.
+    UndoCommandOutcome refused;
+    refused.status = command.status();
+    refused.client_seq = u.client_seq();
+    refused.redo = u.redo();
+    return OnUndoAck(ToWireAck(refused));
+  }
+  server_.scene().Undo(client_id_, std::move(command).value(),
+                       [self = shared_from_this()](const UndoCommandOutcome& o) {
+                         self->OnUndoAck(ToWireAck(o));
+                       });
 }
 
 // The history view: any joined session (viewers too) may read it; a request costs tokens of the
@@ -997,9 +1009,10 @@ void Session::OnHistory(const v1::HistoryRequest& h) {
   }
   auto query = codec::DecodeHistoryRequest(h);
   if (!query.ok()) return refuse(ToWireError(query.status(), 0));
-  server_.scene().History(
-      std::move(query).value(),
-      [self = shared_from_this()](v1::HistoryAnswer a) { self->OnHistoryAnswer(std::move(a)); });
+  server_.scene().History(std::move(query).value(),
+                          [self = shared_from_this()](const HistoryOutcome& o) {
+                            self->OnHistoryAnswer(ToWireAnswer(o));
+                          });
 }
 
 void Session::OnHistoryAnswer(v1::HistoryAnswer a) {

@@ -33,7 +33,7 @@ StatusOr<std::string> PercentDecode(std::string_view in) {
     const int hi = complete ? HexValue(in[i + 1]) : -1;
     const int lo = complete ? HexValue(in[i + 2]) : -1;
     if (hi < 0 || lo < 0) {
-      return InvalidArgument("path=" + std::string(in) + " outside percent-encoded paths");
+      return Outside("path", std::string(in), "percent-encoded paths");
     }
     out += static_cast<char>(hi * 16 + lo);
     i += 2;
@@ -80,7 +80,7 @@ StatusOr<StaticFile> StaticFiles::Lookup(std::string_view target) const {
   const size_t query = target.find_first_of("?#");
   if (query != std::string_view::npos) target = target.substr(0, query);
   if (target.empty() || target[0] != '/') {
-    return InvalidArgument("path=" + std::string(target) + " outside absolute paths");
+    return Outside("path", std::string(target), "absolute paths");
   }
   SCULPT_ASSIGN_OR_RETURN(std::string path, PercentDecode(target));
   if (path.back() == '/') path += "index.html";
@@ -92,9 +92,8 @@ StatusOr<StaticFile> StaticFiles::Lookup(std::string_view target) const {
     const std::string segment = path.substr(start, end - start);
     if (segment.empty() || segment == "." || segment == ".." ||
         segment.find('\0') != std::string::npos || segment.find('\\') != std::string::npos) {
-      return InvalidArgument("path=" + std::string(target) +
-                             " outside paths of plain names (no empty, \".\" or \"..\" segment, "
-                             "NUL or backslash)");
+      return Outside("path", std::string(target),
+                     "paths of plain names (no empty, \".\" or \"..\" segment, NUL or backslash)");
     }
     relative /= segment;
     start = end + 1;
@@ -107,13 +106,15 @@ StatusOr<StaticFile> StaticFiles::Lookup(std::string_view target) const {
   std::error_code ec;
   const fs::file_status st = fs::status(file, ec);
   if (ec || !fs::is_regular_file(st)) {
-    return NotFound("path=" + std::string(target) + " outside the files of " + root_.string());
+    return Outside("path", std::string(target), std::string("the files of ") + root_.string(),
+                   Status::Code::kNotFound);
   }
   const uint64_t size = fs::file_size(file, ec);
   if (ec) return Internal("stat " + file.string() + ": " + ec.message());
   if (size > kMaxStaticFileBytes) {
-    return ResourceExhausted("file size=" + std::to_string(size) + " outside [0, " +
-                             std::to_string(kMaxStaticFileBytes) + "] bytes");
+    return Outside("file size", std::to_string(size),
+                   std::string("[0, ") + std::to_string(kMaxStaticFileBytes) + "] bytes",
+                   Status::Code::kResourceExhausted);
   }
   const auto mtime = fs::last_write_time(file, ec);
   StaticFile out;

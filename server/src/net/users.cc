@@ -150,13 +150,14 @@ StatusOr<UserTable> UserTable::Load(const std::string& path) {
     if (!name) return InvalidArgument("users file " + path + ": " + entry + ".name missing");
     SCULPT_RETURN_IF_ERROR(CheckUserName("users file " + path + ": " + entry + ".name", *name));
     if (!role || (*role != "sculptor" && *role != "viewer")) {
-      return InvalidArgument("users file " + path + ": " + entry + ".role=" + role.value_or("") +
-                             " outside {sculptor, viewer}");
+      return Outside(std::string("users file ") + path + ": " + entry + ".role", role.value_or(""),
+                     "{sculptor, viewer}");
     }
     if (!hash || hash->rfind("$argon2", 0) != 0 || hash->size() >= crypto_pwhash_STRBYTES) {
       return InvalidArgument("users file " + path + ": " + entry +
                              ".token_hash is not a crypto_pwhash string (make users with "
-                             "`sculptd user add NAME --role ROLE --users " + path + "`)");
+                             "`sculptd user add NAME --role ROLE --users " +
+                             path + "`)");
     }
     if (t.Find(*name)) {
       return InvalidArgument("users file " + path + ": " + entry + ".name=" + *name +

@@ -2,6 +2,7 @@
 #include "net/wire_acks.h"
 
 #include "net/wire_error.h"
+#include "sculpt/codec/stroke.h"
 
 namespace sculpt::server {
 
@@ -58,6 +59,56 @@ v1::ModelAck ToWireAck(const ModelOutcome& o) {
   }
   a.set_model_version(o.model_version);
   a.set_model_hash(o.model_hash);
+  return a;
+}
+
+v1::UndoAck ToWireAck(const UndoCommandOutcome& o) {
+  v1::UndoAck a;
+  a.set_client_seq(o.client_seq);
+  a.set_redo(o.redo);
+  a.set_accepted(o.status.ok());
+  if (!o.status.ok()) {
+    *a.mutable_error() = ToWireError(o.status, o.client_seq);
+    a.set_global_seq(o.global_seq);
+    return a;
+  }
+  a.set_duplicate(o.duplicate);
+  if (o.duplicate) return a;
+  a.set_global_seq(o.global_seq);
+  a.set_target_seq(o.target_seq);
+  a.set_replayed(o.replayed);
+  for (const auto& [author, n] : o.replayed_by) {
+    v1::ReplayedEdits* r = a.add_replayed_by();
+    r->set_author(author);
+    r->set_edits(n);
+  }
+  a.set_undo_depth(o.undo_depth);
+  a.set_redo_depth(o.redo_depth);
+  return a;
+}
+
+v1::HistoryAnswer ToWireAnswer(const HistoryOutcome& o) {
+  v1::HistoryAnswer a;
+  a.set_request_id(o.request_id);
+  a.set_object(o.object);
+  if (!o.status.ok()) {
+    *a.mutable_error() = ToWireError(o.status, 0);
+    return a;
+  }
+  a.set_matching(o.matching);
+  a.set_held(o.held);
+  a.set_cleared(o.cleared);
+  for (const HistoryEntry& in : o.entries) {
+    v1::HistoryEntry* e = a.add_entries();
+    e->set_seq(in.seq);
+    e->set_author(in.author);
+    e->set_kind(codec::EditKindToProto(in.kind));
+    e->set_sweep(in.sweep);
+    e->set_poses(in.poses);
+    e->set_time_ms(in.wall_ms);
+    e->set_undone(in.undone);
+    e->set_undoable(in.undoable);
+  }
   return a;
 }
 

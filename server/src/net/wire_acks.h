@@ -16,6 +16,11 @@ v1::PaintAck ToWireAck(const PaintOutcome& outcome);
 /// A ModelAck: a validity refusal carries its reason, cell, direction, span and detail (no
 /// Error); any other refusal the Error.
 v1::ModelAck ToWireAck(const ModelOutcome& outcome);
+/// An UndoAck: accepted with the target, the replays and the depths left (a duplicate with
+/// neither), or refused with the Error of its status (and the undo's sequence when it was logged).
+v1::UndoAck ToWireAck(const UndoCommandOutcome& outcome);
+/// A HistoryAnswer: the entries, counts and cleared reason, or the Error of a refusal (no entries).
+v1::HistoryAnswer ToWireAnswer(const HistoryOutcome& outcome);
 
 }  // namespace sculpt::server
 

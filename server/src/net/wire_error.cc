@@ -2,7 +2,6 @@
 #include "net/wire_error.h"
 
 #include "net/untrusted_text.h"
-#include "sculpt/codec/stroke.h"
 
 namespace sculpt::server {
 
@@ -22,9 +21,14 @@ v1::ErrorCode ToWireCode(Status::Code code) {
 }
 
 v1::Error ToWireError(const Status& status, uint64_t client_seq) {
-  const codec::FieldError fe = codec::SplitFieldError(status);
-  return ProtocolError(ToWireCode(status.code()), fe.field, fe.value, fe.allowed_range, fe.message,
-                       client_seq);
+  // The violation was set where the error was made; an error naming no field sends only its
+  // message.
+  const Status::Violation* v = status.violation();
+  if (v == nullptr) {
+    return ProtocolError(ToWireCode(status.code()), "", "", "", status.message(), client_seq);
+  }
+  return ProtocolError(ToWireCode(status.code()), v->field, v->value, v->allowed_range,
+                       status.message(), client_seq);
 }
 
 v1::Error ProtocolError(v1::ErrorCode code, std::string field, std::string value,

@@ -17,8 +17,9 @@ namespace sculpt::server {
 /// reported rather than hidden).
 v1::ErrorCode ToWireCode(Status::Code code);
 
-/// A refusal as a wire Error: the code above and the Status's field, value, allowed range and
-/// message, for the message with sequence number `client_seq` (0 when none).
+/// A refusal as a wire Error: the code above, the Status's field violation (field, value, allowed
+/// range; empty when it has none) and its message, for the message with sequence number
+/// `client_seq` (0 when none).
 v1::Error ToWireError(const Status& status, uint64_t client_seq = 0);
 
 /// Bounds of an Error's strings: field and value, allowed range and message (net/untrusted_text.h

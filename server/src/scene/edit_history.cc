@@ -328,9 +328,12 @@ StatusOr<EditHistory> EditHistory::Parse(std::string_view in, EditHistoryOptions
       if (!GetSweep(in, &*r.sweep)) return DataLoss(where + ": sweep truncated");
     }
     if (!Get(in, &nreq)) return DataLoss(where + " truncated");
-    if ((has_sweep && nreq != 0) || (!has_sweep && (nreq == 0 || nreq > levelset::kMaxEditsPerBatch))) {
-      return DataLoss(where + ": requests=" + std::to_string(nreq) + " outside {0} (a sweep) or [1, " +
-                      std::to_string(levelset::kMaxEditsPerBatch) + "]");
+    if ((has_sweep && nreq != 0) ||
+        (!has_sweep && (nreq == 0 || nreq > levelset::kMaxEditsPerBatch))) {
+      return Outside(
+          where + ": requests", std::to_string(nreq),
+          std::string("{0} (a sweep) or [1, ") + std::to_string(levelset::kMaxEditsPerBatch) + "]",
+          Status::Code::kDataLoss);
     }
     r.requests.resize(nreq);
     int32_t box[6];
@@ -341,7 +344,8 @@ StatusOr<EditHistory> EditHistory::Parse(std::string_view in, EditHistoryOptions
          Get(in, &r.volume_change) && Get(in, &r.island_volume_removed) && Get(in, &flags);
     if (!ok) return DataLoss(where + " truncated");
     if (flags[2] > static_cast<uint8_t>(Stack::kRedo)) {
-      return DataLoss(where + ": stack=" + std::to_string(flags[2]) + " outside [0, 2]");
+      return Outside(where + ": stack", std::to_string(flags[2]), "[0, 2]",
+                     Status::Code::kDataLoss);
     }
     r.footprint = VoxelBox{{box[0], box[1], box[2]}, {box[3], box[4], box[5]}};
     r.reinitialised = flags[0] != 0;
@@ -371,9 +375,11 @@ StatusOr<EditHistory> EditHistory::Parse(std::string_view in, EditHistoryOptions
       for (uint64_t& id : *ids) {
         Get(in, &id);
         if (id < h.first_id_ || id >= end_id || h.records_[id - h.first_id_].author != name) {
-          return DataLoss("edit history: author " + Quoted(name) + " stack id=" +
-                          std::to_string(id) + " outside its records in [" +
-                          std::to_string(h.first_id_) + ", " + std::to_string(end_id) + ")");
+          return Outside(std::string("edit history: author ") + Quoted(name) + " stack id",
+                         std::to_string(id),
+                         std::string("its records in [") + std::to_string(h.first_id_) + ", " +
+                             std::to_string(end_id) + ")",
+                         Status::Code::kDataLoss);
         }
       }
     }
@@ -460,15 +466,19 @@ StatusOr<uint64_t> EditHistory::UndoTarget(const std::string& author) const {
   if (it == authors_.end() || it->second.undo.empty()) {
     const uint64_t fell = it == authors_.end() ? 0 : it->second.fell_off;
     if (fell > 0) {
-      return OutOfRange("undo: author=" + Quoted(author) +
-                        " has no edit left within depth_per_author=" +
-                        std::to_string(options_.depth_per_author) + " (" + std::to_string(fell) +
-                        " older edits fell off the history, which keeps the last " +
-                        std::to_string(options_.depth_per_author) + " per author, " +
-                        std::to_string(options_.max_edits) + " edits and " +
-                        std::to_string(options_.max_bytes >> 20) + " MiB in all)");
+      const std::string depth = std::to_string(options_.depth_per_author);
+      return FieldViolation(
+          Status::Code::kOutOfRange, "author", Quoted(author),
+          "authors with an edit within depth_per_author=" + depth,
+          "undo: author=" + Quoted(author) + " has no edit left within depth_per_author=" + depth +
+              " (" + std::to_string(fell) +
+              " older edits fell off the history, which keeps the last " + depth + " per author, " +
+              std::to_string(options_.max_edits) + " edits and " +
+              std::to_string(options_.max_bytes >> 20) + " MiB in all)");
     }
-    return FailedPrecondition("undo: author=" + Quoted(author) + " has nothing to undo" +
+    return FieldViolation(Status::Code::kFailedPrecondition, "author", Quoted(author),
+                          "authors with an edit to undo",
+                          "undo: author=" + Quoted(author) + " has nothing to undo" +
                               (cleared_.empty() ? "" : " (history cleared: " + cleared_ + ")"));
   }
   return records_[it->second.undo.back() - first_id_].seq;
@@ -477,8 +487,10 @@ StatusOr<uint64_t> EditHistory::UndoTarget(const std::string& author) const {
 StatusOr<uint64_t> EditHistory::RedoTarget(const std::string& author) const {
   auto it = authors_.find(author);
   if (it == authors_.end() || it->second.redo.empty()) {
-    return FailedPrecondition("redo: author=" + Quoted(author) +
-                              " has nothing to redo (no undo since its last edit)");
+    return FieldViolation(
+        Status::Code::kFailedPrecondition, "author", Quoted(author),
+        "authors with an undone edit to redo",
+        "redo: author=" + Quoted(author) + " has nothing to redo (no undo since its last edit)");
   }
   return records_[it->second.redo.back() - first_id_].seq;
 }

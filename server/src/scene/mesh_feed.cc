@@ -62,7 +62,8 @@ void MeshFeed::InjectFaultForTesting(std::function<void(const std::string&)> hoo
 Status MeshFeed::AddViewer(ReplicaSink sink, const codec::ViewerSubscription& req,
                            const levelset::Sculpture* sculpture) {
   if (!sculpture) {
-    return NotFound("ViewerSubscribe.object=" + req.object + " outside the scene's objects");
+    return Outside("ViewerSubscribe.object", req.object, "the scene's objects",
+                   Status::Code::kNotFound);
   }
   // The decoder checked a requested rate; the default and the cap are the scene's.
   const double max_rate = options_.max_rate_hz;

@@ -31,9 +31,14 @@ constexpr const char* kModelFileHeader = "sculpt-model-state";
 
 // The library names fields "intent.*"; on the wire they are the message's.
 Status Rename(const Status& s) {
-  std::string m = s.message();
-  if (m.rfind("intent.", 0) == 0) m = "ModelIntent." + m.substr(7);
-  return Status(s.code(), m);
+  auto renamed = [](std::string t) {
+    if (t.rfind("intent.", 0) == 0) t = "ModelIntent." + t.substr(7);
+    return t;
+  };
+  const Status::Violation* v = s.violation();
+  if (v == nullptr) return Status(s.code(), renamed(s.message()));
+  return FieldViolation(s.code(), renamed(v->field), v->value, v->allowed_range,
+                        renamed(s.message()));
 }
 
 template <typename T>
@@ -226,18 +231,19 @@ struct Scene::ModelOp final : EditOp {
   Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
     auto it = scene.models_.find(edit.object);
     if (it == scene.models_.end()) {
-      return NotFound("ModelIntent.object=" + edit.object + " outside the scene's model objects");
+      return Outside("ModelIntent.object", edit.object, "the scene's model objects",
+                     Status::Code::kNotFound);
     }
     state = it->second;
     const hetero::CompositeModel& model = state->model;
     const hetero::EditIntent& intent = edit.intent;
     if (intent.corner >= model.coefficient_count()) {
-      return InvalidArgument("ModelIntent.corner=" + std::to_string(intent.corner) +
-                             " outside [0, " + std::to_string(model.coefficient_count() - 1) + "]");
+      return Outside("ModelIntent.corner", std::to_string(intent.corner),
+                     std::string("[0, ") + std::to_string(model.coefficient_count() - 1) + "]");
     }
     if (intent.cell >= static_cast<int64_t>(model.cell_count())) {
-      return InvalidArgument("ModelIntent.cell=" + std::to_string(intent.cell) +
-                             " outside [-1, " + std::to_string(model.cell_count() - 1) + "]");
+      return Outside("ModelIntent.cell", std::to_string(intent.cell),
+                     std::string("[-1, ") + std::to_string(model.cell_count() - 1) + "]");
     }
     next_model = state->model;
     next_checker = state->checker;
@@ -246,8 +252,8 @@ struct Scene::ModelOp final : EditOp {
     if (!out->applied) {
       rejection = out->rejection;
       Describe(*state);
-      return FailedPrecondition("ModelIntent=" + rejection->ToString() +
-                                " outside intents that keep the model valid");
+      return Outside("ModelIntent", rejection->ToString(), "intents that keep the model valid",
+                     Status::Code::kFailedPrecondition);
     }
     moved = out->moves.size();
     codec::ModelRecord rec;

@@ -4,9 +4,12 @@
 #define SCULPT_SERVER_SCENE_OUTCOMES_H_
 
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
+#include <vector>
 
+#include "scene/edit_history.h"
 #include "sculpt/core/status.h"
 
 namespace sculpt::server {
@@ -59,6 +62,39 @@ struct ModelOutcome {
   uint64_t model_version = 0;
   uint64_t model_hash = 0;
   std::optional<ModelRejection> rejection;
+};
+
+/// What became of an undo or redo (codec::UndoCommand). EditHistory's own UndoOutcome is the
+/// history's side of it; this is what the requester is told.
+struct UndoCommandOutcome {
+  /// Not ok: refused, naming the field (nothing to undo or redo, beyond the depth, no such
+  /// object); nothing was applied.
+  Status status;
+  uint64_t client_seq = 0;
+  bool redo = false;
+  /// The undo's own sequence in the log: set when accepted (not a duplicate), and for a refusal
+  /// that came after it was logged.
+  uint64_t global_seq = 0;
+  bool duplicate = false;
+  // Accepted and not a duplicate:
+  uint64_t target_seq = 0;  // the edit taken back or put back
+  uint32_t replayed = 0;    // later edits replayed on top of the change, in all and per author
+  std::map<std::string, uint32_t> replayed_by;
+  uint32_t undo_depth = 0;  // what the author can still undo / redo on the object after it
+  uint32_t redo_depth = 0;
+};
+
+/// The answer to a history view (codec::HistoryQuery).
+struct HistoryOutcome {
+  /// Not ok: refused, naming the field (an unknown object); no entries then.
+  Status status;
+  uint64_t request_id = 0;
+  std::string object;
+  /// Newest first, at most the query's limit, filtered by its author.
+  std::vector<HistoryEntry> entries;
+  uint32_t matching = 0;  // entries held that match the author filter
+  uint32_t held = 0;      // entries held, every author's
+  std::string cleared;    // why the history was last emptied (empty: never)
 };
 
 }  // namespace sculpt::server

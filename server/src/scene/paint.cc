@@ -51,11 +51,12 @@ struct Scene::PaintOp final : EditOp {
   Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
     auto obj = scene.sculptures_.find(paint.object);
     if (obj == scene.sculptures_.end()) {
-      return NotFound("PaintEdit.object=" + paint.object + " outside the scene's objects");
+      return Outside("PaintEdit.object", paint.object, "the scene's objects",
+                     Status::Code::kNotFound);
     }
     if (levelset::MaterialCount(obj->second) == 0) {
-      return FailedPrecondition("PaintEdit.object=" + paint.object +
-                                " outside objects with materials");
+      return Outside("PaintEdit.object", paint.object, "objects with materials",
+                     Status::Code::kFailedPrecondition);
     }
     codec::PaintRecord record;
     record.global_seq = first_seq;

@@ -32,10 +32,10 @@ StatusOr<levelset::VoxelBox> HeldBox(const levelset::Sculpture& s,
   const double h[3] = {hi.x, hi.y, hi.z};
   for (int a = 0; a < 3; ++a) {
     if (!(h[a] >= l[a]) || h[a] - l[a] > limit) {
-      return InvalidArgument(f + ".max." + axis[a] + "=" + FormatNumber(h[a]) + " outside [" +
-                             FormatNumber(l[a]) + ", " + FormatNumber(l[a] + limit) +
-                             "] (min to min + " + std::to_string(kMaxInterestVoxels) +
-                             " voxels; leave interest unset for the whole object)");
+      return Outside(f + ".max." + axis[a], FormatNumber(h[a]),
+                     std::string("[") + FormatNumber(l[a]) + ", " + FormatNumber(l[a] + limit) +
+                         std::string("] (min to min + ") + std::to_string(kMaxInterestVoxels) +
+                         " voxels; leave interest unset for the whole object)");
     }
   }
   return levelset::WorldToVoxelBox(s, lo, hi).Dilated(kReplicaHaloVoxels);
@@ -76,12 +76,13 @@ void ReplicationHub::Subscribe(ReplicaSink sink, const codec::ReplicaSubscriptio
                                const levelset::Sculpture* sculpture, uint64_t seq,
                                const std::function<void(Status)>& answer) {
   if (!sculpture) {
-    return answer(NotFound("Subscribe.object=" + req.object + " outside the scene's objects"));
+    return answer(
+        Outside("Subscribe.object", req.object, "the scene's objects", Status::Code::kNotFound));
   }
   if (req.have_seq > seq) {
-    return answer(InvalidArgument("Subscribe.have_seq=" + std::to_string(req.have_seq) +
-                                  " outside [0, " + std::to_string(seq) +
-                                  "] (the server's sequence); subscribe with 0 to load anew"));
+    return answer(Outside("Subscribe.have_seq", std::to_string(req.have_seq),
+                          std::string("[0, ") + std::to_string(seq) +
+                              "] (the server's sequence); subscribe with 0 to load anew"));
   }
   Sub sub;
   sub.sink = std::move(sink);
@@ -104,8 +105,8 @@ void ReplicationHub::SetInterest(uint64_t session_id, const codec::InterestChang
                                  const std::function<void(Status)>& answer) {
   auto s = subs_.find(session_id);
   if (s == subs_.end() || s->second.object != req.object || !sculpture) {
-    return answer(FailedPrecondition("SetInterest.object=" + req.object +
-                                     " outside this session's subscriptions"));
+    return answer(Outside("SetInterest.object", req.object, "this session's subscriptions",
+                          Status::Code::kFailedPrecondition));
   }
   auto held = HeldBox(*sculpture, req.interest, "SetInterest.interest");
   if (!held.ok()) return answer(held.status());

@@ -85,8 +85,7 @@ StatusOr<levelset::Sculpture> MakeShape(const SceneConfig& scene, const ObjectCo
   if (o.primitive == "torus") {
     return levelset::Sculpture::MakeTorus(opts, o.center, o.radius, o.minor_radius);
   }
-  return InvalidArgument("scene.objects.primitive=" + o.primitive +
-                         " outside {sphere, box, capsule, torus}");
+  return Outside("scene.objects.primitive", o.primitive, "{sphere, box, capsule, torus}");
 }
 
 // Every object carries the scene's materials (uniform material 0 until painted).
@@ -370,9 +369,9 @@ namespace {
 // What a requester of a task that threw is told: the operation as the field's value, so a client
 // sees which request failed; the exception's text stays in the server log.
 Status TaskFailed(const char* operation) {
-  return Internal(std::string("compute_task=") + operation +
-                  " outside tasks that completed: it threw (logged by the server, which keeps "
-                  "serving)");
+  return Outside("compute_task", operation,
+                 "tasks that completed: it threw (logged by the server, which keeps serving)",
+                 Status::Code::kInternal);
 }
 
 // Runs `fn`; an exception from it is logged, counted and returned as TaskFailed.
@@ -446,7 +445,8 @@ struct Scene::StrokeOp final : EditOp {
     last_seq = first_seq + stroke.edits.size() - 1;
     auto it = scene.sculptures_.find(stroke.object);
     if (it == scene.sculptures_.end()) {
-      return NotFound("Stroke.object=" + stroke.object + " outside the scene's objects");
+      return Outside("Stroke.object", stroke.object, "the scene's objects",
+                     Status::Code::kNotFound);
     }
     const uint32_t n = static_cast<uint32_t>(stroke.edits.size());
     batch.reserve(n);
@@ -653,7 +653,7 @@ StatusOr<codec::StrokeLimits> Scene::LimitsFor(const std::string& object) const 
   std::lock_guard<std::mutex> lock(info_mu_);
   auto b = bounds_.find(object);
   if (b == bounds_.end()) {
-    return NotFound("Stroke.object=" + object + " outside the scene's objects");
+    return Outside("Stroke.object", object, "the scene's objects", Status::Code::kNotFound);
   }
   codec::StrokeLimits l;
   l.voxel_size = config_.scene.voxel_size;
@@ -684,9 +684,10 @@ void Scene::RequestJoinState(std::function<void(StatusOr<JoinState>)> done) {
       const size_t wanted = joins_pending_ + 1;
       lock.unlock();
       task_stats_.joins_refused++;
-      return done(ResourceExhausted("limits.max_pending_joins=" + std::to_string(wanted) +
-                                    " outside [1, " + std::to_string(limit) +
-                                    "] late joins prepared at once; join again shortly"));
+      return done(Outside("limits.max_pending_joins", std::to_string(wanted),
+                          std::string("[1, ") + std::to_string(limit) +
+                              "] late joins prepared at once; join again shortly",
+                          Status::Code::kResourceExhausted));
     }
     ++joins_pending_;
   }

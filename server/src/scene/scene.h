@@ -30,13 +30,13 @@
 #include "sculpt/codec/replica_messages.h"
 #include "sculpt/codec/skin_messages.h"
 #include "sculpt/codec/stroke.h"
+#include "sculpt/codec/undo.h"
 #include "sculpt/core/latency_histogram.h"
 #include "sculpt/core/status.h"
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/region.h"
 #include "sculpt/levelset/sculpture.h"
 #include "sculpt/skin/skin.h"
-#include "sculpt/v1/sculpt.pb.h"
 
 namespace sculpt::server {
 
@@ -192,7 +192,9 @@ class Scene {
   /// name: nothing to undo or redo (FailedPrecondition), beyond the history (OutOfRange). The
   /// history reaches back to the object's last snapshot (recovery can rebuild no further) and at
   /// most limits.undo_depth strokes per author. A resend is acknowledged as a duplicate.
-  void Undo(uint64_t client_id, v1::UndoRequest request, std::function<void(v1::UndoAck)> done);
+  /// The command was decoded by codec::DecodeUndo (its object name's length checked).
+  void Undo(uint64_t client_id, codec::UndoCommand command,
+            std::function<void(UndoCommandOutcome)> done);
   /// Strokes `client_id` can undo / redo on `object` now (tests, tools); 0 for an unknown object.
   std::pair<size_t, size_t> UndoDepth(const std::string& object, uint64_t client_id);
   /// The history view (issue 15, undo.cc; the query already checked by DecodeHistoryRequest):
@@ -200,7 +202,7 @@ class Scene {
   /// query.author's when set; read on the compute thread between two edits, changing nothing.
   /// `done` gets the answer there (it must only post); its error is NotFound for an unknown
   /// object.
-  void History(codec::HistoryQuery query, std::function<void(v1::HistoryAnswer)> done);
+  void History(codec::HistoryQuery query, std::function<void(HistoryOutcome)> done);
 
   /// Whose share of the compute thread the calling thread's requests take (set by a session
   /// around each request it handles: its named user's, else its source address's key, never 0).

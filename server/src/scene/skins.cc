@@ -63,12 +63,12 @@ Status CheckBallIndex(const skin::Skin& sk, const codec::BallEdit& e) {
   const size_t i = e.index;
   const bool add = e.op == codec::BallOp::kAdd;
   if (add ? i > n : i >= n) {
-    return InvalidArgument("SkinBallEdit.index=" + std::to_string(i) + " outside [0, " +
-                           std::to_string(add ? n : n - 1) + "]");
+    return Outside("SkinBallEdit.index", std::to_string(i),
+                   std::string("[0, ") + std::to_string(add ? n : n - 1) + "]");
   }
   if (add && n >= kMaxSkinBalls) {
-    return InvalidArgument("SkinBallEdit.op=ADD outside skins of at most " +
-                           std::to_string(kMaxSkinBalls) + " balls");
+    return Outside("SkinBallEdit.op", "ADD",
+                   std::string("skins of at most ") + std::to_string(kMaxSkinBalls) + " balls");
   }
   return Status::Ok();
 }
@@ -173,7 +173,8 @@ struct Scene::SkinState {
   /// The skin named `name`, or NotFound naming `field`, the request field that named it.
   StatusOr<Entry*> Find(const std::string& field, const std::string& name) {
     auto it = skins.find(name);
-    if (it == skins.end()) return NotFound(field + "=" + name + " outside the scene's skins");
+    if (it == skins.end())
+      return Outside(field, name, "the scene's skins", Status::Code::kNotFound);
     return &it->second;
   }
 };
@@ -277,14 +278,15 @@ struct Scene::BallEditOp final : EditOp {
     auto c = ApplyBallEdit(*next, edit);
     if (!c.ok()) {
       // The skin names the inadmissible pair (digest Def 2.6); the refusal names the ball.
-      return Status(c.status().code(),
-                    "SkinBallEdit.ball=(" + FormatNumber(edit.x) + ", " + FormatNumber(edit.y) +
-                        ", r " + FormatNumber(edit.r) + ", theta " + FormatNumber(edit.theta) +
-                        ") at index " + std::to_string(edit.index) +
-                        " outside balls admissible with their neighbours (no contact point "
-                        "inside a neighbour's disk; no nested, concentric or coincident pair), at "
-                        "least 2 balls: " +
-                        c.status().message());
+      return Outside(
+          "SkinBallEdit.ball",
+          std::string("(") + FormatNumber(edit.x) + ", " + FormatNumber(edit.y) + ", r " +
+              FormatNumber(edit.r) + std::string(", theta ") + FormatNumber(edit.theta) +
+              ") at index " + std::to_string(edit.index),
+          "balls admissible with their neighbours (no contact point inside a neighbour's disk; no "
+          "nested, concentric or coincident pair), at least 2 balls: " +
+              c.status().message(),
+          c.status().code());
     }
     change = std::move(c).value();
     codec::BallEditRecord rec;
@@ -368,7 +370,8 @@ struct Scene::SweepOp final : EditOp {
                             scene.skins_->Find("SkinSweep.skin", sweep.skin));
     auto obj = scene.sculptures_.find(sweep.object);
     if (obj == scene.sculptures_.end()) {
-      return NotFound("SkinSweep.object=" + sweep.object + " outside the scene's objects");
+      return Outside("SkinSweep.object", sweep.object, "the scene's objects",
+                     Status::Code::kNotFound);
     }
     const SkinState::Entry& entry = *found;
     codec::SweepRecord rec;
@@ -495,9 +498,10 @@ void Scene::SubscribeContours(ReplicaSink sink, codec::ContourRequest req,
     // The scene decides which effects it computes: without contours, no skin contour or slice
     // is encoded for anyone (principle 2 of ARCHITECTURE.md).
     if (!config_.scene.effects.contours && !req.unsubscribe) {
-      return (*cb)(FailedPrecondition(
-          "scene.effects.contours=false outside {true}: this scene computes no skin contours or "
-          "slices (set contours = true under [scene.effects])"));
+      return (*cb)(Outside("scene.effects.contours", "false",
+                           "{true}: this scene computes no skin contours or slices (set contours = "
+                           "true under [scene.effects])",
+                           Status::Code::kFailedPrecondition));
     }
     if (!req.skin.empty()) {
       auto found = skins_->Find("ContourSubscribe.skin", req.skin);
@@ -522,8 +526,8 @@ void Scene::SubscribeContours(ReplicaSink sink, codec::ContourRequest req,
     }
     const std::string& object = req.object;
     if (sculptures_.find(object) == sculptures_.end()) {
-      return (*cb)(NotFound("ContourSubscribe.slice.object=" + object +
-                            " outside the scene's objects"));
+      return (*cb)(Outside("ContourSubscribe.slice.object", object, "the scene's objects",
+                           Status::Code::kNotFound));
     }
     if (req.unsubscribe) {
       skins_->slices[object].erase(session);

@@ -8,7 +8,6 @@
 #include <future>
 #include <iterator>
 
-#include "net/wire_error.h"
 #include "scene/answer_once.h"
 #include "scene/edit_history.h"
 #include "scene/scene.h"
@@ -19,8 +18,6 @@
 namespace sculpt::server {
 namespace {
 
-constexpr size_t kMaxNameBytes = 64;
-
 // A history file beside the snapshots: magic, the snapshot seq it belongs to, the payload size,
 // CRC32C of the payload, then EditHistory::Serialize's bytes.
 constexpr char kHistoryMagic[8] = {'S', 'C', 'L', 'P', 'H', 'I', 'S', 'T'};
@@ -28,15 +25,6 @@ constexpr size_t kHistoryHeader = 8 + 8 + 8 + 4;
 
 std::string HistoryPath(const std::string& data_dir, const std::string& object) {
   return (std::filesystem::path(data_dir) / "history" / (object + ".bin")).string();
-}
-
-v1::UndoAck Refused(const Status& st, const v1::UndoRequest& r) {
-  v1::UndoAck a;
-  a.set_client_seq(r.client_seq());
-  a.set_redo(r.redo());
-  a.set_accepted(false);
-  *a.mutable_error() = ToWireError(st, r.client_seq());
-  return a;
 }
 
 }  // namespace
@@ -62,26 +50,27 @@ void Scene::ClearHistories(const std::string& why) {
 // the region and replays the later strokes it reaches, exactly as recovery will (the history is
 // rebuilt by recovery from the same records). Replicas get the changed leaves.
 struct Scene::UndoOp final : EditOp {
-  UndoOp(uint64_t client, v1::UndoRequest r, std::function<void(v1::UndoAck)> d)
-      : client(client), request(std::move(r)), done(std::move(d)) {}
-  const char* operation() const override { return request.redo() ? "redo" : "undo"; }
+  UndoOp(uint64_t client, codec::UndoCommand c, std::function<void(UndoCommandOutcome)> d)
+      : client(client), command(std::move(c)), done(std::move(d)) {}
+  const char* operation() const override { return command.redo ? "redo" : "undo"; }
   ResendStream stream() const override { return ResendStream::kUndos; }
   uint64_t client_id() const override { return client; }
-  uint64_t client_seq() const override { return request.client_seq(); }
+  uint64_t client_seq() const override { return command.client_seq; }
 
   Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
-    auto it = scene.sculptures_.find(request.object());
+    auto it = scene.sculptures_.find(command.object);
     if (it == scene.sculptures_.end()) {
-      return NotFound("UndoRequest.object=" + request.object() + " outside the scene's objects");
+      return Outside("UndoRequest.object", command.object, "the scene's objects",
+                     Status::Code::kNotFound);
     }
-    EditHistory& h = scene.HistoryOf(request.object());
+    EditHistory& h = scene.HistoryOf(command.object);
     const std::string author = HistoryAuthor(client);
-    if (request.redo()) {
+    if (command.redo) {
       if (h.redo_depth(author) == 0) {
-        return FailedPrecondition("UndoRequest.redo=true outside requests with an undone stroke "
-                                  "to redo on " + request.object() +
-                                  " (none since this client's last undo, or a stroke came after "
-                                  "it)");
+        return Outside("UndoRequest.redo", "true",
+                       std::string("requests with an undone stroke to redo on ") + command.object +
+                           " (none since this client's last undo, or a stroke came after it)",
+                       Status::Code::kFailedPrecondition);
       }
       SCULPT_RETURN_IF_ERROR(h.RedoTarget(author).status());
     } else {
@@ -91,9 +80,9 @@ struct Scene::UndoOp final : EditOp {
     codec::UndoRecord rec;
     rec.global_seq = first_seq;
     rec.client_id = client;
-    rec.client_seq = request.client_seq();
-    rec.object = request.object();
-    rec.redo = request.redo();
+    rec.client_seq = command.client_seq;
+    rec.object = command.object;
+    rec.redo = command.redo;
     rec.author = author;
     records->push_back(codec::EncodeLogRecord(rec));
     return Status::Ok();
@@ -101,12 +90,12 @@ struct Scene::UndoOp final : EditOp {
 
   Applied Apply(Scene& scene) override {
     Applied a;
-    a.object = request.object();
+    a.object = command.object;
     a.bounds_may_change = true;
-    EditHistory& h = scene.HistoryOf(request.object());
-    levelset::Sculpture& s = scene.sculptures_.at(request.object());
+    EditHistory& h = scene.HistoryOf(command.object);
+    levelset::Sculpture& s = scene.sculptures_.at(command.object);
     const std::string author = HistoryAuthor(client);
-    auto out = request.redo() ? h.Redo(s, author) : h.Undo(s, author);
+    auto out = command.redo ? h.Redo(s, author) : h.Undo(s, author);
     if (!out.ok()) {
       a.status = out.status();
       return a;
@@ -118,48 +107,36 @@ struct Scene::UndoOp final : EditOp {
   }
 
   void Answer(const CommitOutcome& o) override {
+    UndoCommandOutcome a;
+    a.status = o.status;
+    a.client_seq = command.client_seq;
+    a.redo = command.redo;
     if (!o.status.ok()) {
-      v1::UndoAck a = Refused(o.status, request);
-      if (o.records > 0) a.set_global_seq(o.global_seq_first);
-      return done(a);
+      if (o.records > 0) a.global_seq = o.global_seq_first;
+      return done(std::move(a));
     }
-    v1::UndoAck a;
-    a.set_client_seq(o.client_seq);
-    a.set_redo(request.redo());
-    a.set_accepted(true);
-    a.set_duplicate(o.duplicate);
+    a.duplicate = o.duplicate;
     if (!o.duplicate) {
-      a.set_global_seq(o.global_seq_first);
-      a.set_target_seq(outcome.seq);
-      a.set_replayed(outcome.replayed);
-      for (const auto& [author, n] : outcome.replayed_by) {
-        v1::ReplayedEdits* r = a.add_replayed_by();
-        r->set_author(author);
-        r->set_edits(n);
-      }
-      a.set_undo_depth(static_cast<uint32_t>(depth.first));
-      a.set_redo_depth(static_cast<uint32_t>(depth.second));
+      a.global_seq = o.global_seq_first;
+      a.target_seq = outcome.seq;
+      a.replayed = outcome.replayed;
+      a.replayed_by = outcome.replayed_by;
+      a.undo_depth = static_cast<uint32_t>(depth.first);
+      a.redo_depth = static_cast<uint32_t>(depth.second);
     }
-    done(a);
+    done(std::move(a));
   }
 
   uint64_t client;
-  v1::UndoRequest request;
-  std::function<void(v1::UndoAck)> done;
+  codec::UndoCommand command;
+  std::function<void(UndoCommandOutcome)> done;
   UndoOutcome outcome;
   std::pair<size_t, size_t> depth;
 };
 
-void Scene::Undo(uint64_t client_id, v1::UndoRequest request,
-                 std::function<void(v1::UndoAck)> done) {
-  auto once = AnswerOnce(std::move(done));
-  if (request.object().empty() || request.object().size() > kMaxNameBytes) {
-    return once(Refused(InvalidArgument("UndoRequest.object=(" +
-                                        std::to_string(request.object().size()) +
-                                        " bytes) outside names of 1..64 bytes"),
-                        request));
-  }
-  Commit(std::make_shared<UndoOp>(client_id, std::move(request), once));
+void Scene::Undo(uint64_t client_id, codec::UndoCommand command,
+                 std::function<void(UndoCommandOutcome)> done) {
+  Commit(std::make_shared<UndoOp>(client_id, std::move(command), AnswerOnce(std::move(done))));
 }
 
 bool Scene::SaveHistories(uint64_t seq) {
@@ -223,39 +200,30 @@ void Scene::LoadHistory(const std::string& object, uint64_t snapshot_seq) {
   h = std::move(parsed).value();
 }
 
-void Scene::History(codec::HistoryQuery query, std::function<void(v1::HistoryAnswer)> done) {
+void Scene::History(codec::HistoryQuery query, std::function<void(HistoryOutcome)> done) {
   auto once = AnswerOnce(std::move(done));
   auto refuse = [once, id = query.request_id, object = query.object](const Status& st) {
-    v1::HistoryAnswer a;
-    a.set_request_id(id);
-    a.set_object(object);
-    *a.mutable_error() = ToWireError(st, 0);
+    HistoryOutcome a;
+    a.status = st;
+    a.request_id = id;
+    a.object = object;
     once(std::move(a));
   };
   Post(CurrentRequester(), "history", refuse, [this, query = std::move(query), once, refuse] {
     if (!sculptures_.count(query.object)) {
-      return refuse(
-          NotFound("HistoryRequest.object=" + query.object + " outside the scene's objects"));
+      return refuse(Outside("HistoryRequest.object", query.object, "the scene's objects",
+                            Status::Code::kNotFound));
     }
     const EditHistory& h = HistoryOf(query.object);
     const std::vector<HistoryEntry> entries = h.Entries(query.author);
-    v1::HistoryAnswer a;
-    a.set_request_id(query.request_id);
-    a.set_object(query.object);
-    a.set_matching(static_cast<uint32_t>(entries.size()));
-    a.set_held(static_cast<uint32_t>(h.size()));
-    a.set_cleared(h.cleared_reason());
-    for (auto it = entries.rbegin();
-         it != entries.rend() && a.entries_size() < static_cast<int>(query.limit); ++it) {
-      v1::HistoryEntry* e = a.add_entries();
-      e->set_seq(it->seq);
-      e->set_author(it->author);
-      e->set_kind(codec::EditKindToProto(it->kind));
-      e->set_sweep(it->sweep);
-      e->set_poses(it->poses);
-      e->set_time_ms(it->wall_ms);
-      e->set_undone(it->undone);
-      e->set_undoable(it->undoable);
+    HistoryOutcome a;
+    a.request_id = query.request_id;
+    a.object = query.object;
+    a.matching = static_cast<uint32_t>(entries.size());
+    a.held = static_cast<uint32_t>(h.size());
+    a.cleared = h.cleared_reason();
+    for (auto it = entries.rbegin(); it != entries.rend() && a.entries.size() < query.limit; ++it) {
+      a.entries.push_back(*it);
     }
     once(std::move(a));
   });

@@ -93,9 +93,10 @@ Status DiskFull(const std::string& path, uint64_t need, int err) {
   struct statvfs vfs;
   const uint64_t free_bytes =
       ::statvfs(dir.c_str(), &vfs) == 0 ? static_cast<uint64_t>(vfs.f_bavail) * vfs.f_frsize : 0;
-  return ResourceExhausted("edit_log.free_bytes=" + std::to_string(free_bytes) + " outside [" +
-                           std::to_string(need) + ", ...) in " + dir + " (writing " + path + ": " +
-                           std::strerror(err) + "); edits resume once space is freed");
+  return Outside("edit_log.free_bytes", std::to_string(free_bytes),
+                 std::string("[") + std::to_string(need) + ", ...) in " + dir + " (writing " +
+                     path + ": " + std::strerror(err) + "); edits resume once space is freed",
+                 Status::Code::kResourceExhausted);
 }
 
 using WritevFn = std::function<ssize_t(int, const iovec*, int)>;
@@ -163,18 +164,18 @@ Status FsyncDir(const std::string& dir) { return FsyncDirectory(dir); }
 StatusOr<FsyncPolicy::Mode> ParseFsyncMode(std::string_view text) {
   if (text == "always") return FsyncPolicy::Mode::kAlways;
   if (text == "group") return FsyncPolicy::Mode::kGroup;
-  return InvalidArgument("fsync policy=\"" + std::string(text) + "\" outside {always, group}");
+  return Outside("fsync policy", std::string("\"") + std::string(text) + "\"", "{always, group}");
 }
 
 Status ValidateFsyncPolicy(const FsyncPolicy& policy) {
   if (policy.mode != FsyncPolicy::Mode::kAlways && policy.mode != FsyncPolicy::Mode::kGroup) {
-    return InvalidArgument("FsyncPolicy.mode=" + std::to_string(static_cast<int>(policy.mode)) +
-                           " outside {kAlways, kGroup}");
+    return Outside("FsyncPolicy.mode", std::to_string(static_cast<int>(policy.mode)),
+                   "{kAlways, kGroup}");
   }
   if (policy.group_ms < kMinGroupMs || policy.group_ms > kMaxGroupMs) {
-    return InvalidArgument("FsyncPolicy.group_ms=" + std::to_string(policy.group_ms) +
-                           " outside [" + std::to_string(kMinGroupMs) + ", " +
-                           std::to_string(kMaxGroupMs) + "]");
+    return Outside(
+        "FsyncPolicy.group_ms", std::to_string(policy.group_ms),
+        std::string("[") + std::to_string(kMinGroupMs) + ", " + std::to_string(kMaxGroupMs) + "]");
   }
   return Status::Ok();
 }
@@ -194,8 +195,8 @@ StatusOr<std::unique_ptr<EditLog>> EditLog::Open(const std::string& dir,
                                                  RecoveryReport* report) {
   SCULPT_RETURN_IF_ERROR(ValidateFsyncPolicy(options.fsync));
   if (options.segment_bytes < kMinSegmentBytes) {
-    return InvalidArgument("EditLogOptions.segment_bytes=" + std::to_string(options.segment_bytes) +
-                           " outside [" + std::to_string(kMinSegmentBytes) + ", 2^64)");
+    return Outside("EditLogOptions.segment_bytes", std::to_string(options.segment_bytes),
+                   std::string("[") + std::to_string(kMinSegmentBytes) + ", 2^64)");
   }
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -923,8 +924,8 @@ Status EditLog::AppendRecords(uint64_t first_seq, const std::string_view* payloa
   uint64_t group_bytes = 0;
   for (size_t i = 0; i < count; ++i) {
     if (payloads[i].size() > kMaxRecordPayload) {
-      return InvalidArgument("edit log payload size=" + std::to_string(payloads[i].size()) +
-                             " outside [0, " + std::to_string(kMaxRecordPayload) + "] bytes");
+      return Outside("edit log payload size", std::to_string(payloads[i].size()),
+                     std::string("[0, ") + std::to_string(kMaxRecordPayload) + "] bytes");
     }
     group_bytes += kRecordHeaderBytes + payloads[i].size();
   }

@@ -11,10 +11,6 @@
 namespace sculpt::server::store {
 namespace {
 
-Status WithContext(const Status& s, const std::string& context) {
-  return Status(s.code(), context + ": " + s.message());
-}
-
 void Warn(RecoveryReport* report, std::string message) {
   spdlog::warn("recovery: {}", message);
   report->warnings.push_back(std::move(message));

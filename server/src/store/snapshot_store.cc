@@ -194,8 +194,8 @@ StatusOr<levelset::Sculpture> LoadSnapshotFile(const std::string& path, uint64_t
 
 Status ValidateObjectName(const std::string& object) {
   if (object.empty() || object.size() > kMaxObjectName) {
-    return InvalidArgument("snapshot object name length=" + std::to_string(object.size()) +
-                           " outside [1, " + std::to_string(kMaxObjectName) + "]");
+    return Outside("snapshot object name length", std::to_string(object.size()),
+                   std::string("[1, ") + std::to_string(kMaxObjectName) + "]");
   }
   if (object[0] == '.') {
     return InvalidArgument("snapshot object name=\"" + object + "\" must not start with '.'");
@@ -204,8 +204,8 @@ Status ValidateObjectName(const std::string& object) {
     const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
                     c == '_' || c == '-' || c == '.';
     if (!ok) {
-      return InvalidArgument("snapshot object name=\"" + object + "\" has a character outside " +
-                             "[A-Za-z0-9_.-]");
+      return Outside("snapshot object name", std::string("\"") + object + "\" has a character",
+                     "[A-Za-z0-9_.-]");
     }
   }
   return Status::Ok();
@@ -217,8 +217,8 @@ SnapshotStore::SnapshotStore(std::string dir, SnapshotStoreOptions options)
 StatusOr<std::unique_ptr<SnapshotStore>> SnapshotStore::Open(const std::string& dir,
                                                              SnapshotStoreOptions options) {
   if (options.keep < 1 || options.keep > kMaxKeep) {
-    return InvalidArgument("SnapshotStoreOptions.keep=" + std::to_string(options.keep) +
-                           " outside [1, " + std::to_string(kMaxKeep) + "]");
+    return Outside("SnapshotStoreOptions.keep", std::to_string(options.keep),
+                   std::string("[1, ") + std::to_string(kMaxKeep) + "]");
   }
   std::error_code ec;
   fs::create_directories(dir, ec);

@@ -6,13 +6,12 @@
 
 #include <string>
 
-#include "sculpt/codec/stroke.h"
 #include "sculpt/core/status.h"
 
 namespace sculpt::codec::testing {
 
-/// Success when `status` has `code` and its message reads `field=value outside range` (or
-/// `field=value is not finite`, whose range is "finite numbers").
+/// Success when `status` has `code` and carries the violation (`field`, `value`, `range`), and its
+/// message names the field (a not-finite value's range is "finite numbers").
 inline ::testing::AssertionResult IsViolation(const Status& status, const std::string& field,
                                               const std::string& value, const std::string& range,
                                               Status::Code code = Status::Code::kInvalidArgument) {
@@ -20,11 +19,18 @@ inline ::testing::AssertionResult IsViolation(const Status& status, const std::s
     return ::testing::AssertionFailure() << "code " << CodeName(status.code()) << ", wanted "
                                          << CodeName(code) << ": " << status;
   }
-  const FieldError fe = SplitFieldError(status);
-  if (fe.field != field || fe.value != value || fe.allowed_range != range) {
+  const Status::Violation* fe = status.violation();
+  if (fe == nullptr) {
+    return ::testing::AssertionFailure() << "no field violation in " << status;
+  }
+  if (fe->field != field || fe->value != value || fe->allowed_range != range) {
     return ::testing::AssertionFailure()
-           << "field [" << fe.field << "] value [" << fe.value << "] range [" << fe.allowed_range
-           << "], wanted [" << field << "] [" << value << "] [" << range << "]";
+           << "field [" << fe->field << "] value [" << fe->value << "] range ["
+           << fe->allowed_range << "], wanted [" << field << "] [" << value << "] [" << range
+           << "]";
+  }
+  if (status.message().find(field) == std::string::npos) {
+    return ::testing::AssertionFailure() << "the message does not name " << field << ": " << status;
   }
   return ::testing::AssertionSuccess();
 }

@@ -26,10 +26,11 @@ void ExpectRefused(const v1::HistoryRequest& r, const std::string& field,
   auto q = DecodeHistoryRequest(r);
   ASSERT_FALSE(q.ok());
   EXPECT_EQ(q.status().code(), Status::Code::kInvalidArgument);
-  const FieldError e = SplitFieldError(q.status());
-  EXPECT_EQ(e.field, field) << q.status().message();
-  EXPECT_FALSE(e.value.empty()) << q.status().message();
-  EXPECT_NE(e.allowed_range.find(range_part), std::string::npos) << q.status().message();
+  const Status::Violation* e = q.status().violation();
+  ASSERT_NE(e, nullptr) << q.status();
+  EXPECT_EQ(e->field, field) << q.status().message();
+  EXPECT_FALSE(e->value.empty()) << q.status().message();
+  EXPECT_NE(e->allowed_range.find(range_part), std::string::npos) << q.status().message();
 }
 
 TEST(HistoryRequestTest, DecodesAValidRequest) {

@@ -69,18 +69,19 @@ v1::Stroke MakeStroke(const std::vector<Pose>& poses) {
 
 v1::Stroke MakeStroke() { return MakeStroke(LinePoses(4)); }
 
-/// Expects an InvalidArgument whose message names `field` and `value` and splits into them.
+/// Expects an InvalidArgument whose message names `field` and `value` and whose violation holds
+/// them and the allowed range.
 void ExpectFieldError(const Status& status, const std::string& field, const std::string& value,
                       const std::string& allowed_range) {
   ASSERT_FALSE(status.ok());
   EXPECT_EQ(status.code(), Status::Code::kInvalidArgument);
   EXPECT_NE(status.message().find(field), std::string::npos) << status.message();
   EXPECT_NE(status.message().find(value), std::string::npos) << status.message();
-  const FieldError e = SplitFieldError(status);
-  EXPECT_EQ(e.field, field) << status.message();
-  EXPECT_EQ(e.value, value) << status.message();
-  EXPECT_EQ(e.allowed_range, allowed_range) << status.message();
-  EXPECT_EQ(e.message, status.message());
+  const Status::Violation* e = status.violation();
+  ASSERT_NE(e, nullptr) << status;
+  EXPECT_EQ(e->field, field) << status.message();
+  EXPECT_EQ(e->value, value) << status.message();
+  EXPECT_EQ(e->allowed_range, allowed_range) << status.message();
 }
 
 Status DecodeStatus(const v1::Stroke& stroke) { return DecodeStroke(stroke, Limits()).status(); }
@@ -396,45 +397,29 @@ TEST(StrokeTest, RejectsHugeOriginAsPoseOutsideBounds) {
   stroke.mutable_origin()->set_x(3e38f);
   const Status status = DecodeStatus(stroke);
   ASSERT_FALSE(status.ok());
-  EXPECT_EQ(SplitFieldError(status).field, "Stroke.poses[0]");
+  ASSERT_NE(status.violation(), nullptr) << status;
+  EXPECT_EQ(status.violation()->field, "Stroke.poses[0]");
 }
 
-// --- SplitFieldError ---------------------------------------------------------------------------
+// --- Field violations of the kernel's validators ------------------------------------------------
 
-TEST(StrokeTest, SplitsKernelMessages) {
-  FieldError e = SplitFieldError(InvalidArgument("tool.size.x=-1 outside [0.5, 64]"));
-  EXPECT_EQ(e.field, "tool.size.x");
-  EXPECT_EQ(e.value, "-1");
-  EXPECT_EQ(e.allowed_range, "[0.5, 64]");
-  EXPECT_EQ(e.message, "tool.size.x=-1 outside [0.5, 64]");
-
-  e = SplitFieldError(InvalidArgument("edit.speed=inf is not finite"));
-  EXPECT_EQ(e.field, "edit.speed");
-  EXPECT_EQ(e.value, "inf");
-  EXPECT_EQ(e.allowed_range, "finite numbers");
-
+TEST(StrokeTest, KernelValidatorCarriesFieldViolation) {
   // The kernel's own validator, not a hand-written copy of its format.
   const Status kernel =
       levelset::ValidateTool(levelset::ToolShape::Sphere({0, 0, 0}, 100), 0.5, 64);
-  e = SplitFieldError(kernel);
-  EXPECT_EQ(e.field, "tool.size.x");
-  EXPECT_EQ(e.value, "100");
-  EXPECT_EQ(e.allowed_range, "[0.5, 64]");
-}
+  ASSERT_NE(kernel.violation(), nullptr) << kernel;
+  EXPECT_EQ(kernel.violation()->field, "tool.size.x");
+  EXPECT_EQ(kernel.violation()->value, "100");
+  EXPECT_EQ(kernel.violation()->allowed_range, "[0.5, 64]");
+  EXPECT_EQ(kernel.message(), "tool.size.x=100 outside [0.5, 64]");
 
-TEST(StrokeTest, SplitsMessageWithoutFieldIntoMessageOnly) {
-  const FieldError e = SplitFieldError(InvalidArgument("region is not finite"));
-  EXPECT_EQ(e.field, "");
-  EXPECT_EQ(e.value, "");
-  EXPECT_EQ(e.allowed_range, "");
-  EXPECT_EQ(e.message, "region is not finite");
-}
-
-TEST(StrokeTest, SplitsFrameLengthError) {
-  const FieldError e = SplitFieldError(ResourceExhausted("frame length=5 outside [0, 4]"));
-  EXPECT_EQ(e.field, "frame length");
-  EXPECT_EQ(e.value, "5");
-  EXPECT_EQ(e.allowed_range, "[0, 4]");
+  const Status nan = levelset::ValidateTool(
+      levelset::ToolShape::Sphere({0, std::numeric_limits<double>::quiet_NaN(), 0}, 1), 0.5, 64);
+  ASSERT_NE(nan.violation(), nullptr) << nan;
+  EXPECT_EQ(nan.violation()->field, "tool.center.y");
+  EXPECT_EQ(nan.violation()->value, "nan");
+  EXPECT_EQ(nan.violation()->allowed_range, "finite numbers");
+  EXPECT_EQ(nan.message(), "tool.center.y=nan is not finite");
 }
 
 // --- EditFromRecord ----------------------------------------------------------------------------
@@ -498,7 +483,8 @@ TEST(StrokeTest, EditFromRecordKeepsUnknownKindInvalid) {
   EXPECT_GT(static_cast<int>(e.kind), static_cast<int>(levelset::EditKind::kDeflate));
   const Status tool_status = levelset::ValidateTool(e.tool, 0.5, 64);
   ASSERT_FALSE(tool_status.ok());
-  EXPECT_EQ(SplitFieldError(tool_status).field, "tool.kind");
+  ASSERT_NE(tool_status.violation(), nullptr) << tool_status;
+  EXPECT_EQ(tool_status.violation()->field, "tool.kind");
 }
 
 // --- Size on the wire --------------------------------------------------------------------------

@@ -45,6 +45,9 @@ std::string KindName(const ::testing::TestParamInfo<Kind>& info) {
 }
 
 // What any kind's answer says, in the pipeline's terms.
+/// The field a refusal names (empty when it names none).
+std::string ViolationField(const Status& s) { return s.violation() ? s.violation()->field : ""; }
+
 struct Answer {
   bool accepted = false;
   bool duplicate = false;
@@ -54,7 +57,7 @@ struct Answer {
 
 Answer FromSkin(const SkinOutcome& k) {
   Answer a{k.status.ok(), k.duplicate, k.global_seq, {}};
-  if (!k.status.ok()) a.error_field = codec::SplitFieldError(k.status).field;
+  if (!k.status.ok()) a.error_field = ViolationField(k.status);
   return a;
 }
 
@@ -138,7 +141,7 @@ class CommitPipelineTest : public ::testing::TestWithParam<Kind> {
           a.accepted = o.status.ok();
           a.duplicate = o.duplicate;
           a.global_seq = o.global_seq_first;
-          if (!o.status.ok()) a.error_field = codec::SplitFieldError(o.status).field;
+          if (!o.status.ok()) a.error_field = ViolationField(o.status);
           p.set_value(a);
         });
         break;
@@ -159,7 +162,7 @@ class CommitPipelineTest : public ::testing::TestWithParam<Kind> {
         EXPECT_TRUE(paint.ok()) << paint.status();
         scene_->Paint(client, std::move(paint).value(), [&](const PaintOutcome& k) {
           Answer a{k.status.ok(), k.duplicate, k.global_seq, {}};
-          if (!k.status.ok()) a.error_field = codec::SplitFieldError(k.status).field;
+          if (!k.status.ok()) a.error_field = ViolationField(k.status);
           p.set_value(a);
         });
         break;
@@ -209,7 +212,7 @@ class CommitPipelineTest : public ::testing::TestWithParam<Kind> {
         EXPECT_TRUE(edit.ok()) << edit.status();
         scene_->EditModel(client, std::move(edit).value(), [&](const ModelOutcome& k) {
           Answer a{k.status.ok() && !k.rejection, k.duplicate, k.global_seq, {}};
-          if (!k.status.ok()) a.error_field = codec::SplitFieldError(k.status).field;
+          if (!k.status.ok()) a.error_field = ViolationField(k.status);
           p.set_value(a);
         });
         break;

@@ -44,6 +44,16 @@ TEST(ConfigTest, RejectsNegativeVoxelSize) {
   EXPECT_NE(s.message().find("scene.voxel_size=-1 outside"), std::string::npos) << s;
 }
 
+TEST(ConfigTest, RefusalCarriesTheFieldViolation) {
+  ServerConfig c;
+  ASSERT_TRUE(LoadConfigFile(Write("voxel_violation", "[scene]\nvoxel_size = -1.0\n"), &c).ok());
+  const Status s = ValidateConfig(c);
+  ASSERT_NE(s.violation(), nullptr) << s;
+  EXPECT_EQ(s.violation()->field, "scene.voxel_size");
+  EXPECT_EQ(s.violation()->value, "-1");
+  EXPECT_FALSE(s.violation()->allowed_range.empty());
+}
+
 TEST(ConfigTest, RejectsEqualTokens) {
   ServerConfig c;
   c.viewer_token = c.sculptor_token;

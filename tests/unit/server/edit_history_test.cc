@@ -535,5 +535,21 @@ TEST(EditHistoryTest, AnEditThatCannotBeUndoneClearsTheHistory) {
   EXPECT_NE(r.status().message().find("compensation=global"), std::string::npos);
 }
 
+TEST(EditHistoryRefusalTest, NothingToUndoOrRedoNamesTheAuthor) {
+  const EditHistory h;
+  const Status undo = h.UndoTarget("7").status();
+  EXPECT_EQ(undo.code(), Status::Code::kFailedPrecondition);
+  EXPECT_EQ(undo.message(), "undo: author=\"7\" has nothing to undo");
+  ASSERT_NE(undo.violation(), nullptr) << undo;
+  EXPECT_EQ(undo.violation()->field, "author");
+  EXPECT_EQ(undo.violation()->value, "\"7\"");
+  EXPECT_EQ(undo.violation()->allowed_range, "authors with an edit to undo");
+  const Status redo = h.RedoTarget("7").status();
+  EXPECT_EQ(redo.code(), Status::Code::kFailedPrecondition);
+  ASSERT_NE(redo.violation(), nullptr) << redo;
+  EXPECT_EQ(redo.violation()->field, "author");
+  EXPECT_EQ(redo.violation()->allowed_range, "authors with an undone edit to redo");
+}
+
 }  // namespace
 }  // namespace sculpt::server

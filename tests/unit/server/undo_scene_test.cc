@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "integration/raw_client.h"
+#include "net/wire_acks.h"
 #include "net/wire_info.h"
 #include "scene/scene.h"
 
@@ -66,8 +67,16 @@ class UndoSceneTest : public ::testing::Test {
     r.set_client_seq(seq);
     r.set_object("clay");
     r.set_redo(redo);
+    return UndoWire(scene, client, r);
+  }
+
+  // The scene's undo as the session answers it: decoded at the edge, the outcome as its ack.
+  static v1::UndoAck UndoWire(Scene& scene, uint64_t client, const v1::UndoRequest& r) {
+    auto command = codec::DecodeUndo(r);
+    EXPECT_TRUE(command.ok()) << command.status();
     std::promise<v1::UndoAck> p;
-    scene.Undo(client, r, [&p](v1::UndoAck a) { p.set_value(std::move(a)); });
+    scene.Undo(client, std::move(command).value(),
+               [&p](const UndoCommandOutcome& o) { p.set_value(ToWireAck(o)); });
     return p.get_future().get();
   }
 
@@ -79,7 +88,7 @@ class UndoSceneTest : public ::testing::Test {
     q.author = author;
     q.limit = limit;
     std::promise<v1::HistoryAnswer> p;
-    scene.History(q, [&p](v1::HistoryAnswer a) { p.set_value(std::move(a)); });
+    scene.History(q, [&p](const HistoryOutcome& o) { p.set_value(ToWireAnswer(o)); });
     return p.get_future().get();
   }
 
@@ -365,15 +374,15 @@ TEST_F(UndoSceneTest, TwoAuthorsUndoingAtTheSameTimeInTheSameRegion) {
   for (const Edit& e : edits) ASSERT_TRUE(Submit(*scene_, e).status.ok());
 
   auto both = [&](uint64_t seq) {
-    std::promise<v1::UndoAck> pa, pb;
     v1::UndoRequest r;
     r.set_client_seq(seq);
     r.set_object("clay");
-    std::thread ta([&] { scene_->Undo(kA, r, [&pa](v1::UndoAck x) { pa.set_value(x); }); });
-    std::thread tb([&] { scene_->Undo(kB, r, [&pb](v1::UndoAck x) { pb.set_value(x); }); });
+    v1::UndoAck a, b;
+    std::thread ta([&] { a = UndoWire(*scene_, kA, r); });
+    std::thread tb([&] { b = UndoWire(*scene_, kB, r); });
     ta.join();
     tb.join();
-    return std::make_pair(pa.get_future().get(), pb.get_future().get());
+    return std::make_pair(a, b);
   };
   const auto [a1, b1] = both(1);  // A's smooth and B's subtract
   ASSERT_TRUE(a1.accepted()) << a1.error().ShortDebugString();

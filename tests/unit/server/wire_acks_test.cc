@@ -26,7 +26,7 @@ TEST(WireAcksTest, SkinAckOfAnAcceptedBallEdit) {
 }
 
 TEST(WireAcksTest, SkinAckOfARefusalCarriesTheError) {
-  SkinOutcome o{NotFound("SkinSweep.skin=nope outside the scene's skins"), 9};
+  SkinOutcome o{Outside("SkinSweep.skin", "nope", "the scene's skins", Status::Code::kNotFound), 9};
   o.global_seq = 12;  // a sweep the kernel refused after it was logged
   const v1::SkinAck a = ToWireAck(o);
   EXPECT_FALSE(a.accepted());
@@ -41,7 +41,7 @@ TEST(WireAcksTest, SkinAckOfARefusalCarriesTheError) {
 }
 
 TEST(WireAcksTest, SkinAckOfARefusalSendsNoAcceptedDetails) {
-  SkinOutcome o{InvalidArgument("SkinBallEdit.index=9 outside [0, 4]"), 3};
+  SkinOutcome o{Outside("SkinBallEdit.index", "9", "[0, 4]"), 3};
   o.balls = 5;  // not reported for a refusal
   v1::SkinAck expected;
   expected.set_client_seq(3);
@@ -66,8 +66,8 @@ TEST(WireAcksTest, PaintAckOfAnAcceptedPaint) {
 
 TEST(WireAcksTest, PaintAckOfARefusalCarriesTheError) {
   const v1::PaintAck a =
-      ToWireAck(PaintOutcome{FailedPrecondition("PaintEdit.object=clay outside objects with "
-                                                "materials"),
+      ToWireAck(PaintOutcome{Outside("PaintEdit.object", "clay", "objects with materials",
+                                     Status::Code::kFailedPrecondition),
                              6});
   EXPECT_FALSE(a.accepted());
   ASSERT_TRUE(a.has_error());
@@ -81,8 +81,8 @@ TEST(WireAcksTest, PaintAckOfARefusalCarriesTheError) {
 
 TEST(WireAcksTest, ModelAckOfAValidityRefusalCarriesTheReasonAndNoError) {
   ModelOutcome o;
-  o.status = FailedPrecondition("ModelIntent=SKIN_INTERSECT outside intents that keep the model "
-                                "valid");
+  o.status = Outside("ModelIntent", "SKIN_INTERSECT", "intents that keep the model valid",
+                     Status::Code::kFailedPrecondition);
   o.client_seq = 8;
   o.rejection = ModelRejection{"SKIN_INTERSECT", 1, -1, -1, "slices 2 and 3 cross"};
   o.model_version = 4;
@@ -102,7 +102,7 @@ TEST(WireAcksTest, ModelAckOfAValidityRefusalCarriesTheReasonAndNoError) {
 
 TEST(WireAcksTest, ModelAckOfAFieldRefusalCarriesTheError) {
   ModelOutcome o;
-  o.status = InvalidArgument("ModelIntent.corner=99 outside [0, 15]");
+  o.status = Outside("ModelIntent.corner", "99", "[0, 15]");
   o.client_seq = 2;
   const v1::ModelAck a = ToWireAck(o);
   EXPECT_FALSE(a.accepted());
@@ -126,6 +126,121 @@ TEST(WireAcksTest, ModelAckOfAnAcceptedIntent) {
   EXPECT_EQ(a.moved_coefficients(), 12u);
   EXPECT_EQ(a.model_version(), 2u);
   EXPECT_EQ(a.model_hash(), 99u);
+}
+
+TEST(WireAcksTest, UndoAckOfAnAcceptedUndo) {
+  UndoCommandOutcome o;
+  o.client_seq = 4;
+  o.redo = true;
+  o.global_seq = 90;
+  o.target_seq = 71;
+  o.replayed = 3;
+  o.replayed_by = {{"11", 1}, {"22", 2}};
+  o.undo_depth = 5;
+  o.redo_depth = 1;
+  const v1::UndoAck a = ToWireAck(o);
+  EXPECT_TRUE(a.accepted());
+  EXPECT_FALSE(a.has_error());
+  EXPECT_TRUE(a.redo());
+  EXPECT_EQ(a.client_seq(), 4u);
+  EXPECT_EQ(a.global_seq(), 90u);
+  EXPECT_EQ(a.target_seq(), 71u);
+  EXPECT_EQ(a.replayed(), 3u);
+  ASSERT_EQ(a.replayed_by_size(), 2);
+  EXPECT_EQ(a.replayed_by(0).author(), "11");
+  EXPECT_EQ(a.replayed_by(1).edits(), 2u);
+  EXPECT_EQ(a.undo_depth(), 5u);
+  EXPECT_EQ(a.redo_depth(), 1u);
+}
+
+TEST(WireAcksTest, UndoAckOfADuplicateSendsNoDetails) {
+  UndoCommandOutcome o;
+  o.client_seq = 4;
+  o.duplicate = true;
+  o.global_seq = 90;  // not reported for a duplicate
+  o.target_seq = 71;
+  v1::UndoAck expected;
+  expected.set_client_seq(4);
+  expected.set_accepted(true);
+  expected.set_duplicate(true);
+  EXPECT_EQ(ToWireAck(o).SerializeAsString(), expected.SerializeAsString());
+}
+
+TEST(WireAcksTest, UndoAckOfARefusalCarriesTheErrorAndTheLoggedSequence) {
+  UndoCommandOutcome o;
+  o.status = Outside("UndoRequest.redo", "true", "requests with an undone stroke",
+                     Status::Code::kFailedPrecondition);
+  o.client_seq = 6;
+  o.redo = true;
+  o.global_seq = 33;  // refused after it was logged
+  o.target_seq = 5;   // not reported for a refusal
+  const v1::UndoAck a = ToWireAck(o);
+  EXPECT_FALSE(a.accepted());
+  ASSERT_TRUE(a.has_error());
+  EXPECT_EQ(a.error().code(), v1::ERROR_CODE_FAILED_PRECONDITION);
+  EXPECT_EQ(a.error().field(), "UndoRequest.redo");
+  EXPECT_EQ(a.error().value(), "true");
+  EXPECT_EQ(a.error().client_seq(), 6u);
+  EXPECT_TRUE(a.redo());
+  EXPECT_EQ(a.global_seq(), 33u);
+  EXPECT_EQ(a.target_seq(), 0u);
+}
+
+TEST(WireAcksTest, HistoryAnswerCarriesEntriesInOrder) {
+  HistoryOutcome o;
+  o.request_id = 12;
+  o.object = "clay";
+  o.matching = 7;
+  o.held = 9;
+  o.cleared = "a sweep";
+  HistoryEntry newest;
+  newest.seq = 40;
+  newest.author = "11";
+  newest.kind = levelset::EditKind::kAdd;
+  newest.poses = 3;
+  newest.undoable = true;
+  newest.wall_ms = 1234;
+  HistoryEntry older;
+  older.seq = 20;
+  older.sweep = true;
+  older.undone = true;
+  o.entries = {newest, older};
+  const v1::HistoryAnswer a = ToWireAnswer(o);
+  EXPECT_FALSE(a.has_error());
+  EXPECT_EQ(a.request_id(), 12u);
+  EXPECT_EQ(a.object(), "clay");
+  EXPECT_EQ(a.matching(), 7u);
+  EXPECT_EQ(a.held(), 9u);
+  EXPECT_EQ(a.cleared(), "a sweep");
+  ASSERT_EQ(a.entries_size(), 2);
+  EXPECT_EQ(a.entries(0).seq(), 40u);
+  EXPECT_EQ(a.entries(0).author(), "11");
+  EXPECT_EQ(a.entries(0).kind(), v1::EDIT_KIND_ADD);
+  EXPECT_EQ(a.entries(0).poses(), 3u);
+  EXPECT_TRUE(a.entries(0).undoable());
+  EXPECT_EQ(a.entries(0).time_ms(), 1234u);
+  EXPECT_EQ(a.entries(1).seq(), 20u);
+  EXPECT_TRUE(a.entries(1).sweep());
+  EXPECT_TRUE(a.entries(1).undone());
+}
+
+TEST(WireAcksTest, HistoryAnswerOfARefusalCarriesOnlyTheError) {
+  HistoryOutcome o;
+  o.status = Outside("HistoryRequest.object", "marble", "the scene's objects",
+                     Status::Code::kNotFound);
+  o.request_id = 3;
+  o.object = "marble";
+  o.held = 5;  // not reported for a refusal
+  const v1::HistoryAnswer a = ToWireAnswer(o);
+  ASSERT_TRUE(a.has_error());
+  EXPECT_EQ(a.error().code(), v1::ERROR_CODE_NOT_FOUND);
+  EXPECT_EQ(a.error().field(), "HistoryRequest.object");
+  EXPECT_EQ(a.error().value(), "marble");
+  EXPECT_EQ(a.error().client_seq(), 0u);
+  EXPECT_EQ(a.request_id(), 3u);
+  EXPECT_EQ(a.object(), "marble");
+  EXPECT_EQ(a.held(), 0u);
+  EXPECT_EQ(a.entries_size(), 0);
 }
 
 }  // namespace

@@ -74,19 +74,10 @@ struct DecodedStroke {
 StrokeLimits ReplicaLimits(double voxel_size);
 
 /// Checks every field of an untrusted stroke and builds its edits. On failure returns
-/// InvalidArgument whose message has the form `<field>=<value> outside <allowed range>` (e.g.
-/// `Stroke.tool_size.x=-1 outside [0.5, 32]`) or `<field>=<value> is not finite`, so that
-/// SplitFieldError can fill sculpt.v1.Error.
+/// InvalidArgument carrying the field violation (Status::violation(): field, value, allowed range)
+/// and the message `<field>=<value> outside <allowed range>` (e.g.
+/// `Stroke.tool_size.x=-1 outside [0.5, 32]`) or `<field>=<value> is not finite`.
 StatusOr<DecodedStroke> DecodeStroke(const v1::Stroke& stroke, const StrokeLimits& limits);
-
-/// The parts of a validation message: field, value, allowed range (empty if absent), message.
-struct FieldError {
-  std::string field;
-  std::string value;
-  std::string allowed_range;
-  std::string message;
-};
-FieldError SplitFieldError(const Status& status);
 
 /// The kernel edit of a logged record (replay), and the record of an edit.
 levelset::EditRequest EditFromRecord(const v1::EditRecord& record);

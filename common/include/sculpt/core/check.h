@@ -6,6 +6,7 @@
 #include <cmath>
 #include <sstream>
 #include <string>
+#include <utility>
 
 #include "sculpt/core/status.h"
 #include "sculpt/core/vec3.h"
@@ -19,14 +20,21 @@ inline std::string FormatNumber(double v) {
   return os.str();
 }
 
-/// InvalidArgument "`field`=v is not finite" or "`field`=v outside [lo, hi]", else Ok.
+/// InvalidArgument "`field`=v is not finite" or "`field`=v outside [lo, hi]" with that field
+/// violation, else Ok.
 inline Status CheckRange(const std::string& field, double v, double lo, double hi) {
   if (!std::isfinite(v)) {
-    return InvalidArgument(field + "=" + FormatNumber(v) + " is not finite");
+    return NotFinite(field, FormatNumber(v));
   }
   if (v < lo || v > hi) {
-    return InvalidArgument(field + "=" + FormatNumber(v) + " outside [" + FormatNumber(lo) +
-                           ", " + FormatNumber(hi) + "]");
+    // Appended rather than `"[" + ...`: g++ 12 reports a false -Wrestrict (GCC bug 105329) on
+    // `const char* + std::string&&` inlined here.
+    std::string range = "[";
+    range += FormatNumber(lo);
+    range += ", ";
+    range += FormatNumber(hi);
+    range += "]";
+    return Outside(field, FormatNumber(v), std::move(range));
   }
   return Status::Ok();
 }
@@ -34,8 +42,14 @@ inline Status CheckRange(const std::string& field, double v, double lo, double h
 /// InvalidArgument "`field`=(x, y, z) is not finite" for a point with a NaN or Inf coordinate.
 inline Status CheckFinitePoint(const std::string& field, const Vec3& p) {
   if (!p.IsFinite()) {
-    return InvalidArgument(field + "=(" + FormatNumber(p.x) + ", " + FormatNumber(p.y) + ", " +
-                           FormatNumber(p.z) + ") is not finite");
+    std::string value = "(";
+    value += FormatNumber(p.x);
+    value += ", ";
+    value += FormatNumber(p.y);
+    value += ", ";
+    value += FormatNumber(p.z);
+    value += ")";
+    return NotFinite(field, std::move(value));
   }
   return Status::Ok();
 }
