@@ -115,7 +115,10 @@ StatusOr<CompositeModel> BuildMechanicalPart() {
   SCULPT_RETURN_IF_ERROR(SubdivideCell(&m, arm->cell, 0, 0.5));
   // (f) Geometry edit: raise the hub's top outer corner between sectors 0 and 1 by an intent.
   const uint32_t corner = m.cell(hub[0]).coef[Hyperpatch::Index(3, 3, 3)];
-  const auto edit = ApplyIntent(&m, &checker, {corner, {0, 0, 0}, {0, 0, 0.25}});
+  EditIntent raise;
+  raise.corner = corner;
+  raise.displacement = {0, 0, 0.25};
+  const auto edit = ApplyIntent(&m, &checker, raise);
   if (!edit.ok()) return edit.status();
   if (!edit->applied) return FailedPrecondition("hub edit refused: " + edit->rejection.ToString());
   // (g) Material: a cylindrical steel-to-bronze transition in the hub (bronze bearing surface on
