@@ -6,12 +6,12 @@
 #include <charconv>
 #include <cmath>
 #include <cstdint>
-#include <initializer_list>
 #include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "sculpt/core/concat.h"
 #include "sculpt/v1/sculpt.pb.h"
 
 namespace sculpt::codec {
@@ -25,17 +25,6 @@ constexpr double kFirstPoseDt = 1.0 / 120.0;
 /// Two samples with the same timestamp still advance the press by this much.
 constexpr double kMinPoseDt = 0.001;
 
-/// Joins the parts into one string. Used for every message instead of chains of `"[" + s + "]"`:
-/// g++ 12 reports a false -Wrestrict (GCC bug 105329) on `const char* + std::string&&`.
-std::string Cat(std::initializer_list<std::string_view> parts) {
-  size_t size = 0;
-  for (std::string_view part : parts) size += part.size();
-  std::string out;
-  out.reserve(size);
-  for (std::string_view part : parts) out.append(part);
-  return out;
-}
-
 /// Shortest text that reads back as the same value; `nan`/`inf` spelled plainly.
 template <typename T>
 std::string Num(T v) {
@@ -46,14 +35,14 @@ std::string Num(T v) {
   return std::string(buf.data(), result.ptr);
 }
 
-std::string Range(double lo, double hi) { return Cat({"[", Num(lo), ", ", Num(hi), "]"}); }
+std::string Range(double lo, double hi) { return Concat({"[", Num(lo), ", ", Num(hi), "]"}); }
 
 std::string Range(uint32_t lo, uint32_t hi) {
-  return Cat({"[", std::to_string(lo), ", ", std::to_string(hi), "]"});
+  return Concat({"[", std::to_string(lo), ", ", std::to_string(hi), "]"});
 }
 
 std::string Triple(double x, double y, double z) {
-  return Cat({"(", Num(x), ", ", Num(y), ", ", Num(z), ")"});
+  return Concat({"(", Num(x), ", ", Num(y), ", ", Num(z), ")"});
 }
 
 /// A wire float: finite and in [lo, hi]. Printed as a float so `0.1` reads `0.1`, not the
@@ -176,7 +165,7 @@ StatusOr<std::string> PackPoses(const std::vector<Pose>& poses, const Vec3& orig
   uint32_t previous_t = 0;
   for (size_t i = 0; i < poses.size(); ++i) {
     const Pose& pose = poses[i];
-    const std::string name = Cat({"poses[", std::to_string(i), "]"});
+    const std::string name = Concat({"poses[", std::to_string(i), "]"});
     std::array<int16_t, 3> q{};
     for (int axis = 0; axis < 3; ++axis) {
       const std::string field = name + ".position." + "xyz"[axis];
@@ -210,7 +199,7 @@ StatusOr<std::vector<Pose>> UnpackPoses(std::string_view bytes, uint32_t count, 
   if (bytes.size() != expected) {
     const std::string exact = std::to_string(expected);
     return Outside("Stroke.poses", std::to_string(bytes.size()) + " bytes",
-                   Cat({"[", exact, ", ", exact, "] bytes (pose_count ", std::to_string(count),
+                   Concat({"[", exact, ", ", exact, "] bytes (pose_count ", std::to_string(count),
                         " x ", std::to_string(kPackedPoseBytes), ")"}));
   }
   const Vec3 o = WireOrigin(origin);
@@ -224,7 +213,7 @@ StatusOr<std::vector<Pose>> UnpackPoses(std::string_view bytes, uint32_t count, 
     const auto qz = static_cast<int16_t>(GetLittleEndian16(p + 4));
     const uint32_t t = GetLittleEndian16(p + 6);
     if (t < previous_t) {
-      return Outside(Cat({"Stroke.poses[", std::to_string(i), "].t_ms"}), std::to_string(t),
+      return Outside(Concat({"Stroke.poses[", std::to_string(i), "].t_ms"}), std::to_string(t),
                      Range(previous_t, kMaxPoseMillis));
     }
     previous_t = t;
@@ -249,7 +238,7 @@ StatusOr<DecodedStroke> DecodeStroke(const v1::Stroke& stroke, const StrokeLimit
   // The length, not the name, goes into the message: it is untrusted and may be huge.
   if (stroke.object().empty() || stroke.object().size() > kMaxObjectNameBytes) {
     return Outside("Stroke.object", std::to_string(stroke.object().size()) + " bytes",
-                   Cat({"[1, ", std::to_string(kMaxObjectNameBytes), "] bytes"}));
+                   Concat({"[1, ", std::to_string(kMaxObjectNameBytes), "] bytes"}));
   }
 
   const v1::Vec3f& size = stroke.tool_size();
@@ -281,8 +270,8 @@ StatusOr<DecodedStroke> DecodeStroke(const v1::Stroke& stroke, const StrokeLimit
     const Vec3& p = poses[i].position;
     // Negated conjunctions, so a pose that overflowed to inf or nan is rejected too.
     if (!(p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y && p.z >= lo.z && p.z <= hi.z)) {
-      return Outside(Cat({"Stroke.poses[", std::to_string(i), "]"}), Triple(p.x, p.y, p.z),
-                     Cat({"[", Triple(lo.x, lo.y, lo.z), ", ", Triple(hi.x, hi.y, hi.z),
+      return Outside(Concat({"Stroke.poses[", std::to_string(i), "]"}), Triple(p.x, p.y, p.z),
+                     Concat({"[", Triple(lo.x, lo.y, lo.z), ", ", Triple(hi.x, hi.y, hi.z),
                           "] (object bounds grown by ", Num(limits.bounds_margin), ")"}));
     }
   }

@@ -1,15 +1,11 @@
 /// @brief Status formatting and the field-violation factories.
 #include "sculpt/core/status.h"
 
-#include <initializer_list>
-#include <string_view>
+#include "sculpt/core/concat.h"
 
 namespace sculpt {
 
-namespace {
-
-/// Joins the parts (one allocation; avoids g++ 12's false -Wrestrict on chains of `+`).
-std::string Join(std::initializer_list<std::string_view> parts) {
+std::string Concat(std::initializer_list<std::string_view> parts) {
   size_t size = 0;
   for (std::string_view part : parts) size += part.size();
   std::string out;
@@ -17,8 +13,6 @@ std::string Join(std::initializer_list<std::string_view> parts) {
   for (std::string_view part : parts) out.append(part);
   return out;
 }
-
-}  // namespace
 
 Status::Status(Code code, std::string message) : code_(code) {
   if (code_ != Code::kOk) {
@@ -54,27 +48,27 @@ const char* CodeName(Status::Code code) {
 
 std::string Status::ToString() const {
   if (ok()) return "OK";
-  return Join({CodeName(code_), ": ", message()});
+  return Concat({CodeName(code_), ": ", message()});
 }
 
 std::ostream& operator<<(std::ostream& os, const Status& s) { return os << s.ToString(); }
 
 Status Outside(std::string field, std::string value, std::string allowed_range,
                Status::Code code) {
-  std::string message = Join({field, "=", value, " outside ", allowed_range});
+  std::string message = Concat({field, "=", value, " outside ", allowed_range});
   return FieldViolation(code, std::move(field), std::move(value), std::move(allowed_range),
                         std::move(message));
 }
 
 Status NotFinite(std::string field, std::string value) {
-  std::string message = Join({field, "=", value, " is not finite"});
+  std::string message = Concat({field, "=", value, " is not finite"});
   return FieldViolation(Status::Code::kInvalidArgument, std::move(field), std::move(value),
                         "finite numbers", std::move(message));
 }
 
 Status WithContext(const Status& status, const std::string& context) {
   if (status.ok()) return status;
-  std::string message = Join({context, ": ", status.message()});
+  std::string message = Concat({context, ": ", status.message()});
   if (const Status::Violation* v = status.violation()) {
     return Status(status.code(), std::move(message), *v);
   }
