@@ -3,7 +3,6 @@
 
 #include <utility>
 
-#include "sculpt/codec/frame.h"
 #include "sculpt/v1/sculpt.pb.h"
 
 namespace sculpt::codec {
@@ -24,9 +23,7 @@ SharedFrame EncodeContourUpdate(ContourUpdateFrame update) {
     w->set_r(b.r);
     w->set_theta(b.theta);
   }
-  auto f = std::make_shared<std::string>();
-  AppendMessage(m, f.get());
-  return f;
+  return EncodeSharedFrame(m);
 }
 
 }  // namespace sculpt::codec

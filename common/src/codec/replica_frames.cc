@@ -3,20 +3,9 @@
 
 #include <utility>
 
-#include "sculpt/codec/frame.h"
 #include "sculpt/v1/sculpt.pb.h"
 
 namespace sculpt::codec {
-namespace {
-
-SharedFrame Frame(const v1::ServerMessage& m) {
-  auto f = std::make_shared<std::string>();
-  AppendMessage(m, f.get());
-  return f;
-}
-
-}  // namespace
-
 SharedFrame EncodeLeafDelta(LeafDeltaFrame delta) {
   v1::ServerMessage m;
   v1::LeafDelta* d = m.mutable_leaf_delta();
@@ -35,7 +24,7 @@ SharedFrame EncodeLeafDelta(LeafDeltaFrame delta) {
   d->set_edits_since_reinit(delta.state.edits_since_reinit);
   d->set_client_id(delta.client_id);
   d->set_client_seq(delta.client_seq);
-  return Frame(m);
+  return EncodeSharedFrame(m);
 }
 
 SharedFrame EncodeEditBroadcast(const EditBroadcastFrame& broadcast) {
@@ -54,7 +43,7 @@ SharedFrame EncodeEditBroadcast(const EditBroadcastFrame& broadcast) {
   b->set_edits_since_reinit(broadcast.before.edits_since_reinit);
   b->set_leaves_hash(broadcast.leaves_hash);
   b->set_dirty_leaves(broadcast.dirty_leaves);
-  return Frame(m);
+  return EncodeSharedFrame(m);
 }
 
 SharedFrame EncodeMeshChunk(MeshChunkFrame chunk) {
@@ -68,7 +57,7 @@ SharedFrame EncodeMeshChunk(MeshChunkFrame chunk) {
   c->set_vertices(chunk.vertices);
   c->set_faces(chunk.faces);
   c->set_encode_ms(chunk.encode_ms);
-  return Frame(m);
+  return EncodeSharedFrame(m);
 }
 
 }  // namespace sculpt::codec

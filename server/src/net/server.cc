@@ -11,7 +11,7 @@
 #include "net/tcp_transport.h"
 #include "net/tls.h"
 #include "net/wire_error.h"
-#include "sculpt/codec/frame.h"
+#include "sculpt/codec/shared_frame.h"
 
 namespace sculpt::server {
 
@@ -277,8 +277,7 @@ void Server::BroadcastPresence() {
   v1::ServerMessage msg;
   for (const auto& s : sessions) *msg.mutable_presence()->add_users() = s->PresenceEntry();
   // Serialized once, shared by every session.
-  auto frame = std::make_shared<std::string>();
-  codec::AppendMessage(msg, frame.get());
+  const Frame frame = codec::EncodeSharedFrame(msg);
   for (const auto& s : sessions) s->DeliverPresence(frame);
 }
 

@@ -15,7 +15,7 @@
 #include "net/wire_acks.h"
 #include "net/wire_error.h"
 #include "net/wire_info.h"
-#include "sculpt/codec/frame.h"
+#include "sculpt/codec/shared_frame.h"
 #include "sculpt/codec/model_messages.h"
 #include "sculpt/codec/paint_messages.h"
 #include "sculpt/codec/replica_messages.h"
@@ -60,12 +60,6 @@ uint32_t ColorFor(uint64_t id) {
   static const uint32_t kColors[] = {0xe6194bff, 0x3cb44bff, 0x4363d8ff, 0xf58231ff,
                                      0x911eb4ff, 0x46f0f0ff, 0xf032e6ff, 0xbcf60cff};
   return kColors[id % 8];
-}
-
-Frame MakeFrame(const v1::ServerMessage& m) {
-  auto f = std::make_shared<std::string>();
-  codec::AppendMessage(m, f.get());
-  return f;
 }
 
 size_t Index(TransportKind k) { return static_cast<size_t>(k); }
@@ -1059,7 +1053,7 @@ void Session::SendStatus(const Status& st, uint64_t client_seq) {
 
 void Session::Send(const v1::ServerMessage& m, bool is_state) {
   if (closing_) return;
-  Enqueue(MakeFrame(m), is_state ? kStateAllowanceBytes : 0, false);
+  Enqueue(codec::EncodeSharedFrame(m), is_state ? kStateAllowanceBytes : 0, false);
 }
 
 // A client that does not read lets its queue grow: presence is coalesced (one queued at a time),
@@ -1118,7 +1112,7 @@ void Session::Close(const std::string& reason, bool send_bye) {
   if (send_bye && state_ != State::kClosed) {
     v1::ServerMessage m;
     m.mutable_bye()->set_reason(reason);
-    Enqueue(MakeFrame(m), 0, /*is_bye=*/true);
+    Enqueue(codec::EncodeSharedFrame(m), 0, /*is_bye=*/true);
     // Give the Bye a moment to leave; a client that does not read is closed regardless.
     close_timer_.expires_after(kByeGrace);
     close_timer_.async_wait([self = shared_from_this()](boost::system::error_code) {

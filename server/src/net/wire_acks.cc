@@ -5,14 +5,23 @@
 #include "sculpt/codec/stroke.h"
 
 namespace sculpt::server {
+namespace {
+
+// The fields every edit ack shares: the request's client_seq, whether it was accepted and, if
+// not, the error. True when accepted.
+template <typename Ack>
+bool SetAcceptance(Ack& a, const Status& status, uint64_t client_seq) {
+  a.set_client_seq(client_seq);
+  a.set_accepted(status.ok());
+  if (!status.ok()) *a.mutable_error() = ToWireError(status, client_seq);
+  return status.ok();
+}
+
+}  // namespace
 
 v1::SkinAck ToWireAck(const SkinOutcome& o) {
   v1::SkinAck a;
-  a.set_client_seq(o.client_seq);
-  a.set_accepted(o.status.ok());
-  if (!o.status.ok()) {
-    *a.mutable_error() = ToWireError(o.status, o.client_seq);
-  } else {
+  if (SetAcceptance(a, o.status, o.client_seq)) {
     a.set_duplicate(o.duplicate);
     a.set_changed_sections(o.changed_sections);
     a.set_balls(o.balls);
@@ -25,11 +34,7 @@ v1::SkinAck ToWireAck(const SkinOutcome& o) {
 
 v1::PaintAck ToWireAck(const PaintOutcome& o) {
   v1::PaintAck a;
-  a.set_client_seq(o.client_seq);
-  a.set_accepted(o.status.ok());
-  if (!o.status.ok()) {
-    *a.mutable_error() = ToWireError(o.status, o.client_seq);
-  } else {
+  if (SetAcceptance(a, o.status, o.client_seq)) {
     a.set_duplicate(o.duplicate);
     a.set_changed_voxels(o.changed_voxels);
     a.set_dirty_leaves(o.dirty_leaves);
@@ -64,11 +69,8 @@ v1::ModelAck ToWireAck(const ModelOutcome& o) {
 
 v1::UndoAck ToWireAck(const UndoCommandOutcome& o) {
   v1::UndoAck a;
-  a.set_client_seq(o.client_seq);
   a.set_redo(o.redo);
-  a.set_accepted(o.status.ok());
-  if (!o.status.ok()) {
-    *a.mutable_error() = ToWireError(o.status, o.client_seq);
+  if (!SetAcceptance(a, o.status, o.client_seq)) {
     a.set_global_seq(o.global_seq);
     return a;
   }

@@ -10,12 +10,10 @@
 #include <string>
 #include <vector>
 
+#include "sculpt/codec/shared_frame.h"
 #include "sculpt/codec/skin_messages.h"
 
 namespace sculpt::codec {
-
-/// A frame as every session queues it: immutable, shared.
-using SharedFrame = std::shared_ptr<const std::string>;
 
 /// A ContourUpdate: a skin's (`skin` set) or an object's slice (`object` set).
 struct ContourUpdateFrame {

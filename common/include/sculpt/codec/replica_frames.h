@@ -10,13 +10,11 @@
 #include <string>
 #include <string_view>
 
+#include "sculpt/codec/shared_frame.h"
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/region.h"
 
 namespace sculpt::codec {
-
-/// A frame as every session queues it: immutable, shared.
-using SharedFrame = std::shared_ptr<const std::string>;
 
 /// A LeafDelta: leaf records (levelset::EncodeLeafRecords) holding an object's state through
 /// `global_seq`, either one edit's changed leaves (client_id, client_seq: its author) or a
