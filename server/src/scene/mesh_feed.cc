@@ -4,9 +4,14 @@
 #include "scene/mesh_feed.h"
 
 #include <spdlog/spdlog.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <exception>
 #include <future>
 #include <utility>
@@ -20,6 +25,20 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 double Micros(Clock::duration d) { return std::chrono::duration<double, std::micro>(d).count(); }
+
+// Meshing for viewers is background work: where it competes with the compute thread for a
+// core, the kernel's scheduler gives the edits the larger share (Linux nice applies per thread).
+// Raising one's own nice value needs no privilege; a failure only costs that preference. A
+// thread already further back (the process run under `nice`) stays there.
+void RunInBackground(int nice) {
+  const auto tid = static_cast<id_t>(syscall(SYS_gettid));
+  errno = 0;
+  const int now = getpriority(PRIO_PROCESS, tid);
+  if (errno != 0 || now >= nice) return;  // already further back (e.g. run under `nice`)
+  if (setpriority(PRIO_PROCESS, tid, nice) != 0) {
+    spdlog::warn("mesher: nice {} not applied: {}", nice, std::strerror(errno));
+  }
+}
 
 }  // namespace
 
@@ -134,6 +153,7 @@ std::vector<MeshFeed::Work> MeshFeed::TakeWork() {
 }
 
 void MeshFeed::Loop() {
+  RunInBackground(options_.nice);
   for (;;) {
     {
       std::unique_lock<std::mutex> lock(mu_);
@@ -256,6 +276,7 @@ void MeshFeed::Mesh(Work& w) {
     std::mutex cache_mu;
     std::atomic<size_t> next{0};
     auto worker = [&] {
+      RunInBackground(options_.nice);
       for (size_t i; (i = next.fetch_add(1)) < missing.size();) {
         auto f = encode(missing[i]);
         if (!f) continue;

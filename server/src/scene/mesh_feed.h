@@ -46,6 +46,9 @@ class MeshFeed {
     double frame_pad_voxels = 0;
     int position_bits = 14;
     int speed = 5;
+    /// The mesher threads' nice value, at least (a process already further back stays so):
+    /// viewers' meshes yield the core to sculptors' edits where both compete for it.
+    int nice = 10;
   };
   /// What the feed needs of its scene.
   struct Source {

@@ -4,7 +4,11 @@
 #include "scene/mesh_feed.h"
 
 #include <gtest/gtest.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
@@ -244,6 +248,43 @@ TEST_F(MeshFeedTest, ChunkThatThrowsIsSkippedCountedAndTheRestSent) {
   ASSERT_TRUE(WaitFor([&] { return feed_->stats().updates.load() >= 1; }));
   EXPECT_EQ(v.size(), surface - 1);
   EXPECT_EQ(failures_.load(), 1);
+}
+
+// The nice value of the calling thread (Linux: per thread).
+int ThreadNice() {
+  return getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+}
+
+TEST_F(MeshFeedTest, MesherThreadsYieldTheCoreToTheComputeThread) {
+  // Every chunk is encoded, and sent, on a thread at the configured nice value (or further back
+  // when the whole test runs under `nice`), while the test's own thread keeps its priority.
+  const int process_nice = ThreadNice();
+  options_.nice = 10;
+  options_.chunk.chunk_voxels = 8;  // many chunks: a new viewer's are meshed by helper threads
+  MakeFeed();
+  std::mutex mu;
+  std::set<int> seen;
+  std::atomic<size_t> sent{0};
+  ReplicaSink sink;
+  sink.session_id = 1;
+  sink.send = [&](std::shared_ptr<const std::string>) {
+    std::lock_guard<std::mutex> lock(mu);
+    seen.insert(ThreadNice());
+    ++sent;
+  };
+  codec::ViewerSubscription req;
+  req.object = "clay";
+  {
+    std::lock_guard<std::mutex> lock(compute_mu_);
+    ASSERT_TRUE(feed_->AddViewer(sink, req, &sculpture_).ok());
+  }
+  const size_t surface = SurfaceChunks();
+  ASSERT_GT(surface, 8u);
+  ASSERT_TRUE(WaitFor([&] { return sent.load() >= surface; }));
+  feed_->Stop();
+  std::lock_guard<std::mutex> lock(mu);
+  EXPECT_EQ(seen, std::set<int>{std::max(process_nice, 10)});
+  EXPECT_EQ(ThreadNice(), process_nice);
 }
 
 TEST_F(MeshFeedTest, SleepsWithoutViewersAndRefusesUnknownObjects) {
