@@ -170,7 +170,7 @@ int main(int argc, char** argv) {
   const sculpt::server::LimitsConfig ld;
   int64_t max_sessions = -1, max_per_source = -1, reserved_seats = -1, max_clients = -1;
   int auth_timeout = -1, join_timeout = -1, idle_timeout = -1, frame_timeout = -1;
-  int64_t send_queue = -1;
+  int64_t send_queue = -1, stroke_work = -1;
   double strokes_rate = -1, requests_rate = -1, source_factor = -1;
   auto* limits = serve->add_option_group("Limits", "Per-client and per-address limits "
                                                    "(config [limits]; docs/limits.md)");
@@ -210,6 +210,11 @@ int main(int argc, char** argv) {
                      "Per-session send queue bound; a client that does not read is dropped past "
                      "it (default " + std::to_string(ld.send_queue_bytes) + ")")
       ->check(CLI::Range(int64_t{64} << 10, int64_t{10000000000}));
+  limits->add_option("--max-stroke-work", stroke_work,
+                     "A stroke's poses times the voxels its edits read, at most (one pose is "
+                     "always allowed): bounds how long one stroke holds up the others (default " +
+                         std::to_string(ld.max_stroke_work) + ")")
+      ->check(CLI::Range(int64_t{1} << 16, int64_t{1} << 40));
   limits->add_option("--strokes-per-second", strokes_rate,
                      "Stroke rate per client (token bucket; default " +
                          std::to_string(static_cast<int>(ld.strokes_per_second)) + ")")
@@ -324,6 +329,7 @@ int main(int argc, char** argv) {
   if (idle_timeout >= 0) l.idle_timeout_ms = idle_timeout;
   if (frame_timeout >= 0) l.frame_timeout_ms = frame_timeout;
   if (send_queue > 0) l.send_queue_bytes = static_cast<size_t>(send_queue);
+  if (stroke_work > 0) l.max_stroke_work = static_cast<uint64_t>(stroke_work);
   if (strokes_rate > 0) l.strokes_per_second = strokes_rate;
   if (requests_rate > 0) l.requests_per_second = requests_rate;
   if (source_factor > 0) l.source_rate_factor = source_factor;

@@ -11,7 +11,8 @@ hosts.
   tests/bench/abuse_bench.py --bin build/bin [--seconds 10] [--abuses rejoin,set_interest,...]
 
 Abuses: rejoin, set_interest, reconnect, idle, slowloris, heavy (strokes with the largest tool
-and the most poses the limits allow).
+and the most poses the limits allow), heavy_fit (the heaviest strokes within the stroke-work
+limit, 30 a second).
 
 Reported per abuse: the victim's stroke->ack p50/p99/max (ms) and strokes sent/acked/lost with
 and without the abuser, the p99 ratio, sculptd's peak and final RSS (MB), its CPU seconds, and the
@@ -278,6 +279,13 @@ class Abuser:
                 finally:
                     s.close()
         self.run_threads(loop, 1)
+
+    # The heaviest strokes the stroke-work limit lets through (limits.max_stroke_work, default
+    # 4 Mi voxel-poses): the largest tool with 4 poses 1 unit apart, adding and taking away in
+    # turn, 30 a second (the abuser's whole stroke budget is larger). `heavy` above sends
+    # 32-pose strokes, which a server with the limit refuses at once.
+    def heavy_fit(self):
+        self.heavy(rate=30.0, radius=16.0, poses=4)
 
     # Reconnect flood: sculptor connections opened, authenticated, joined (no state) and
     # dropped in a loop.

@@ -281,6 +281,35 @@ TEST_F(LimitsTest, ReconnectingDoesNotEvadeTheStrokeLimit) {
   EXPECT_NE(range.find("per source address"), std::string::npos) << range;
 }
 
+// A job on the compute thread is never interrupted, so a stroke's kernel work is bounded: a
+// long stroke is refused naming the limit and how many of its poses fit, those poses are
+// accepted, one more is not, and a single pose of any allowed tool is always accepted.
+TEST_F(LimitsTest, AStrokeAskingMoreKernelWorkThanTheLimitIsRefusedSayingHowManyPosesFit) {
+  config_.limits.max_stroke_work = 1 << 19;
+  Start();
+  auto a = Entered(v1::ROLE_SCULPTOR);
+  a->Send(RawClient::PressStroke(1, {0, 0, 13.3}, 32));
+  const v1::Error e = NextError(*a);
+  EXPECT_EQ(e.code(), v1::ERROR_CODE_RESOURCE_EXHAUSTED);
+  EXPECT_EQ(e.field(), "Stroke.pose_count");
+  EXPECT_EQ(e.value().rfind("32 poses asking ", 0), 0u) << e.value();
+  const std::string& range = e.allowed_range();
+  EXPECT_NE(range.find("<= 524288 (limits.max_stroke_work)"), std::string::npos) << range;
+  const size_t at = range.find("its first ");
+  ASSERT_NE(at, std::string::npos) << range;
+  const int fit = std::stoi(range.substr(at + 10));
+  EXPECT_GE(fit, 2);
+  EXPECT_LT(fit, 32);
+  a->Send(RawClient::PressStroke(2, {0, 0, 13.3}, fit));
+  EXPECT_EQ(CountAcks(*a, 1, "Stroke.pose_count"), std::make_pair(1, 0));
+  a->Send(RawClient::PressStroke(3, {0, 0, 13.3}, fit + 1));
+  EXPECT_EQ(CountAcks(*a, 1, "Stroke.pose_count"), std::make_pair(0, 1));
+  // One pose of a tool whose block alone is over the limit.
+  a->Send(RawClient::PressStroke(4, {0, 0, 13.3}, 1, 8));
+  EXPECT_EQ(CountAcks(*a, 1, "Stroke.pose_count"), std::make_pair(1, 0));
+  EXPECT_TRUE(SculptorStillServed());
+}
+
 // A re-join flood: each reconnection costs the address a connection and a join; past its
 // budget connections are refused at once, before any state is serialised.
 TEST_F(LimitsTest, ARejoinFloodIsRefusedPerSource) {

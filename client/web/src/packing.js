@@ -50,3 +50,34 @@ export function unpackPoses(bytes, origin, voxelSize) {
   }
   return out;
 }
+
+/**
+ * How many of `poses` (from the first) one stroke may carry under the server's work limit
+ * (Welcome.max_stroke_work, proto/README.md "Stroke work"): the poses times the voxels of the
+ * block the kernel reads for them. The server computes the block exactly and refuses a stroke
+ * over the limit; this estimate of it is conservative (a press with the scene's compensation
+ * shell, the largest reach of any kind), so what it lets through is accepted. Always at least 1.
+ * @param {{x:number,y:number,z:number}[]} poses world positions
+ * @param {number} radius the sphere tool's radius (world units)
+ * @param {{voxelSize:number, halfWidth:number, shellRadii:number, maxWork:number}} limits
+ *   maxWork 0 (an older server): no limit
+ */
+export function posesThatFit(poses, radius, limits) {
+  const { voxelSize: dx, halfWidth, shellRadii, maxWork } = limits;
+  if (!(maxWork > 0) || poses.length <= 1) return poses.length;
+  const reach = Math.max(Math.max((shellRadii || 1) * radius, 3 * dx) + 3.5 * dx, (halfWidth + 2) * dx);
+  const pad = 2 * 6 + 2;  // the kernel's stencil pad on both sides, and rounding
+  const lo = { ...poses[0] };
+  const hi = { ...poses[0] };
+  for (let n = 1; n <= poses.length; ++n) {
+    const p = poses[n - 1];
+    let voxels = 1;
+    for (const a of ['x', 'y', 'z']) {
+      lo[a] = Math.min(lo[a], p[a]);
+      hi[a] = Math.max(hi[a], p[a]);
+      voxels *= Math.ceil((hi[a] - lo[a] + 2 * radius + 2 * reach) / dx) + pad;
+    }
+    if (n * voxels > maxWork) return Math.max(1, n - 1);
+  }
+  return poses.length;
+}

@@ -4,7 +4,7 @@
 // for presence at 10 Hz; other sculptors' tools are drawn as translucent spheres in their colour.
 import * as THREE from 'three';
 import { num, v1 } from './connection.js';
-import { packPoses } from './packing.js';
+import { packPoses, posesThatFit } from './packing.js';
 
 const $ = (id) => document.getElementById(id);
 const kStrokeHz = 60;
@@ -17,6 +17,13 @@ export class Sculpting {
     this.object = info.objects[0];
     this.voxelSize = this.object.voxelSize;
     this.maxPoses = Math.max(1, Math.min(welcome.maxPosesPerStroke || 32, 32));
+    // A stroke's kernel work is bounded by the server (large tools: fewer poses a stroke).
+    this.workLimits = {
+      voxelSize: this.voxelSize,
+      halfWidth: this.object.halfWidth || 3,
+      shellRadii: (info.editSettings && info.editSettings.shellRadii) || 1,
+      maxWork: num(welcome.maxStrokeWork || 0),
+    };
     this.clientId = clientId;
     this.seq = 0;
     this.pending = new Map();  // client_seq -> send time
@@ -132,16 +139,23 @@ export class Sculpting {
     if (this.samples.length >= this.maxPoses) this.flush();
   }
 
-  /** Sends the samples gathered since the last stroke as one stroke (or one paint). */
+  /** Sends the samples gathered since the last stroke as strokes (or one paint): as many poses
+   *  a stroke as the server's limits allow for this tool. */
   flush() {
     if (this.samples.length === 0) return;
     if ($('tool-kind').value === 'paint') return this.flushPaint();
-    const poses = this.samples.splice(0, this.maxPoses);
+    const r = this.radius();
+    while (this.samples.length > 0) {
+      const fit = posesThatFit(this.samples.slice(0, this.maxPoses), r, this.workLimits);
+      this.sendStroke(this.samples.splice(0, fit), r);
+    }
+  }
+
+  sendStroke(poses, r) {
     const packed = packPoses(poses, this.voxelSize);
     if (!packed) { this.app.showError('stroke out of reach of its origin: dropped'); return; }
     const kind = Number($('tool-kind').value);
     const strength = Number($('tool-strength').value) * Math.min(1, 2 * this.pressure);
-    const r = this.radius();
     const maxSpeed = this.info.maxSpeed || 10;
     const stroke = {
       clientSeq: ++this.seq,

@@ -143,7 +143,7 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
   if (const toml::table* l = root["limits"].as_table()) {
     SCULPT_RETURN_IF_ERROR(CheckKeys(
         path, *l, "limits",
-        {"max_frame_bytes", "max_poses_per_stroke", "strokes_per_second", "stroke_burst",
+        {"max_frame_bytes", "max_poses_per_stroke", "max_stroke_work", "strokes_per_second", "stroke_burst",
          "poses_per_second", "pose_burst", "violations_before_disconnect",
          "max_clients_per_scene", "auth_timeout_ms", "auth_backoff_ms",
          "auth_free_failures", "send_queue_bytes", "max_pending_joins", "max_sessions",
@@ -156,6 +156,9 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     v = c->limits.max_poses_per_stroke;
     Get(*l, "max_poses_per_stroke", &v);
     c->limits.max_poses_per_stroke = static_cast<uint32_t>(std::clamp<int64_t>(v, 0, 1 << 20));
+    v = static_cast<int64_t>(c->limits.max_stroke_work);
+    Get(*l, "max_stroke_work", &v);
+    c->limits.max_stroke_work = static_cast<uint64_t>(std::max<int64_t>(v, 0));
     Get(*l, "strokes_per_second", &c->limits.strokes_per_second);
     Get(*l, "stroke_burst", &c->limits.stroke_burst);
     Get(*l, "poses_per_second", &c->limits.poses_per_second);
@@ -374,6 +377,8 @@ Status ValidateConfig(const ServerConfig& c) {
   const LimitsConfig& l = c.limits;
   SCULPT_RETURN_IF_ERROR(Range("limits.max_frame_bytes", l.max_frame_bytes, 1024, 64 << 20));
   SCULPT_RETURN_IF_ERROR(Range("limits.max_poses_per_stroke", l.max_poses_per_stroke, 1, 1024));
+  SCULPT_RETURN_IF_ERROR(
+      Range("limits.max_stroke_work", l.max_stroke_work, uint64_t{1} << 16, uint64_t{1} << 40));
   SCULPT_RETURN_IF_ERROR(Range("limits.strokes_per_second", l.strokes_per_second, 1, 1e5));
   SCULPT_RETURN_IF_ERROR(Range("limits.stroke_burst", l.stroke_burst, 1, 1e6));
   SCULPT_RETURN_IF_ERROR(Range("limits.poses_per_second", l.poses_per_second, 1, 1e6));

@@ -84,6 +84,12 @@ struct SceneConfig {
 struct LimitsConfig {
   uint32_t max_frame_bytes = 1u << 20;
   uint32_t max_poses_per_stroke = 32;
+  /// A stroke of more than one pose may ask at most this much kernel work: its poses times the
+  /// voxels of the block the kernel reads for it (levelset::FootprintOf), in voxel-poses. The
+  /// compute thread never interrupts a job, so this bounds how long one stroke can keep every
+  /// other sculptor waiting; a single pose is always allowed (max_tool_size bounds it). Clients
+  /// learn it from Welcome and split longer strokes.
+  uint64_t max_stroke_work = uint64_t{4} << 20;
   double strokes_per_second = 240;  // token bucket rate per client
   double stroke_burst = 60;         // bucket size
   double poses_per_second = 960;    // each pose is an edit: bounds the work one client queues

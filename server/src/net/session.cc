@@ -568,6 +568,7 @@ void Session::OnAuthenticated(AuthResult r, v1::Role role, uint64_t client_id,
   w->add_scenes(server_.scene().name());
   w->set_max_frame_bytes(c.limits.max_frame_bytes);
   w->set_max_poses_per_stroke(c.limits.max_poses_per_stroke);
+  w->set_max_stroke_work(c.limits.max_stroke_work);
   w->set_max_strokes_per_second(static_cast<float>(c.limits.strokes_per_second));
   w->set_client_id(client_id_);
   w->set_user(r.named ? r.user : std::string());

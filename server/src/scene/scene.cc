@@ -466,7 +466,33 @@ struct Scene::StrokeOp final : EditOp {
                                                            scene.settings_));
       records->push_back(codec::EncodeLogRecord(r));
     }
-    return Status::Ok();
+    return CheckWork(it->second, scene.settings_, scene.config_.limits.max_stroke_work);
+  }
+
+  // A job is never interrupted: a stroke of several poses may ask at most `limit` voxel-poses
+  // of kernel work (its poses times the voxels of the block they read), so one client's stroke
+  // keeps the others waiting for a bounded time. The refusal says how many of its poses fit.
+  Status CheckWork(const levelset::Sculpture& sculpture, const levelset::EditSettings& settings,
+                   uint64_t limit) const {
+    const size_t n = batch.size();
+    if (n <= 1 || Work(sculpture, settings, n) <= limit) return Status::Ok();
+    size_t fit = 1;
+    while (fit + 1 < n && Work(sculpture, settings, fit + 1) <= limit) ++fit;
+    return Outside("Stroke.pose_count",
+                   std::to_string(n) + " poses asking " +
+                       std::to_string(Work(sculpture, settings, n)) + " voxel-poses",
+                   "poses x block voxels <= " + std::to_string(limit) +
+                       " (limits.max_stroke_work); split the stroke: its first " +
+                       std::to_string(fit) + " poses fit",
+                   Status::Code::kResourceExhausted);
+  }
+  // The kernel work of the batch's first `poses` poses, in voxel-poses.
+  uint64_t Work(const levelset::Sculpture& sculpture, const levelset::EditSettings& settings,
+                size_t poses) const {
+    const std::vector<levelset::EditRequest> first(batch.begin(), batch.begin() + poses);
+    const levelset::EditFootprint f = levelset::FootprintOf(sculpture, first, settings);
+    auto side = [](int lo, int hi) { return static_cast<uint64_t>(std::max(0, hi - lo + 1)); };
+    return side(f.min.x, f.max.x) * side(f.min.y, f.max.y) * side(f.min.z, f.max.z) * poses;
   }
 
   Applied Apply(Scene& scene) override {
