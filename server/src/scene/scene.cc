@@ -585,7 +585,7 @@ void Scene::MaybeSnapshot(bool force) {
   // The resend table, skins and models at `seq` are durable before the round can let the log
   // go; a round with any failure trims nothing.
   const bool side_files_saved =
-      SaveResendTable(seq) & SaveModels(seq) & SaveSkins(seq) & SaveHistories(seq);
+      SaveResendTable(seq) & SaveModels(seq) & SaveSkins(seq);
   struct Round {
     std::atomic<size_t> remaining;
     std::atomic<bool> failed;
@@ -594,8 +594,12 @@ void Scene::MaybeSnapshot(bool force) {
   round->remaining = sculptures_.size();
   round->failed = !side_files_saved;
   for (auto& [name, sculpture] : sculptures_) {
-    // The clone is the only work on the compute thread; the write happens in the background.
-    snapshots_->WriteAsync(seq, name, sculpture.Clone(), [this, seq, name, round](Status s) {
+    // The clone and the undo history's bytes are the only work on the compute thread; the
+    // writes happen in the background, the history's after its snapshot's.
+    auto history = std::make_shared<const std::string>(HistoryFileBytes(name, seq));
+    snapshots_->WriteAsync(seq, name, sculpture.Clone(),
+                           [this, seq, name, round, history](Status s) {
+      if (s.ok()) s = WriteHistoryFile(config_.data_dir, name, seq, *history);
       // kUnavailable: superseded by a newer snapshot before it was written, which is fine.
       if (!s.ok() && s.code() != Status::Code::kUnavailable) {
         spdlog::warn("snapshot of {} at seq {} failed: {}", name, seq, s.ToString());

@@ -9,6 +9,7 @@
 #include <cinttypes>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <future>
 #include <random>
 #include <string>
@@ -358,6 +359,58 @@ TEST_F(UndoSceneTest, UndoAcrossASnapshotAndALogTrimAndAfterARestartEqualsNoRest
   auto fresh2 = Fresh("fresh2", {a1, b1, c1, b2});
   ASSERT_TRUE(fresh2);
   ExpectSameObject(*scene_, *fresh2, "the log without A's second stroke");
+}
+
+// The history is kept per snapshot round: when the newest snapshot is damaged and start-up falls
+// back to the previous one (and the longer log tail), the history kept with that one is loaded,
+// and what was undoable before it still is. Each round's history file is written after its
+// snapshot, off the compute thread.
+TEST_F(UndoSceneTest, AFallbackToTheOlderSnapshotLoadsTheHistoryKeptWithIt) {
+  config_.snapshot_every_edits = 0;  // snapshots only when asked
+  config_.snapshot_every_seconds = 0;
+  scene_ = Open("a");
+  ASSERT_TRUE(scene_);
+  constexpr uint64_t kA = 11, kB = 22;
+  const Edit a1{kA, 1, v1::EDIT_KIND_PRESS, {-1, 0, 11.5}, {1, 0.5, 11.2}, 3};
+  const Edit b1{kB, 1, v1::EDIT_KIND_PRESS, {0, -1, 11.5}, {0.5, 1, 11.2}, 3};
+  const Edit a2{kA, 2, v1::EDIT_KIND_PRESS, {1, -1, 11.5}, {-0.5, 0, 11.2}, 3};
+  Submit(*scene_, a1);
+  scene_->FlushAndSnapshot();  // round 1, at seq 3
+  Submit(*scene_, b1);
+  Submit(*scene_, a2);
+  scene_->FlushAndSnapshot();  // round 2, at seq 9
+  EXPECT_TRUE(fs::exists(base_ / "a" / "history" / "clay.3.bin"));
+  EXPECT_TRUE(fs::exists(base_ / "a" / "history" / "clay.9.bin"));
+  scene_.reset();
+
+  // Damage round 2's snapshot: start-up skips it for round 1's plus the log after seq 3.
+  fs::path newest;  // file names carry the seq zero-padded: the largest is round 2's
+  for (const auto& f : fs::directory_iterator(base_ / "a" / "snapshots")) {
+    if (f.path().filename().string().find("clay") != std::string::npos &&
+        (newest.empty() || f.path().filename() > newest.filename())) {
+      newest = f.path();
+    }
+  }
+  ASSERT_FALSE(newest.empty()) << "no snapshot file of round 2";
+  {
+    std::fstream f(newest, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(static_cast<std::streamoff>(fs::file_size(newest) / 2));
+    f.put('\x5a');
+  }
+  scene_ = Open("a");
+  ASSERT_TRUE(scene_);
+  auto fresh = Fresh("fresh", {a1, b1, a2});
+  ASSERT_TRUE(fresh);
+  ExpectSameObject(*scene_, *fresh, "after the fallback");
+  // a1 is older than round 1: only the history kept with round 1's snapshot can take it back.
+  EXPECT_EQ(scene_->UndoDepth("clay", kA), std::make_pair(size_t{2}, size_t{0}));
+  ASSERT_TRUE(Undo(*scene_, kA, 1).accepted());
+  const v1::UndoAck second = Undo(*scene_, kA, 2);
+  ASSERT_TRUE(second.accepted()) << second.error().ShortDebugString();
+  EXPECT_EQ(second.target_seq(), 3u);
+  auto without_a = Fresh("without_a", {b1});
+  ASSERT_TRUE(without_a);
+  ExpectSameObject(*scene_, *without_a, "both of A's strokes undone after the fallback");
 }
 
 // Hard case: two authors undo at the same time in the same region (both requests queued before
