@@ -6,7 +6,6 @@
 #include <cmath>
 #include <cstddef>
 #include <limits>
-#include <numbers>
 #include <type_traits>
 #include <vector>
 
@@ -501,20 +500,6 @@ EikonalStats MeasureEikonal(const DenseField& phi, const VoxelList& active, doub
   }
   if (stats.samples > 0) stats.mean_abs_error = sum / static_cast<double>(stats.samples);
   return stats;
-}
-
-double SmoothedDelta(double phi, double eps) {
-  // seed 000 eq. 5.7. A non-positive eps is the sharp limit, whose delta is zero almost everywhere.
-  if (!(eps > 0.0) || std::abs(phi) > eps) return 0.0;
-  return (0.5 / eps) * (1.0 + std::cos(std::numbers::pi * phi / eps));
-}
-
-double SmoothedHeaviside(double phi, double eps) {
-  if (!(eps > 0.0)) return phi > 0.0 ? 1.0 : 0.0;
-  if (phi < -eps) return 0.0;
-  if (phi > eps) return 1.0;
-  const double t = phi / eps;
-  return 0.5 * (1.0 + t + std::sin(std::numbers::pi * t) / std::numbers::pi);
 }
 
 double CentralGradientNorm(const DenseField& phi, int i, int j, int k, double dx,
