@@ -131,9 +131,15 @@ struct Block {
       for (int j = 0; j < d.y; ++j) {
         const size_t row = phi.Index(0, j, k);
         if (std::memcmp(now + row, was + row, row_bytes) == 0) continue;
+        auto same = [&](int i) {
+          uint32_t a, w;
+          std::memcpy(&a, now + row + i, sizeof a);
+          std::memcpy(&w, was + row + i, sizeof w);
+          return a == w;
+        };
         int i0 = 0, i1 = d.x - 1;
-        while (std::memcmp(now + row + i0, was + row + i0, sizeof(float)) == 0) ++i0;
-        while (std::memcmp(now + row + i1, was + row + i1, sizeof(float)) == 0) --i1;
+        while (same(i0)) ++i0;
+        while (same(i1)) --i1;
         c.AddRow(i0, i1, j, k);
       }
     }
@@ -961,31 +967,36 @@ CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
   }
   const VoxelList& shell = cache.shell;
   const std::vector<float>& w = cache.w;
-  VoxelList shell_band;
-  std::vector<float> band_w;
+  // in_band[n]: shell[n] is one of the band voxels the sums run over, which keep their order.
+  std::vector<uint8_t> in_band(shell.size());
   for (size_t n = 0; n < shell.size(); ++n) {
-    if (std::abs(b.phi.data()[shell[n]]) < b.bg) {
-      shell_band.push_back(shell[n]);
-      band_w.push_back(w[n]);
-    }
+    in_band[n] = std::abs(b.phi.data()[shell[n]]) < b.bg;
   }
   const double tol = s.compensation_tolerance_voxels * b.dx * b.dx * b.dx;
-  // Only shell voxels change here, so the block's inside sum moves by their change alone.
-  auto shell_sum = [&] {
-    double sum = 0;
-    for (uint32_t idx : shell_band) sum += InsideFraction(b.phi.data()[idx], b.eps);
-    return sum;
+  // Only shell voxels change here, so the block's inside sum moves by their change alone. The
+  // inside sum and the weighted smoothed area (seed 000 eq. 5.7 delta) of the band voxels, in
+  // shell order: computed once here and then by each Newton step while it moves the voxels, so
+  // an iteration is one pass over the shell.
+  double sum = 0, area = 0;
+  auto add_sums = [&](size_t n, float v) {
+    sum += InsideFraction(v, b.eps);
+    area += w[n] * SmoothedDelta(v, b.eps) * dx3;
+  };
+  for (size_t n = 0; n < shell.size(); ++n) {
+    if (in_band[n]) add_sums(n, b.phi.data()[shell[n]]);
+  }
+  auto recompute_sums = [&] {
+    sum = area = 0;
+    for (size_t n = 0; n < shell.size(); ++n) {
+      if (in_band[n]) add_sums(n, b.phi.data()[shell[n]]);
+    }
   };
   const double change0 = b.InsideChange();
-  const double shell_sum0 = shell_sum();
+  const double shell_sum0 = sum;
   for (int it = 0; it < s.max_compensation_iterations; ++it) {
-    const double vol = base_volume + (change0 - shell_sum0 + shell_sum()) * dx3;
+    const double vol = base_volume + (change0 - shell_sum0 + sum) * dx3;
     const double err = target - vol;
     if (std::abs(err) <= tol) break;
-    double area = 0;  // weighted smoothed area, seed 000 eq. 5.7 delta
-    for (size_t m = 0; m < shell_band.size(); ++m) {
-      area += band_w[m] * SmoothedDelta(b.phi.data()[shell_band[m]], b.eps) * dx3;
-    }
     if (area < 1e-9 * b.dx * b.dx) {
       out.failed = true;
       break;
@@ -999,12 +1010,14 @@ CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
         // than the band can represent in one go; the next iteration continues.
         const double limit = 0.5 * b.bg;
         const float step = static_cast<float>(std::clamp(d, -limit, limit));
+        sum = area = 0;
         for (size_t n = 0; n < shell.size(); ++n) {
           float& v = b.phi.data()[shell[n]];
           v = std::clamp(v - step * w[n], -b.bg, b.bg);
+          if (in_band[n]) add_sums(n, v);
         }
         ++out.substeps;
-        break;
+        continue;  // clamped already, sums up to date
       }
       case CompensationMethod::kGradientDescentGrad: {
         // Eq. 5.8 with the digest's sign: phi += tau (Vol - c) |grad phi| chi; tau scaled so the
@@ -1034,6 +1047,7 @@ CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
       float& v = b.phi.data()[idx];
       v = std::clamp(v, -b.bg, b.bg);
     }
+    recompute_sums();
   }
   return out;
 }
