@@ -119,8 +119,8 @@ struct Block {
   }
   // Block-local box [lo, hi) of the voxels whose bits differ from `before` (empty: lo >= hi).
   // Every pass below that only needs the voxels the edit changed (clamps, the inside sum, the
-  // islands' seeds, the write-back) visits this box instead of the block: a press changes a
-  // fifth of its block. Rows are compared whole, so finding it costs a fraction of one pass.
+  // islands' seeds, the write-back) visits this box instead of the block: a press changes one
+  // voxel in ten of its block. Rows are compared whole, so finding it costs a fraction of a pass.
   NearBox Changed() const {
     NearBox c;
     const Int3 d = phi.dims();
