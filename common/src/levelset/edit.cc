@@ -71,6 +71,7 @@ struct Block {
   double dx = 1;
   float bg = 1;
   double eps = 1.5;
+  bool before_in_band = false;  // every extracted value within [-bg, bg]
 
   bool Interior(int i, int j, int k) const {
     const Int3 d = phi.dims();
@@ -116,28 +117,68 @@ struct Block {
     }
     return out;
   }
+  // Block-local box [lo, hi) of the voxels whose bits differ from `before` (empty: lo >= hi).
+  // Every pass below that only needs the voxels the edit changed (clamps, the inside sum, the
+  // islands' seeds, the write-back) visits this box instead of the block: a press changes one
+  // voxel in ten of its block. Rows are compared whole, so finding it costs a fraction of a pass.
+  NearBox Changed() const {
+    NearBox c;
+    const Int3 d = phi.dims();
+    const float* now = phi.data().data();
+    const float* was = before.data().data();
+    const size_t row_bytes = static_cast<size_t>(d.x) * sizeof(float);
+    for (int k = 0; k < d.z; ++k) {
+      for (int j = 0; j < d.y; ++j) {
+        const size_t row = phi.Index(0, j, k);
+        if (std::memcmp(now + row, was + row, row_bytes) == 0) continue;
+        auto same = [&](int i) {
+          uint32_t a, w;
+          std::memcpy(&a, now + row + i, sizeof a);
+          std::memcpy(&w, was + row + i, sizeof w);
+          return a == w;
+        };
+        int i0 = 0, i1 = d.x - 1;
+        while (same(i0)) ++i0;
+        while (same(i1)) --i1;
+        c.AddRow(i0, i1, j, k);
+      }
+    }
+    return c;
+  }
+  // Clamps to the band. Voxels outside Changed() hold their extracted values, which need no
+  // clamp when all of them were within the band (before_in_band).
   void ClampToBand() {
-    for (float& v : phi.data()) v = std::clamp(v, -bg, bg);
+    if (!before_in_band) {
+      for (float& v : phi.data()) v = std::clamp(v, -bg, bg);
+      return;
+    }
+    const NearBox c = Changed();
+    float* p = phi.data().data();
+    for (int k = c.lo[2]; k < c.hi[2]; ++k) {
+      for (int j = c.lo[1]; j < c.hi[1]; ++j) {
+        float* row = p + phi.Index(0, j, k);
+        for (int i = c.lo[0]; i < c.hi[0]; ++i) row[i] = std::clamp(row[i], -bg, bg);
+      }
+    }
   }
   // Change of the inside-voxel count since extraction: only voxels that changed contribute, so
-  // the tracked volume stays exact without summing the block.
-  double InsideChange() const {
+  // the tracked volume stays exact without summing the block. They are added in index order.
+  double InsideChange() const { return InsideChange(Changed()); }
+  double InsideChange(const NearBox& c) const {
     double sum = 0;
-    const auto& now = phi.data();
-    const auto& was = before.data();
-    const size_t n = now.size();
-    constexpr size_t kChunk = 16;
-    size_t i = 0;
-    while (i < n) {
-      // Most of the block is unchanged: skip runs that are bitwise equal (hence equal), then
-      // add the changed voxels in index order as the plain loop does.
-      if (i + kChunk <= n && std::memcmp(&now[i], &was[i], kChunk * sizeof(float)) == 0) {
-        i += kChunk;
-        continue;
-      }
-      const size_t end = std::min(n, i + kChunk);
-      for (; i < end; ++i) {
-        if (now[i] != was[i]) sum += InsideFraction(now[i], eps) - InsideFraction(was[i], eps);
+    const float* now = phi.data().data();
+    const float* was = before.data().data();
+    const size_t row_bytes = static_cast<size_t>(phi.dims().x) * sizeof(float);
+    for (int k = c.lo[2]; k < c.hi[2]; ++k) {
+      for (int j = c.lo[1]; j < c.hi[1]; ++j) {
+        const size_t row = phi.Index(0, j, k);
+        if (std::memcmp(now + row, was + row, row_bytes) == 0) continue;
+        for (int i = c.lo[0]; i < c.hi[0]; ++i) {
+          const size_t idx = row + i;
+          if (now[idx] != was[idx]) {
+            sum += InsideFraction(now[idx], eps) - InsideFraction(was[idx], eps);
+          }
+        }
       }
     }
     return sum;
@@ -276,6 +317,11 @@ Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& req
   b.box = BlockBox(impl, reqs, reach);
   b.before = internal::ExtractDense(*impl.grid, b.box);
   b.phi = b.before;
+  {
+    unsigned outside = 0;  // branch-free, so the loop vectorises
+    for (float v : b.before.data()) outside |= static_cast<unsigned>((v < -b.bg) | (v > b.bg));
+    b.before_in_band = outside == 0;
+  }
   const double margin = std::max(field_reach, static_cast<double>(b.bg));
   b.near.limit = margin;
   bool equal_spheres = reqs.size() > 1;
@@ -341,7 +387,9 @@ Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& req
 void SpliceBack(Sculpture::Impl& impl, const Block& b, double base_volume, EditResult* res) {
   // Before the SDF write-back: reads the block's before/after fields only (materials.h).
   internal::CarryFractions(impl, b.before, b.phi, kStencilMargin);
-  internal::WriteBackResult wb = internal::WriteBack(*impl.grid, b.before, b.phi, kStencilMargin);
+  const NearBox changed = b.Changed();
+  internal::WriteBackResult wb =
+      internal::WriteBack(*impl.grid, b.before, b.phi, kStencilMargin, changed.lo, changed.hi);
   if (wb.changed_voxels > 0) {
     impl.bounds.expand(openvdb::CoordBBox(openvdb::Coord(b.box.min.x, b.box.min.y, b.box.min.z),
                                           openvdb::Coord(b.box.max.x, b.box.max.y, b.box.max.z)));
@@ -349,7 +397,7 @@ void SpliceBack(Sculpture::Impl& impl, const Block& b, double base_volume, EditR
   res->changed = wb.changed_voxels > 0;
   res->changed_voxels = wb.changed_voxels;
   res->dirty_leaves = std::move(wb.dirty_leaves);
-  res->volume_change = b.InsideChange() * b.dx * b.dx * b.dx;
+  res->volume_change = b.InsideChange(changed) * b.dx * b.dx * b.dx;
   impl.volume = base_volume + res->volume_change;
 }
 
@@ -679,21 +727,38 @@ IslandReport FindIslands(Block& b, const EditSettings& s) {
   // margin is not known to be cut off (and its margin voxels are not written back).
   enum : uint8_t { kUnknown = 0, kConnected = 1, kQueued = 2, kIsland = 3 };
   std::vector<uint8_t> state(n, kUnknown);
+  // Material on the border: the block does not hold the whole object. The first such voxel
+  // decides, usually within the first rows.
   bool any_border = false;
-  std::vector<uint32_t> seeds;
-  // In index order, with the coordinates from the loops (no division per voxel).
-  const float* was = b.before.data().data();
-  size_t idx = 0;
-  for (int k = 0; k < d.z; ++k) {
-    for (int j = 0; j < d.y; ++j) {
+  for (int k = 0; k < d.z && !any_border; ++k) {
+    for (int j = 0; j < d.y && !any_border; ++j) {
       const bool row_interior = j >= kStencilMargin && k >= kStencilMargin &&
                                 j < d.y - kStencilMargin && k < d.z - kStencilMargin;
-      for (int i = 0; i < d.x; ++i, ++idx) {
-        const bool interior = row_interior && i >= kStencilMargin && i < d.x - kStencilMargin;
-        if (!interior) {
-          if (data[idx] < 0.f) any_border = true;
-          continue;
+      const float* row = &data[b.phi.Index(0, j, k)];
+      for (int i = 0; i < d.x; ++i) {
+        if (row_interior && i >= kStencilMargin && i < d.x - kStencilMargin) continue;
+        if (row[i] < 0.f) {
+          any_border = true;
+          break;
         }
+      }
+    }
+  }
+  std::vector<uint32_t> seeds;
+  // In index order, with the coordinates from the loops (no division per voxel). An emptied
+  // voxel changed, so only the changed box is scanned.
+  const float* was = b.before.data().data();
+  const NearBox changed = b.Changed();
+  const int lo[3] = {std::max(kStencilMargin, changed.lo[0]),
+                     std::max(kStencilMargin, changed.lo[1]),
+                     std::max(kStencilMargin, changed.lo[2])};
+  const int hi[3] = {std::min(d.x - kStencilMargin, changed.hi[0]),
+                     std::min(d.y - kStencilMargin, changed.hi[1]),
+                     std::min(d.z - kStencilMargin, changed.hi[2])};
+  for (int k = lo[2]; k < hi[2]; ++k) {
+    for (int j = lo[1]; j < hi[1]; ++j) {
+      for (int i = lo[0]; i < hi[0]; ++i) {
+        const size_t idx = b.phi.Index(i, j, k);
         if (!(was[idx] < 0.f) || data[idx] < 0.f) continue;
         // This voxel was emptied: its material neighbours are seeds.
         for (int o = 0; o < 26; ++o) {
@@ -902,31 +967,36 @@ CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
   }
   const VoxelList& shell = cache.shell;
   const std::vector<float>& w = cache.w;
-  VoxelList shell_band;
-  std::vector<float> band_w;
+  // in_band[n]: shell[n] is one of the band voxels the sums run over, which keep their order.
+  std::vector<uint8_t> in_band(shell.size());
   for (size_t n = 0; n < shell.size(); ++n) {
-    if (std::abs(b.phi.data()[shell[n]]) < b.bg) {
-      shell_band.push_back(shell[n]);
-      band_w.push_back(w[n]);
-    }
+    in_band[n] = std::abs(b.phi.data()[shell[n]]) < b.bg;
   }
   const double tol = s.compensation_tolerance_voxels * b.dx * b.dx * b.dx;
-  // Only shell voxels change here, so the block's inside sum moves by their change alone.
-  auto shell_sum = [&] {
-    double sum = 0;
-    for (uint32_t idx : shell_band) sum += InsideFraction(b.phi.data()[idx], b.eps);
-    return sum;
+  // Only shell voxels change here, so the block's inside sum moves by their change alone. The
+  // inside sum and the weighted smoothed area (seed 000 eq. 5.7 delta) of the band voxels, in
+  // shell order: computed once here and then by each Newton step while it moves the voxels, so
+  // an iteration is one pass over the shell.
+  double sum = 0, area = 0;
+  auto add_sums = [&](size_t n, float v) {
+    sum += InsideFraction(v, b.eps);
+    area += w[n] * SmoothedDelta(v, b.eps) * dx3;
+  };
+  for (size_t n = 0; n < shell.size(); ++n) {
+    if (in_band[n]) add_sums(n, b.phi.data()[shell[n]]);
+  }
+  auto recompute_sums = [&] {
+    sum = area = 0;
+    for (size_t n = 0; n < shell.size(); ++n) {
+      if (in_band[n]) add_sums(n, b.phi.data()[shell[n]]);
+    }
   };
   const double change0 = b.InsideChange();
-  const double shell_sum0 = shell_sum();
+  const double shell_sum0 = sum;
   for (int it = 0; it < s.max_compensation_iterations; ++it) {
-    const double vol = base_volume + (change0 - shell_sum0 + shell_sum()) * dx3;
+    const double vol = base_volume + (change0 - shell_sum0 + sum) * dx3;
     const double err = target - vol;
     if (std::abs(err) <= tol) break;
-    double area = 0;  // weighted smoothed area, seed 000 eq. 5.7 delta
-    for (size_t m = 0; m < shell_band.size(); ++m) {
-      area += band_w[m] * SmoothedDelta(b.phi.data()[shell_band[m]], b.eps) * dx3;
-    }
     if (area < 1e-9 * b.dx * b.dx) {
       out.failed = true;
       break;
@@ -940,12 +1010,14 @@ CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
         // than the band can represent in one go; the next iteration continues.
         const double limit = 0.5 * b.bg;
         const float step = static_cast<float>(std::clamp(d, -limit, limit));
+        sum = area = 0;
         for (size_t n = 0; n < shell.size(); ++n) {
           float& v = b.phi.data()[shell[n]];
           v = std::clamp(v - step * w[n], -b.bg, b.bg);
+          if (in_band[n]) add_sums(n, v);
         }
         ++out.substeps;
-        break;
+        continue;  // clamped already, sums up to date
       }
       case CompensationMethod::kGradientDescentGrad: {
         // Eq. 5.8 with the digest's sign: phi += tau (Vol - c) |grad phi| chi; tau scaled so the
@@ -975,6 +1047,7 @@ CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
       float& v = b.phi.data()[idx];
       v = std::clamp(v, -b.bg, b.bg);
     }
+    recompute_sums();
   }
   return out;
 }

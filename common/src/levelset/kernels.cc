@@ -6,7 +6,7 @@
 #include <cmath>
 #include <cstddef>
 #include <limits>
-#include <numbers>
+#include <type_traits>
 #include <vector>
 
 namespace sculpt::levelset::internal {
@@ -45,6 +45,22 @@ struct Voxel {
   ptrdiff_t index;
   int c[3];
 };
+
+/// Whether every voxel's stencil of radius R lies inside the box on every axis (and no axis has
+/// extent 1): the stencils may then read their samples without clamping. The edits' lists keep
+/// three voxels from the block's border, so this holds for them; the clamping path stays for
+/// other callers. Both paths do the same arithmetic on the same samples.
+bool AllInterior(const Grid& g, const std::vector<Voxel>& voxels, int r) {
+  for (int a = 0; a < 3; ++a) {
+    if (g.n[a] == 1) return false;
+  }
+  for (const Voxel& v : voxels) {
+    for (int a = 0; a < 3; ++a) {
+      if (v.c[a] < r || v.c[a] + r >= g.n[a]) return false;
+    }
+  }
+  return true;
+}
 
 /// Decodes `active` into voxels, dropping indices outside the box and those `skip` rejects.
 template <typename Skip>
@@ -129,13 +145,18 @@ inline double UpwindTerm(double dm, double dp, bool positive) {
 
 /// |grad phi|^2 at voxel v with scheme S; `positive` selects the upwind side (ignored by
 /// kCentral). Axes of extent 1 contribute nothing.
-template <SpatialScheme S>
+template <SpatialScheme S, bool kInterior = false>
 inline double GradientSq(const float* p, const Grid& g, const Voxel& v, double inv_dx,
                          bool positive) {
   double sum = 0.0;
   for (int a = 0; a < 3; ++a) {
-    if (g.n[a] == 1) continue;
-    if constexpr (S == SpatialScheme::kCentral) {
+    if (!kInterior && g.n[a] == 1) continue;
+    if constexpr (S == SpatialScheme::kUpwind && kInterior) {
+      const float* q = p + v.index;
+      const ptrdiff_t st = g.stride[a];
+      const double w0 = q[-st], w1 = q[0], w2 = q[st];
+      sum += UpwindTerm((w1 - w0) * inv_dx, (w2 - w1) * inv_dx, positive);
+    } else if constexpr (S == SpatialScheme::kCentral) {
       double w[3];
       Gather<1>(p, v.index, v.c[a], g.n[a], g.stride[a], w);
       const double d = 0.5 * (w[2] - w[0]) * inv_dx;
@@ -217,6 +238,13 @@ void NormalMotionImpl(DenseField& phi, const std::vector<float>& speed,
   RkBuffers buf;
   // seed 000 eq. 4.4: phi_t = -F |grad phi|; F < 0 raises phi, the press of eq. 5.1 with the
   // digest's sign correction. For kCentral this is exactly the thesis's `objdef` under RK1.
+  if (S == SpatialScheme::kUpwind && AllInterior(g, voxels, 1)) {
+    RkStep(phi, voxels, order, dt, buf, [&](const float* p, const Voxel& v, size_t) {
+      const double f = speed[static_cast<size_t>(v.index)];
+      return -f * std::sqrt(GradientSq<S, true>(p, g, v, inv_dx, f > 0.0));
+    });
+    return;
+  }
   RkStep(phi, voxels, order, dt, buf, [&](const float* p, const Voxel& v, size_t) {
     const double f = speed[static_cast<size_t>(v.index)];
     return -f * std::sqrt(GradientSq<S>(p, g, v, inv_dx, f > 0.0));
@@ -239,6 +267,7 @@ inline bool OppositeSigns(double a, double b) {
 /// distance D = dx * phi0 / Delta (Russo & Smereka, JCP 163, 2000, extended to 3D): Delta is the
 /// largest of the central-difference gradient norm and the one-sided differences across the
 /// interface, in undivided form, so D estimates the signed distance without trusting |grad| = 1.
+template <bool kInterior>
 std::vector<ReinitVoxel> FreezeReinit(const DenseField& phi, const Grid& g,
                                       const std::vector<Voxel>& voxels, double dx) {
   const float* p = phi.data().data();
@@ -256,9 +285,16 @@ std::vector<ReinitVoxel> FreezeReinit(const DenseField& phi, const Grid& g,
     double central_sq = 0.0;
     double across = 0.0;
     for (int a = 0; a < 3; ++a) {
-      if (g.n[a] == 1) continue;
       double w[3];
-      Gather<1>(p, v.index, v.c[a], g.n[a], g.stride[a], w);
+      if constexpr (kInterior) {
+        const float* q = p + v.index;
+        w[0] = q[-g.stride[a]];
+        w[1] = q[0];
+        w[2] = q[g.stride[a]];
+      } else {
+        if (g.n[a] == 1) continue;
+        Gather<1>(p, v.index, v.c[a], g.n[a], g.stride[a], w);
+      }
       const double c = 0.5 * (w[2] - w[0]);
       central_sq += c * c;
       for (int side : {0, 2}) {
@@ -282,19 +318,30 @@ void ReinitImpl(DenseField& phi, const std::vector<Voxel>& voxels, int iteration
   const Grid g(phi);
   const double inv_dx = 1.0 / dx;
   const double dt = cfl * dx;
-  const std::vector<ReinitVoxel> frozen = FreezeReinit(phi, g, voxels, dx);
+  const bool interior = AllInterior(g, voxels, 1);
+  const std::vector<ReinitVoxel> frozen = interior ? FreezeReinit<true>(phi, g, voxels, dx)
+                                                   : FreezeReinit<false>(phi, g, voxels, dx);
   RkBuffers buf;
-  auto rhs = [&](const float* p, const Voxel& v, size_t n) {
-    const ReinitVoxel& r = frozen[n];
-    if (r.subcell) {
-      // Russo-Smereka: relax phi towards the frozen distance D so that the voxels that bracket
-      // the interface hold the zero crossing where phi0 put it.
-      return -(r.sgn0 * std::abs(static_cast<double>(p[v.index])) - r.distance) * inv_dx;
-    }
-    // seed 000 eq. 4.9: phi_t = -S(phi0)(|grad phi| - 1), upwinded by the sign of S.
-    return -r.sign * (std::sqrt(GradientSq<S>(p, g, v, inv_dx, r.sign > 0.0)) - 1.0);
+  auto run = [&](auto interior) {
+    auto rhs = [&](const float* p, const Voxel& v, size_t n) {
+      const ReinitVoxel& r = frozen[n];
+      if (r.subcell) {
+        // Russo-Smereka: relax phi towards the frozen distance D so that the voxels that
+        // bracket the interface hold the zero crossing where phi0 put it.
+        return -(r.sgn0 * std::abs(static_cast<double>(p[v.index])) - r.distance) * inv_dx;
+      }
+      // seed 000 eq. 4.9: phi_t = -S(phi0)(|grad phi| - 1), upwinded by the sign of S.
+      return -r.sign *
+             (std::sqrt(GradientSq<S, decltype(interior)::value>(p, g, v, inv_dx, r.sign > 0.0)) -
+              1.0);
+    };
+    for (int it = 0; it < iterations; ++it) RkStep(phi, voxels, order, dt, buf, rhs);
   };
-  for (int it = 0; it < iterations; ++it) RkStep(phi, voxels, order, dt, buf, rhs);
+  if (S == SpatialScheme::kUpwind && interior) {
+    run(std::true_type{});
+  } else {
+    run(std::false_type{});
+  }
 }
 
 }  // namespace
@@ -453,20 +500,6 @@ EikonalStats MeasureEikonal(const DenseField& phi, const VoxelList& active, doub
   }
   if (stats.samples > 0) stats.mean_abs_error = sum / static_cast<double>(stats.samples);
   return stats;
-}
-
-double SmoothedDelta(double phi, double eps) {
-  // seed 000 eq. 5.7. A non-positive eps is the sharp limit, whose delta is zero almost everywhere.
-  if (!(eps > 0.0) || std::abs(phi) > eps) return 0.0;
-  return (0.5 / eps) * (1.0 + std::cos(std::numbers::pi * phi / eps));
-}
-
-double SmoothedHeaviside(double phi, double eps) {
-  if (!(eps > 0.0)) return phi > 0.0 ? 1.0 : 0.0;
-  if (phi < -eps) return 0.0;
-  if (phi > eps) return 1.0;
-  const double t = phi / eps;
-  return 0.5 * (1.0 + t + std::sin(std::numbers::pi * t) / std::numbers::pi);
 }
 
 double CentralGradientNorm(const DenseField& phi, int i, int j, int k, double dx,

@@ -181,16 +181,24 @@ double DenseInsideSum(const DenseField& phi, double eps) {
 }
 
 WriteBackResult WriteBack(FloatGrid& grid, const DenseField& before, const DenseField& after,
-                          int margin) {
+                          int margin, const int* lo, const int* hi) {
   WriteBackResult r;
   const float bg = grid.background();
   auto acc = grid.getAccessor();
   const Int3 o = after.origin();
   const Int3 d = after.dims();
+  int from[3] = {margin, margin, margin};
+  int to[3] = {d.x - margin, d.y - margin, d.z - margin};
+  if (lo && hi) {
+    for (int a = 0; a < 3; ++a) {
+      from[a] = std::max(from[a], lo[a]);
+      to[a] = std::min(to[a], hi[a]);
+    }
+  }
   std::vector<Int3> leaves;
-  for (int k = margin; k < d.z - margin; ++k) {
-    for (int j = margin; j < d.y - margin; ++j) {
-      for (int i = margin; i < d.x - margin; ++i) {
+  for (int k = from[2]; k < to[2]; ++k) {
+    for (int j = from[1]; j < to[1]; ++j) {
+      for (int i = from[0]; i < to[0]; ++i) {
         const size_t idx = after.Index(i, j, k);
         float v = after.data()[idx];
         if (v == before.data()[idx]) continue;

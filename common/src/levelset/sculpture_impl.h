@@ -64,9 +64,12 @@ struct WriteBackResult {
 /// Writes the voxels of `after` that differ from `before`, skipping a margin of `margin` voxels
 /// at the box border (the stencil halo, which the edit only read). Values are clamped to the
 /// band: |phi| < background stays active, the rest becomes an inactive +-background. Leaves left
-/// uniform and inactive collapse into tiles, so equal states have equal trees.
+/// uniform and inactive collapse into tiles, so equal states have equal trees. When `lo` and
+/// `hi` are given, only the local index box [lo, hi) is visited: the caller knows that no voxel
+/// outside it differs.
 WriteBackResult WriteBack(openvdb::FloatGrid& grid, const DenseField& before,
-                          const DenseField& after, int margin);
+                          const DenseField& after, int margin, const int* lo = nullptr,
+                          const int* hi = nullptr);
 
 /// Carries the material fractions through an SDF change over a block (materials.h; a no-op
 /// without materials): every voxel of the block interior (`margin` from its border) whose phi
