@@ -379,17 +379,86 @@ class RangeDecoder {
     }
     return v;
   }
-  /** A signed integer (IntModel: zero, sign, 52 length models, 53 top-bit models), |v| < 2^53. */
+  /**
+   * A signed integer (IntModel: zero, sign, 52 length models, 53 top-bit models), |v| < 2^53.
+   * The same decisions as bit() and raw() in one loop, the decoder's state in locals: about
+   * twelve decisions a point, and a field is a memory access where a local is a register.
+   */
   int(m) {
-    if (!this.bit(m, 0)) return 0;
-    const negative = this.bit(m, 1);
+    const bytes = this.bytes;
+    const end = this.end;
+    let range = this.range;
+    let code = this.code;
+    let pos = this.pos;
+    let overrun = this.overrun;
+    // The model of the next decision: 0 zero, 1 sign, 2 + k length, 2 + kMaxIntBucket + k top.
+    let i = 0;
+    let negative = false;
     let k = 0;
-    while (k < kMaxIntBucket && this.bit(m, 2 + k)) ++k;
-    let mag = 1;
-    if (k >= 1) {
-      mag = (2 + this.bit(m, 2 + kMaxIntBucket + k)) * kPow2[k - 1];
-      if (k >= 2) mag += this.raw(k - 1);
+    let mag = 0;
+    for (;;) {
+      const p = m[i];
+      const bound = (range >>> kProbBits) * p;
+      let b = 0;
+      if (code < bound) {
+        range = bound;
+        m[i] = p + ((kOne - p) >> kAdapt);
+      } else {
+        code -= bound;
+        range -= bound;
+        m[i] = p - (p >> kAdapt);
+        b = 1;
+      }
+      while (range < kTop) {
+        range = (range * 256) >>> 0;
+        let byte = 0;
+        if (pos < end) byte = bytes[pos++];
+        else overrun += 1;
+        code = (code * 256 + byte) >>> 0;
+      }
+      if (i === 0) {
+        if (b === 0) break;
+        i = 1;
+      } else if (i === 1) {
+        negative = b === 1;
+        i = 2;
+      } else if (i < 2 + kMaxIntBucket) {
+        if (b === 1) ++k;
+        if (b === 1 && k < kMaxIntBucket) {
+          i = 2 + k;
+        } else if (k === 0) {
+          mag = 1;
+          break;
+        } else {
+          i = 2 + kMaxIntBucket + k;
+        }
+      } else {
+        mag = (2 + b) * kPow2[k - 1];
+        let v = 0;
+        for (let j = 1; j < k; ++j) {
+          range >>>= 1;
+          let r = 0;
+          if (code >= range) {
+            code -= range;
+            r = 1;
+          }
+          v = v * 2 + r;
+          while (range < kTop) {
+            range = (range * 256) >>> 0;
+            let byte = 0;
+            if (pos < end) byte = bytes[pos++];
+            else overrun += 1;
+            code = (code * 256 + byte) >>> 0;
+          }
+        }
+        mag += v;
+        break;
+      }
     }
+    this.range = range;
+    this.code = code;
+    this.pos = pos;
+    this.overrun = overrun;
     return negative ? -mag : mag;
   }
 }
@@ -406,9 +475,10 @@ function clamp(v, lo, hi) {
 
 /**
  * The prediction frame at the tail's last point (MakeFrame): tail is [x3, y3, x2, y2, x1, y1]
- * with n valid points, oldest first. Writes {x, y, ux, uy, lp, l1, c} into f.
+ * with n valid points, oldest first. Writes {x, y, ux, uy, lp, l1, c} into f. l2Known is the
+ * length of the step before the last (the previous frame's l1, the same double) or -1.
  */
-function makeFrame(t, n, f) {
+function makeFrame(t, n, f, l2Known) {
   f.x = t[4];
   f.y = t[5];
   f.ux = 1;
@@ -426,9 +496,12 @@ function makeFrame(t, n, f) {
   f.l1 = l1;
   f.lp = l1;
   if (n < 3) return;
-  const c2x = t[2] - t[0];
-  const c2y = t[3] - t[1];
-  const l2 = Math.sqrt(c2x * c2x + c2y * c2y);
+  let l2 = l2Known;
+  if (l2 < 0) {
+    const c2x = t[2] - t[0];
+    const c2y = t[3] - t[1];
+    l2 = Math.sqrt(c2x * c2x + c2y * c2y);
+  }
   if (l2 > 0) f.lp = l1 * clamp(l1 / l2, kRatioLo, kRatioHi);
   const dx = t[0] - t[4];
   const dy = t[1] - t[5];
@@ -503,9 +576,22 @@ function decodeCurveBody(bytes, pos, p, nentries, nlines) {
   const tail = new Float64Array(6);
   const f = { x: 0, y: 0, ux: 1, uy: 0, lp: 0, l1: 0, c: 0 };
   const outside = () => new ContourError('contour: decoded point outside [-2^52, 2^52] steps');
+  // The lines are views into a few large blocks: one typed array per line costs more than
+  // decoding its points. A block holds what is left of the claimed total, at most 2^16 points, so
+  // a count that lies still allocates only as the points arrive.
+  let block = null;
+  let blockAt = 0;
+  let left = total;
+  let l1 = -1;  // the last frame's step length (MakeFrame's l2_known)
   for (let j = 0; j < nlines; ++j) {
     const n = counts[j];
-    const out = allocate(Float64Array, 2 * n);
+    if (2 * n > (block ? block.length - blockAt : 0)) {
+      block = allocate(Float64Array, 2 * Math.max(n, Math.min(left, 1 << 16)));
+      blockAt = 0;
+    }
+    const out = block ? block.subarray(blockAt, blockAt + 2 * n) : new Float64Array(0);
+    blockAt += 2 * n;
+    left -= n;
     p.lines.push(out);
     if (n === 0) continue;
     const ctx = j >= stride ? p.lines[j - stride] : null;
@@ -536,8 +622,10 @@ function decodeCurveBody(bytes, pos, p, nentries, nlines) {
     const coded = closed ? n - 1 : n;
     let prevA = 0;
     let prevE = 0;
+    l1 = -1;
     for (let k = 1; k < coded; ++k) {
-      makeFrame(tail, have, f);
+      makeFrame(tail, have, f, have === 3 && l1 > 0 ? l1 : -1);
+      l1 = f.l1;
       const kk = k < 2 ? k : 2;
       const a = rc.int(m.along[alongContext(kk, prevA)]);
       const e = rc.int(m.across[acrossContext(kk, prevE, a)]);
