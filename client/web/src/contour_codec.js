@@ -925,7 +925,8 @@ function allocate(Type, n) {
 /**
  * Decodes a polyline set (EncodeContours' output).
  * @param {Uint8Array} bytes
- * @returns {Float64Array[]} each polyline's points as interleaved x, y (plane coordinates)
+ * @returns {Float64Array[]} each polyline's points as interleaved x, y (plane coordinates); an
+ *   SKC2 message's lines are views into shared blocks (copy one before transferring its buffer)
  * @throws {ContourError} for truncated, oversized or malformed input, or a skin message
  */
 export function decodeContours(bytes) {
