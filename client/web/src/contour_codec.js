@@ -473,44 +473,6 @@ function clamp(v, lo, hi) {
   return v < lo ? lo : hi < v ? hi : v;
 }
 
-/**
- * The prediction frame at the tail's last point (MakeFrame): tail is [x3, y3, x2, y2, x1, y1]
- * with n valid points, oldest first. Writes {x, y, ux, uy, lp, l1, c} into f. l2Known is the
- * length of the step before the last (the previous frame's l1, the same double) or -1.
- */
-function makeFrame(t, n, f, l2Known) {
-  f.x = t[4];
-  f.y = t[5];
-  f.ux = 1;
-  f.uy = 0;
-  f.lp = 0;
-  f.l1 = 0;
-  f.c = 0;
-  if (n < 2) return;
-  const c1x = t[4] - t[2];
-  const c1y = t[5] - t[3];
-  const l1 = Math.sqrt(c1x * c1x + c1y * c1y);
-  if (!(l1 > 0) || !Number.isFinite(l1)) return;
-  f.ux = c1x / l1;
-  f.uy = c1y / l1;
-  f.l1 = l1;
-  f.lp = l1;
-  if (n < 3) return;
-  let l2 = l2Known;
-  if (l2 < 0) {
-    const c2x = t[2] - t[0];
-    const c2y = t[3] - t[1];
-    l2 = Math.sqrt(c2x * c2x + c2y * c2y);
-  }
-  if (l2 > 0) f.lp = l1 * clamp(l1 / l2, kRatioLo, kRatioHi);
-  const dx = t[0] - t[4];
-  const dy = t[1] - t[5];
-  const x3 = dx * f.ux + dy * f.uy;
-  const y3 = dy * f.ux - dx * f.uy;
-  const den = x3 * (x3 + l1);
-  if (den > 0 && Math.abs(y3) <= Math.abs(x3)) f.c = y3 / den;
-}
-
 function alongContext(k, prev) {
   if (k === 1) return 5;
   const m = Math.abs(prev);
@@ -574,7 +536,6 @@ function decodeCurveBody(bytes, pos, p, nentries, nlines) {
   }
   const limit = kMaxQuantised * step;
   const tail = new Float64Array(6);
-  const f = { x: 0, y: 0, ux: 1, uy: 0, lp: 0, l1: 0, c: 0 };
   const outside = () => new ContourError('contour: decoded point outside [-2^52, 2^52] steps');
   // The lines are views into a few large blocks: one typed array per line costs more than
   // decoding its points. A block holds what is left of the claimed total, at most 2^16 points, so
@@ -622,27 +583,65 @@ function decodeCurveBody(bytes, pos, p, nentries, nlines) {
     const coded = closed ? n - 1 : n;
     let prevA = 0;
     let prevE = 0;
+    // The tail and the prediction frame in locals: MakeFrame in contour_codec.cc, the same
+    // operations in the same order (so the same doubles).
+    let x3 = tail[0];
+    let y3 = tail[1];
+    let x2 = tail[2];
+    let y2 = tail[3];
+    let x1 = tail[4];
+    let y1 = tail[5];
     l1 = -1;
     for (let k = 1; k < coded; ++k) {
-      makeFrame(tail, have, f, have === 3 && l1 > 0 ? l1 : -1);
-      l1 = f.l1;
+      let ux = 1;
+      let uy = 0;
+      let lp = 0;
+      let c = 0;
+      let fl1 = 0;
+      if (have >= 2) {
+        const c1x = x1 - x2;
+        const c1y = y1 - y2;
+        const len = Math.sqrt(c1x * c1x + c1y * c1y);
+        if (len > 0 && Number.isFinite(len)) {
+          ux = c1x / len;
+          uy = c1y / len;
+          fl1 = len;
+          lp = len;
+          if (have === 3) {
+            let l2 = l1;
+            if (!(l2 > 0)) {
+              const c2x = x2 - x3;
+              const c2y = y2 - y3;
+              l2 = Math.sqrt(c2x * c2x + c2y * c2y);
+            }
+            if (l2 > 0) lp = len * clamp(len / l2, kRatioLo, kRatioHi);
+            const dx = x3 - x1;
+            const dy = y3 - y1;
+            const ax = dx * ux + dy * uy;
+            const ay = dy * ux - dx * uy;
+            const den = ax * (ax + len);
+            if (den > 0 && Math.abs(ay) <= Math.abs(ax)) c = ay / den;
+          }
+        }
+      }
+      l1 = fl1;
       const kk = k < 2 ? k : 2;
       const a = rc.int(m.along[alongContext(kk, prevA)]);
       const e = rc.int(m.across[acrossContext(kk, prevE, a)]);
-      const s = f.lp + a * step;
-      const nn = f.c * s * (s + f.l1) + e * step;
-      const x = f.x + (f.ux * s - f.uy * nn);
-      const y = f.y + (f.uy * s + f.ux * nn);
+      const s = lp + a * step;
+      const nn = c * s * (s + fl1) + e * step;
+      const x = x1 + (ux * s - uy * nn);
+      const y = y1 + (uy * s + ux * nn);
       if (!(Math.abs(x) <= limit) || !(Math.abs(y) <= limit)) throw outside();
       if (!rc.ok()) throw truncated('points');
       prevA = a;
       prevE = e;
-      tail[0] = tail[2];
-      tail[1] = tail[3];
-      tail[2] = tail[4];
-      tail[3] = tail[5];
-      tail[4] = x;
-      tail[5] = y;
+      x3 = x2;
+      y3 = y2;
+      x2 = x1;
+      y2 = y1;
+      x1 = x;
+      y1 = y;
       if (have < 3) have += 1;
       out[2 * k] = x;
       out[2 * k + 1] = y;
