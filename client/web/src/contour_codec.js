@@ -382,7 +382,7 @@ class RangeDecoder {
   /**
    * A signed integer (IntModel: zero, sign, 52 length models, 53 top-bit models), |v| < 2^53.
    * The same decisions as bit() and raw() in one loop, the decoder's state in locals: about
-   * twelve decisions a point, and a field is a memory access where a local is a register.
+   * eleven decisions a point, and a field is a memory access where a local is a register.
    */
   int(m) {
     const bytes = this.bytes;

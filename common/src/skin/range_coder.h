@@ -65,7 +65,8 @@ class RangeEncoder {
 class RangeDecoder {
  public:
   // Inline, as everything here: a decoder whose address never reaches an out-of-line function
-  // keeps its range and code in registers (the contour decoder reads about twelve bits a point).
+  // keeps its range and code in registers (the contour decoder makes about eleven decisions a
+  // point).
   explicit RangeDecoder(std::string_view bytes) : in_(bytes) {
     // The encoder's first byte is its initial cache, always 0 (a carry never reaches it).
     ok_ = !in_.empty() && in_[0] == 0;
