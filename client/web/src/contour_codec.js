@@ -379,17 +379,86 @@ class RangeDecoder {
     }
     return v;
   }
-  /** A signed integer (IntModel: zero, sign, 52 length models, 53 top-bit models), |v| < 2^53. */
+  /**
+   * A signed integer (IntModel: zero, sign, 52 length models, 53 top-bit models), |v| < 2^53.
+   * The same decisions as bit() and raw() in one loop, the decoder's state in locals: about
+   * eleven decisions a point, and a field is a memory access where a local is a register.
+   */
   int(m) {
-    if (!this.bit(m, 0)) return 0;
-    const negative = this.bit(m, 1);
+    const bytes = this.bytes;
+    const end = this.end;
+    let range = this.range;
+    let code = this.code;
+    let pos = this.pos;
+    let overrun = this.overrun;
+    // The model of the next decision: 0 zero, 1 sign, 2 + k length, 2 + kMaxIntBucket + k top.
+    let i = 0;
+    let negative = false;
     let k = 0;
-    while (k < kMaxIntBucket && this.bit(m, 2 + k)) ++k;
-    let mag = 1;
-    if (k >= 1) {
-      mag = (2 + this.bit(m, 2 + kMaxIntBucket + k)) * kPow2[k - 1];
-      if (k >= 2) mag += this.raw(k - 1);
+    let mag = 0;
+    for (;;) {
+      const p = m[i];
+      const bound = (range >>> kProbBits) * p;
+      let b = 0;
+      if (code < bound) {
+        range = bound;
+        m[i] = p + ((kOne - p) >> kAdapt);
+      } else {
+        code -= bound;
+        range -= bound;
+        m[i] = p - (p >> kAdapt);
+        b = 1;
+      }
+      while (range < kTop) {
+        range = (range * 256) >>> 0;
+        let byte = 0;
+        if (pos < end) byte = bytes[pos++];
+        else overrun += 1;
+        code = (code * 256 + byte) >>> 0;
+      }
+      if (i === 0) {
+        if (b === 0) break;
+        i = 1;
+      } else if (i === 1) {
+        negative = b === 1;
+        i = 2;
+      } else if (i < 2 + kMaxIntBucket) {
+        if (b === 1) ++k;
+        if (b === 1 && k < kMaxIntBucket) {
+          i = 2 + k;
+        } else if (k === 0) {
+          mag = 1;
+          break;
+        } else {
+          i = 2 + kMaxIntBucket + k;
+        }
+      } else {
+        mag = (2 + b) * kPow2[k - 1];
+        let v = 0;
+        for (let j = 1; j < k; ++j) {
+          range >>>= 1;
+          let r = 0;
+          if (code >= range) {
+            code -= range;
+            r = 1;
+          }
+          v = v * 2 + r;
+          while (range < kTop) {
+            range = (range * 256) >>> 0;
+            let byte = 0;
+            if (pos < end) byte = bytes[pos++];
+            else overrun += 1;
+            code = (code * 256 + byte) >>> 0;
+          }
+        }
+        mag += v;
+        break;
+      }
     }
+    this.range = range;
+    this.code = code;
+    this.pos = pos;
+    this.overrun = overrun;
     return negative ? -mag : mag;
   }
 }
@@ -402,40 +471,6 @@ function intModel() {
 /** std::clamp(v, lo, hi) (NaN passes through). */
 function clamp(v, lo, hi) {
   return v < lo ? lo : hi < v ? hi : v;
-}
-
-/**
- * The prediction frame at the tail's last point (MakeFrame): tail is [x3, y3, x2, y2, x1, y1]
- * with n valid points, oldest first. Writes {x, y, ux, uy, lp, l1, c} into f.
- */
-function makeFrame(t, n, f) {
-  f.x = t[4];
-  f.y = t[5];
-  f.ux = 1;
-  f.uy = 0;
-  f.lp = 0;
-  f.l1 = 0;
-  f.c = 0;
-  if (n < 2) return;
-  const c1x = t[4] - t[2];
-  const c1y = t[5] - t[3];
-  const l1 = Math.sqrt(c1x * c1x + c1y * c1y);
-  if (!(l1 > 0) || !Number.isFinite(l1)) return;
-  f.ux = c1x / l1;
-  f.uy = c1y / l1;
-  f.l1 = l1;
-  f.lp = l1;
-  if (n < 3) return;
-  const c2x = t[2] - t[0];
-  const c2y = t[3] - t[1];
-  const l2 = Math.sqrt(c2x * c2x + c2y * c2y);
-  if (l2 > 0) f.lp = l1 * clamp(l1 / l2, kRatioLo, kRatioHi);
-  const dx = t[0] - t[4];
-  const dy = t[1] - t[5];
-  const x3 = dx * f.ux + dy * f.uy;
-  const y3 = dy * f.ux - dx * f.uy;
-  const den = x3 * (x3 + l1);
-  if (den > 0 && Math.abs(y3) <= Math.abs(x3)) f.c = y3 / den;
 }
 
 function alongContext(k, prev) {
@@ -501,11 +536,23 @@ function decodeCurveBody(bytes, pos, p, nentries, nlines) {
   }
   const limit = kMaxQuantised * step;
   const tail = new Float64Array(6);
-  const f = { x: 0, y: 0, ux: 1, uy: 0, lp: 0, l1: 0, c: 0 };
   const outside = () => new ContourError('contour: decoded point outside [-2^52, 2^52] steps');
+  // The lines are views into a few large blocks: one typed array per line costs more than
+  // decoding its points. A block holds what is left of the claimed total, at most 2^16 points, so
+  // a count that lies still allocates only as the points arrive.
+  let block = null;
+  let blockAt = 0;
+  let left = total;
+  let l1 = -1;  // the last frame's step length (MakeFrame's l2_known)
   for (let j = 0; j < nlines; ++j) {
     const n = counts[j];
-    const out = allocate(Float64Array, 2 * n);
+    if (2 * n > (block ? block.length - blockAt : 0)) {
+      block = allocate(Float64Array, 2 * Math.max(n, Math.min(left, 1 << 16)));
+      blockAt = 0;
+    }
+    const out = block ? block.subarray(blockAt, blockAt + 2 * n) : new Float64Array(0);
+    blockAt += 2 * n;
+    left -= n;
     p.lines.push(out);
     if (n === 0) continue;
     const ctx = j >= stride ? p.lines[j - stride] : null;
@@ -536,25 +583,65 @@ function decodeCurveBody(bytes, pos, p, nentries, nlines) {
     const coded = closed ? n - 1 : n;
     let prevA = 0;
     let prevE = 0;
+    // The tail and the prediction frame in locals: MakeFrame in contour_codec.cc, the same
+    // operations in the same order (so the same doubles).
+    let x3 = tail[0];
+    let y3 = tail[1];
+    let x2 = tail[2];
+    let y2 = tail[3];
+    let x1 = tail[4];
+    let y1 = tail[5];
+    l1 = -1;
     for (let k = 1; k < coded; ++k) {
-      makeFrame(tail, have, f);
+      let ux = 1;
+      let uy = 0;
+      let lp = 0;
+      let c = 0;
+      let fl1 = 0;
+      if (have >= 2) {
+        const c1x = x1 - x2;
+        const c1y = y1 - y2;
+        const len = Math.sqrt(c1x * c1x + c1y * c1y);
+        if (len > 0 && Number.isFinite(len)) {
+          ux = c1x / len;
+          uy = c1y / len;
+          fl1 = len;
+          lp = len;
+          if (have === 3) {
+            let l2 = l1;
+            if (!(l2 > 0)) {
+              const c2x = x2 - x3;
+              const c2y = y2 - y3;
+              l2 = Math.sqrt(c2x * c2x + c2y * c2y);
+            }
+            if (l2 > 0) lp = len * clamp(len / l2, kRatioLo, kRatioHi);
+            const dx = x3 - x1;
+            const dy = y3 - y1;
+            const ax = dx * ux + dy * uy;
+            const ay = dy * ux - dx * uy;
+            const den = ax * (ax + len);
+            if (den > 0 && Math.abs(ay) <= Math.abs(ax)) c = ay / den;
+          }
+        }
+      }
+      l1 = fl1;
       const kk = k < 2 ? k : 2;
       const a = rc.int(m.along[alongContext(kk, prevA)]);
       const e = rc.int(m.across[acrossContext(kk, prevE, a)]);
-      const s = f.lp + a * step;
-      const nn = f.c * s * (s + f.l1) + e * step;
-      const x = f.x + (f.ux * s - f.uy * nn);
-      const y = f.y + (f.uy * s + f.ux * nn);
+      const s = lp + a * step;
+      const nn = c * s * (s + fl1) + e * step;
+      const x = x1 + (ux * s - uy * nn);
+      const y = y1 + (uy * s + ux * nn);
       if (!(Math.abs(x) <= limit) || !(Math.abs(y) <= limit)) throw outside();
       if (!rc.ok()) throw truncated('points');
       prevA = a;
       prevE = e;
-      tail[0] = tail[2];
-      tail[1] = tail[3];
-      tail[2] = tail[4];
-      tail[3] = tail[5];
-      tail[4] = x;
-      tail[5] = y;
+      x3 = x2;
+      y3 = y2;
+      x2 = x1;
+      y2 = y1;
+      x1 = x;
+      y1 = y;
       if (have < 3) have += 1;
       out[2 * k] = x;
       out[2 * k + 1] = y;
@@ -837,7 +924,8 @@ function allocate(Type, n) {
 /**
  * Decodes a polyline set (EncodeContours' output).
  * @param {Uint8Array} bytes
- * @returns {Float64Array[]} each polyline's points as interleaved x, y (plane coordinates)
+ * @returns {Float64Array[]} each polyline's points as interleaved x, y (plane coordinates); an
+ *   SKC2 message's lines are views into shared blocks (copy one before transferring its buffer)
  * @throws {ContourError} for truncated, oversized or malformed input, or a skin message
  */
 export function decodeContours(bytes) {

@@ -2,9 +2,15 @@
 // alternately in one run (best of 40 each). The messages come from the C++ encoder through the
 // fixtures file tests/web/contour_fixtures.cc writes ("bench").
 //
-// Usage: node contour_codec_bench.mjs FIXTURES.json
+// Usage: node contour_codec_bench.mjs FIXTURES.json [DECODER.js]
+// DECODER.js (default ../src/contour_codec.js) lets another version of the decoder, e.g. one
+// checked out from an older commit, be timed against the same messages.
 import { readFileSync } from 'node:fs';
-import { ContourView } from '../src/contour_codec.js';
+import { resolve } from 'node:path';
+import { pathToFileURL } from 'node:url';
+
+const { ContourView } = await import(process.argv[3]
+  ? pathToFileURL(resolve(process.argv[3])).href : '../src/contour_codec.js');
 
 const fixtures = JSON.parse(readFileSync(process.argv[2], 'utf8'));
 const hex = (s) => Uint8Array.from(s.match(/../g), (h) => parseInt(h, 16));

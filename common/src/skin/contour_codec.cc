@@ -245,7 +245,7 @@ struct Frame {
 
 /// `l2` is the length of the step before the last (the previous frame's l1, the same double) or
 /// negative when unknown.
-Frame MakeFrame(const Tail& t, double l2_known = -1) {
+[[gnu::always_inline]] inline Frame MakeFrame(const Tail& t, double l2_known = -1) {
   Frame f;
   const Vec2 p1 = t.p[2];
   f.x = p1.x;
@@ -277,8 +277,10 @@ Frame MakeFrame(const Tail& t, double l2_known = -1) {
 }
 
 /// The along offset s and the across offset n of a point from frame f.
-double AcrossAt(const Frame& f, double s) { return f.c * s * (s + f.l1); }
-Vec2 Place(const Frame& f, double s, double n) {
+[[gnu::always_inline]] inline double AcrossAt(const Frame& f, double s) {
+  return f.c * s * (s + f.l1);
+}
+[[gnu::always_inline]] inline Vec2 Place(const Frame& f, double s, double n) {
   return {f.x + (f.ux * s - f.uy * n), f.y + (f.uy * s + f.ux * n)};
 }
 

@@ -73,23 +73,4 @@ std::string RangeEncoder::Finish() {
   return std::move(out_);
 }
 
-RangeDecoder::RangeDecoder(std::string_view bytes) : in_(bytes) {
-  // The encoder's first byte is its initial cache, always 0 (a carry never reaches it).
-  ok_ = Next() == 0;
-  for (int i = 0; i < 4; ++i) code_ = (code_ << 8) | Next();
-}
-
-uint64_t RangeDecoder::Raw(int count) {
-  uint64_t v = 0;
-  for (int i = 0; i < count; ++i) {
-    range_ >>= 1;
-    // Corrupt input can leave code_ >= range_; the bit is then 1 and code_ stays inside.
-    const uint32_t bit = code_ >= range_ ? 1 : 0;
-    if (bit) code_ -= range_;
-    v = (v << 1) | bit;
-    Normalize();
-  }
-  return v;
-}
-
 }  // namespace sculpt::skin::internal

@@ -64,8 +64,17 @@ class RangeEncoder {
 /// consumed() == size after the last symbol. Never reads outside `bytes`. Not thread-safe.
 class RangeDecoder {
  public:
-  explicit RangeDecoder(std::string_view bytes);
-  int Bit(BitModel& m) {
+  // Inline, as everything here: a decoder whose address never reaches an out-of-line function
+  // keeps its range and code in registers (the contour decoder makes about eleven decisions a
+  // point).
+  explicit RangeDecoder(std::string_view bytes) : in_(bytes) {
+    // The encoder's first byte is its initial cache, always 0 (a carry never reaches it).
+    ok_ = !in_.empty() && in_[0] == 0;
+    for (pos_ = 1; pos_ < 5; ++pos_) {
+      code_ = (code_ << 8) | (pos_ < in_.size() ? static_cast<uint8_t>(in_[pos_]) : 0u);
+    }
+  }
+  [[gnu::always_inline]] int Bit(BitModel& m) {
     // Branch-free selection: the bits of a residual are what the data makes them, so a branch
     // here would be mispredicted often.
     const uint32_t p = m.p;
@@ -75,12 +84,25 @@ class RangeDecoder {
     range_ = bit ? range_ - bound : bound;
     code_ -= sub;
     m.p = static_cast<uint16_t>(bit ? p - (p >> kProbAdapt) : p + ((kProbOne - p) >> kProbAdapt));
-    if (range_ < kRangeTop) Normalize();
+    // One byte always suffices: p stays in [31, 4065], so a bit leaves at least 31/4096 of a
+    // range >= 2^24, i.e. >= 2^16.
+    if (range_ < kRangeTop) Shift();
     return bit;
   }
-  uint64_t Raw(int count);
+  [[gnu::always_inline]] uint64_t Raw(int count) {
+    uint64_t v = 0;
+    for (int i = 0; i < count; ++i) {
+      range_ >>= 1;
+      // Corrupt input can leave code_ >= range_; the bit is then 1 and code_ stays inside.
+      const uint32_t bit = code_ >= range_ ? 1 : 0;
+      code_ -= bit ? range_ : 0;
+      v = (v << 1) | bit;
+      if (range_ < kRangeTop) Shift();  // range_ >= 2^23 here: one byte suffices
+    }
+    return v;
+  }
   /// An integer as RangeEncoder::Int wrote it; |value| <= kMaxCodedMagnitude whatever the input.
-  int64_t Int(IntModel& m) {
+  [[gnu::always_inline]] int64_t Int(IntModel& m) {
     if (!Bit(m.zero)) return 0;
     const bool negative = Bit(m.sign);
     int k = 0;
@@ -90,27 +112,23 @@ class RangeDecoder {
       mag = (uint64_t{2} | static_cast<uint64_t>(Bit(m.top[k]))) << (k - 1);
       if (k >= 2) mag |= Raw(k - 1);
     }
-    return negative ? -static_cast<int64_t>(mag) : static_cast<int64_t>(mag);
+    const int64_t s = static_cast<int64_t>(mag);
+    return negative ? -s : s;
   }
-  bool ok() const { return ok_ && overrun_ == 0; }
+  bool ok() const { return ok_ && pos_ <= in_.size(); }
   /// Bytes taken from the input so far (including the 5 of the start).
-  size_t consumed() const { return pos_; }
+  size_t consumed() const { return pos_ < in_.size() ? pos_ : in_.size(); }
 
  private:
-  uint8_t Next() {
-    if (pos_ < in_.size()) return static_cast<uint8_t>(in_[pos_++]);
-    ++overrun_;
-    return 0;
-  }
-  void Normalize() {
-    while (range_ < kRangeTop) {
-      range_ <<= 8;
-      code_ = (code_ << 8) | Next();
-    }
+  [[gnu::always_inline]] void Shift() {
+    // Past the end reads zeros; pos_ keeps counting, so ok() sees the overrun.
+    const uint32_t b = pos_ < in_.size() ? static_cast<uint8_t>(in_[pos_]) : 0;
+    ++pos_;
+    range_ <<= 8;
+    code_ = (code_ << 8) | b;
   }
   std::string_view in_;
   size_t pos_ = 0;
-  size_t overrun_ = 0;
   uint32_t range_ = 0xffffffffu;
   uint32_t code_ = 0;
   bool ok_ = true;

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 #include <vector>
 
@@ -67,6 +68,47 @@ TEST(RangeCoderTest, RejectsANonZeroFirstByte) {
   const std::string bytes("\x01\x00\x00\x00\x00", 5);
   RangeDecoder dec(bytes);
   EXPECT_FALSE(dec.ok());
+}
+
+TEST(RangeCoderTest, RejectsEmptyAndShortInput) {
+  for (const std::string_view bytes : {std::string_view(), std::string_view("\0\0\0", 3)}) {
+    RangeDecoder dec(bytes);
+    EXPECT_FALSE(dec.ok()) << bytes.size();
+    EXPECT_EQ(dec.consumed(), bytes.size());
+  }
+}
+
+// The decoder renormalises with one byte per decision (a probability stays in [31, 4065] of
+// 4096, so a decision leaves at least 2^16 of a range of at least 2^24): the rarest bit at the
+// most skewed probability, then raw bits, still decode.
+TEST(RangeCoderTest, RoundTripsAtTheMostSkewedProbabilities) {
+  RangeEncoder enc;
+  BitModel m;
+  std::vector<int> bits;
+  for (int round = 0; round < 4; ++round) {
+    for (int i = 0; i < 2000; ++i) bits.push_back(round % 2);
+    bits.push_back(1 - round % 2);
+  }
+  uint16_t lo = m.p, hi = m.p;
+  for (size_t i = 0; i < bits.size(); ++i) {
+    lo = std::min(lo, m.p);
+    hi = std::max(hi, m.p);
+    enc.Bit(m, bits[i]);
+    if (i % 500 == 0) enc.Raw(0x2aaaaaaaaaull, 38);
+  }
+  EXPECT_EQ(lo, 31);
+  EXPECT_EQ(hi, 4065);
+  const std::string bytes = enc.Finish();
+  RangeDecoder dec(bytes);
+  BitModel dm;
+  for (size_t i = 0; i < bits.size(); ++i) {
+    ASSERT_EQ(dec.Bit(dm), bits[i]) << i;
+    if (i % 500 == 0) {
+      ASSERT_EQ(dec.Raw(38), 0x2aaaaaaaaaull) << i;
+    }
+  }
+  EXPECT_TRUE(dec.ok());
+  EXPECT_EQ(dec.consumed(), bytes.size());
 }
 
 // Garbage never yields a magnitude beyond the cap nor reads outside the input.
