@@ -171,7 +171,9 @@ void Scene::RunCommit(const std::shared_ptr<EditOp>& op) {
     op->Answer(out);
   });
   MaybeSnapshot();
-  if (applied.status.ok() && sculpture) SendSlices(applied.object, applied.dirty_leaves);
+  if (applied.status.ok() && sculpture) {
+    skins_.SendSlices(applied.object, *sculpture, applied.dirty_leaves, applied_seq_.load());
+  }
 }
 
 }  // namespace sculpt::server

@@ -24,6 +24,7 @@
 #include "scene/outcomes.h"
 #include "scene/replica_sink.h"
 #include "scene/replication_hub.h"
+#include "scene/skins.h"
 #include "sculpt/codec/history.h"
 #include "sculpt/codec/model_messages.h"
 #include "sculpt/codec/paint_messages.h"
@@ -311,20 +312,14 @@ class Scene {
   void RunCommit(const std::shared_ptr<EditOp>& op);
   // Queues `answer` until the log is durable up to `seq` (in sequence order with every other).
   void AnswerWhenDurable(uint64_t seq, std::function<void()> answer);
-  // Recovery: replays a logged ball edit or model intent past the state their files hold.
-  void ReplayBallEdit(uint64_t seq, const codec::BallEditRecord& record);
+  // Recovery: replays a logged model intent past the state its file holds.
   void ReplayModelIntent(uint64_t seq, const codec::ModelRecord& record);
   void MaybeSnapshot(bool force = false);
   void ReleaseDurable(uint64_t durable_seq);
   void RefreshInfoLocked();
-  // Ball skins and contour subscriptions (skins.cc), compute thread only; saved under
+  // Ball skins and contour subscriptions (skins.h), compute thread only; saved under
   // data_dir/skins at each snapshot, the logged ball edits replayed past them at start.
-  struct SkinState;
-  Status OpenSkins();
-  bool SaveSkins(uint64_t seq);  // false if a skin file was not saved
-  // Re-sends the object's slices whose plane crosses the leaves an edit changed.
-  void SendSlices(const std::string& object, const std::vector<levelset::Int3>& changed);
-  std::shared_ptr<SkinState> skins_;
+  SkinBook skins_;
   // Hyperpatch models of `model` objects (models.cc), compute thread only; saved under
   // data_dir/models at each snapshot, the log replayed past them at start.
   struct ModelState;
