@@ -40,7 +40,7 @@ StatusOr<LoggedEdit> DecodeLogRecord(uint64_t seq, const std::string& payload) {
     e.client_seq = w->client_seq;
     e.object = w->object;
   } else if (const auto* m = std::get_if<codec::ModelRecord>(&record)) {
-    // Changes the model, not the voxels (Scene::OpenModels): no object.
+    // Changes the model, not the voxels (ModelBook): no object.
     e.stream = ResendStream::kModels;
     e.client_id = m->client_id;
     e.client_seq = m->edit.client_seq;
