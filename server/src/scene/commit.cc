@@ -40,7 +40,7 @@ StatusOr<LoggedEdit> DecodeLogRecord(uint64_t seq, const std::string& payload) {
     e.client_seq = w->client_seq;
     e.object = w->object;
   } else if (const auto* m = std::get_if<codec::ModelRecord>(&record)) {
-    // Changes the model, not the voxels (Scene::OpenModels): no object.
+    // Changes the model, not the voxels (ModelBook): no object.
     e.stream = ResendStream::kModels;
     e.client_id = m->client_id;
     e.client_seq = m->edit.client_seq;
@@ -171,7 +171,9 @@ void Scene::RunCommit(const std::shared_ptr<EditOp>& op) {
     op->Answer(out);
   });
   MaybeSnapshot();
-  if (applied.status.ok() && sculpture) SendSlices(applied.object, applied.dirty_leaves);
+  if (applied.status.ok() && sculpture) {
+    skins_.SendSlices(applied.object, *sculpture, applied.dirty_leaves, applied_seq_.load());
+  }
 }
 
 }  // namespace sculpt::server

@@ -1,6 +1,8 @@
-/// @brief Hyperpatch models as scene objects (issue 7, seed 001 §10.4-10.5): the edit-log form recovery replays, the content hash, model files beside snapshots, and the
-/// scene's model path (expand deterministically, check validity after ordering, log, apply, ack
-/// once durable). The Scene's part runs on the compute thread.
+/// @brief Hyperpatch models as scene objects (issue 7, seed 001 §10.4-10.5): the content hash,
+/// model files beside snapshots, ModelBook (intents checked on a copy, applied, replayed past a
+/// file's seq), and the scene's model edit kind on the commit pipeline (expand deterministically,
+/// check validity after ordering, log, apply, ack once durable). The Scene's part runs on the
+/// compute thread.
 #include "scene/models.h"
 
 #include <fcntl.h>
@@ -126,14 +128,7 @@ StatusOr<SavedModel> LoadModelFile(const std::string& path) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The scene's model path
-
-struct Scene::ModelState {
-  hetero::CompositeModel model;
-  hetero::ValidityChecker checker;
-  uint64_t version = 0;
-  uint64_t file_seq = 0;  // the model file held the log up to this seq at start-up
-};
+// ModelBook
 
 namespace {
 std::string ModelFilePath(const std::string& data_dir, const std::string& object) {
@@ -141,53 +136,55 @@ std::string ModelFilePath(const std::string& data_dir, const std::string& object
 }
 }  // namespace
 
-Status Scene::OpenModels() {
-  for (const ObjectConfig& o : config_.scene.objects) {
+Status ModelBook::Open(const std::vector<ObjectConfig>& objects, const std::string& data_dir) {
+  data_dir_ = data_dir;
+  models_.clear();
+  for (const ObjectConfig& o : objects) {
     if (o.primitive != "model") continue;
-    auto st = std::make_shared<ModelState>();
-    auto saved = LoadModelFile(ModelFilePath(config_.data_dir, o.name));
+    Entry entry;
+    auto saved = LoadModelFile(ModelFilePath(data_dir_, o.name));
     if (saved.ok()) {
-      st->model = std::move(saved->model);
-      st->version = saved->version;
-      st->file_seq = saved->seq;
+      entry.model = std::move(saved->model);
+      entry.version = saved->version;
+      entry.file_seq = saved->seq;
     } else if (saved.status().code() == Status::Code::kNotFound) {
       auto m = hetero::LoadModel(o.model);
       if (!m.ok()) {
         return Status(m.status().code(), "scene.objects " + o.name + ".model=" + o.model + ": " +
                                              m.status().message());
       }
-      st->model = std::move(m).value();
+      entry.model = std::move(m).value();
     } else {
       return saved.status();
     }
-    models_[o.name] = std::move(st);
+    models_[o.name] = std::move(entry);
   }
   return Status::Ok();
 }
 
-void Scene::ReplayModelIntent(uint64_t seq, const codec::ModelRecord& r) {
+void ModelBook::Replay(uint64_t seq, const codec::ModelRecord& r) {
   auto it = models_.find(r.edit.object);
-  if (it == models_.end() || seq <= it->second->file_seq) return;
-  ModelState& st = *it->second;
+  if (it == models_.end() || seq <= it->second.file_seq) return;
+  Entry& entry = it->second;
   // Checked when it was made.
-  auto out = hetero::ApplyIntent(&st.model, &st.checker, r.edit.intent);
+  auto out = hetero::ApplyIntent(&entry.model, &entry.checker, r.edit.intent);
   if (!out.ok() || !out->applied) {
     spdlog::warn("model intent at seq {} refused on replay: {}", seq,
                  out.ok() ? out->rejection.ToString() : out.status().ToString());
     return;
   }
-  st.version = r.model_version;
+  entry.version = r.model_version;
 }
 
-bool Scene::SaveModels(uint64_t seq) {
+bool ModelBook::Save(uint64_t seq) {
   if (models_.empty()) return true;
   bool saved_all = true;
   std::error_code ec;
-  std::filesystem::create_directories(std::filesystem::path(config_.data_dir) / "models", ec);
-  for (auto& [name, st] : models_) {
+  std::filesystem::create_directories(std::filesystem::path(data_dir_) / "models", ec);
+  for (const auto& [name, entry] : models_) {
     // Written before the log rolls, so the segments a snapshot lets go are already covered.
-    if (const Status s = SaveModelFile(ModelFilePath(config_.data_dir, name), seq, st->version,
-                                       st->model);
+    if (const Status s =
+            SaveModelFile(ModelFilePath(data_dir_, name), seq, entry.version, entry.model);
         !s.ok()) {
       spdlog::error("model {} at seq {} not saved: {}", name, seq, s.ToString());
       saved_all = false;
@@ -196,30 +193,80 @@ bool Scene::SaveModels(uint64_t seq) {
   return saved_all;
 }
 
+Status ModelBook::PrepareIntent(const codec::ModelEdit& edit, IntentPlan* plan) const {
+  auto it = models_.find(edit.object);
+  if (it == models_.end()) {
+    return Outside("ModelIntent.object", edit.object, "the scene's model objects",
+                   Status::Code::kNotFound);
+  }
+  const Entry& entry = it->second;
+  const hetero::CompositeModel& model = entry.model;
+  const hetero::EditIntent& intent = edit.intent;
+  if (intent.corner >= model.coefficient_count()) {
+    return Outside("ModelIntent.corner", std::to_string(intent.corner),
+                   std::string("[0, ") + std::to_string(model.coefficient_count() - 1) + "]");
+  }
+  if (intent.cell >= static_cast<int64_t>(model.cell_count())) {
+    return Outside("ModelIntent.cell", std::to_string(intent.cell),
+                   std::string("[-1, ") + std::to_string(model.cell_count() - 1) + "]");
+  }
+  plan->object = edit.object;
+  plan->next = entry.model;
+  plan->next_checker = entry.checker;
+  auto out = hetero::ApplyIntent(&plan->next, &plan->next_checker, intent);
+  if (!out.ok()) return Rename(out.status());
+  if (!out->applied) {
+    plan->rejection = out->rejection;
+    plan->now = {entry.version, ModelHash(entry.model)};
+    return Outside("ModelIntent", plan->rejection->ToString(), "intents that keep the model valid",
+                   Status::Code::kFailedPrecondition);
+  }
+  plan->moved = out->moves.size();
+  plan->version = entry.version + 1;
+  return Status::Ok();
+}
+
+ModelBook::Stamp ModelBook::ApplyIntent(IntentPlan plan) {
+  Entry& entry = models_.at(plan.object);
+  entry.model = std::move(plan.next);
+  entry.checker = std::move(plan.next_checker);
+  entry.version = plan.version;
+  return {entry.version, ModelHash(entry.model)};
+}
+
+std::optional<ModelBook::Stamp> ModelBook::StampOf(const std::string& object) const {
+  auto it = models_.find(object);
+  if (it == models_.end()) return std::nullopt;
+  return Stamp{it->second.version, ModelHash(it->second.model)};
+}
+
+StatusOr<ModelSummary> ModelBook::Info(const std::string& object) const {
+  auto it = models_.find(object);
+  if (it == models_.end()) return NotFound("object " + object + " holds no hyperpatch model");
+  const Entry& entry = it->second;
+  ModelSummary s;
+  s.version = entry.version;
+  s.hash = ModelHash(entry.model);
+  s.cells = entry.model.cell_count();
+  s.coefficients = entry.model.coefficient_count();
+  s.json = hetero::ModelToJson(entry.model);
+  return s;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The scene's model edit kind
+
 StatusOr<ModelSummary> Scene::ModelInfo(const std::string& object) {
   std::promise<StatusOr<ModelSummary>> p;
   auto fail = [&p](const Status& st) { p.set_value(st); };
-  Post("model info", fail, [&] {
-    auto it = models_.find(object);
-    if (it == models_.end()) {
-      p.set_value(NotFound("object " + object + " holds no hyperpatch model"));
-      return;
-    }
-    const ModelState& st = *it->second;
-    ModelSummary s;
-    s.version = st.version;
-    s.hash = ModelHash(st.model);
-    s.cells = st.model.cell_count();
-    s.coefficients = st.model.coefficient_count();
-    s.json = hetero::ModelToJson(st.model);
-    p.set_value(s);
-  });
+  Post("model info", fail, [&] { p.set_value(models_.Info(object)); });
   return p.get_future().get();
 }
 
 // A model intent: corner and cell checked against the model, then expanded by the library and
 // checked for validity on a copy of the model (a rejection is answered with its reason, nothing
-// logged); Apply puts the copy in place. The voxelised sculpture is not re-voxelised.
+// logged); Apply puts the copy in place (ModelBook). The voxelised sculpture is not
+// re-voxelised.
 struct Scene::ModelOp final : EditOp {
   ModelOp(uint64_t client, codec::ModelEdit m, std::function<void(ModelOutcome)> d)
       : client(client), edit(std::move(m)), done(std::move(d)) {}
@@ -229,59 +276,33 @@ struct Scene::ModelOp final : EditOp {
   uint64_t client_seq() const override { return edit.client_seq; }
 
   Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
-    auto it = scene.models_.find(edit.object);
-    if (it == scene.models_.end()) {
-      return Outside("ModelIntent.object", edit.object, "the scene's model objects",
-                     Status::Code::kNotFound);
+    plan.emplace();
+    if (Status s = scene.models_.PrepareIntent(edit, &*plan); !s.ok()) {
+      if (plan->rejection) {
+        rejection = plan->rejection;
+        stamp = plan->now;
+      }
+      plan.reset();
+      return s;
     }
-    state = it->second;
-    const hetero::CompositeModel& model = state->model;
-    const hetero::EditIntent& intent = edit.intent;
-    if (intent.corner >= model.coefficient_count()) {
-      return Outside("ModelIntent.corner", std::to_string(intent.corner),
-                     std::string("[0, ") + std::to_string(model.coefficient_count() - 1) + "]");
-    }
-    if (intent.cell >= static_cast<int64_t>(model.cell_count())) {
-      return Outside("ModelIntent.cell", std::to_string(intent.cell),
-                     std::string("[-1, ") + std::to_string(model.cell_count() - 1) + "]");
-    }
-    next_model = state->model;
-    next_checker = state->checker;
-    auto out = hetero::ApplyIntent(&next_model, &next_checker, intent);
-    if (!out.ok()) return Rename(out.status());
-    if (!out->applied) {
-      rejection = out->rejection;
-      Describe(*state);
-      return Outside("ModelIntent", rejection->ToString(), "intents that keep the model valid",
-                     Status::Code::kFailedPrecondition);
-    }
-    moved = out->moves.size();
     codec::ModelRecord rec;
     rec.global_seq = first_seq;
     rec.client_id = client;
     rec.edit = edit;
-    rec.model_version = state->version + 1;
+    rec.model_version = plan->version;
     records->push_back(codec::EncodeLogRecord(rec));
     return Status::Ok();
   }
 
-  Applied Apply(Scene&) override {
-    state->model = std::move(next_model);
-    state->checker = std::move(next_checker);
-    ++state->version;
-    Describe(*state);
+  Applied Apply(Scene& scene) override {
+    moved = plan->moved;
+    stamp = scene.models_.ApplyIntent(std::move(*plan));
+    plan.reset();
     return Applied{};  // the voxels are not re-voxelised
   }
 
   void Duplicate(Scene& scene) override {
-    auto it = scene.models_.find(edit.object);
-    if (it != scene.models_.end()) Describe(*it->second);
-  }
-
-  // The model as the answer reports it, taken on the compute thread.
-  void Describe(const ModelState& st) {
-    version = st.version;
-    hash = ModelHash(st.model);
+    if (auto s = scene.models_.StampOf(edit.object)) stamp = *s;
   }
 
   void Answer(const CommitOutcome& o) override {
@@ -299,21 +320,18 @@ struct Scene::ModelOp final : EditOp {
         a.moved_coefficients = static_cast<uint32_t>(moved);
       }
     }
-    a.model_version = version;
-    a.model_hash = hash;
+    a.model_version = stamp.version;
+    a.model_hash = stamp.hash;
     done(std::move(a));
   }
 
   uint64_t client;
   codec::ModelEdit edit;
   std::function<void(ModelOutcome)> done;
-  std::shared_ptr<ModelState> state;
-  hetero::CompositeModel next_model;
-  hetero::ValidityChecker next_checker;
+  std::optional<ModelBook::IntentPlan> plan;
   std::optional<hetero::Rejection> rejection;
   size_t moved = 0;
-  uint64_t version = 0;
-  uint64_t hash = 0;
+  ModelBook::Stamp stamp;
 };
 
 void Scene::EditModel(uint64_t client_id, codec::ModelEdit m,

@@ -240,15 +240,17 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
                return all;
              }()) +
       ") in " + std::to_string(NowSeconds() - t0) + " s";
-  SCULPT_RETURN_IF_ERROR(scene->OpenSkins());
-  SCULPT_RETURN_IF_ERROR(scene->OpenModels());
+  SCULPT_RETURN_IF_ERROR(
+      scene->skins_.Open(scene->config_.scene.skins, scene->config_.data_dir, &scene->resend_));
+  SCULPT_RETURN_IF_ERROR(
+      scene->models_.Open(scene->config_.scene.objects, scene->config_.data_dir));
   // One pass over the log: the newest client sequence of every complete edit (resends after a
   // restart are recognised), and the ball edits and model intents past their files.
   SCULPT_RETURN_IF_ERROR(scene->log_->ForEachFrom(0, [&](const store::LogRecord& lr) -> Status {
     SCULPT_ASSIGN_OR_RETURN(LoggedEdit e, DecodeLogRecord(lr.seq, lr.payload));
     if (e.completes) scene->resend_.Record(e.stream, e.client_id, e.client_seq);
-    if (auto* b = std::get_if<codec::BallEditRecord>(&e.record)) scene->ReplayBallEdit(lr.seq, *b);
-    if (auto* m = std::get_if<codec::ModelRecord>(&e.record)) scene->ReplayModelIntent(lr.seq, *m);
+    if (auto* b = std::get_if<codec::BallEditRecord>(&e.record)) scene->skins_.Replay(lr.seq, *b);
+    if (auto* m = std::get_if<codec::ModelRecord>(&e.record)) scene->models_.Replay(lr.seq, *m);
     return Status::Ok();
   }));
   // Resends of edits whose records were dropped with the log before the last snapshot.
@@ -585,7 +587,7 @@ void Scene::MaybeSnapshot(bool force) {
   // The resend table, skins and models at `seq` are durable before the round can let the log
   // go; a round with any failure trims nothing.
   const bool side_files_saved =
-      SaveResendTable(seq) & SaveModels(seq) & SaveSkins(seq);
+      SaveResendTable(seq) & models_.Save(seq) & skins_.Save(seq);
   struct Round {
     std::atomic<size_t> remaining;
     std::atomic<bool> failed;

@@ -21,9 +21,11 @@
 #include "scene/scene_summary.h"
 #include "scene/fair_queue.h"
 #include "scene/mesh_feed.h"
+#include "scene/models.h"
 #include "scene/outcomes.h"
 #include "scene/replica_sink.h"
 #include "scene/replication_hub.h"
+#include "scene/skins.h"
 #include "sculpt/codec/history.h"
 #include "sculpt/codec/model_messages.h"
 #include "sculpt/codec/paint_messages.h"
@@ -46,15 +48,6 @@ namespace store {
 class EditLog;
 class SnapshotStore;
 }  // namespace store
-
-/// A scene object's hyperpatch model as the scene holds it (issue 7, models.cc).
-struct ModelSummary {
-  uint64_t version = 0;  // intents accepted since the scene first loaded the model
-  uint64_t hash = 0;     // ModelHash (models.h)
-  size_t cells = 0;
-  size_t coefficients = 0;
-  std::string json;      // hetero::ModelToJson
-};
 
 /// What became of one stroke.
 struct StrokeOutcome {
@@ -315,26 +308,15 @@ class Scene {
   void RunCommit(const std::shared_ptr<EditOp>& op);
   // Queues `answer` until the log is durable up to `seq` (in sequence order with every other).
   void AnswerWhenDurable(uint64_t seq, std::function<void()> answer);
-  // Recovery: replays a logged ball edit or model intent past the state their files hold.
-  void ReplayBallEdit(uint64_t seq, const codec::BallEditRecord& record);
-  void ReplayModelIntent(uint64_t seq, const codec::ModelRecord& record);
   void MaybeSnapshot(bool force = false);
   void ReleaseDurable(uint64_t durable_seq);
   void RefreshInfoLocked();
-  // Ball skins and contour subscriptions (skins.cc), compute thread only; saved under
+  // Ball skins and contour subscriptions (skins.h), compute thread only; saved under
   // data_dir/skins at each snapshot, the logged ball edits replayed past them at start.
-  struct SkinState;
-  Status OpenSkins();
-  bool SaveSkins(uint64_t seq);  // false if a skin file was not saved
-  // Re-sends the object's slices whose plane crosses the leaves an edit changed.
-  void SendSlices(const std::string& object, const std::vector<levelset::Int3>& changed);
-  std::shared_ptr<SkinState> skins_;
-  // Hyperpatch models of `model` objects (models.cc), compute thread only; saved under
+  SkinBook skins_;
+  // Hyperpatch models of `model` objects (models.h), compute thread only; saved under
   // data_dir/models at each snapshot, the log replayed past them at start.
-  struct ModelState;
-  std::map<std::string, std::shared_ptr<ModelState>> models_;
-  Status OpenModels();
-  bool SaveModels(uint64_t seq);  // false if a model file was not saved
+  ModelBook models_;
   // Replicas (replication_hub.h) and viewers' mesh chunks (mesh_feed.h): driven from the
   // compute thread; the feed meshes on its own thread, stopped first at shutdown.
   ReplicationHub replication_;

@@ -1,8 +1,7 @@
-/// @brief The scene's ball skins (issue 6): ball edits that rebuild only the changed sections,
-/// contour subscribers (skins and slices of objects), and sweeps of a skin into a sculpture.
-/// Ball edits and sweeps are logged so that recovery replays them; skins are saved beside each
-/// snapshot so that the log segments it lets go are not needed. Everything on the Scene runs on
-/// the compute thread.
+/// @brief SkinBook (issue 6): ball edits that rebuild only the changed sections, contour
+/// subscribers (skins and slices of objects), skin files beside snapshots; and the scene's skin
+/// edit kinds on the commit pipeline (ball edits, sweeps of a skin into a sculpture), logged so
+/// that recovery replays them. Everything on the Scene runs on the compute thread.
 #include "scene/skins.h"
 
 #include <fcntl.h>
@@ -74,7 +73,7 @@ Status CheckBallIndex(const skin::Skin& sk, const codec::BallEdit& e) {
 }
 
 // Applies a ball edit whose index passed CheckBallIndex; the skin names an inadmissible pair.
-StatusOr<skin::SkinChange> ApplyBallEdit(skin::Skin& sk, const codec::BallEdit& e) {
+StatusOr<skin::SkinChange> ApplyBallOp(skin::Skin& sk, const codec::BallEdit& e) {
   const size_t i = e.index;
   switch (e.op) {
     case codec::BallOp::kAdd:
@@ -98,6 +97,44 @@ StatusOr<skin::SkinChange> ApplyBallEdit(skin::Skin& sk, const codec::BallEdit& 
 
 std::string SkinFilePath(const std::string& data_dir, const std::string& name) {
   return (std::filesystem::path(data_dir) / "skins" / (name + ".pb")).string();
+}
+
+// Sends one subscriber its slice, from contours already computed.
+void SendSlice(const std::string& object, const ReplicaSink& sink, double step,
+               const std::vector<std::vector<levelset::PlanePoint>>& lines, uint64_t seq) {
+  auto bytes = skin::EncodeContours(ToPolylines(lines), step * kSliceQuantumPerStep);
+  if (!bytes.ok()) {
+    spdlog::warn("slice of {}: not encoded: {}", object, bytes.status().ToString());
+    return;
+  }
+  codec::ContourUpdateFrame u;
+  u.object = object;
+  u.data = std::move(bytes).value();
+  u.sections = static_cast<uint32_t>(lines.size());
+  u.global_seq = seq;
+  sink.send(codec::EncodeContourUpdate(std::move(u)));
+}
+
+// True when the slice's plane passes through the world box of the changed leaves (the slice
+// cannot have changed otherwise).
+bool PlaneCrosses(const levelset::SweepPlane& plane, const std::vector<levelset::Int3>& leaves,
+                  double dx) {
+  if (leaves.empty()) return false;
+  Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  for (const levelset::Int3& l : leaves) {
+    lo = {std::min(lo.x, l.x * dx), std::min(lo.y, l.y * dx), std::min(lo.z, l.z * dx)};
+    hi = {std::max(hi.x, (l.x + 8) * dx), std::max(hi.y, (l.y + 8) * dx),
+          std::max(hi.z, (l.z + 8) * dx)};
+  }
+  const Vec3 n = plane.u.Cross(plane.v);
+  bool below = false, above = false;
+  for (int c = 0; c < 8; ++c) {
+    const Vec3 p{(c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z};
+    const double d = n.Dot(p - plane.origin);
+    below = below || d <= 0;
+    above = above || d >= 0;
+  }
+  return below && above;
 }
 
 }  // namespace
@@ -153,49 +190,37 @@ StatusOr<codec::SavedSkin> LoadSkinFile(const std::string& path) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The scene's skins
+// SkinBook
 
-struct Scene::SkinState {
-  struct Entry {
-    levelset::SweepPlane plane;
-    skin::Skin skin;
-    uint64_t version = 0;
-    std::map<uint64_t, ReplicaSink> subs;  // session -> sink
-    uint64_t file_seq = 0;  // the skin file held the log up to this seq at start-up
-  };
-  struct SliceSub {
-    ReplicaSink sink;
-    levelset::SliceRequest request;
-  };
-  std::map<std::string, Entry> skins;
-  std::map<std::string, std::map<uint64_t, SliceSub>> slices;  // object -> session -> sub
+StatusOr<const SkinBook::Entry*> SkinBook::Find(const std::string& field,
+                                                const std::string& name) const {
+  auto it = skins_.find(name);
+  if (it == skins_.end()) return Outside(field, name, "the scene's skins", Status::Code::kNotFound);
+  return &it->second;
+}
 
-  /// The skin named `name`, or NotFound naming `field`, the request field that named it.
-  StatusOr<Entry*> Find(const std::string& field, const std::string& name) {
-    auto it = skins.find(name);
-    if (it == skins.end())
-      return Outside(field, name, "the scene's skins", Status::Code::kNotFound);
-    return &it->second;
-  }
-};
-
-Status Scene::OpenSkins() {
-  skins_ = std::make_shared<SkinState>();
-  for (const SkinConfig& c : config_.scene.skins) {
+Status SkinBook::Open(const std::vector<SkinConfig>& skins, const std::string& data_dir,
+                      ResendFilter* resend) {
+  data_dir_ = data_dir;
+  skins_.clear();
+  slices_.clear();
+  for (const SkinConfig& c : skins) {
     std::vector<skin::OrientedBall> balls;
     uint64_t version = 0;
     uint64_t file_seq = 0;
-    auto saved = LoadSkinFile(SkinFilePath(config_.data_dir, c.name));
+    auto saved = LoadSkinFile(SkinFilePath(data_dir_, c.name));
     if (saved.ok()) {
       for (const codec::SkinBall& b : saved->balls) balls.push_back({{b.x, b.y}, b.r, b.theta});
       version = saved->version;
       file_seq = saved->seq;
       // Files written before the resend table held every edit kind carry their own.
-      for (const auto& [id, seq] : saved->last_edit_seq) {
-        resend_.Record(ResendStream::kBallEdits, id, seq);
-      }
-      for (const auto& [id, seq] : saved->last_sweep_seq) {
-        resend_.Record(ResendStream::kSweeps, id, seq);
+      if (resend != nullptr) {
+        for (const auto& [id, seq] : saved->last_edit_seq) {
+          resend->Record(ResendStream::kBallEdits, id, seq);
+        }
+        for (const auto& [id, seq] : saved->last_sweep_seq) {
+          resend->Record(ResendStream::kSweeps, id, seq);
+        }
       }
     } else if (saved.status().code() != Status::Code::kNotFound) {
       return saved.status();
@@ -209,26 +234,25 @@ Status Scene::OpenSkins() {
     if (!built.ok()) {
       return InvalidArgument("scene.skins " + c.name + ": " + built.status().message());
     }
-    SkinState::Entry entry{{c.origin, c.u, c.v}, std::move(built).value(), version, {}};
-    entry.file_seq = file_seq;
-    skins_->skins.emplace(c.name, std::move(entry));
+    Entry entry{{c.origin, c.u, c.v}, std::move(built).value(), version, file_seq, {}};
+    skins_.emplace(c.name, std::move(entry));
   }
   return Status::Ok();
 }
 
-void Scene::ReplayBallEdit(uint64_t seq, const codec::BallEditRecord& r) {
-  auto it = skins_->skins.find(r.edit.skin);
-  if (it == skins_->skins.end()) {
+void SkinBook::Replay(uint64_t seq, const codec::BallEditRecord& r) {
+  auto it = skins_.find(r.edit.skin);
+  if (it == skins_.end()) {
     spdlog::warn("ball edit at seq {} names skin {}, which the scene does not define", seq,
                  r.edit.skin);
     return;
   }
-  SkinState::Entry& entry = it->second;
+  Entry& entry = it->second;
   if (seq <= entry.file_seq) return;  // the skin file holds it
   // The codec checked the logged edit as the live server checked it.
   Status st = r.edit_status;
   if (st.ok()) st = CheckBallIndex(entry.skin, r.edit);
-  if (st.ok()) st = ApplyBallEdit(entry.skin, r.edit).status();
+  if (st.ok()) st = ApplyBallOp(entry.skin, r.edit).status();
   if (!st.ok()) {
     spdlog::warn("ball edit at seq {} refused on replay: {}", seq, st.ToString());
     return;
@@ -236,12 +260,12 @@ void Scene::ReplayBallEdit(uint64_t seq, const codec::BallEditRecord& r) {
   entry.version = r.skin_version;
 }
 
-bool Scene::SaveSkins(uint64_t seq) {
-  if (skins_ == nullptr || skins_->skins.empty()) return true;
+bool SkinBook::Save(uint64_t seq) {
+  if (skins_.empty()) return true;
   bool saved_all = true;
   std::error_code ec;
-  std::filesystem::create_directories(std::filesystem::path(config_.data_dir) / "skins", ec);
-  for (const auto& [name, entry] : skins_->skins) {
+  std::filesystem::create_directories(std::filesystem::path(data_dir_) / "skins", ec);
+  for (const auto& [name, entry] : skins_) {
     codec::SavedSkin saved;
     saved.seq = seq;
     saved.version = entry.version;
@@ -249,7 +273,7 @@ bool Scene::SaveSkins(uint64_t seq) {
       saved.balls.push_back({o.c.x, o.c.y, o.r, o.theta});
     }
     // Written before the log rolls, so the segments a snapshot lets go are already covered.
-    if (const Status s = SaveSkinFile(SkinFilePath(config_.data_dir, name), saved); !s.ok()) {
+    if (const Status s = SaveSkinFile(SkinFilePath(data_dir_, name), saved); !s.ok()) {
       spdlog::error("skin {} at seq {} not saved: {}", name, seq, s.ToString());
       saved_all = false;
     }
@@ -257,9 +281,161 @@ bool Scene::SaveSkins(uint64_t seq) {
   return saved_all;
 }
 
-// A ball edit: Prepare checks it on a copy of the skin (admissibility is only known by building
-// the changed sections), Apply puts the copy in place and sends the skin's contour subscribers
-// the sections that changed. Nothing changes before the record is in the log.
+StatusOr<SkinBook::BallEditPlan> SkinBook::PrepareBallEdit(const codec::BallEdit& edit) const {
+  SCULPT_ASSIGN_OR_RETURN(const Entry* entry, Find("SkinBallEdit.skin", edit.skin));
+  SCULPT_RETURN_IF_ERROR(CheckBallIndex(entry->skin, edit));
+  // Admissibility is only known by building the changed sections: on a copy.
+  BallEditPlan plan{edit.skin, entry->skin, {}, entry->version + 1};
+  auto c = ApplyBallOp(plan.next, edit);
+  if (!c.ok()) {
+    // The skin names the inadmissible pair (digest Def 2.6); the refusal names the ball.
+    return Outside(
+        "SkinBallEdit.ball",
+        std::string("(") + FormatNumber(edit.x) + ", " + FormatNumber(edit.y) + ", r " +
+            FormatNumber(edit.r) + std::string(", theta ") + FormatNumber(edit.theta) +
+            ") at index " + std::to_string(edit.index),
+        "balls admissible with their neighbours (no contact point inside a neighbour's disk; no "
+        "nested, concentric or coincident pair), at least 2 balls: " +
+            c.status().message(),
+        c.status().code());
+  }
+  plan.change = std::move(c).value();
+  return plan;
+}
+
+size_t SkinBook::ApplyBallEdit(BallEditPlan plan) {
+  Entry& entry = skins_.at(plan.skin);
+  entry.skin = std::move(plan.next);
+  entry.version = plan.version;
+  if (!entry.subs.empty()) {
+    auto bytes = skin::EncodeSkinUpdate(entry.skin, plan.change);
+    if (!bytes.ok()) {
+      spdlog::error("skin {}: update not encoded: {}", plan.skin, bytes.status().ToString());
+    } else {
+      codec::ContourUpdateFrame u;
+      u.skin = plan.skin;
+      u.data = std::move(bytes).value();
+      u.sections = static_cast<uint32_t>(plan.change.changed.size());
+      u.skin_version = entry.version;
+      u.balls = Balls(entry.skin);
+      auto frame = codec::EncodeContourUpdate(std::move(u));
+      for (auto& [id, sink] : entry.subs) sink.send(frame);
+    }
+  }
+  return entry.skin.balls().size();
+}
+
+size_t SkinBook::ball_count(const std::string& skin) const {
+  auto it = skins_.find(skin);
+  return it == skins_.end() ? 0 : it->second.skin.balls().size();
+}
+
+uint64_t SkinBook::version(const std::string& skin) const {
+  auto it = skins_.find(skin);
+  return it == skins_.end() ? 0 : it->second.version;
+}
+
+StatusOr<levelset::SweepRequest> SkinBook::SweepRequestFor(
+    const codec::SkinSweepRequest& sweep) const {
+  SCULPT_ASSIGN_OR_RETURN(const Entry* entry, Find("SkinSweep.skin", sweep.skin));
+  levelset::SweepRequest q;
+  q.mode = sweep.mode;
+  q.add = sweep.add;
+  q.depth = sweep.depth;
+  q.plane = entry->plane;
+  const skin::Polyline2 outline = entry->skin.Outline();
+  q.outline.reserve(outline.size());
+  for (const skin::Vec2& p : outline) q.outline.push_back({p.x, p.y});
+  if (sweep.mode == levelset::SweepRequest::Mode::kRevolve) {
+    q.axis_point = {sweep.axis_x, sweep.axis_y};
+    q.axis_dir = {std::cos(sweep.axis_angle), std::sin(sweep.axis_angle)};
+  }
+  return q;
+}
+
+void SkinBook::Subscribe(ReplicaSink sink, const codec::ContourRequest& req,
+                         const levelset::Sculpture* sculpture, uint64_t seq,
+                         const std::function<void(Status)>& answer) {
+  const uint64_t session = sink.session_id;
+  if (!req.skin.empty()) {
+    auto it = skins_.find(req.skin);
+    if (it == skins_.end()) {
+      return answer(
+          Outside("ContourSubscribe.skin", req.skin, "the scene's skins", Status::Code::kNotFound));
+    }
+    Entry& entry = it->second;
+    if (req.unsubscribe) {
+      entry.subs.erase(session);
+      return answer(Status::Ok());
+    }
+    auto bytes = skin::EncodeSkinSnapshot(entry.skin);
+    if (!bytes.ok()) return answer(bytes.status());
+    answer(Status::Ok());
+    codec::ContourUpdateFrame u;
+    u.skin = req.skin;
+    u.data = std::move(bytes).value();
+    u.sections = static_cast<uint32_t>(entry.skin.sections().size());
+    u.skin_version = entry.version;
+    u.balls = Balls(entry.skin);
+    sink.send(codec::EncodeContourUpdate(std::move(u)));
+    entry.subs[session] = std::move(sink);
+    return;
+  }
+  const std::string& object = req.object;
+  if (sculpture == nullptr) {
+    return answer(Outside("ContourSubscribe.slice.object", object, "the scene's objects",
+                          Status::Code::kNotFound));
+  }
+  if (req.unsubscribe) {
+    if (auto it = slices_.find(object); it != slices_.end()) it->second.erase(session);
+    return answer(Status::Ok());
+  }
+  SliceSub sub;
+  sub.sink = std::move(sink);
+  sub.request.plane = req.plane;
+  sub.request.half_extent = req.half_extent;
+  sub.request.step = req.step;
+  auto lines = levelset::SliceContours(*sculpture, sub.request);
+  if (!lines.ok()) return answer(lines.status());
+  answer(Status::Ok());
+  SendSlice(object, sub.sink, sub.request.step, *lines, seq);
+  slices_[object][session] = std::move(sub);
+}
+
+void SkinBook::Unsubscribe(uint64_t session_id) {
+  for (auto& [name, entry] : skins_) entry.subs.erase(session_id);
+  for (auto& [object, subs] : slices_) subs.erase(session_id);
+}
+
+void SkinBook::SendSlices(const std::string& object, const levelset::Sculpture& sculpture,
+                          const std::vector<levelset::Int3>& changed, uint64_t seq) {
+  auto it = slices_.find(object);
+  if (it == slices_.end() || it->second.empty()) return;
+  for (auto& [session, sub] : it->second) {
+    if (!PlaneCrosses(sub.request.plane, changed, sculpture.voxel_size())) continue;
+    auto lines = levelset::SliceContours(sculpture, sub.request);
+    if (lines.ok()) SendSlice(object, sub.sink, sub.request.step, *lines, seq);
+  }
+}
+
+StatusOr<skin::Skin> SkinBook::Copy(const std::string& name) const {
+  SCULPT_ASSIGN_OR_RETURN(const Entry* entry, Find("skin", name));
+  return entry->skin;
+}
+
+size_t SkinBook::subscriber_count() const {
+  size_t n = 0;
+  for (const auto& [name, entry] : skins_) n += entry.subs.size();
+  for (const auto& [object, subs] : slices_) n += subs.size();
+  return n;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The scene's skin edits and contour subscriptions
+
+// A ball edit: Prepare checks it on a copy of the skin, Apply puts the copy in place and sends
+// the skin's contour subscribers the sections that changed (SkinBook). Nothing changes before
+// the record is in the log.
 struct Scene::BallEditOp final : EditOp {
   BallEditOp(uint64_t client, codec::BallEdit e, std::function<void(SkinOutcome)> d)
       : client(client), edit(std::move(e)), done(std::move(d)) {}
@@ -269,63 +445,25 @@ struct Scene::BallEditOp final : EditOp {
   uint64_t client_seq() const override { return edit.client_seq; }
 
   Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
-    SCULPT_ASSIGN_OR_RETURN(SkinState::Entry * found,
-                            scene.skins_->Find("SkinBallEdit.skin", edit.skin));
-    SkinState::Entry& entry = *found;
-    balls = entry.skin.balls().size();
-    SCULPT_RETURN_IF_ERROR(CheckBallIndex(entry.skin, edit));
-    next.emplace(entry.skin);
-    auto c = ApplyBallEdit(*next, edit);
-    if (!c.ok()) {
-      // The skin names the inadmissible pair (digest Def 2.6); the refusal names the ball.
-      return Outside(
-          "SkinBallEdit.ball",
-          std::string("(") + FormatNumber(edit.x) + ", " + FormatNumber(edit.y) + ", r " +
-              FormatNumber(edit.r) + std::string(", theta ") + FormatNumber(edit.theta) +
-              ") at index " + std::to_string(edit.index),
-          "balls admissible with their neighbours (no contact point inside a neighbour's disk; no "
-          "nested, concentric or coincident pair), at least 2 balls: " +
-              c.status().message(),
-          c.status().code());
-    }
-    change = std::move(c).value();
+    SCULPT_ASSIGN_OR_RETURN(SkinBook::BallEditPlan p, scene.skins_.PrepareBallEdit(edit));
+    sections = p.change.changed.size();
     codec::BallEditRecord rec;
     rec.global_seq = first_seq;
     rec.client_id = client;
     rec.edit = edit;
-    rec.skin_version = entry.version + 1;
+    rec.skin_version = p.version;
     records->push_back(codec::EncodeLogRecord(rec));
+    plan.emplace(std::move(p));
     return Status::Ok();
   }
 
   Applied Apply(Scene& scene) override {
-    SkinState::Entry& entry = scene.skins_->skins.at(edit.skin);
-    entry.skin = std::move(*next);
-    next.reset();
-    ++entry.version;
-    balls = entry.skin.balls().size();
-    if (!entry.subs.empty()) {
-      auto bytes = skin::EncodeSkinUpdate(entry.skin, change);
-      if (!bytes.ok()) {
-        spdlog::error("skin {}: update not encoded: {}", edit.skin, bytes.status().ToString());
-      } else {
-        codec::ContourUpdateFrame u;
-        u.skin = edit.skin;
-        u.data = std::move(bytes).value();
-        u.sections = static_cast<uint32_t>(change.changed.size());
-        u.skin_version = entry.version;
-        u.balls = Balls(entry.skin);
-        auto frame = codec::EncodeContourUpdate(std::move(u));
-        for (auto& [id, sink] : entry.subs) sink.send(frame);
-      }
-    }
+    balls = scene.skins_.ApplyBallEdit(std::move(*plan));
+    plan.reset();
     return Applied{};  // no sculpture changed
   }
 
-  void Duplicate(Scene& scene) override {
-    auto it = scene.skins_->skins.find(edit.skin);
-    if (it != scene.skins_->skins.end()) balls = it->second.skin.balls().size();
-  }
+  void Duplicate(Scene& scene) override { balls = scene.skins_.ball_count(edit.skin); }
 
   void Answer(const CommitOutcome& o) override {
     SkinOutcome a;
@@ -334,7 +472,7 @@ struct Scene::BallEditOp final : EditOp {
     if (o.status.ok()) {
       a.duplicate = o.duplicate;
       if (!o.duplicate) {
-        a.changed_sections = static_cast<uint32_t>(change.changed.size());
+        a.changed_sections = static_cast<uint32_t>(sections);
         a.global_seq = o.global_seq_first;
       }
       a.balls = static_cast<uint32_t>(balls);
@@ -345,8 +483,8 @@ struct Scene::BallEditOp final : EditOp {
   uint64_t client;
   codec::BallEdit edit;
   std::function<void(SkinOutcome)> done;
-  std::optional<skin::Skin> next;
-  skin::SkinChange change;
+  std::optional<SkinBook::BallEditPlan> plan;
+  size_t sections = 0;
   size_t balls = 0;
 };
 
@@ -366,35 +504,22 @@ struct Scene::SweepOp final : EditOp {
   uint64_t client_seq() const override { return sweep.client_seq; }
 
   Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
-    SCULPT_ASSIGN_OR_RETURN(SkinState::Entry * found,
-                            scene.skins_->Find("SkinSweep.skin", sweep.skin));
+    // The record holds the request as the kernel applies it (its numbers are doubles both ways,
+    // so recovery applies the same one).
+    SCULPT_ASSIGN_OR_RETURN(levelset::SweepRequest q, scene.skins_.SweepRequestFor(sweep));
     auto obj = scene.sculptures_.find(sweep.object);
     if (obj == scene.sculptures_.end()) {
       return Outside("SkinSweep.object", sweep.object, "the scene's objects",
                      Status::Code::kNotFound);
     }
-    const SkinState::Entry& entry = *found;
+    SCULPT_RETURN_IF_ERROR(levelset::ValidateSweep(obj->second, q));
     codec::SweepRecord rec;
     rec.global_seq = first_seq;
     rec.client_id = client;
     rec.client_seq = sweep.client_seq;
     rec.object = sweep.object;
-    // The record holds the request as the kernel applies it (its numbers are doubles both ways,
-    // so recovery applies the same one).
-    levelset::SweepRequest& q = rec.request;
-    q.mode = sweep.mode;
-    q.add = sweep.add;
-    q.depth = sweep.depth;
-    q.plane = entry.plane;
-    const skin::Polyline2 outline = entry.skin.Outline();
-    q.outline.reserve(outline.size());
-    for (const skin::Vec2& p : outline) q.outline.push_back({p.x, p.y});
-    if (sweep.mode == levelset::SweepRequest::Mode::kRevolve) {
-      q.axis_point = {sweep.axis_x, sweep.axis_y};
-      q.axis_dir = {std::cos(sweep.axis_angle), std::sin(sweep.axis_angle)};
-    }
-    SCULPT_RETURN_IF_ERROR(levelset::ValidateSweep(obj->second, q));
-    request = q;
+    rec.request = q;
+    request = std::move(q);
     records->push_back(codec::EncodeLogRecord(rec));
     return Status::Ok();
   }
@@ -445,136 +570,38 @@ void Scene::SweepSkin(uint64_t client_id, codec::SkinSweepRequest s,
   Commit(std::make_shared<SweepOp>(client_id, std::move(s), AnswerOnce(std::move(done))));
 }
 
-namespace {
-
-// Sends one subscriber its slice, from contours already computed.
-void SendSlice(const std::string& object, const ReplicaSink& sink, double step,
-               const std::vector<std::vector<levelset::PlanePoint>>& lines, uint64_t seq) {
-  auto bytes = skin::EncodeContours(ToPolylines(lines), step * kSliceQuantumPerStep);
-  if (!bytes.ok()) {
-    spdlog::warn("slice of {}: not encoded: {}", object, bytes.status().ToString());
-    return;
-  }
-  codec::ContourUpdateFrame u;
-  u.object = object;
-  u.data = std::move(bytes).value();
-  u.sections = static_cast<uint32_t>(lines.size());
-  u.global_seq = seq;
-  sink.send(codec::EncodeContourUpdate(std::move(u)));
-}
-
-// True when the slice's plane passes through the world box of the changed leaves (the slice
-// cannot have changed otherwise).
-bool PlaneCrosses(const levelset::SweepPlane& plane, const std::vector<levelset::Int3>& leaves,
-                  double dx) {
-  if (leaves.empty()) return false;
-  Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
-  for (const levelset::Int3& l : leaves) {
-    lo = {std::min(lo.x, l.x * dx), std::min(lo.y, l.y * dx), std::min(lo.z, l.z * dx)};
-    hi = {std::max(hi.x, (l.x + 8) * dx), std::max(hi.y, (l.y + 8) * dx),
-          std::max(hi.z, (l.z + 8) * dx)};
-  }
-  const Vec3 n = plane.u.Cross(plane.v);
-  bool below = false, above = false;
-  for (int c = 0; c < 8; ++c) {
-    const Vec3 p{(c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z};
-    const double d = n.Dot(p - plane.origin);
-    below = below || d <= 0;
-    above = above || d >= 0;
-  }
-  return below && above;
-}
-
-}  // namespace
-
 void Scene::SubscribeContours(ReplicaSink sink, codec::ContourRequest req,
                               std::function<void(Status)> done) {
   auto once = AnswerOnce(std::move(done));
-  auto cb = std::make_shared<std::function<void(Status)>>(once);
   auto fail = [once](const Status& st) { once(st); };
   const uint64_t who = CurrentRequester();
-  Post(who, "contours", fail, [this, sink = std::move(sink), req = std::move(req), cb]() mutable {
-    const uint64_t session = sink.session_id;
+  Post(who, "contours", fail, [this, sink = std::move(sink), req = std::move(req), once]() mutable {
     // The scene decides which effects it computes: without contours, no skin contour or slice
     // is encoded for anyone (principle 2 of ARCHITECTURE.md).
     if (!config_.scene.effects.contours && !req.unsubscribe) {
-      return (*cb)(Outside("scene.effects.contours", "false",
-                           "{true}: this scene computes no skin contours or slices (set contours = "
-                           "true under [scene.effects])",
-                           Status::Code::kFailedPrecondition));
+      return once(Outside("scene.effects.contours", "false",
+                          "{true}: this scene computes no skin contours or slices (set contours = "
+                          "true under [scene.effects])",
+                          Status::Code::kFailedPrecondition));
     }
-    if (!req.skin.empty()) {
-      auto found = skins_->Find("ContourSubscribe.skin", req.skin);
-      if (!found.ok()) return (*cb)(found.status());
-      SkinState::Entry& entry = **found;
-      if (req.unsubscribe) {
-        entry.subs.erase(session);
-        return (*cb)(Status::Ok());
-      }
-      auto bytes = skin::EncodeSkinSnapshot(entry.skin);
-      if (!bytes.ok()) return (*cb)(bytes.status());
-      (*cb)(Status::Ok());
-      codec::ContourUpdateFrame u;
-      u.skin = req.skin;
-      u.data = std::move(bytes).value();
-      u.sections = static_cast<uint32_t>(entry.skin.sections().size());
-      u.skin_version = entry.version;
-      u.balls = Balls(entry.skin);
-      sink.send(codec::EncodeContourUpdate(std::move(u)));
-      entry.subs[session] = std::move(sink);
-      return;
+    const levelset::Sculpture* sculpture = nullptr;
+    if (req.skin.empty()) {
+      auto it = sculptures_.find(req.object);
+      if (it != sculptures_.end()) sculpture = &it->second;
     }
-    const std::string& object = req.object;
-    if (sculptures_.find(object) == sculptures_.end()) {
-      return (*cb)(Outside("ContourSubscribe.slice.object", object, "the scene's objects",
-                           Status::Code::kNotFound));
-    }
-    if (req.unsubscribe) {
-      skins_->slices[object].erase(session);
-      return (*cb)(Status::Ok());
-    }
-    SkinState::SliceSub sub;
-    sub.sink = std::move(sink);
-    sub.request.plane = req.plane;
-    sub.request.half_extent = req.half_extent;
-    sub.request.step = req.step;
-    auto lines = levelset::SliceContours(sculptures_.at(object), sub.request);
-    if (!lines.ok()) return (*cb)(lines.status());
-    (*cb)(Status::Ok());
-    SendSlice(object, sub.sink, sub.request.step, *lines, applied_seq_.load());
-    skins_->slices[object][session] = std::move(sub);
+    skins_.Subscribe(std::move(sink), req, sculpture, applied_seq_.load(), once);
   });
-}
-
-void Scene::SendSlices(const std::string& object, const std::vector<levelset::Int3>& changed) {
-  auto it = skins_->slices.find(object);
-  if (it == skins_->slices.end() || it->second.empty()) return;
-  const levelset::Sculpture& sculpture = sculptures_.at(object);
-  for (auto& [session, sub] : it->second) {
-    if (!PlaneCrosses(sub.request.plane, changed, sculpture.voxel_size())) continue;
-    auto lines = levelset::SliceContours(sculpture, sub.request);
-    if (lines.ok()) SendSlice(object, sub.sink, sub.request.step, *lines, applied_seq_.load());
-  }
 }
 
 void Scene::UnsubscribeContours(uint64_t session_id) {
-  Post(CurrentRequester(), "contour unsubscribe", [this, session_id] {
-    for (auto& [name, entry] : skins_->skins) entry.subs.erase(session_id);
-    for (auto& [object, subs] : skins_->slices) subs.erase(session_id);
-  });
+  Post(CurrentRequester(), "contour unsubscribe",
+       [this, session_id] { skins_.Unsubscribe(session_id); });
 }
 
 StatusOr<skin::Skin> Scene::SkinCopy(const std::string& name) {
   std::promise<StatusOr<skin::Skin>> p;
   auto fail = [&p](const Status& st) { p.set_value(st); };
-  Post("skin copy", fail, [&] {
-    auto found = skins_->Find("skin", name);
-    if (found.ok()) {
-      p.set_value((*found)->skin);
-    } else {
-      p.set_value(found.status());
-    }
-  });
+  Post("skin copy", fail, [&] { p.set_value(skins_.Copy(name)); });
   return p.get_future().get();
 }
 
