@@ -63,7 +63,7 @@ class UndoScene {
   levelset::EditResult Edit(const std::string& author, std::vector<EditRequest> reqs) {
     auto r = history_.Apply(live_, ++seq_, author, reqs, settings_);
     EXPECT_TRUE(r.ok()) << r.status().ToString();
-    log_.push_back({author, std::move(reqs)});
+    log_.push_back({author, std::move(reqs), std::nullopt});
     undone_.push_back(false);
     return r.ok() ? *r : levelset::EditResult{};
   }
