@@ -157,34 +157,51 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
   const double range = area ? PenaltyContactRange(rho_) : 0.0;
   SweptContact& c = out->swept;
   int evaluated = 0, skipped = 0;
+  // The arrays and the loop's state through locals: a store through a byte or double pointer
+  // may alias any member, and the members would be loaded again after each one (this loop runs
+  // for every sample, and most of them only take the skip test).
+  const bool have_previous = have_previous_;
+  const size_t cursor = cursor_;
+  const uint32_t* order = order_.data();
+  const Vec3* local = local_.data();
+  Vec3* from = from_.data();
+  Vec3* anchor = anchor_.data();
+  double* anchor_phi = anchor_phi_.data();
+  uint8_t* anchor_exact = anchor_exact_.data();
+  uint8_t* known = known_.data();
+  SampleForce* term = term_.data();
+  int known_count = known_count_;
+  const double stiffness = settings_.stiffness;
+  const double rho = rho_;
+  const Vec3 last_normal = last_normal_;
   size_t visited = 0;
   bool stopped = false;
   for (; visited < n; ++visited) {
-    size_t at = cursor_ + visited;
+    size_t at = cursor + visited;
     if (at >= n) at -= n;
-    const size_t k = order_[at];
-    const Vec3 x = centre + local_[k];
-    const Vec3 a = have_previous_ ? from_[k] : x;
+    const size_t k = order[at];
+    const Vec3 x = centre + local[k];
+    const Vec3 a = have_previous ? from[k] : x;
     double phi_a = kNan;
-    if (!std::isnan(anchor_phi_[k])) {
+    if (!std::isnan(anchor_phi[k])) {
       // phi >= anchor_phi - L |p - anchor| along a -> x: the distance to the anchor is convex
       // along the segment, so its largest value is at an end.
       // Compared squared: no square root for the samples skipped, most of them.
-      const double margin = anchor_phi_[k] - range;
-      const double da2 = (a - anchor_[k]).LengthSqr(), dx2 = (x - anchor_[k]).LengthSqr();
+      const double margin = anchor_phi[k] - range;
+      const double da2 = (a - anchor[k]).LengthSqr(), dx2 = (x - anchor[k]).LengthSqr();
       if (margin > 0 && margin * margin > kSkipLipschitz * kSkipLipschitz * std::max(da2, dx2)) {
-        term_[k] = SampleForce{};
-        known_count_ += known_[k] ? 0 : 1;
-        known_[k] = 1;
-        from_[k] = x;
+        term[k] = SampleForce{};
+        known_count += known[k] ? 0 : 1;
+        known[k] = 1;
+        from[k] = x;
         ++skipped;
         continue;
       }
       // A lower bound is a safe start for the sweep's steps only while it says "free", and
       // only for a path that has length (the sweep returns its start as phi at its end).
-      const double bound = anchor_phi_[k] - kSkipLipschitz * std::sqrt(da2);
-      if (da2 == 0 && anchor_exact_[k]) {
-        phi_a = anchor_phi_[k];
+      const double bound = anchor_phi[k] - kSkipLipschitz * std::sqrt(da2);
+      if (da2 == 0 && anchor_exact[k]) {
+        phi_a = anchor_phi[k];
       } else if (bound > 0 && !(a == x)) {
         phi_a = bound;
       }
@@ -196,7 +213,7 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
     ++evaluated;
     double phi = kNan;
     bool hit = false;
-    if (have_previous_) {
+    if (have_previous) {
       const SegmentHit h = SweepSegment(sdf, a, x, 0.0, phi_a, &phi);
       hit = h.hit;
       // Ties go to the lowest index, whatever the visiting order.
@@ -221,25 +238,25 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
           phi = sdf.Phi(x);
         }
       }
-      if (area ? phi < rho_ : phi <= 0) {
+      if (area ? phi < rho : phi <= 0) {
         if (!have_g) g = sdf.Gradient(x);
-        f = area ? AreaWeightedSampleForce(x, phi, g, rho_, settings_.stiffness, centre,
-                                           last_normal_)
-                 : PenaltySampleForce(phi, g, settings_.stiffness, last_normal_);
+        f = area ? AreaWeightedSampleForce(x, phi, g, rho, stiffness, centre, last_normal)
+                 : PenaltySampleForce(phi, g, stiffness, last_normal);
       }
     } else if (std::isnan(phi)) {
       phi = sdf.Phi(x);
     }
-    term_[k] = f;
-    known_count_ += known_[k] ? 0 : 1;
-    known_[k] = 1;
-    from_[k] = x;
-    anchor_[k] = x;
-    anchor_phi_[k] = phi;
-    anchor_exact_[k] = 1;
+    term[k] = f;
+    known_count += known[k] ? 0 : 1;
+    known[k] = 1;
+    from[k] = x;
+    anchor[k] = x;
+    anchor_phi[k] = phi;
+    anchor_exact[k] = 1;
   }
+  known_count_ = known_count;
   // Resume after the last sample visited; a complete tick starts the next at the coarsest.
-  cursor_ = stopped ? (cursor_ + visited) % n : 0;
+  cursor_ = stopped ? (cursor + visited) % n : 0;
   out->over_budget = stopped;
   out->samples_evaluated = evaluated;
   out->samples_skipped = skipped;

@@ -58,14 +58,13 @@ struct Corners {
   return y0 + tz * (y1 - y0);
 }
 
-// p's cell and its fractional position, without reading values.
-Corners Locate(const openvdb::math::Transform& xform, const Vec3& p) {
-  const openvdb::Vec3d u = xform.worldToIndex(openvdb::Vec3d(p.x, p.y, p.z));
-  const double fx = std::floor(u.x()), fy = std::floor(u.y()), fz = std::floor(u.z());
+// The cell holding index position u, and u's fractional position in it, without reading values.
+Corners Locate(const double (&u)[3]) {
+  const double fx = std::floor(u[0]), fy = std::floor(u[1]), fz = std::floor(u[2]);
   Corners c;
-  c.tx = u.x() - fx;
-  c.ty = u.y() - fy;
-  c.tz = u.z() - fz;
+  c.tx = u[0] - fx;
+  c.ty = u[1] - fy;
+  c.tz = u[2] - fz;
   c.origin = openvdb::Coord(static_cast<int>(fx), static_cast<int>(fy), static_cast<int>(fz));
   return c;
 }
@@ -141,7 +140,40 @@ SculptureSnapshot::SculptureSnapshot(std::shared_ptr<const levelset::Sculpture> 
     : sculpture_(std::move(sculpture)),
       grid_(sculpture_->impl().grid.get()),
       voxel_size_(sculpture_->voxel_size()),
-      id_(g_next_id.fetch_add(1, std::memory_order_relaxed)) {}
+      id_(g_next_id.fetch_add(1, std::memory_order_relaxed)) {
+  const auto& map = *static_cast<const openvdb::FloatGrid*>(grid_)->transform().baseMap();
+  // The maps whose applyInverseMap is (p - t) * inv and applyIJT is g * inv (ScaleMap and
+  // UniformScaleMap have t = 0, and p - 0 is p).
+  openvdb::Vec3d t(0, 0, 0), inv;
+  if (const auto* st = dynamic_cast<const openvdb::math::ScaleTranslateMap*>(&map)) {
+    t = st->getTranslation();
+    inv = st->getInvScale();
+    scale_map_ = true;
+  } else if (const auto* sc = dynamic_cast<const openvdb::math::ScaleMap*>(&map)) {
+    inv = sc->getInvScale();
+    scale_map_ = true;
+  }
+  if (scale_map_) {
+    for (int a = 0; a < 3; ++a) {
+      translate_[a] = t[a];
+      inv_scale_[a] = inv[a];
+    }
+  }
+}
+
+void SculptureSnapshot::ToIndex(const Vec3& p, double (&u)[3]) const {
+  if (scale_map_) {
+    u[0] = (p.x - translate_[0]) * inv_scale_[0];
+    u[1] = (p.y - translate_[1]) * inv_scale_[1];
+    u[2] = (p.z - translate_[2]) * inv_scale_[2];
+    return;
+  }
+  const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
+  const openvdb::Vec3d i = grid.transform().worldToIndex(openvdb::Vec3d(p.x, p.y, p.z));
+  u[0] = i.x();
+  u[1] = i.y();
+  u[2] = i.z();
+}
 
 SculptureSnapshot::SculptureSnapshot(std::shared_ptr<const levelset::Sculpture> sculpture,
                                      const Vec3& window_centre, double window_radius,
@@ -240,13 +272,14 @@ SculptureSnapshot::LookupCounts SculptureSnapshot::ThreadLookupCounts() { return
 
 namespace {
 
-// Reads the dense window: the caller checked that every coordinate read lies inside.
+// Reads the dense window around one cell: `base` is the cell's value, and a coordinate is an
+// offset from the cell (the caller checked that every one read lies inside). The offsets of a
+// stencil are constants, so each read is one load at a fixed distance from `base`.
 struct WindowGet {
-  const float* values;
-  int lo[3];
-  int nx, nxy;
-  double operator()(const openvdb::Coord& c) const {
-    return values[(c.x() - lo[0]) + (c.y() - lo[1]) * nx + static_cast<size_t>(c.z() - lo[2]) * nxy];
+  const float* base;
+  ptrdiff_t nx, nxy;
+  double operator()(const openvdb::Coord& d) const {
+    return base[d.x() + d.y() * nx + d.z() * nxy];
   }
 };
 
@@ -263,16 +296,25 @@ bool SculptureSnapshot::InWindow(const int (&origin)[3], int from, int to) const
   return true;
 }
 
+const float* SculptureSnapshot::WindowAt(const int (&origin)[3]) const {
+  const ptrdiff_t nx = window_n_.x, nxy = nx * window_n_.y;
+  return window_.data() + (origin[0] - window_lo_.x) + (origin[1] - window_lo_.y) * nx +
+         (origin[2] - window_lo_.z) * nxy;
+}
+
 double SculptureSnapshot::Phi(const Vec3& p) const {
-  const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
-  Corners c = Locate(grid.transform(), p);
+  double u[3];
+  ToIndex(p, u);
+  Corners c = Locate(u);
   const int o[3] = {c.origin.x(), c.origin.y(), c.origin.z()};
   if (InWindow(o, 0, 1)) {
-    FillCorners(WindowGet{window_.data(), {window_lo_.x, window_lo_.y, window_lo_.z}, window_n_.x,
-                          window_n_.x * window_n_.y},
+    c.origin = openvdb::Coord(0, 0, 0);  // offsets from WindowAt(o)
+    FillCorners(WindowGet{WindowAt(o), window_n_.x,
+                          static_cast<ptrdiff_t>(window_n_.x) * window_n_.y},
                 &c);
     ++t_counts.window_phi;
   } else {
+    const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
     Accessor& acc = AccessorFor(id_, grid.tree());
     FillCorners([&acc](const openvdb::Coord& ijk) { return acc.getValue(ijk); }, &c);
     ++t_counts.tree_phi;
@@ -282,13 +324,15 @@ double SculptureSnapshot::Phi(const Vec3& p) const {
 
 void SculptureSnapshot::PhiAndGradient(const Vec3& p, double* phi, Vec3* gradient) const {
   const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
-  const auto& xform = grid.transform();
-  Corners c = Locate(xform, p);
+  double u[3];
+  ToIndex(p, u);
+  Corners c = Locate(u);
   const int o[3] = {c.origin.x(), c.origin.y(), c.origin.z()};
   openvdb::Vec3d gi;
   if (InWindow(o, -1, 2)) {
-    const WindowGet get{window_.data(), {window_lo_.x, window_lo_.y, window_lo_.z}, window_n_.x,
-                        window_n_.x * window_n_.y};
+    const WindowGet get{WindowAt(o), window_n_.x,
+                        static_cast<ptrdiff_t>(window_n_.x) * window_n_.y};
+    c.origin = openvdb::Coord(0, 0, 0);
     FillCorners(get, &c);
     gi = CentralIndexGradient(get, c, c.origin);
     ++t_counts.window_stencil;
@@ -302,7 +346,11 @@ void SculptureSnapshot::PhiAndGradient(const Vec3& p, double* phi, Vec3* gradien
   *phi = Interpolate(c.v, c.tx, c.ty, c.tz);
   // World gradient: the index gradient through the inverse transpose of the index-to-world map
   // (for the uniform scale of a level set, divided by the voxel size).
-  const openvdb::Vec3d gw = xform.baseMap()->applyIJT(gi);
+  if (scale_map_) {
+    *gradient = {gi.x() * inv_scale_[0], gi.y() * inv_scale_[1], gi.z() * inv_scale_[2]};
+    return;
+  }
+  const openvdb::Vec3d gw = grid.transform().baseMap()->applyIJT(gi);
   *gradient = {gw.x(), gw.y(), gw.z()};
 }
 

@@ -79,8 +79,16 @@ class SculptureSnapshot : public SdfSampler {
   const void* grid_;
   double voxel_size_;
   uint64_t id_;
+  // World to index as the grid's map computes it, without its virtual call, when the map is an
+  // axis-aligned scale and translation (a level set's is): (p - translate_) * inv_scale_, the
+  // same bits. Also the index-to-world gradient map (times inv_scale_).
+  void ToIndex(const Vec3& p, double (&u)[3]) const;
+  bool scale_map_ = false;
+  double translate_[3] = {0, 0, 0}, inv_scale_[3] = {1, 1, 1};
   // The dense window: values on index box window_lo_ + [0, window_n_), x fastest.
   bool InWindow(const int (&origin)[3], int from, int to) const;
+  // The window value at cell `origin` (which the caller checked lies inside).
+  const float* WindowAt(const int (&origin)[3]) const;
   levelset::Int3 window_lo_{0, 0, 0}, window_n_{0, 0, 0};
   std::vector<float> window_;
   // Against the window of the snapshot with id change_base_id_ (0: none): the largest value
