@@ -183,6 +183,7 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
     const Vec3 x = centre + local[k];
     const Vec3 a = have_previous ? from[k] : x;
     double phi_a = kNan;
+    bool sure_to_touch = false;
     if (!std::isnan(anchor_phi[k])) {
       // phi >= anchor_phi - L |p - anchor| along a -> x: the distance to the anchor is convex
       // along the segment, so its largest value is at an end.
@@ -205,16 +206,28 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
       } else if (bound > 0 && !(a == x)) {
         phi_a = bound;
       }
+      // From an exact anchor phi at x is at most anchor_phi + L |x - anchor|: below the
+      // contact range, the penalty needs the gradient at x whatever the sweep finds.
+      sure_to_touch = anchor_exact[k] && anchor_phi[k] + kSkipLipschitz * std::sqrt(dx2) < range;
     }
     if (evaluated > 0 && OutOfBudget(evaluated, start_us)) {
       stopped = true;
       break;
     }
     ++evaluated;
+    // A sample sure to touch reads phi and the gradient at x from one stencil first, and the
+    // sweep takes that phi where it reaches x instead of reading the 8 corners again.
+    double phi_x = kNan;
+    Vec3 g;
+    bool have_g = false;
+    if (penalty && sure_to_touch) {
+      sdf.PhiAndGradient(x, &phi_x, &g);
+      have_g = true;
+    }
     double phi = kNan;
     bool hit = false;
     if (have_previous) {
-      const SegmentHit h = SweepSegment(sdf, a, x, 0.0, phi_a, &phi);
+      const SegmentHit h = SweepSegment(sdf, a, x, 0.0, phi_a, &phi, phi_x);
       hit = h.hit;
       // Ties go to the lowest index, whatever the visiting order.
       const int index = static_cast<int>(k);
@@ -227,10 +240,10 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
     }
     SampleForce f;
     if (penalty) {
-      Vec3 g;
-      bool have_g = false;
       if (std::isnan(phi)) {
-        if (hit) {
+        if (have_g) {
+          phi = phi_x;
+        } else if (hit) {
           // Touching: the gradient is needed; one stencil gives both.
           sdf.PhiAndGradient(x, &phi, &g);
           have_g = true;

@@ -88,44 +88,43 @@ void FillCorners(const Get& get, Corners* c) {
 // Central differences of the trilinear interpolant one voxel either side of p, in index units,
 // read as one stencil: p's 8 corners plus the 24 outer corners of the cells one voxel away along
 // each axis (32 distinct values and one world-to-index transform, where six separate trilinear
-// lookups read 48 values through six transforms). Same value as the six lookups, so the normal
-// stays continuous across cell faces (the analytic gradient of one cell's interpolant does not).
+// lookups read 48 values through six transforms). Same value as the six lookups up to rounding,
+// so the normal stays continuous across cell faces (the analytic gradient of one cell's
+// interpolant does not).
+// By linearity, interpolate(hi cell) - interpolate(lo cell) is the interpolation of the corner
+// differences: each of p's 8 corners (weight w) adds w (v[+1] - v[-1]) along each axis, so the
+// three components share the 8 weights, and each corner's value is read once.
 template <typename Get>
 openvdb::Vec3d CentralIndexGradient(const Get& get, const Corners& c, const openvdb::Coord& o) {
   const auto& v = c.v;
-  // Per axis, the cell one voxel below (lo) and above (hi): the outer corners read here, the
-  // inner ones are p's own. Written out per axis (not through index arrays): this runs for
-  // every touching sample and the generic form cost several times the reads.
-  double lo[2][2][2], hi[2][2][2];
-  double g[3];
-  for (int a = 0; a < 2; ++a) {
-    for (int b = 0; b < 2; ++b) {
-      lo[0][a][b] = get(o.offsetBy(-1, a, b));
-      lo[1][a][b] = v[0][a][b];
-      hi[0][a][b] = v[1][a][b];
-      hi[1][a][b] = get(o.offsetBy(2, a, b));
+  const double wx[2] = {1 - c.tx, c.tx}, wy[2] = {1 - c.ty, c.ty}, wz[2] = {1 - c.tz, c.tz};
+  double g[3] = {0, 0, 0};
+  for (int k = 0; k < 2; ++k) {
+    for (int j = 0; j < 2; ++j) {
+      const double wjk = wy[j] * wz[k];
+      // Along x: the corner on the other side of the cell is v[1 - i], the outer one is read.
+      const double x0 = v[1][j][k] - get(o.offsetBy(-1, j, k));
+      const double x1 = get(o.offsetBy(2, j, k)) - v[0][j][k];
+      g[0] += wjk * (wx[0] * x0 + wx[1] * x1);
     }
   }
-  g[0] = (Interpolate(hi, c.tx, c.ty, c.tz) - Interpolate(lo, c.tx, c.ty, c.tz)) / 2;
-  for (int a = 0; a < 2; ++a) {
-    for (int b = 0; b < 2; ++b) {
-      lo[a][0][b] = get(o.offsetBy(a, -1, b));
-      lo[a][1][b] = v[a][0][b];
-      hi[a][0][b] = v[a][1][b];
-      hi[a][1][b] = get(o.offsetBy(a, 2, b));
+  for (int k = 0; k < 2; ++k) {
+    for (int i = 0; i < 2; ++i) {
+      const double wik = wx[i] * wz[k];
+      const double y0 = v[i][1][k] - get(o.offsetBy(i, -1, k));
+      const double y1 = get(o.offsetBy(i, 2, k)) - v[i][0][k];
+      g[1] += wik * (wy[0] * y0 + wy[1] * y1);
     }
   }
-  g[1] = (Interpolate(hi, c.tx, c.ty, c.tz) - Interpolate(lo, c.tx, c.ty, c.tz)) / 2;
-  for (int a = 0; a < 2; ++a) {
-    for (int b = 0; b < 2; ++b) {
-      lo[a][b][0] = get(o.offsetBy(a, b, -1));
-      lo[a][b][1] = v[a][b][0];
-      hi[a][b][0] = v[a][b][1];
-      hi[a][b][1] = get(o.offsetBy(a, b, 2));
+  for (int j = 0; j < 2; ++j) {
+    for (int i = 0; i < 2; ++i) {
+      const double wij = wx[i] * wy[j];
+      const double z0 = v[i][j][1] - get(o.offsetBy(i, j, -1));
+      const double z1 = get(o.offsetBy(i, j, 2)) - v[i][j][0];
+      g[2] += wij * (wz[0] * z0 + wz[1] * z1);
     }
   }
-  g[2] = (Interpolate(hi, c.tx, c.ty, c.tz) - Interpolate(lo, c.tx, c.ty, c.tz)) / 2;
-  return {g[0], g[1], g[2]};
+  return {g[0] / 2, g[1] / 2, g[2] / 2};
 }
 
 }  // namespace
