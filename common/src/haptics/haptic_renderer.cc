@@ -83,6 +83,7 @@ HapticRenderer::HapticRenderer(const HapticSettings& s)
   anchor_.resize(local_.size());
   anchor_phi_.assign(local_.size(), kNan);
   anchor_exact_.assign(local_.size(), 0);
+  skip_until_.assign(local_.size(), -std::numeric_limits<double>::infinity());
   term_.resize(local_.size());
   known_.assign(local_.size(), 0);
 }
@@ -110,6 +111,7 @@ void HapticRenderer::CarryOverSwap(const SdfSampler* sdf) {
   if (!bounded) {
     // Nothing known of the change: what the samples learnt belongs to the old snapshot.
     std::fill(anchor_phi_.begin(), anchor_phi_.end(), kNan);
+    std::fill(skip_until_.begin(), skip_until_.end(), -std::numeric_limits<double>::infinity());
     std::fill(known_.begin(), known_.end(), 0);
     known_count_ = 0;
     return;
@@ -135,12 +137,16 @@ void HapticRenderer::CarryOverSwap(const SdfSampler* sdf) {
   double* anchor_phi = anchor_phi_.data();
   uint8_t* anchor_exact = anchor_exact_.data();
   uint8_t* known_now = known_.data();
+  double* skip_until = skip_until_.data();
+  // The anchor's phi drops by `change`: its skip range by change / L.
+  const double skip_drop = change / kSkipLipschitz;
   int known = 0;
   for (size_t k = 0; k < n; ++k) {
     const Vec3 q = anchor[k];
     const uint8_t inside = (q.x >= lo.x) & (q.y >= lo.y) & (q.z >= lo.z) & (q.x <= hi.x) &
                            (q.y <= hi.y) & (q.z <= hi.z);
     anchor_phi[k] = inside ? anchor_phi[k] - change : kNan;
+    skip_until[k] = inside ? skip_until[k] - skip_drop : -std::numeric_limits<double>::infinity();
     anchor_exact[k] &= exact;
     known_now[k] &= inside;
     known += known_now[k];
@@ -170,6 +176,8 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
   uint8_t* anchor_exact = anchor_exact_.data();
   uint8_t* known = known_.data();
   SampleForce* term = term_.data();
+  double* skip_until = skip_until_.data();
+  const double travelled = travelled_;
   int known_count = known_count_;
   const double stiffness = settings_.stiffness;
   const double rho = rho_;
@@ -181,6 +189,15 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
     if (at >= n) at -= n;
     const size_t k = order[at];
     const Vec3 x = centre + local[k];
+    if (travelled < skip_until[k]) {
+      // The tool has moved less than the anchor's margin allows (implies the test below).
+      term[k] = SampleForce{};
+      known_count += known[k] ? 0 : 1;
+      known[k] = 1;
+      from[k] = x;
+      ++skipped;
+      continue;
+    }
     const Vec3 a = have_previous ? from[k] : x;
     double phi_a = kNan;
     bool sure_to_touch = false;
@@ -266,6 +283,10 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
     anchor[k] = x;
     anchor_phi[k] = phi;
     anchor_exact[k] = 1;
+    // phi(p) >= phi - L |p - x| > range while L (path length from here) < phi - range; a
+    // thousandth less, so the path length's rounding never matters.
+    skip_until[k] = phi > range ? travelled + (phi - range) * (0.999 / kSkipLipschitz)
+                                : -std::numeric_limits<double>::infinity();
   }
   known_count_ = known_count;
   // Resume after the last sample visited; a complete tick starts the next at the coarsest.
@@ -284,6 +305,9 @@ const TickOutput& HapticRenderer::Tick(const std::shared_ptr<const SdfSampler>& 
     return out_;
   }
   const double start_us = settings_.tick_budget_us > 0 ? clock_->NowUs() : 0.0;
+  if (have_centre_) travelled_ += (sample.position - last_centre_).Length();
+  last_centre_ = sample.position;
+  have_centre_ = true;
   const double period = 1.0 / settings_.rate_hz;
   double dt = have_previous_ ? sample.time - previous_time_ : period;
   if (!(dt > 0) || dt > 10 * period) dt = period;  // a stalled or reset device clock
