@@ -30,7 +30,9 @@ struct ThreadAccessor {
   std::optional<Accessor> accessor;
 };
 thread_local ThreadAccessor t_accessor;
-thread_local SculptureSnapshot::LookupCounts t_counts;
+// Initial-exec: the library is loaded with the program (not dlopen'ed), so the counters sit at a
+// fixed offset from the thread pointer instead of behind a __tls_get_addr call per lookup.
+[[gnu::tls_model("initial-exec")]] thread_local SculptureSnapshot::LookupCounts t_counts;
 
 Accessor& AccessorFor(uint64_t id, const Tree& tree) {
   if (t_accessor.id != id) {
@@ -160,13 +162,7 @@ SculptureSnapshot::SculptureSnapshot(std::shared_ptr<const levelset::Sculpture> 
   }
 }
 
-void SculptureSnapshot::ToIndex(const Vec3& p, double (&u)[3]) const {
-  if (scale_map_) {
-    u[0] = (p.x - translate_[0]) * inv_scale_[0];
-    u[1] = (p.y - translate_[1]) * inv_scale_[1];
-    u[2] = (p.z - translate_[2]) * inv_scale_[2];
-    return;
-  }
+void SculptureSnapshot::ToIndexThroughMap(const Vec3& p, double (&u)[3]) const {
   const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
   const openvdb::Vec3d i = grid.transform().worldToIndex(openvdb::Vec3d(p.x, p.y, p.z));
   u[0] = i.x();
@@ -283,23 +279,6 @@ struct WindowGet {
 };
 
 }  // namespace
-
-// Whether the cells origin + [from, to] on every axis lie inside the window.
-bool SculptureSnapshot::InWindow(const int (&origin)[3], int from, int to) const {
-  if (window_.empty()) return false;
-  const int n[3] = {window_n_.x, window_n_.y, window_n_.z};
-  const int lo[3] = {window_lo_.x, window_lo_.y, window_lo_.z};
-  for (int a = 0; a < 3; ++a) {
-    if (origin[a] + from < lo[a] || origin[a] + to >= lo[a] + n[a]) return false;
-  }
-  return true;
-}
-
-const float* SculptureSnapshot::WindowAt(const int (&origin)[3]) const {
-  const ptrdiff_t nx = window_n_.x, nxy = nx * window_n_.y;
-  return window_.data() + (origin[0] - window_lo_.x) + (origin[1] - window_lo_.y) * nx +
-         (origin[2] - window_lo_.z) * nxy;
-}
 
 double SculptureSnapshot::Phi(const Vec3& p) const {
   double u[3];
