@@ -84,9 +84,6 @@ void FillCorners(const Get& get, Corners* c) {
   }
 }
 
-
-
-
 // Central differences of the trilinear interpolant one voxel either side of p, in index units,
 // read as one stencil: p's 8 corners plus the 24 outer corners of the cells one voxel away along
 // each axis (32 distinct values and one world-to-index transform, where six separate trilinear
@@ -287,9 +284,8 @@ double SculptureSnapshot::Phi(const Vec3& p) const {
   const int o[3] = {c.origin.x(), c.origin.y(), c.origin.z()};
   if (InWindow(o, 0, 1)) {
     c.origin = openvdb::Coord(0, 0, 0);  // offsets from WindowAt(o)
-    FillCorners(WindowGet{WindowAt(o), window_n_.x,
-                          static_cast<ptrdiff_t>(window_n_.x) * window_n_.y},
-                &c);
+    FillCorners(
+        WindowGet{WindowAt(o), window_n_.x, static_cast<ptrdiff_t>(window_n_.x) * window_n_.y}, &c);
     ++t_counts.window_phi;
   } else {
     const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
