@@ -3,6 +3,8 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <deque>
 #include <memory>
 #include <numbers>
@@ -89,6 +91,27 @@ Json TickCost(const std::shared_ptr<const haptics::SdfSampler>& sdf,
   return j;
 }
 
+// FNV-1a over the bits of every timed tick's force: two builds that print the same hash gave
+// the same forces (a change to the tick's arithmetic shows here before it shows in a figure).
+struct ForceHash {
+  uint64_t h = 1469598103934665603ull;
+  void Add(const Vec3& f) {
+    for (double v : {f.x, f.y, f.z}) {
+      uint64_t bits;
+      std::memcpy(&bits, &v, sizeof bits);
+      for (int i = 0; i < 8; ++i) {
+        h ^= (bits >> (8 * i)) & 0xff;
+        h *= 1099511628211ull;
+      }
+    }
+  }
+  std::string Hex() const {
+    char buf[17];
+    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+    return buf;
+  }
+};
+
 // As a replica feeding the loop does: a new snapshot of the same sculpture every `swap_every`
 // ticks, each with a dense window of the band around the tool where the tick starts (filled
 // untimed, as the replica's thread does; its cost is reported apart).
@@ -103,6 +126,7 @@ Json WindowTickCost(const std::shared_ptr<const levelset::Sculpture>& sculpture,
   // the others, and how many of them fell back to the tree.
   Samples lookups, swap_lookups, stencils, swap_stencils;
   uint64_t tree_lookups = 0;
+  ForceHash force_hash;
   std::shared_ptr<const haptics::SculptureSnapshot> snap;
   std::deque<std::shared_ptr<const haptics::SculptureSnapshot>> retained;
   for (int i = -200; i < ticks; ++i) {
@@ -134,6 +158,7 @@ Json WindowTickCost(const std::shared_ptr<const levelset::Sculpture>& sculpture,
         .Add(static_cast<double>(n.window_stencil + n.tree_stencil));
     tree_lookups += n.tree();
     over_budget += o.over_budget ? 1 : 0;
+    force_hash.Add(o.force);
   }
   Json j = us.Summary();
   j["p999"] = us.P(0.999);
@@ -142,6 +167,7 @@ Json WindowTickCost(const std::shared_ptr<const levelset::Sculpture>& sculpture,
   j["window_fill_ms"] = fill_ms.Summary();
   j["swaps_carried"] = r->swaps_carried();
   j["swaps"] = r->swaps();
+  j["force_hash"] = force_hash.Hex();
   j["lookups_per_tick"] = Json{{"other_mean", lookups.Mean()},
                                {"other_max", lookups.Max()},
                                {"swap_mean", swap_lookups.Mean()},

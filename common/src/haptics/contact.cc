@@ -20,7 +20,7 @@ SegmentHit SweepSegment(const SdfSampler& sdf, const Vec3& a, const Vec3& b, dou
 }
 
 SegmentHit SweepSegment(const SdfSampler& sdf, const Vec3& a, const Vec3& b, double iso,
-                        double phi_a, double* phi_b) {
+                        double phi_a, double* phi_b, double known_phi_b) {
   SegmentHit r;
   if (phi_b != nullptr) *phi_b = std::numeric_limits<double>::quiet_NaN();
   if (!a.IsFinite() || !b.IsFinite()) return r;
@@ -42,7 +42,8 @@ SegmentHit SweepSegment(const SdfSampler& sdf, const Vec3& a, const Vec3& b, dou
   while (t_free < 1) {
     const double step = std::max(min_step, phi_free / kLipschitz / length);
     const double t = std::min(1.0, t_free + step);
-    const double phi = sdf.Phi(a + (b - a) * t) - iso;
+    const double phi =
+        (t == 1.0 && !std::isnan(known_phi_b) ? known_phi_b : sdf.Phi(a + (b - a) * t)) - iso;
     if (phi <= 0) {
       // Bisect [t_free, t] for the crossing; keep the free side for a proxy to stop on.
       double lo = t_free, hi = t;

@@ -83,6 +83,7 @@ HapticRenderer::HapticRenderer(const HapticSettings& s)
   anchor_.resize(local_.size());
   anchor_phi_.assign(local_.size(), kNan);
   anchor_exact_.assign(local_.size(), 0);
+  skip_until_.assign(local_.size(), -std::numeric_limits<double>::infinity());
   term_.resize(local_.size());
   known_.assign(local_.size(), 0);
 }
@@ -110,6 +111,7 @@ void HapticRenderer::CarryOverSwap(const SdfSampler* sdf) {
   if (!bounded) {
     // Nothing known of the change: what the samples learnt belongs to the old snapshot.
     std::fill(anchor_phi_.begin(), anchor_phi_.end(), kNan);
+    std::fill(skip_until_.begin(), skip_until_.end(), -std::numeric_limits<double>::infinity());
     std::fill(known_.begin(), known_.end(), 0);
     known_count_ = 0;
     return;
@@ -135,12 +137,16 @@ void HapticRenderer::CarryOverSwap(const SdfSampler* sdf) {
   double* anchor_phi = anchor_phi_.data();
   uint8_t* anchor_exact = anchor_exact_.data();
   uint8_t* known_now = known_.data();
+  double* skip_until = skip_until_.data();
+  // The anchor's phi drops by `change`: its skip range by change / L.
+  const double skip_drop = change / kSkipLipschitz;
   int known = 0;
   for (size_t k = 0; k < n; ++k) {
     const Vec3 q = anchor[k];
     const uint8_t inside = (q.x >= lo.x) & (q.y >= lo.y) & (q.z >= lo.z) & (q.x <= hi.x) &
                            (q.y <= hi.y) & (q.z <= hi.z);
     anchor_phi[k] = inside ? anchor_phi[k] - change : kNan;
+    skip_until[k] = inside ? skip_until[k] - skip_drop : -std::numeric_limits<double>::infinity();
     anchor_exact[k] &= exact;
     known_now[k] &= inside;
     known += known_now[k];
@@ -157,47 +163,88 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
   const double range = area ? PenaltyContactRange(rho_) : 0.0;
   SweptContact& c = out->swept;
   int evaluated = 0, skipped = 0;
+  // The arrays and the loop's state through locals: a store through a byte or double pointer
+  // may alias any member, and the members would be loaded again after each one (this loop runs
+  // for every sample, and most of them only take the skip test).
+  const bool have_previous = have_previous_;
+  const size_t cursor = cursor_;
+  const uint32_t* order = order_.data();
+  const Vec3* local = local_.data();
+  Vec3* from = from_.data();
+  Vec3* anchor = anchor_.data();
+  double* anchor_phi = anchor_phi_.data();
+  uint8_t* anchor_exact = anchor_exact_.data();
+  uint8_t* known = known_.data();
+  SampleForce* term = term_.data();
+  double* skip_until = skip_until_.data();
+  const double travelled = travelled_;
+  int known_count = known_count_;
+  const double stiffness = settings_.stiffness;
+  const double rho = rho_;
+  const Vec3 last_normal = last_normal_;
   size_t visited = 0;
   bool stopped = false;
   for (; visited < n; ++visited) {
-    size_t at = cursor_ + visited;
+    size_t at = cursor + visited;
     if (at >= n) at -= n;
-    const size_t k = order_[at];
-    const Vec3 x = centre + local_[k];
-    const Vec3 a = have_previous_ ? from_[k] : x;
+    const size_t k = order[at];
+    const Vec3 x = centre + local[k];
+    if (travelled < skip_until[k]) {
+      // The tool has moved less than the anchor's margin allows (implies the test below).
+      term[k] = SampleForce{};
+      known_count += known[k] ? 0 : 1;
+      known[k] = 1;
+      from[k] = x;
+      ++skipped;
+      continue;
+    }
+    const Vec3 a = have_previous ? from[k] : x;
     double phi_a = kNan;
-    if (!std::isnan(anchor_phi_[k])) {
+    bool sure_to_touch = false;
+    if (!std::isnan(anchor_phi[k])) {
       // phi >= anchor_phi - L |p - anchor| along a -> x: the distance to the anchor is convex
       // along the segment, so its largest value is at an end.
       // Compared squared: no square root for the samples skipped, most of them.
-      const double margin = anchor_phi_[k] - range;
-      const double da2 = (a - anchor_[k]).LengthSqr(), dx2 = (x - anchor_[k]).LengthSqr();
+      const double margin = anchor_phi[k] - range;
+      const double da2 = (a - anchor[k]).LengthSqr(), dx2 = (x - anchor[k]).LengthSqr();
       if (margin > 0 && margin * margin > kSkipLipschitz * kSkipLipschitz * std::max(da2, dx2)) {
-        term_[k] = SampleForce{};
-        known_count_ += known_[k] ? 0 : 1;
-        known_[k] = 1;
-        from_[k] = x;
+        term[k] = SampleForce{};
+        known_count += known[k] ? 0 : 1;
+        known[k] = 1;
+        from[k] = x;
         ++skipped;
         continue;
       }
       // A lower bound is a safe start for the sweep's steps only while it says "free", and
       // only for a path that has length (the sweep returns its start as phi at its end).
-      const double bound = anchor_phi_[k] - kSkipLipschitz * std::sqrt(da2);
-      if (da2 == 0 && anchor_exact_[k]) {
-        phi_a = anchor_phi_[k];
+      const double bound = anchor_phi[k] - kSkipLipschitz * std::sqrt(da2);
+      if (da2 == 0 && anchor_exact[k]) {
+        phi_a = anchor_phi[k];
       } else if (bound > 0 && !(a == x)) {
         phi_a = bound;
       }
+      // From an exact anchor phi at x is at most anchor_phi + L |x - anchor|: below the
+      // contact range, the penalty needs the gradient at x whatever the sweep finds.
+      sure_to_touch = anchor_exact[k] && anchor_phi[k] + kSkipLipschitz * std::sqrt(dx2) < range;
     }
     if (evaluated > 0 && OutOfBudget(evaluated, start_us)) {
       stopped = true;
       break;
     }
     ++evaluated;
+    // A sample sure to touch reads phi and the gradient at x from one stencil first, and the
+    // sweep takes that phi where it reaches x instead of reading the 8 corners again.
+    double phi_x = kNan;
+    Vec3 g;
+    bool have_g = false;
+    if (penalty && sure_to_touch) {
+      sdf.PhiAndGradient(x, &phi_x, &g);
+      have_g = true;
+    }
     double phi = kNan;
     bool hit = false;
-    if (have_previous_) {
-      const SegmentHit h = SweepSegment(sdf, a, x, 0.0, phi_a, &phi);
+    if (have_previous) {
+      const SegmentHit h = SweepSegment(sdf, a, x, 0.0, phi_a, &phi, phi_x);
       hit = h.hit;
       // Ties go to the lowest index, whatever the visiting order.
       const int index = static_cast<int>(k);
@@ -210,10 +257,10 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
     }
     SampleForce f;
     if (penalty) {
-      Vec3 g;
-      bool have_g = false;
       if (std::isnan(phi)) {
-        if (hit) {
+        if (have_g) {
+          phi = phi_x;
+        } else if (hit) {
           // Touching: the gradient is needed; one stencil gives both.
           sdf.PhiAndGradient(x, &phi, &g);
           have_g = true;
@@ -221,25 +268,29 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
           phi = sdf.Phi(x);
         }
       }
-      if (area ? phi < rho_ : phi <= 0) {
+      if (area ? phi < rho : phi <= 0) {
         if (!have_g) g = sdf.Gradient(x);
-        f = area ? AreaWeightedSampleForce(x, phi, g, rho_, settings_.stiffness, centre,
-                                           last_normal_)
-                 : PenaltySampleForce(phi, g, settings_.stiffness, last_normal_);
+        f = area ? AreaWeightedSampleForce(x, phi, g, rho, stiffness, centre, last_normal)
+                 : PenaltySampleForce(phi, g, stiffness, last_normal);
       }
     } else if (std::isnan(phi)) {
       phi = sdf.Phi(x);
     }
-    term_[k] = f;
-    known_count_ += known_[k] ? 0 : 1;
-    known_[k] = 1;
-    from_[k] = x;
-    anchor_[k] = x;
-    anchor_phi_[k] = phi;
-    anchor_exact_[k] = 1;
+    term[k] = f;
+    known_count += known[k] ? 0 : 1;
+    known[k] = 1;
+    from[k] = x;
+    anchor[k] = x;
+    anchor_phi[k] = phi;
+    anchor_exact[k] = 1;
+    // phi(p) >= phi - L |p - x| > range while L (path length from here) < phi - range; a
+    // thousandth less, so the path length's rounding never matters.
+    skip_until[k] = phi > range ? travelled + (phi - range) * (0.999 / kSkipLipschitz)
+                                : -std::numeric_limits<double>::infinity();
   }
+  known_count_ = known_count;
   // Resume after the last sample visited; a complete tick starts the next at the coarsest.
-  cursor_ = stopped ? (cursor_ + visited) % n : 0;
+  cursor_ = stopped ? (cursor + visited) % n : 0;
   out->over_budget = stopped;
   out->samples_evaluated = evaluated;
   out->samples_skipped = skipped;
@@ -254,6 +305,9 @@ const TickOutput& HapticRenderer::Tick(const std::shared_ptr<const SdfSampler>& 
     return out_;
   }
   const double start_us = settings_.tick_budget_us > 0 ? clock_->NowUs() : 0.0;
+  if (have_centre_) travelled_ += (sample.position - last_centre_).Length();
+  last_centre_ = sample.position;
+  have_centre_ = true;
   const double period = 1.0 / settings_.rate_hz;
   double dt = have_previous_ ? sample.time - previous_time_ : period;
   if (!(dt > 0) || dt > 10 * period) dt = period;  // a stalled or reset device clock

@@ -30,7 +30,9 @@ struct ThreadAccessor {
   std::optional<Accessor> accessor;
 };
 thread_local ThreadAccessor t_accessor;
-thread_local SculptureSnapshot::LookupCounts t_counts;
+// Initial-exec: the library is loaded with the program (not dlopen'ed), so the counters sit at a
+// fixed offset from the thread pointer instead of behind a __tls_get_addr call per lookup.
+[[gnu::tls_model("initial-exec")]] thread_local SculptureSnapshot::LookupCounts t_counts;
 
 Accessor& AccessorFor(uint64_t id, const Tree& tree) {
   if (t_accessor.id != id) {
@@ -58,14 +60,13 @@ struct Corners {
   return y0 + tz * (y1 - y0);
 }
 
-// p's cell and its fractional position, without reading values.
-Corners Locate(const openvdb::math::Transform& xform, const Vec3& p) {
-  const openvdb::Vec3d u = xform.worldToIndex(openvdb::Vec3d(p.x, p.y, p.z));
-  const double fx = std::floor(u.x()), fy = std::floor(u.y()), fz = std::floor(u.z());
+// The cell holding index position u, and u's fractional position in it, without reading values.
+Corners Locate(const double (&u)[3]) {
+  const double fx = std::floor(u[0]), fy = std::floor(u[1]), fz = std::floor(u[2]);
   Corners c;
-  c.tx = u.x() - fx;
-  c.ty = u.y() - fy;
-  c.tz = u.z() - fz;
+  c.tx = u[0] - fx;
+  c.ty = u[1] - fy;
+  c.tz = u[2] - fz;
   c.origin = openvdb::Coord(static_cast<int>(fx), static_cast<int>(fy), static_cast<int>(fz));
   return c;
 }
@@ -83,50 +84,46 @@ void FillCorners(const Get& get, Corners* c) {
   }
 }
 
-
-
-
 // Central differences of the trilinear interpolant one voxel either side of p, in index units,
 // read as one stencil: p's 8 corners plus the 24 outer corners of the cells one voxel away along
 // each axis (32 distinct values and one world-to-index transform, where six separate trilinear
-// lookups read 48 values through six transforms). Same value as the six lookups, so the normal
-// stays continuous across cell faces (the analytic gradient of one cell's interpolant does not).
+// lookups read 48 values through six transforms). Same value as the six lookups up to rounding,
+// so the normal stays continuous across cell faces (the analytic gradient of one cell's
+// interpolant does not).
+// By linearity, interpolate(hi cell) - interpolate(lo cell) is the interpolation of the corner
+// differences: each of p's 8 corners (weight w) adds w (v[+1] - v[-1]) along each axis, so the
+// three components share the 8 weights, and each corner's value is read once.
 template <typename Get>
 openvdb::Vec3d CentralIndexGradient(const Get& get, const Corners& c, const openvdb::Coord& o) {
   const auto& v = c.v;
-  // Per axis, the cell one voxel below (lo) and above (hi): the outer corners read here, the
-  // inner ones are p's own. Written out per axis (not through index arrays): this runs for
-  // every touching sample and the generic form cost several times the reads.
-  double lo[2][2][2], hi[2][2][2];
-  double g[3];
-  for (int a = 0; a < 2; ++a) {
-    for (int b = 0; b < 2; ++b) {
-      lo[0][a][b] = get(o.offsetBy(-1, a, b));
-      lo[1][a][b] = v[0][a][b];
-      hi[0][a][b] = v[1][a][b];
-      hi[1][a][b] = get(o.offsetBy(2, a, b));
+  const double wx[2] = {1 - c.tx, c.tx}, wy[2] = {1 - c.ty, c.ty}, wz[2] = {1 - c.tz, c.tz};
+  double g[3] = {0, 0, 0};
+  for (int k = 0; k < 2; ++k) {
+    for (int j = 0; j < 2; ++j) {
+      const double wjk = wy[j] * wz[k];
+      // Along x: the corner on the other side of the cell is v[1 - i], the outer one is read.
+      const double x0 = v[1][j][k] - get(o.offsetBy(-1, j, k));
+      const double x1 = get(o.offsetBy(2, j, k)) - v[0][j][k];
+      g[0] += wjk * (wx[0] * x0 + wx[1] * x1);
     }
   }
-  g[0] = (Interpolate(hi, c.tx, c.ty, c.tz) - Interpolate(lo, c.tx, c.ty, c.tz)) / 2;
-  for (int a = 0; a < 2; ++a) {
-    for (int b = 0; b < 2; ++b) {
-      lo[a][0][b] = get(o.offsetBy(a, -1, b));
-      lo[a][1][b] = v[a][0][b];
-      hi[a][0][b] = v[a][1][b];
-      hi[a][1][b] = get(o.offsetBy(a, 2, b));
+  for (int k = 0; k < 2; ++k) {
+    for (int i = 0; i < 2; ++i) {
+      const double wik = wx[i] * wz[k];
+      const double y0 = v[i][1][k] - get(o.offsetBy(i, -1, k));
+      const double y1 = get(o.offsetBy(i, 2, k)) - v[i][0][k];
+      g[1] += wik * (wy[0] * y0 + wy[1] * y1);
     }
   }
-  g[1] = (Interpolate(hi, c.tx, c.ty, c.tz) - Interpolate(lo, c.tx, c.ty, c.tz)) / 2;
-  for (int a = 0; a < 2; ++a) {
-    for (int b = 0; b < 2; ++b) {
-      lo[a][b][0] = get(o.offsetBy(a, b, -1));
-      lo[a][b][1] = v[a][b][0];
-      hi[a][b][0] = v[a][b][1];
-      hi[a][b][1] = get(o.offsetBy(a, b, 2));
+  for (int j = 0; j < 2; ++j) {
+    for (int i = 0; i < 2; ++i) {
+      const double wij = wx[i] * wy[j];
+      const double z0 = v[i][j][1] - get(o.offsetBy(i, j, -1));
+      const double z1 = get(o.offsetBy(i, j, 2)) - v[i][j][0];
+      g[2] += wij * (wz[0] * z0 + wz[1] * z1);
     }
   }
-  g[2] = (Interpolate(hi, c.tx, c.ty, c.tz) - Interpolate(lo, c.tx, c.ty, c.tz)) / 2;
-  return {g[0], g[1], g[2]};
+  return {g[0] / 2, g[1] / 2, g[2] / 2};
 }
 
 }  // namespace
@@ -141,7 +138,34 @@ SculptureSnapshot::SculptureSnapshot(std::shared_ptr<const levelset::Sculpture> 
     : sculpture_(std::move(sculpture)),
       grid_(sculpture_->impl().grid.get()),
       voxel_size_(sculpture_->voxel_size()),
-      id_(g_next_id.fetch_add(1, std::memory_order_relaxed)) {}
+      id_(g_next_id.fetch_add(1, std::memory_order_relaxed)) {
+  const auto& map = *static_cast<const openvdb::FloatGrid*>(grid_)->transform().baseMap();
+  // The maps whose applyInverseMap is (p - t) * inv and applyIJT is g * inv (ScaleMap and
+  // UniformScaleMap have t = 0, and p - 0 is p).
+  openvdb::Vec3d t(0, 0, 0), inv;
+  if (const auto* st = dynamic_cast<const openvdb::math::ScaleTranslateMap*>(&map)) {
+    t = st->getTranslation();
+    inv = st->getInvScale();
+    scale_map_ = true;
+  } else if (const auto* sc = dynamic_cast<const openvdb::math::ScaleMap*>(&map)) {
+    inv = sc->getInvScale();
+    scale_map_ = true;
+  }
+  if (scale_map_) {
+    for (int a = 0; a < 3; ++a) {
+      translate_[a] = t[a];
+      inv_scale_[a] = inv[a];
+    }
+  }
+}
+
+void SculptureSnapshot::ToIndexThroughMap(const Vec3& p, double (&u)[3]) const {
+  const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
+  const openvdb::Vec3d i = grid.transform().worldToIndex(openvdb::Vec3d(p.x, p.y, p.z));
+  u[0] = i.x();
+  u[1] = i.y();
+  u[2] = i.z();
+}
 
 SculptureSnapshot::SculptureSnapshot(std::shared_ptr<const levelset::Sculpture> sculpture,
                                      const Vec3& window_centre, double window_radius,
@@ -240,39 +264,31 @@ SculptureSnapshot::LookupCounts SculptureSnapshot::ThreadLookupCounts() { return
 
 namespace {
 
-// Reads the dense window: the caller checked that every coordinate read lies inside.
+// Reads the dense window around one cell: `base` is the cell's value, and a coordinate is an
+// offset from the cell (the caller checked that every one read lies inside). The offsets of a
+// stencil are constants, so each read is one load at a fixed distance from `base`.
 struct WindowGet {
-  const float* values;
-  int lo[3];
-  int nx, nxy;
-  double operator()(const openvdb::Coord& c) const {
-    return values[(c.x() - lo[0]) + (c.y() - lo[1]) * nx + static_cast<size_t>(c.z() - lo[2]) * nxy];
+  const float* base;
+  ptrdiff_t nx, nxy;
+  double operator()(const openvdb::Coord& d) const {
+    return base[d.x() + d.y() * nx + d.z() * nxy];
   }
 };
 
 }  // namespace
 
-// Whether the cells origin + [from, to] on every axis lie inside the window.
-bool SculptureSnapshot::InWindow(const int (&origin)[3], int from, int to) const {
-  if (window_.empty()) return false;
-  const int n[3] = {window_n_.x, window_n_.y, window_n_.z};
-  const int lo[3] = {window_lo_.x, window_lo_.y, window_lo_.z};
-  for (int a = 0; a < 3; ++a) {
-    if (origin[a] + from < lo[a] || origin[a] + to >= lo[a] + n[a]) return false;
-  }
-  return true;
-}
-
 double SculptureSnapshot::Phi(const Vec3& p) const {
-  const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
-  Corners c = Locate(grid.transform(), p);
+  double u[3];
+  ToIndex(p, u);
+  Corners c = Locate(u);
   const int o[3] = {c.origin.x(), c.origin.y(), c.origin.z()};
   if (InWindow(o, 0, 1)) {
-    FillCorners(WindowGet{window_.data(), {window_lo_.x, window_lo_.y, window_lo_.z}, window_n_.x,
-                          window_n_.x * window_n_.y},
-                &c);
+    c.origin = openvdb::Coord(0, 0, 0);  // offsets from WindowAt(o)
+    FillCorners(
+        WindowGet{WindowAt(o), window_n_.x, static_cast<ptrdiff_t>(window_n_.x) * window_n_.y}, &c);
     ++t_counts.window_phi;
   } else {
+    const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
     Accessor& acc = AccessorFor(id_, grid.tree());
     FillCorners([&acc](const openvdb::Coord& ijk) { return acc.getValue(ijk); }, &c);
     ++t_counts.tree_phi;
@@ -282,13 +298,15 @@ double SculptureSnapshot::Phi(const Vec3& p) const {
 
 void SculptureSnapshot::PhiAndGradient(const Vec3& p, double* phi, Vec3* gradient) const {
   const auto& grid = *static_cast<const openvdb::FloatGrid*>(grid_);
-  const auto& xform = grid.transform();
-  Corners c = Locate(xform, p);
+  double u[3];
+  ToIndex(p, u);
+  Corners c = Locate(u);
   const int o[3] = {c.origin.x(), c.origin.y(), c.origin.z()};
   openvdb::Vec3d gi;
   if (InWindow(o, -1, 2)) {
-    const WindowGet get{window_.data(), {window_lo_.x, window_lo_.y, window_lo_.z}, window_n_.x,
-                        window_n_.x * window_n_.y};
+    const WindowGet get{WindowAt(o), window_n_.x,
+                        static_cast<ptrdiff_t>(window_n_.x) * window_n_.y};
+    c.origin = openvdb::Coord(0, 0, 0);
     FillCorners(get, &c);
     gi = CentralIndexGradient(get, c, c.origin);
     ++t_counts.window_stencil;
@@ -302,7 +320,11 @@ void SculptureSnapshot::PhiAndGradient(const Vec3& p, double* phi, Vec3* gradien
   *phi = Interpolate(c.v, c.tx, c.ty, c.tz);
   // World gradient: the index gradient through the inverse transpose of the index-to-world map
   // (for the uniform scale of a level set, divided by the voxel size).
-  const openvdb::Vec3d gw = xform.baseMap()->applyIJT(gi);
+  if (scale_map_) {
+    *gradient = {gi.x() * inv_scale_[0], gi.y() * inv_scale_[1], gi.z() * inv_scale_[2]};
+    return;
+  }
+  const openvdb::Vec3d gw = grid.transform().baseMap()->applyIJT(gi);
   *gradient = {gw.x(), gw.y(), gw.z()};
 }
 

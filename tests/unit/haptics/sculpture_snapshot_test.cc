@@ -51,6 +51,32 @@ TEST(SculptureSnapshotTest, DenseWindowGivesTheTreesBits) {
   EXPECT_EQ(SculptureSnapshot(shared, Vec3{NAN, 0, 0}, 3).window_values(), 0u);
 }
 
+// The stencil's gradient (the corner differences interpolated with shared weights) is the
+// central difference of the snapshot's own trilinear phi one voxel either side, up to rounding:
+// the function whose continuity across cell faces the hard-case tests rely on.
+TEST(SculptureSnapshotTest, StencilGradientIsTheCentralDifferenceOfPhi) {
+  levelset::SculptureOptions o;
+  o.voxel_size = 0.5;
+  auto s = levelset::Sculpture::MakeSphere(o, {1, 2, 3}, 8.0);
+  ASSERT_TRUE(s.ok());
+  auto shared = std::make_shared<const levelset::Sculpture>(std::move(s).value());
+  const Vec3 centre{9, 2, 3};
+  const SculptureSnapshot tree(shared), window(shared, centre, 3.0);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-2.0, 2.0);
+  const double h = 0.5;
+  for (int i = 0; i < 2000; ++i) {
+    const Vec3 p = centre + Vec3{u(rng), u(rng), u(rng)};
+    const Vec3 expected{(tree.Phi(p + Vec3{h, 0, 0}) - tree.Phi(p - Vec3{h, 0, 0})) / (2 * h),
+                        (tree.Phi(p + Vec3{0, h, 0}) - tree.Phi(p - Vec3{0, h, 0})) / (2 * h),
+                        (tree.Phi(p + Vec3{0, 0, h}) - tree.Phi(p - Vec3{0, 0, h})) / (2 * h)};
+    for (const SculptureSnapshot* snap : {&tree, &window}) {
+      const Vec3 g = snap->Gradient(p);
+      ASSERT_NEAR((g - expected).Length(), 0, 1e-9) << i;
+    }
+  }
+}
+
 TEST(SculptureSnapshotTest, IdsAreUniqueAndTheCopyIsIndependent) {
   levelset::SculptureOptions o;
   auto s = levelset::Sculpture::MakeSphere(o, {0, 0, 0}, 10.0);

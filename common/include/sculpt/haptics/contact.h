@@ -3,6 +3,7 @@
 #ifndef SCULPT_HAPTICS_CONTACT_H_
 #define SCULPT_HAPTICS_CONTACT_H_
 
+#include <limits>
 #include <vector>
 
 #include "sculpt/core/vec3.h"
@@ -28,8 +29,11 @@ SegmentHit SweepSegment(const SdfSampler& sdf, const Vec3& a, const Vec3& b, dou
 /// As above with phi(a) already known (`phi_a`, not offset by iso; NaN: unknown); phi(b) is
 /// written to `*phi_b` when the march reaches b without a hit, NaN otherwise. The haptic
 /// renderer carries each sample's phi from one tick to the next this way.
+/// `known_phi_b` (not offset by iso; NaN: unknown), when given, is Phi(b): the step that reaches
+/// b takes it instead of reading phi again (the renderer reads it with the gradient first).
 SegmentHit SweepSegment(const SdfSampler& sdf, const Vec3& a, const Vec3& b, double iso,
-                        double phi_a, double* phi_b);
+                        double phi_a, double* phi_b,
+                        double known_phi_b = std::numeric_limits<double>::quiet_NaN());
 
 /// The first contact of a tool moving from `from` to `to` (sample k moves from from[k] to to[k];
 /// the two must have the same size, otherwise no contact is reported).

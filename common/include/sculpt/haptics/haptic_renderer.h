@@ -119,6 +119,14 @@ class HapticRenderer {
   std::vector<Vec3> from_, anchor_;
   std::vector<double> anchor_phi_;
   std::vector<uint8_t> anchor_exact_;  // anchor_phi_ is phi itself (not a bound) on this snapshot
+  // The tool centre's path length so far (each tick adds how far it moved), and per sample the
+  // path length below which its anchor alone proves it out of range: a sample is within
+  // travelled_ - (travelled_ at its anchor) of the anchor, so one compare skips it where the
+  // distances to the anchor would otherwise be worked out (most samples, every tick).
+  double travelled_ = 0;
+  Vec3 last_centre_;
+  bool have_centre_ = false;
+  std::vector<double> skip_until_;
   std::vector<SampleForce> term_;
   std::vector<uint8_t> known_;
   int known_count_ = 0;

@@ -2,6 +2,7 @@
 #ifndef SCULPT_HAPTICS_SCULPTURE_SNAPSHOT_H_
 #define SCULPT_HAPTICS_SCULPTURE_SNAPSHOT_H_
 
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -79,8 +80,34 @@ class SculptureSnapshot : public SdfSampler {
   const void* grid_;
   double voxel_size_;
   uint64_t id_;
+  // World to index as the grid's map computes it, without its virtual call, when the map is an
+  // axis-aligned scale and translation (a level set's is): (p - translate_) * inv_scale_, the
+  // same bits. Also the index-to-world gradient map (times inv_scale_).
+  // Defined here, not in the .cc: an exported member of a shared library is not inlined there
+  // (another library could interpose it), and these run for every lookup.
+  void ToIndex(const Vec3& p, double (&u)[3]) const {
+    if (!scale_map_) return ToIndexThroughMap(p, u);
+    u[0] = (p.x - translate_[0]) * inv_scale_[0];
+    u[1] = (p.y - translate_[1]) * inv_scale_[1];
+    u[2] = (p.z - translate_[2]) * inv_scale_[2];
+  }
+  void ToIndexThroughMap(const Vec3& p, double (&u)[3]) const;
+  bool scale_map_ = false;
+  double translate_[3] = {0, 0, 0}, inv_scale_[3] = {1, 1, 1};
   // The dense window: values on index box window_lo_ + [0, window_n_), x fastest.
-  bool InWindow(const int (&origin)[3], int from, int to) const;
+  // Whether the cells origin + [from, to] on every axis lie inside the window.
+  bool InWindow(const int (&origin)[3], int from, int to) const {
+    return !window_.empty() && origin[0] + from >= window_lo_.x &&
+           origin[0] + to < window_lo_.x + window_n_.x && origin[1] + from >= window_lo_.y &&
+           origin[1] + to < window_lo_.y + window_n_.y && origin[2] + from >= window_lo_.z &&
+           origin[2] + to < window_lo_.z + window_n_.z;
+  }
+  // The window value at cell `origin` (which the caller checked lies inside).
+  const float* WindowAt(const int (&origin)[3]) const {
+    const ptrdiff_t nx = window_n_.x, nxy = nx * window_n_.y;
+    return window_.data() + (origin[0] - window_lo_.x) + (origin[1] - window_lo_.y) * nx +
+           (origin[2] - window_lo_.z) * nxy;
+  }
   levelset::Int3 window_lo_{0, 0, 0}, window_n_{0, 0, 0};
   std::vector<float> window_;
   // Against the window of the snapshot with id change_base_id_ (0: none): the largest value
