@@ -226,7 +226,9 @@ TEST(HapticsHardCases, RemovedMaterialDecaysWithoutSpike) {
       const double f = o.force.Length();
       EXPECT_LE(f, last + 1e-9) << ForceModelName(model) << " tick " << i;  // no spike
       EXPECT_LE(last - f, before / blend_ticks + 1e-9) << ForceModelName(model) << " tick " << i;
-      if (i >= blend_ticks) EXPECT_EQ(f, 0) << ForceModelName(model) << " tick " << i;
+      if (i >= blend_ticks) {
+        EXPECT_EQ(f, 0) << ForceModelName(model) << " tick " << i;
+      }
       last = f;
     }
   }
