@@ -62,6 +62,13 @@ try {
   const totals = await viewer.evaluate(() => window.sculpt.meshes.totals());
   check('viewer: triangles drawn equal the server chunk totals',
     totals.faces === totals.serverFaces && totals.faces > 1000, JSON.stringify(totals));
+  // A frame drawn after every chunk was in the scene (on a loaded machine the page's frames
+  // are spaced out and the next one may not have come yet).
+  const framesBefore = await viewer.evaluate(() => {
+    window.sculpt.invalidate();
+    return window.sculpt.stats.frames || 0;
+  });
+  await waitFor(viewer, (n) => (window.sculpt.stats.frames || 0) > n, framesBefore);
   const pixels = await viewer.evaluate(() => {
     const src = window.sculpt.renderer.domElement;
     const c = document.createElement('canvas');
