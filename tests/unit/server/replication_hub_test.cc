@@ -13,10 +13,10 @@
 #include <tuple>
 #include <vector>
 
-#include "sculpt/codec/frame.h"
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/region.h"
 #include "sculpt/v1/sculpt.pb.h"
+#include "unit/server/fake_sink.h"
 
 namespace sculpt::server {
 namespace {
@@ -25,32 +25,7 @@ using levelset::Int3;
 using levelset::Sculpture;
 using levelset::VoxelBox;
 
-// A session's end of a subscription: keeps the frames it is sent, as the session would queue
-// them.
-struct FakeSink {
-  explicit FakeSink(uint64_t id) : session_id(id) {}
-  uint64_t session_id = 0;
-  std::vector<std::shared_ptr<const std::string>> frames;
-
-  ReplicaSink sink() {
-    ReplicaSink s;
-    s.session_id = session_id;
-    s.client_id = session_id + 100;
-    s.send = [this](std::shared_ptr<const std::string> f) { frames.push_back(std::move(f)); };
-    return s;
-  }
-  v1::ServerMessage Message(size_t i) const {
-    v1::ServerMessage m;
-    codec::FrameReader reader;
-    reader.Feed(frames.at(i)->data(), frames.at(i)->size());
-    auto payload = reader.Next();
-    EXPECT_TRUE(payload.ok() && *payload);
-    if (payload.ok() && *payload) {
-      EXPECT_TRUE(m.ParseFromString(**payload));
-    }
-    return m;
-  }
-};
+using testing::FakeSink;
 
 using CellSet = std::set<std::tuple<int, int, int>>;
 

@@ -11,9 +11,9 @@
 #include <string>
 #include <vector>
 
-#include "sculpt/codec/frame.h"
 #include "sculpt/levelset/region.h"
 #include "sculpt/v1/sculpt.pb.h"
+#include "unit/server/fake_sink.h"
 
 namespace sculpt::server {
 namespace {
@@ -22,33 +22,14 @@ namespace fs = std::filesystem;
 
 constexpr const char* kSkin = "outline";
 
-// A session's end of a subscription: keeps the frames it is sent, as the session would queue
-// them.
-struct FakeSink {
-  explicit FakeSink(uint64_t id) : session_id(id) {}
-  uint64_t session_id = 0;
-  std::vector<std::shared_ptr<const std::string>> frames;
+using testing::FakeSink;
 
-  ReplicaSink sink() {
-    ReplicaSink s;
-    s.session_id = session_id;
-    s.client_id = session_id + 100;
-    s.send = [this](std::shared_ptr<const std::string> f) { frames.push_back(std::move(f)); };
-    return s;
-  }
-  v1::ContourUpdate Update(size_t i) const {
-    v1::ServerMessage m;
-    codec::FrameReader reader;
-    reader.Feed(frames.at(i)->data(), frames.at(i)->size());
-    auto payload = reader.Next();
-    EXPECT_TRUE(payload.ok() && *payload);
-    if (payload.ok() && *payload) {
-      EXPECT_TRUE(m.ParseFromString(**payload));
-    }
-    EXPECT_TRUE(m.has_contour());
-    return m.contour();
-  }
-};
+// Frame `i` of `sink` as the contour update it carries.
+v1::ContourUpdate Update(const FakeSink& sink, size_t i) {
+  const v1::ServerMessage m = sink.Message(i);
+  EXPECT_TRUE(m.has_contour());
+  return m.contour();
+}
 
 SkinConfig FiveBalls() {
   SkinConfig c;
@@ -256,7 +237,7 @@ TEST_F(SkinBookTest, SubscriberGetsTheChangedSectionsUntilItUnsubscribes) {
   FakeSink a(1);
   SubscribeSkin(a);
   ASSERT_EQ(a.frames.size(), 1u);
-  const v1::ContourUpdate snapshot = a.Update(0);
+  const v1::ContourUpdate snapshot = Update(a, 0);
   EXPECT_EQ(snapshot.skin(), kSkin);
   EXPECT_EQ(snapshot.skin_version(), 0u);
   EXPECT_EQ(snapshot.balls_size(), 5);
@@ -269,7 +250,7 @@ TEST_F(SkinBookTest, SubscriberGetsTheChangedSectionsUntilItUnsubscribes) {
   EXPECT_EQ(a.frames.size(), 1u);  // prepared: nothing sent yet
   book_.ApplyBallEdit(std::move(plan).value());
   ASSERT_EQ(a.frames.size(), 2u);
-  const v1::ContourUpdate update = a.Update(1);
+  const v1::ContourUpdate update = Update(a, 1);
   EXPECT_EQ(update.skin_version(), 1u);
   EXPECT_EQ(update.sections(), changed);
   ASSERT_EQ(update.balls_size(), 5);
@@ -301,15 +282,15 @@ TEST_F(SkinBookTest, SliceSubscriberGetsACutWhenAnEditCrossesItsPlane) {
   book_.Subscribe(s.sink(), req, &sphere, 5, [&](Status st) { answer = st; });
   ASSERT_TRUE(answer.ok()) << answer;
   ASSERT_EQ(s.frames.size(), 1u);
-  EXPECT_EQ(s.Update(0).object(), "clay");
-  EXPECT_EQ(s.Update(0).global_seq(), 5u);
-  EXPECT_GT(s.Update(0).sections(), 0u);
+  EXPECT_EQ(Update(s, 0).object(), "clay");
+  EXPECT_EQ(Update(s, 0).global_seq(), 5u);
+  EXPECT_GT(Update(s, 0).sections(), 0u);
   // A leaf far above the plane leaves the cut as it was; one across it sends a new cut.
   book_.SendSlices("clay", sphere, {{0, 0, 24}}, 6);
   EXPECT_EQ(s.frames.size(), 1u);
   book_.SendSlices("clay", sphere, {{0, 0, -4}}, 7);
   ASSERT_EQ(s.frames.size(), 2u);
-  EXPECT_EQ(s.Update(1).global_seq(), 7u);
+  EXPECT_EQ(Update(s, 1).global_seq(), 7u);
   book_.Unsubscribe(s.session_id);
   book_.SendSlices("clay", sphere, {{0, 0, -4}}, 8);
   EXPECT_EQ(s.frames.size(), 2u);
