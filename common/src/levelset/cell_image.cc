@@ -102,7 +102,8 @@ StatusOr<CellImage> CellImage::ReadFrom(std::string_view& in) {
     return DataLoss("cell image: leaves truncated");
   }
   img.leaves_.resize(nleaves);
-  std::memcpy(img.leaves_.data(), in.data(), nleaves * sizeof(Leaf));
+  // An empty image has no buffer: memcpy's pointers must not be null, even for no bytes.
+  if (nleaves > 0) std::memcpy(img.leaves_.data(), in.data(), nleaves * sizeof(Leaf));
   in.remove_prefix(nleaves * sizeof(Leaf));
   return img;
 }
