@@ -34,7 +34,10 @@ test: build
 # (gcc) in their own build directory; -O1 keeps the sanitized tests fast enough for CI. Not run:
 # browser tests, soaks, benchmarks (not built there), and EditStability's 10,000-stroke run (its
 # 4 minutes in Release would be most of the budget; the other stability tests cover the same
-# code). See docs/sanitizers.md.
+# code), and AcceptBackoffTest's EMFILE run (out of descriptors, the sanitizer runtime's own
+# memory probe fails and UBSan's vptr check reports Boost.System's valid error category as an
+# invalid object). See docs/sanitizers.md. The compile cache ignores the build directory's path
+# (CCACHE_NOHASHDIR) so a fresh clone reuses the sanitized objects of an earlier one.
 ASAN_BUILD_DIR ?= build-asan
 SANITIZER_ENV = ASAN_OPTIONS=detect_leaks=1:abort_on_error=0:strict_string_checks=1:detect_stack_use_after_return=0 \
 	LSAN_OPTIONS=suppressions=$(CURDIR)/tests/sanitizers/lsan.supp:print_suppressions=0 \
@@ -42,10 +45,10 @@ SANITIZER_ENV = ASAN_OPTIONS=detect_leaks=1:abort_on_error=0:strict_string_check
 test-asan: deps
 	cmake -S . -B $(ASAN_BUILD_DIR) -DCMAKE_BUILD_TYPE=RelWithDebInfo \
 	  "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG" -DSCULPT_SANITIZE=address,undefined
-	$(SANITIZER_ENV) cmake --build $(ASAN_BUILD_DIR) -j $(JOBS)
+	CCACHE_NOHASHDIR=true $(SANITIZER_ENV) cmake --build $(ASAN_BUILD_DIR) -j $(JOBS)
 	cd $(ASAN_BUILD_DIR) && $(SANITIZER_ENV) ctest --output-on-failure -j $(JOBS) \
-	  -L 'unit|stability|integration' -LE 'soak|browser' \
-	  -E '^EditStability.TenThousandPressStrokesKeepVolume$$' --timeout 1500
+	  -L 'unit|stability|integration' -LE 'soak|browser' --timeout 1500 \
+	  -E '^(EditStability.TenThousandPressStrokesKeepVolume|AcceptBackoffTest.AcceptLoopPausesOnEmfileLogsOnceAndRecovers)$$'
 
 soak: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -L soak

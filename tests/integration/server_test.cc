@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <future>
+#include <memory>
 #include <mutex>
 #include <new>
 #include <stdexcept>
@@ -493,9 +494,10 @@ JoinReply ReadJoinReply(RawClient& c) {
 // the operation, and the thread keeps serving everyone, the same client included.
 TEST_F(ServerTest, ComputeTaskThatThrowsIsAnsweredInternalAndTheSceneServesOn) {
   Start();
-  std::atomic<int> throws{1};
-  scene_->InjectTaskFaultForTesting([&throws](const std::string& op) {
-    if (op == "stroke" && throws.fetch_sub(1) > 0) throw std::runtime_error("injected failure");
+  // The hook owns its count: mesher threads may call it until teardown, after this body.
+  auto throws = std::make_shared<std::atomic<int>>(1);
+  scene_->InjectTaskFaultForTesting([throws](const std::string& op) {
+    if (op == "stroke" && throws->fetch_sub(1) > 0) throw std::runtime_error("injected failure");
   });
   auto c = Sculptor();
   c->Send(RawClient::PressStroke(1, {0, 0, 13.3}));
@@ -526,9 +528,10 @@ TEST_F(ServerTest, ComputeTaskThatThrowsIsAnsweredInternalAndTheSceneServesOn) {
 // still gets the other chunks and every later update.
 TEST_F(ServerTest, MeshChunkThatThrowsIsSkippedAndTheMesherServesOn) {
   Start();
-  std::atomic<int> throws{1};
-  scene_->InjectTaskFaultForTesting([&throws](const std::string& op) {
-    if (op == "mesh chunk" && throws.fetch_sub(1) > 0) throw std::runtime_error("injected");
+  // The hook owns its count: mesher threads may call it until teardown, after this body.
+  auto throws = std::make_shared<std::atomic<int>>(1);
+  scene_->InjectTaskFaultForTesting([throws](const std::string& op) {
+    if (op == "mesh chunk" && throws->fetch_sub(1) > 0) throw std::runtime_error("injected");
   });
   RawClient viewer(port_);
   ASSERT_TRUE(viewer.Enter(kViewer, v1::ROLE_VIEWER));
@@ -553,9 +556,10 @@ TEST_F(ServerTest, MeshChunkThatThrowsIsSkippedAndTheMesherServesOn) {
 
 TEST_F(ServerTest, JoinSerialisationThatThrowsIsAnsweredAndTheJoinerMayRetry) {
   Start();
-  std::atomic<int> throws{1};
-  scene_->InjectTaskFaultForTesting([&throws](const std::string& op) {
-    if (op == "join state serialisation" && throws.fetch_sub(1) > 0) {
+  // The hook owns its count: mesher threads may call it until teardown, after this body.
+  auto throws = std::make_shared<std::atomic<int>>(1);
+  scene_->InjectTaskFaultForTesting([throws](const std::string& op) {
+    if (op == "join state serialisation" && throws->fetch_sub(1) > 0) {
       throw std::runtime_error("injected failure");
     }
   });

@@ -238,9 +238,10 @@ TEST_F(MeshFeedTest, CachedChunksAreSentToANewViewerWithoutMeshingAgain) {
 
 TEST_F(MeshFeedTest, ChunkThatThrowsIsSkippedCountedAndTheRestSent) {
   MakeFeed();
-  std::atomic<int> throws{1};
-  feed_->InjectFaultForTesting([&throws](const std::string& op) {
-    if (op == "mesh chunk" && throws.fetch_sub(1) > 0) throw std::runtime_error("injected");
+  // The hook owns its count: mesher threads may call it until teardown, after this body.
+  auto throws = std::make_shared<std::atomic<int>>(1);
+  feed_->InjectFaultForTesting([throws](const std::string& op) {
+    if (op == "mesh chunk" && throws->fetch_sub(1) > 0) throw std::runtime_error("injected");
   });
   FakeViewer& v = NewViewer(1);
   ASSERT_TRUE(AddViewer(v).ok());

@@ -86,6 +86,9 @@ class SessionTest : public ::testing::Test {
   void TearDown() override {
     session_->Shutdown("test over");
     io_.poll();
+    // A write left in flight waits for the Bye grace timer, which never fires here; closing drops
+    // its handler (and the session it holds) as a real socket's close would.
+    transport_->Close();
     session_.reset();
     server_.reset();
     scene_.reset();
