@@ -4,19 +4,15 @@
 #include "scene/mesh_feed.h"
 
 #include <spdlog/spdlog.h>
-#include <sys/resource.h>
-#include <sys/syscall.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <chrono>
-#include <cstring>
 #include <exception>
 #include <future>
 #include <utility>
 
 #include "sculpt/codec/replica_frames.h"
+#include "sculpt/core/thread_priority.h"
 #include "sculpt/mesh/vertex_colours.h"
 
 namespace sculpt::server {
@@ -27,17 +23,10 @@ using Clock = std::chrono::steady_clock;
 double Micros(Clock::duration d) { return std::chrono::duration<double, std::micro>(d).count(); }
 
 // Meshing for viewers is background work: where it competes with the compute thread for a
-// core, the kernel's scheduler gives the edits the larger share (Linux nice applies per thread).
-// Raising one's own nice value needs no privilege; a failure only costs that preference. A
-// thread already further back (the process run under `nice`) stays there.
+// core, the kernel's scheduler gives the edits the larger share.
 void RunInBackground(int nice) {
-  const auto tid = static_cast<id_t>(syscall(SYS_gettid));
-  errno = 0;
-  const int now = getpriority(PRIO_PROCESS, tid);
-  if (errno != 0 || now >= nice) return;  // already further back (e.g. run under `nice`)
-  if (setpriority(PRIO_PROCESS, tid, nice) != 0) {
-    spdlog::warn("mesher: nice {} not applied: {}", nice, std::strerror(errno));
-  }
+  const Status s = LowerThreadPriority(nice);
+  if (!s.ok()) spdlog::warn("mesher: nice {} not applied: {}", nice, s.message());
 }
 
 }  // namespace

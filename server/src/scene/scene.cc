@@ -10,6 +10,7 @@
 
 #include "sculpt/codec/frame.h"
 #include "sculpt/core/check.h"
+#include "sculpt/core/thread_priority.h"
 #include "scene/answer_once.h"
 #include "scene/edit_history.h"
 #include "scene/models.h"
@@ -34,6 +35,8 @@ constexpr double kPromptSnapshotAfterSeconds = 0.25;
 // Stroke apply time since the last snapshot after which one is taken, however few the edits:
 // start-up after a crash replays at most about this long (plus loading the snapshots).
 constexpr double kMaxTailApplySeconds = 1.0;
+// The join worker's nice value, as the mesher's (MeshFeed::Options::nice).
+constexpr int kBackgroundNice = 10;
 
 double NowSeconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
@@ -768,6 +771,12 @@ void Scene::RequestJoinState(std::function<void(StatusOr<JoinState>)> done) {
 }
 
 void Scene::JoinLoop() {
+  // Serialising an object for a late joiner is background work, like meshing for viewers:
+  // where it shares a core with the compute thread, the edits get the larger share, so a flood
+  // of joins slows the joins, not the sculptors.
+  if (const Status s = LowerThreadPriority(kBackgroundNice); !s.ok()) {
+    spdlog::warn("join worker: nice {} not applied: {}", kBackgroundNice, s.message());
+  }
   for (;;) {
     JoinWork job;
     std::function<void(const std::string&)> hook;

@@ -4,8 +4,6 @@
 #include "scene/mesh_feed.h"
 
 #include <gtest/gtest.h>
-#include <sys/resource.h>
-#include <sys/syscall.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -24,6 +22,7 @@
 #include <vector>
 
 #include "sculpt/codec/frame.h"
+#include "sculpt/core/thread_priority.h"
 #include "sculpt/levelset/edit.h"
 #include "sculpt/v1/sculpt.pb.h"
 
@@ -249,11 +248,6 @@ TEST_F(MeshFeedTest, ChunkThatThrowsIsSkippedCountedAndTheRestSent) {
   ASSERT_TRUE(WaitFor([&] { return feed_->stats().updates.load() >= 1; }));
   EXPECT_EQ(v.size(), surface - 1);
   EXPECT_EQ(failures_.load(), 1);
-}
-
-// The nice value of the calling thread (Linux: per thread).
-int ThreadNice() {
-  return getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
 }
 
 TEST_F(MeshFeedTest, MesherThreadsYieldTheCoreToTheComputeThread) {

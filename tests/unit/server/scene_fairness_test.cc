@@ -17,6 +17,7 @@
 
 #include "integration/raw_client.h"
 #include "scene/scene.h"
+#include "sculpt/core/thread_priority.h"
 
 namespace sculpt::server {
 namespace {
@@ -161,6 +162,21 @@ TEST_F(SceneFairnessTest, WorkOutsideASessionIsTheScenesOwn) {
     EXPECT_EQ(Scene::CurrentRequester(), 7u);
   }
   EXPECT_EQ(Scene::CurrentRequester(), 0u);
+}
+
+// A late join's serialisation shares the core with the edits at a lower priority (nice 10, or
+// further back when the whole test runs under `nice`), so a flood of joins slows the joins.
+TEST_F(SceneFairnessTest, LateJoinsAreSerialisedOnAThreadThatYieldsTheCoreToEdits) {
+  const int process_nice = ThreadNice();
+  std::promise<int> worker_nice;
+  scene_->RequestJoinState([&worker_nice](StatusOr<JoinState> js) {
+    EXPECT_TRUE(js.ok()) << js.status();
+    worker_nice.set_value(ThreadNice());
+  });
+  auto answered = worker_nice.get_future();
+  ASSERT_EQ(answered.wait_for(std::chrono::seconds(30)), std::future_status::ready);
+  EXPECT_EQ(answered.get(), std::max(process_nice, 10));
+  EXPECT_EQ(ThreadNice(), process_nice);
 }
 
 }  // namespace
