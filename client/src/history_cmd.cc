@@ -46,7 +46,7 @@ std::string UtcTime(uint64_t ms) {
 json EntryJson(const v1::HistoryEntry& e) {
   return {{"seq", e.seq()},       {"author", e.author()},    {"kind", KindName(e)},
           {"poses", e.poses()},   {"time_ms", e.time_ms()},  {"time", UtcTime(e.time_ms())},
-          {"undone", e.undone()}, {"undoable", e.undoable()}};
+          {"undone", e.undone()}, {"undoable", e.undoable()}, {"user", e.user()}};
 }
 
 void PrintTable(const v1::HistoryAnswer& a, const std::string& server) {
@@ -62,7 +62,8 @@ void PrintTable(const v1::HistoryAnswer& a, const std::string& server) {
   for (const v1::HistoryEntry& e : a.entries()) {
     const char* state = e.undone() ? "undone" : e.undoable() ? "done, undoable" : "done";
     std::printf("%10llu  %-24s  %-20s  %-14s  %5u  %s\n", static_cast<unsigned long long>(e.seq()),
-                UtcTime(e.time_ms()).c_str(), e.author().c_str(), KindName(e).c_str(), e.poses(),
+                UtcTime(e.time_ms()).c_str(), (e.user().empty() ? e.author() : e.user()).c_str(),
+                KindName(e).c_str(), e.poses(),
                 state);
   }
 }
@@ -89,7 +90,7 @@ CLI::App* AddHistoryCommand(CLI::App& app, HistoryCmdOptions& o) {
       "options.");
   cmd->add_option("--server", o.server, "sculptd address HOST:PORT")->required();
   cmd->add_option("--object", o.object, "Object (default: the scene's first object)");
-  cmd->add_option("--author", o.author, "Only this author's edits (a client id)");
+  cmd->add_option("--author", o.author, "Only this author's edits (a client id, or a user's name on a server with named users)");
   cmd->add_option("--limit", o.limit, "At most this many edits, newest first")
       ->check(CLI::Range(1u, codec::kMaxHistoryLimit))
       ->capture_default_str();

@@ -7,12 +7,15 @@
 #include <filesystem>
 #include <fstream>
 #include <thread>
+#include <variant>
 
 #include "integration/raw_client.h"
 #include "integration/raw_server.h"
 #include "net/server.h"
 #include "net/users.h"
 #include "scene/scene.h"
+#include "sculpt/codec/log_records.h"
+#include "store/edit_log.h"
 
 namespace sculpt::server {
 namespace {
@@ -257,6 +260,56 @@ TEST_F(NamedUsersTest, AnotherUsersClientIdCannotSwallowTheirStrokes) {
   auto resend = again.ReadUntil(v1::ServerMessage::kAck);
   ASSERT_TRUE(resend);
   EXPECT_TRUE(resend->ack().duplicate());
+}
+
+// Who made each edit is in the log (every record of it), in the history view (filtered by the
+// name too), and still there after a restart that learns the names back from the log.
+TEST_F(NamedUsersTest, TheLogAndTheHistoryNameTheUserWhoMadeEachEdit) {
+  const auto history = [this](const std::string& author) {
+    RawClient c(port_);
+    Enter(c, "carol", v1::ROLE_SCULPTOR, 5);
+    v1::ClientMessage q;
+    q.mutable_history()->set_request_id(1);
+    q.mutable_history()->set_object("clay");
+    q.mutable_history()->set_author(author);
+    c.Send(q);
+    auto a = c.ReadUntil(v1::ServerMessage::kHistory);
+    EXPECT_TRUE(a);
+    return a ? a->history() : v1::HistoryAnswer{};
+  };
+  uint64_t alice_id = 0;
+  {
+    RawClient c(port_);
+    alice_id = Enter(c, "alice", v1::ROLE_SCULPTOR, 77).client_id();
+    c.Send(RawClient::PressStroke(1, {0, 0, 12.3}));
+    ASSERT_TRUE(c.ReadUntil(v1::ServerMessage::kAck));
+  }
+  for (int round = 0; round < 2; ++round) {  // live, then after a restart
+    const v1::HistoryAnswer by_name = history("alice");
+    ASSERT_EQ(by_name.entries_size(), 1) << "round " << round << by_name.DebugString();
+    EXPECT_EQ(by_name.entries(0).user(), "alice");
+    EXPECT_EQ(by_name.entries(0).author(), std::to_string(alice_id));
+    EXPECT_EQ(history("carol").entries_size(), 0);
+    Stop();
+    if (round == 0) {
+      store::RecoveryReport report;
+      auto log = store::EditLog::Open((dir_ / "data" / "log").string(), store::FsyncPolicy{},
+                                      &report);
+      ASSERT_TRUE(log.ok()) << log.status();
+      auto records = (*log)->ReadFrom(0);
+      ASSERT_TRUE(records.ok()) << records.status();
+      ASSERT_EQ(records->size(), 4u);  // the stroke's poses
+      for (const store::LogRecord& r : *records) {
+        auto decoded = codec::DecodeLogRecord(r.seq, r.payload);
+        ASSERT_TRUE(decoded.ok()) << decoded.status();
+        const auto* pose = std::get_if<codec::StrokePoseRecord>(&*decoded);
+        ASSERT_NE(pose, nullptr);
+        EXPECT_EQ(pose->user, "alice");
+        EXPECT_EQ(pose->client_id, alice_id);
+      }
+    }
+    Start();
+  }
 }
 
 TEST_F(NamedUsersTest, AGuessingAddressWaitsLongerAndLonger) {

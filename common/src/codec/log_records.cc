@@ -136,6 +136,15 @@ std::string EncodeLogRecord(const UndoRecord& u) {
   return Tagged(LogTag::kUndo, r);
 }
 
+void AppendRecordUser(std::string* payload, std::string_view user) {
+  if (user.empty()) return;
+  // Every record message declares `string user = 100`; the field is added to the stroke pose's
+  // EditRecord (no tag byte) and to a tagged record's message alike.
+  v1::EditRecord field;
+  field.set_user(std::string(user));
+  payload->append(field.SerializeAsString());
+}
+
 // ---------------------------------------------------------------------------------------------
 // Decoding
 
@@ -151,6 +160,7 @@ StatusOr<EditLogRecord> DecodeLogRecord(uint64_t seq, std::string_view payload) 
       s.client_seq = r.client_seq();
       s.object = r.object();
       s.request_status = SweepFromRecord(r, &s.request);
+      s.user = r.user();
       return EditLogRecord(std::move(s));
     }
     case LogTag::kPaint: {
@@ -160,6 +170,7 @@ StatusOr<EditLogRecord> DecodeLogRecord(uint64_t seq, std::string_view payload) 
       p.global_seq = r.global_seq();
       p.client_id = r.client_id();
       p.paint = PaintFromRecord(r.edit());
+      p.user = r.user();
       return EditLogRecord(std::move(p));
     }
     case LogTag::kModel: {
@@ -170,6 +181,7 @@ StatusOr<EditLogRecord> DecodeLogRecord(uint64_t seq, std::string_view payload) 
       m.client_id = r.client_id();
       m.edit = ModelEditFromRecord(r.intent());
       m.model_version = r.model_version();
+      m.user = r.user();
       return EditLogRecord(std::move(m));
     }
     case LogTag::kSkinEdit: {
@@ -188,6 +200,7 @@ StatusOr<EditLogRecord> DecodeLogRecord(uint64_t seq, std::string_view payload) 
         b.edit.client_seq = r.edit().client_seq();
       }
       b.skin_version = r.skin_version();
+      b.user = r.user();
       return EditLogRecord(std::move(b));
     }
     case LogTag::kUndo: {
@@ -200,6 +213,7 @@ StatusOr<EditLogRecord> DecodeLogRecord(uint64_t seq, std::string_view payload) 
       u.object = r.request().object();
       u.redo = r.request().redo();
       u.author = r.author();
+      u.user = r.user();
       return EditLogRecord(std::move(u));
     }
   }
@@ -215,6 +229,7 @@ StatusOr<EditLogRecord> DecodeLogRecord(uint64_t seq, std::string_view payload) 
   p.pose_index = r.pose_index();
   p.pose_count = r.pose_count();
   p.commit_ms = r.commit_ms();
+  p.user = r.user();
   p.edit = EditFromRecord(r);
   return EditLogRecord(std::move(p));
 }

@@ -551,6 +551,7 @@ void Session::OnAuthenticated(AuthResult r, v1::Role role, uint64_t client_id,
   // client's strokes taken for resends.
   client_id_ = r.named ? BoundClientId(r.user, client_id) : client_id;
   user_ = r.user;
+  if (r.named) server_.scene().NameAuthor(client_id_, r.user);  // in its log records and history
   {
     std::lock_guard<std::mutex> lock(presence_mu_);
     presence_.set_session_id(id_);

@@ -123,6 +123,10 @@ void Scene::RunCommit(const std::shared_ptr<EditOp>& op) {
     out.status = Internal(std::string(op->operation()) + " prepared no log record");
     return op->Answer(out);
   }
+  // The log names who made each edit (named users).
+  if (const std::string user = AuthorUser(op->client_id()); !user.empty()) {
+    for (std::string& r : records) codec::AppendRecordUser(&r, user);
+  }
   // One group: recovery sees the whole edit or none of it, so a crash between two of a stroke's
   // poses cannot leave part of it applied and its resend refused.
   const Status a = records.size() == 1 ? log_->Append(first, records.front())

@@ -7,6 +7,7 @@
 #include <exception>
 #include <filesystem>
 #include <future>
+#include <variant>
 
 #include "sculpt/codec/frame.h"
 #include "sculpt/core/check.h"
@@ -252,6 +253,11 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   SCULPT_RETURN_IF_ERROR(scene->log_->ForEachFrom(0, [&](const store::LogRecord& lr) -> Status {
     SCULPT_ASSIGN_OR_RETURN(LoggedEdit e, DecodeLogRecord(lr.seq, lr.payload));
     if (e.completes) scene->resend_.Record(e.stream, e.client_id, e.client_seq);
+    std::visit(
+        [&](const auto& r) {
+          if (!r.user.empty()) scene->NameAuthor(r.client_id, r.user);
+        },
+        e.record);
     if (auto* b = std::get_if<codec::BallEditRecord>(&e.record)) scene->skins_.Replay(lr.seq, *b);
     if (auto* m = std::get_if<codec::ModelRecord>(&e.record)) scene->models_.Replay(lr.seq, *m);
     return Status::Ok();

@@ -197,6 +197,16 @@ class Scene {
   /// object.
   void History(codec::HistoryQuery query, std::function<void(HistoryOutcome)> done);
 
+  /// Names the authenticated user behind `client_id` (named users; a session calls it once
+  /// authenticated): every log record of that client's edits carries the name from then on
+  /// (codec::AppendRecordUser), and the history view shows it and filters by it. Recovery
+  /// learns the names from the records it replays. The most recent kMaxNamedAuthors are kept.
+  /// Thread safety: any thread.
+  void NameAuthor(uint64_t client_id, std::string user);
+  /// The user named for `client_id`, empty if none.
+  std::string AuthorUser(uint64_t client_id) const;
+  static constexpr size_t kMaxNamedAuthors = 16384;
+
   /// Whose share of the compute thread the calling thread's requests take (set by a session
   /// around each request it handles: its named user's, else its source address's key, never 0).
   /// The compute work of requests made while it is alive (edits, subscriptions, interest moves,
@@ -329,6 +339,9 @@ class Scene {
   std::unique_ptr<store::SnapshotStore> snapshots_;
   // The newest client_seq of every (edit kind, client): resends are acknowledged, not applied.
   ResendFilter resend_;  // compute thread only
+  mutable std::mutex authors_mu_;
+  std::map<uint64_t, std::string> author_users_;  // NameAuthor, at most kMaxNamedAuthors
+  std::deque<uint64_t> author_order_;             // oldest naming first
   uint64_t next_seq_ = 1;                          // compute thread only
   uint64_t edits_since_snapshot_ = 0;
   double tail_apply_s_ = 0;  // stroke apply time since the last snapshot (compute thread)

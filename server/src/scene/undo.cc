@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -233,6 +234,23 @@ void Scene::LoadHistory(const std::string& object, uint64_t snapshot_seq) {
   h = std::move(parsed).value();
 }
 
+void Scene::NameAuthor(uint64_t client_id, std::string user) {
+  std::lock_guard<std::mutex> lock(authors_mu_);
+  auto [it, added] = author_users_.insert_or_assign(client_id, std::move(user));
+  if (!added) return;
+  author_order_.push_back(client_id);
+  if (author_order_.size() > kMaxNamedAuthors) {
+    author_users_.erase(author_order_.front());
+    author_order_.pop_front();
+  }
+}
+
+std::string Scene::AuthorUser(uint64_t client_id) const {
+  std::lock_guard<std::mutex> lock(authors_mu_);
+  auto it = author_users_.find(client_id);
+  return it == author_users_.end() ? std::string() : it->second;
+}
+
 void Scene::History(codec::HistoryQuery query, std::function<void(HistoryOutcome)> done) {
   auto once = AnswerOnce(std::move(done));
   auto refuse = [once, id = query.request_id, object = query.object](const Status& st) {
@@ -248,7 +266,20 @@ void Scene::History(codec::HistoryQuery query, std::function<void(HistoryOutcome
                             Status::Code::kNotFound));
     }
     const EditHistory& h = HistoryOf(query.object);
-    const std::vector<HistoryEntry> entries = h.Entries(query.author);
+    // An entry's author is the client id its edits are filed under (HistoryAuthor).
+    const auto UserOf = [this](const HistoryEntry& e) {
+      uint64_t id = 0;
+      const char* end = e.author.data() + e.author.size();
+      const auto [p, ec] = std::from_chars(e.author.data(), end, id);
+      return ec == std::errc() && p == end ? AuthorUser(id) : std::string();
+    };
+    std::vector<HistoryEntry> entries = h.Entries(query.author);
+    if (entries.empty() && !query.author.empty()) {
+      // A user's name (named users): the edits of every client it sculpted from.
+      entries = h.Entries("");
+      std::erase_if(entries, [&](const HistoryEntry& e) { return UserOf(e) != query.author; });
+    }
+    for (HistoryEntry& e : entries) e.user = UserOf(e);
     HistoryOutcome a;
     a.request_id = query.request_id;
     a.object = query.object;

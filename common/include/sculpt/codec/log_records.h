@@ -49,6 +49,7 @@ struct StrokePoseRecord {
 
   /// The last pose of its stroke (or a pose standing alone): the stroke is complete with it.
   bool completes() const { return pose_index + 1 >= pose_count; }
+  std::string user;  // the authenticated user who made it (named users), else empty
 };
 
 /// A paint or fill (issue 7).
@@ -58,6 +59,7 @@ struct PaintRecord {
   /// Encoded in its wire form (floats for the tool); decoded unchecked (the live server checked
   /// it against the limits of its time). Apply AsLogged(paint) live.
   Paint paint;
+  std::string user;  // the authenticated user who made it (named users), else empty
 };
 
 /// A sweep of a skin's outline into an object (issue 6): the outline and plane travel in the
@@ -73,6 +75,7 @@ struct SweepRecord {
   /// Not ok (InvalidArgument naming the field) for a record whose plane, outline or axis has the
   /// wrong number of values: `request` is then incomplete and recovery skips the sweep.
   Status request_status;
+  std::string user;  // the authenticated user who made it (named users), else empty
 };
 
 /// An accepted model intent (issue 7) and the model version it produced.
@@ -81,6 +84,7 @@ struct ModelRecord {
   uint64_t client_id = 0;
   ModelEdit edit;  // decoded unchecked: the live server checked it
   uint64_t model_version = 0;
+  std::string user;  // the authenticated user who made it (named users), else empty
 };
 
 /// A ball edit of a skin (issue 6) and the skin version it produced.
@@ -92,6 +96,7 @@ struct BallEditRecord {
   /// The check DecodeSkinBallEdit makes of the logged edit, as the live server made it.
   Status edit_status;
   uint64_t skin_version = 0;
+  std::string user;  // the authenticated user who made it (named users), else empty
 };
 
 /// An undo or redo request (issue 15).
@@ -102,6 +107,7 @@ struct UndoRecord {
   std::string object;
   bool redo = false;  // false: undo
   std::string author;
+  std::string user;  // the authenticated user who made it (named users), else empty
 };
 
 /// One edit-log record, decoded.
@@ -115,6 +121,11 @@ std::string EncodeLogRecord(const SweepRecord& record);
 std::string EncodeLogRecord(const ModelRecord& record);
 std::string EncodeLogRecord(const BallEditRecord& record);
 std::string EncodeLogRecord(const UndoRecord& record);
+
+/// Adds the authenticated user who made the edit to an encoded record (field 100 of every record
+/// message, appended: a protobuf field may follow the message's other fields), so the log names
+/// who made each edit. An empty name adds nothing.
+void AppendRecordUser(std::string* payload, std::string_view user);
 
 /// Tells the kinds apart by the first byte and decodes one payload. DataLoss naming `seq` (and
 /// the kind, for a tagged record) when the bytes do not parse.
