@@ -111,7 +111,16 @@ class RansDecoder {
     uint32_t x = x_[lane];
     const RansSlot s = table[x & (kRansScale - 1)];
     x = (s >> kSlotFreqShift) * (x >> kRansScaleBits) + ((s >> kSlotBiasShift) & (kRansScale - 1));
-    if (x < kRansLow) x = (x << 16) | Word();
+    // Branch-free renormalisation: whether a word is due is what the data makes it, so a branch
+    // would be mispredicted about once in three symbols. The load is guarded by a branch that
+    // only the stream's end takes.
+    const bool need = x < kRansLow;
+    const bool have = p_ != end_;
+    const uint32_t w =
+        have ? static_cast<uint32_t>(p_[0]) | (static_cast<uint32_t>(p_[1]) << 8) : 0;
+    overrun_ |= need & !have;
+    x = need ? (x << 16) | w : x;
+    p_ += (need & have) ? 2 : 0;
     x_[lane] = x;
     return s & 127;
   }
