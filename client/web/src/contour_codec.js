@@ -987,16 +987,33 @@ function decodeTurtleBody(bytes, pos, p, nentries, nlines) {
     let magE = t[5];
     let bad = false;
     for (let k = 1; k < coded; ++k) {
+      // RansDecoder::Decode, the stream read inline (a call per symbol costs more than it).
       let s = slots[actx * kScale + (x0 & (kScale - 1))];
-      x0 = (s >>> 17) * Math.floor(x0 / kScale) + ((s >>> 7) & (kScale - 1));
-      if (x0 < kRansLow) x0 = x0 * 65536 + word();
+      x0 = (s >>> 17) * (x0 >>> kScaleBits) + ((s >>> 7) & (kScale - 1));
+      if (x0 < kRansLow) {
+        if (wp < ransEnd) {
+          x0 = x0 * 65536 + (bytes[wp] | (bytes[wp + 1] << 8));
+          wp += 2;
+        } else {
+          overrun = true;
+          x0 *= 65536;
+        }
+      }
       const asym = s & 127;
       const abits = kSymBits[asym];
       const a = unzigNum(kSymBase[asym] + (abits ? getBits(abits) : 0));
       const am = kSymMag[asym];
       s = slots[(kAlongTables + 3 * magE + am) * kScale + (x1 & (kScale - 1))];
-      x1 = (s >>> 17) * Math.floor(x1 / kScale) + ((s >>> 7) & (kScale - 1));
-      if (x1 < kRansLow) x1 = x1 * 65536 + word();
+      x1 = (s >>> 17) * (x1 >>> kScaleBits) + ((s >>> 7) & (kScale - 1));
+      if (x1 < kRansLow) {
+        if (wp < ransEnd) {
+          x1 = x1 * 65536 + (bytes[wp] | (bytes[wp + 1] << 8));
+          wp += 2;
+        } else {
+          overrun = true;
+          x1 *= 65536;
+        }
+      }
       const esym = s & 127;
       const ebits = kSymBits[esym];
       const e = unzigNum(kSymBase[esym] + (ebits ? getBits(ebits) : 0));
