@@ -9,9 +9,9 @@
 #include <optional>
 
 #include "contour_codec_internal.h"
-#include "sculpt/skin/contour_codec.h"
 #include "range_coder.h"
 #include "rans_coder.h"
+#include "sculpt/skin/contour_codec.h"
 
 namespace sculpt::skin::internal {
 namespace {
@@ -19,7 +19,7 @@ namespace {
 constexpr double kMaxQuantised = 4503599627370496.0;  // 2^52
 constexpr uint64_t kMaxExactId = (1ull << 53) - 1;
 constexpr int64_t kMaxChord = int64_t{1} << 40;  // |chord| in steps, and |a|, |e|
-constexpr int kAngleBits = 14;                    // directions: 2^14 angles a turn
+constexpr int kAngleBits = 14;                   // directions: 2^14 angles a turn
 constexpr int kAngles = 1 << kAngleBits;
 
 /// Contexts: along by |previous along| (0, 1, 2+), and a line's first along without a carried
@@ -143,9 +143,9 @@ const SymbolInfo* SymbolInfos() {
     std::array<SymbolInfo, kRansAlphabet + 1> t{};
     for (int s = 0; s < kRansAlphabet; ++s) {
       const int bits = TokenExtraBits(s);
-      t[s] = {s < kTokenDirect ? static_cast<uint64_t>(s)
-                               : (uint64_t{2} | static_cast<uint64_t>((s - kTokenDirect) & 1))
-                                     << bits,
+      t[s] = {s < kTokenDirect
+                  ? static_cast<uint64_t>(s)
+                  : (uint64_t{2} | static_cast<uint64_t>((s - kTokenDirect) & 1)) << bits,
               bits, Mag3(s)};
     }
     t[kRansAlphabet] = {0, 0, 0};
@@ -201,8 +201,7 @@ bool GetVarint(std::string_view in, size_t* pos, uint64_t* v) {
 
 }  // namespace
 
-std::optional<std::string> Skc3Body(int kind, double step,
-                                    const std::vector<SectionEntry>& entries,
+std::optional<std::string> Skc3Body(int kind, double step, const std::vector<SectionEntry>& entries,
                                     const std::vector<const Polyline2*>& lines) {
   const double bound2 = step * step / 2;
   const double hs = step * kHalfAlong, vs = step * kAcross;
@@ -251,8 +250,8 @@ std::optional<std::string> Skc3Body(int kind, double step,
       t = end_state[j - stride];
     } else {
       int64_t rx = 0, ry = 0, x = 0, y = 0;
-      if (ls.has_ctx && (!StepIndex(ctx->back().x, step, &rx) ||
-                         !StepIndex(ctx->back().y, step, &ry))) {
+      if (ls.has_ctx &&
+          (!StepIndex(ctx->back().x, step, &rx) || !StepIndex(ctx->back().y, step, &ry))) {
         return std::nullopt;
       }
       if (!StepIndex(in[0].x, step, &x) || !StepIndex(in[0].y, step, &y)) return std::nullopt;
@@ -554,15 +553,15 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
       const uint32_t asym = rans.Decode(tables + static_cast<size_t>(actx) * kRansScale, 0);
       const SymbolInfo& ai = info[asym];
       const int64_t a = Unzig(ai.base + raw.Get(ai.bits));
-      const uint32_t esym =
-          rans.Decode(tables + static_cast<size_t>(kAlongTables + 3 * mag_e + ai.mag) * kRansScale, 1);
+      const uint32_t esym = rans.Decode(
+          tables + static_cast<size_t>(kAlongTables + 3 * mag_e + ai.mag) * kRansScale, 1);
       const SymbolInfo& ei = info[esym];
       const int64_t e = Unzig(ei.base + raw.Get(ei.bits));
       const int32_t th = (theta + omega) & (kAngles - 1);
       const int64_t len = lp + a;
       p = Place(p, cos_table, th, len, e, hs, vs);
-      bad |= (asym == kRansNoSymbol) | (esym == kRansNoSymbol) | (len > kMaxChord) | (len < -kMaxChord) | !(std::abs(p.x) <= lim) |
-             !(std::abs(p.y) <= lim);
+      bad |= (asym == kRansNoSymbol) | (esym == kRansNoSymbol) | (len > kMaxChord) |
+             (len < -kMaxChord) | !(std::abs(p.x) <= lim) | !(std::abs(p.y) <= lim);
       const int64_t lc = std::clamp<int64_t>(len, 1, kRecipMax);
       const int64_t ec = std::clamp<int64_t>(e, -lc, lc);
       const int32_t d = static_cast<int32_t>((ec * turn[lc]) >> 16);
@@ -576,8 +575,10 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
       // Past the end the stream reads zeros: stop at once rather than run out a claimed count.
       if ((k & 63) == 0 && (bad || rans.overrun())) break;
     }
-    if (bad) return InvalidArgument("contour: decoded point outside [-2^52, 2^52] steps, or a "
-                                    "symbol from an empty table");
+    if (bad)
+      return InvalidArgument(
+          "contour: decoded point outside [-2^52, 2^52] steps, or a "
+          "symbol from an empty table");
     if (rans.overrun()) return truncated("points");
     t.theta = theta;
     t.omega = omega;

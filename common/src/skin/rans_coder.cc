@@ -15,7 +15,8 @@ Token MakeToken(int64_t v) {
   }
   const int nb = std::bit_width(zz);
   t.extra_bits = nb - 2;
-  t.symbol = kTokenDirect + 2 * (nb - kTokenDirectBits - 1) + static_cast<int>((zz >> (nb - 2)) & 1);
+  t.symbol =
+      kTokenDirect + 2 * (nb - kTokenDirectBits - 1) + static_cast<int>((zz >> (nb - 2)) & 1);
   t.extra = zz & ((uint64_t{1} << t.extra_bits) - 1);
   return t;
 }

@@ -166,7 +166,8 @@ class BitReader {
       : p_(reinterpret_cast<const uint8_t*>(bytes.data())), end_(p_ + bytes.size()) {}
   /// `count` <= 48 bits (0 reads nothing).
   [[gnu::always_inline]] uint64_t Get(int count) {
-    if (n_ < count) [[unlikely]] Refill(count);
+    if (n_ < count) [[unlikely]]
+      Refill(count);
     const uint64_t v = acc_ & ((uint64_t{1} << count) - 1);
     acc_ >>= count;
     n_ -= count;

@@ -18,8 +18,8 @@ std::vector<uint32_t> Table(std::mt19937_64& rng, int n) {
 
 TEST(RansCoderTest, RoundTripsSymbolsOnTwoLanesThroughSeveralTables) {
   std::mt19937_64 rng(1);
-  std::vector<std::vector<uint32_t>> freq{Table(rng, 3), Table(rng, 40), Table(rng, kRansAlphabet),
-                                          {kRansScale}};
+  std::vector<std::vector<uint32_t>> freq{
+      Table(rng, 3), Table(rng, 40), Table(rng, kRansAlphabet), {kRansScale}};
   std::vector<std::vector<uint32_t>> start(freq.size());
   std::vector<RansSlot> slots(freq.size() * kRansScale);
   for (size_t t = 0; t < freq.size(); ++t) {
