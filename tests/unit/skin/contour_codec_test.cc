@@ -358,7 +358,9 @@ TEST(ContourCodecTest, RejectsTruncatedAndCorruptSkc3) {
     std::string bad = bytes;
     bad[rng() % bad.size()] ^= static_cast<char>(1 + rng() % 255);
     ContourView v;
-    if (v.Apply(bad).ok()) EXPECT_EQ(v.sections().size(), whole.sections().size());
+    if (v.Apply(bad).ok()) {
+      EXPECT_EQ(v.sections().size(), whole.sections().size());
+    }
   }
 }
 
