@@ -1035,9 +1035,11 @@ function decodeTurtleBody(bytes, pos, p, nentries, nlines) {
       const d = (ec * kTurn[lc]) >> 16;
       theta = (th + d) & kAngleMask;
       omega = clamp(omega + d, -kMaxTurn, kMaxTurn);
-      const mm = len > 0 ? Math.floor((len * 13) / 256) : 0;
-      lp = len + clamp(len - l1, -mm, mm);
-      l1 = len;
+      // The chord in half spacings (the row's parity is half a spacing along), continued.
+      const half = 2 * len + (e & 1);
+      const mm = half > 0 ? Math.floor((half * 13) / 256) : 0;
+      lp = Math.floor((half + clamp(half - l1, -mm, mm)) / 2);
+      l1 = half;
       actx = am;
       magE = kSymMag[esym];
       out[2 * k] = px;

@@ -87,8 +87,8 @@ const int32_t* TurnTable() {
 /// turn from the chord before it, the last chord's length in steps, the last contexts.
 struct Turtle {
   int32_t theta = 0, omega = 0;
-  int64_t lp = 0;  // the predicted next chord
-  int64_t l1 = 0;  // the last chord
+  int64_t lp = 0;  // the predicted next chord, in lattice spacings
+  int64_t l1 = 0;  // the last chord in half spacings (2 chord + the row's parity)
   int actx = 0, mag_e = 0;
   bool valid = false;
 };
@@ -111,8 +111,8 @@ constexpr int kMaxTurn = kAngles / 8;
   const int32_t d = static_cast<int32_t>((ec * turn[lc]) >> 16);
   t.theta = (th + d) & (kAngles - 1);
   t.omega = std::clamp<int32_t>(t.omega + d, -kMaxTurn, kMaxTurn);
-  t.lp = NextChord(len, t.l1);
-  t.l1 = len;
+  t.lp = NextChord(2 * len + (e & 1), t.l1) >> 1;
+  t.l1 = 2 * len + (e & 1);
 }
 
 /// The hexagonal lattice of offsets in the frame: rows `e` across, kAcross apart, points along
@@ -567,8 +567,8 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
       const int32_t d = static_cast<int32_t>((ec * turn[lc]) >> 16);
       theta = (th + d) & (kAngles - 1);
       omega = std::clamp<int32_t>(omega + d, -kMaxTurn, kMaxTurn);
-      lp = NextChord(len, l1);
-      l1 = len;
+      lp = NextChord(2 * len + (e & 1), l1) >> 1;
+      l1 = 2 * len + (e & 1);
       actx = ai.mag;
       mag_e = ei.mag;
       out[k] = p;

@@ -35,8 +35,9 @@
 ///     = u turned left, the chord len = lp + a, and the point is p + ((2 len + (e & 1)) hs) u +
 ///     (e vs) v with hs = step 0.6123718516919304 and vs = step 1.060659160255457. Then, with
 ///     lc = clamp(len, 1, 4096) and d = (clamp(e, -lc, lc) floor(147996223 / lc)) >> 16:
-///     theta = (th + d) mod 2^14, omega = clamp(omega + d, -2^11, 2^11), lp = len +
-///     clamp(len - l1, -m, m) with m = floor(13 len / 256) (0 for len <= 0), l1 = len. A line
+///     theta = (th + d) mod 2^14, omega = clamp(omega + d, -2^11, 2^11), and with h = 2 len +
+///     (e & 1) (the chord in half spacings), lp = floor((h + clamp(h - l1, -m, m)) / 2) with
+///     m = floor(13 h / 256) (0 for h <= 0), l1 = h. A line
 ///     that joins its context line carries that line's final turtle, if it has one; else its
 ///     turtle starts at 0 with the sent direction. Double arithmetic in the order of
 ///     contour_codec_skc3.cc, so the web client's decoder computes the same doubles.
