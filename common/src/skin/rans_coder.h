@@ -102,13 +102,26 @@ class RansDecoder {
       : p_(reinterpret_cast<const uint8_t*>(bytes.data())),
         end_(p_ + (bytes.size() & ~size_t{1})),
         odd_(bytes.size() & 1) {
-    for (uint32_t& x : x_) {  // two statements: the operands of | are unsequenced
-      x = Word() << 16;
-      x |= Word();
-    }
+    // Two statements each: the operands of | are unsequenced.
+    x0_ = Word() << 16;
+    x0_ |= Word();
+    x1_ = Word() << 16;
+    x1_ |= Word();
   }
+  /// The next symbol of `lane` (0 or 1) from `table` (kRansScale slots).
   [[gnu::always_inline]] uint32_t Decode(const RansSlot* table, int lane) {
-    uint32_t x = x_[lane];
+    // Two named states rather than an array, so both stay in registers.
+    return lane == 0 ? Step(table, x0_) : Step(table, x1_);
+  }
+  /// True when the stream was read exactly and ended where the encoder began.
+  bool ok() const {
+    return !overrun_ && !odd_ && p_ == end_ && x0_ == kRansLow && x1_ == kRansLow;
+  }
+  bool overrun() const { return overrun_; }
+
+ private:
+  [[gnu::always_inline]] uint32_t Step(const RansSlot* table, uint32_t& state) {
+    uint32_t x = state;
     const RansSlot s = table[x & (kRansScale - 1)];
     x = (s >> kSlotFreqShift) * (x >> kRansScaleBits) + ((s >> kSlotBiasShift) & (kRansScale - 1));
     // Branch-free renormalisation: whether a word is due is what the data makes it, so a branch
@@ -121,16 +134,9 @@ class RansDecoder {
     overrun_ |= need & !have;
     x = need ? (x << 16) | w : x;
     p_ += (need & have) ? 2 : 0;
-    x_[lane] = x;
+    state = x;
     return s & 127;
   }
-  /// True when the stream was read exactly and ended where the encoder began.
-  bool ok() const {
-    return !overrun_ && !odd_ && p_ == end_ && x_[0] == kRansLow && x_[1] == kRansLow;
-  }
-  bool overrun() const { return overrun_; }
-
- private:
   [[gnu::always_inline]] uint32_t Word() {
     if (p_ == end_) {
       overrun_ = true;
@@ -144,7 +150,7 @@ class RansDecoder {
   const uint8_t* end_;
   bool odd_;
   bool overrun_ = false;
-  uint32_t x_[2];
+  uint32_t x0_ = 0, x1_ = 0;
 };
 
 /// Raw bits, least significant first, packed into bytes from the low end.
@@ -178,7 +184,7 @@ class BitReader {
   bool ok() const { return !overrun_ && p_ == end_ && n_ < 8 && acc_ == 0; }
 
  private:
-  void Refill(int count) {
+  [[gnu::always_inline]] void Refill(int count) {
     while (n_ <= 56 && p_ < end_) {
       acc_ |= static_cast<uint64_t>(*p_++) << n_;
       n_ += 8;
