@@ -90,7 +90,7 @@ elseif(MODE STREQUAL "skin")
                 contour_bytes contour_ratio_vs_float32 contour_ratio_vs_draco
                 contour_max_error_over_tol encode_us_per_2000_points decode_us_per_2000_points
                 contour_bits_per_point contour_skc1_bytes decode_mpoints_per_s
-                decode_mpoints_per_s_skc1)
+                decode_mpoints_per_s_skc1 contour_skc2_bytes decode_mpoints_per_s_skc2)
     require_number(${field})
   endforeach()
   string(JSON max_err GET "${out}" contour_max_error_over_tol)

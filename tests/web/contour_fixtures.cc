@@ -330,13 +330,20 @@ int Main(int argc, char** argv) {
     if (!back.ok()) return 1;
     sets.push_back(
         {{"name", c.name}, {"bytes", Hex(*bytes)}, {"step", c.step}, {"lines", Lines(*back)}});
-    const std::string old = Must(internal::EncodeContoursSkc1(c.lines, c.step));
-    const auto old_back = DecodeContours(old);
-    if (!old_back.ok()) return 1;
-    sets.push_back({{"name", c.name + "_skc1"},
-                    {"bytes", Hex(old)},
-                    {"step", c.step},
-                    {"lines", Lines(*old_back)}});
+    // The same lines in each format alone (the default keeps the smaller of SKC3 and SKC2).
+    const std::pair<const char*, StatusOr<std::string> (*)(const std::vector<Polyline2>&, double)>
+        forced[] = {{"_skc3", internal::EncodeContoursSkc3},
+                    {"_skc2", internal::EncodeContoursSkc2},
+                    {"_skc1", internal::EncodeContoursSkc1}};
+    for (const auto& [suffix, encode] : forced) {
+      const std::string old = Must(encode(c.lines, c.step));
+      const auto old_back = DecodeContours(old);
+      if (!old_back.ok()) return 1;
+      sets.push_back({{"name", c.name + suffix},
+                      {"bytes", Hex(old)},
+                      {"step", c.step},
+                      {"lines", Lines(*old_back)}});
+    }
   }
   json views = json::array();
   views.push_back(SkinSequence("wavy12_chord_step", 12, 0, 7, 30));
@@ -360,9 +367,19 @@ int Main(int argc, char** argv) {
   corrupt.push_back(Corruptions(
       "curve_mixed", Must(EncodeContours({s.Noise(5, 3), {}, s.Walk(40, 0.1), {{2, 2}}}, 1e-3)),
       nullptr, "", 8, 400));
+  auto skc3 = [](const std::vector<Polyline2>& lines, double step) {
+    return Must(internal::EncodeContoursSkc3(lines, step));
+  };
+  corrupt.push_back(
+      Corruptions("turtle", skc3({s.Arc(60, 2, 0, 0, 0.05)}, 1e-3), nullptr, "", 9, 400));
+  corrupt.push_back(Corruptions(
+      "turtle_mixed", skc3({s.Noise(5, 3), {}, s.Walk(40, 0.1), {{2, 2}}, s.Noise(30, 1e3)}, 1e-3),
+      nullptr, "", 10, 400));
   auto skin = Skin::Build(Wavy(4));
   if (!skin.ok()) return 1;
   ContourView empty;
+  corrupt.push_back(Corruptions("snapshot_skc3", Must(internal::EncodeSkinSnapshotSkc3(*skin)),
+                                &empty, "", 11, 200));
   const std::string snap = Must(EncodeSkinSnapshot(*skin));
   corrupt.push_back(Corruptions("snapshot", snap, &empty, "", 4, 120));
   ContourView view;
@@ -381,6 +398,7 @@ int Main(int argc, char** argv) {
   size_t big_points = 0;
   for (const Section& sec : big->sections()) big_points += sec.plus.size() + sec.minus.size();
   const json bench = {{"bytes", Hex(Must(EncodeSkinSnapshot(*big)))},
+                      {"skc2_bytes", Hex(Must(internal::EncodeSkinSnapshotSkc2(*big)))},
                       {"skc1_bytes", Hex(Must(internal::EncodeSkinSnapshotSkc1(*big)))},
                       {"points", big_points}};
 

@@ -1,7 +1,9 @@
 // The contour codec's decoder (common/include/sculpt/skin/contour_codec.h): polyline sets, skin
-// snapshots and skin updates, in SKC2's curve coding (an adaptive binary range coder over
-// residuals of a circle-continuing prediction; every double operation repeats the C++ one, so
-// both decode the same points to the bit) and in SKC1's two residual codings (varints, and
+// snapshots and skin updates, in SKC3's turtle coding (integers as whole symbols from static
+// rANS tables, placed by a turtle on a hexagonal lattice), SKC2's curve coding (an adaptive
+// binary range coder over residuals of a circle-continuing prediction; in both, every double
+// operation repeats the C++ one, so both decode the same points to the bit) and SKC1's two
+// residual codings (varints, and
 // Draco's rANS symbol coding as draco::EncodeSymbols writes it, tagged or raw scheme). Plain ES
 // module, no dependencies: bundled into the web client and run by node in the tests.
 //
@@ -658,6 +660,414 @@ function decodeCurveBody(bytes, pos, p, nentries, nlines) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// SKC3's turtle coding (Skc3Body / DecodeSkc3Body in contour_codec_skc3.cc, the rANS coder in
+// common/src/skin/rans_coder.h): side information through the range coder above, then per point
+// an along and an across integer as whole symbols from static per-message rANS tables.
+
+const kTurtle = 3;
+const kAngleBits = 14;
+const kAngles = 1 << kAngleBits;
+const kAngleMask = kAngles - 1;
+const kMaxTurn = kAngles / 8;
+const kMaxChord = 2 ** 40;
+const kRecipMax = 4096;
+const kTurnScale = 147996223;
+const kHalfAlong = 0.6123718516919304;
+const kAcross = 1.060659160255457;
+const kScaleBits = 10;
+const kScale = 1 << kScaleBits;
+const kRansLow = 1 << 16;
+const kTokenDirectBits = 4;
+const kTokenDirect = 1 << kTokenDirectBits;
+const kTokenMaxBits = 42;
+const kAlphabet = kTokenDirect + 2 * (kTokenMaxBits - kTokenDirectBits);
+const kNoSymbol = kAlphabet;
+const kAlongTables = 4;
+const kAlongStart = 3;
+const kTables = kAlongTables + 9;
+
+/** The cosine table of CosTable() in contour_codec_skc3.cc: the same operations, same doubles. */
+const kCos = (() => {
+  const t = new Float64Array(kAngles);
+  const quarter = kAngles / 4;
+  const eighth = kAngles / 8;
+  const cc = new Float64Array(12);
+  const sc = new Float64Array(12);
+  cc[0] = 1;
+  sc[0] = 1;
+  for (let k = 1; k < 12; ++k) {
+    cc[k] = -cc[k - 1] / ((2 * k - 1) * (2 * k));
+    sc[k] = -sc[k - 1] / ((2 * k) * (2 * k + 1));
+  }
+  const c = new Float64Array(eighth + 1);
+  const s = new Float64Array(eighth + 1);
+  const unit = Math.PI / (kAngles / 2);
+  for (let i = 0; i <= eighth; ++i) {
+    const x = i * unit;
+    const x2 = x * x;
+    let pc = cc[11];
+    let ps = sc[11];
+    for (let k = 10; k >= 0; --k) {
+      pc = pc * x2 + cc[k];
+      ps = ps * x2 + sc[k];
+    }
+    c[i] = pc;
+    s[i] = ps * x;
+  }
+  for (let i = 0; i < kAngles; ++i) {
+    const q = Math.floor(i / quarter);
+    const r = i % quarter;
+    const v = r <= eighth ? c[r] : s[quarter - r];
+    const w = r === 0 ? 0 : (quarter - r <= eighth ? c[quarter - r] : s[r]);
+    t[i] = q === 0 ? v : q === 1 ? -w : q === 2 ? -v : w;
+  }
+  return t;
+})();
+
+const kTurn = (() => {
+  const t = new Int32Array(kRecipMax + 1);
+  t[0] = kTurnScale;
+  for (let l = 1; l <= kRecipMax; ++l) t[l] = Math.floor(kTurnScale / l);
+  return t;
+})();
+
+/** Per symbol: the zigzag value without extra bits, the extra bit count, the magnitude class. */
+const kSymBase = new Float64Array(kAlphabet + 1);
+const kSymBits = new Int32Array(kAlphabet + 1);
+const kSymMag = new Int32Array(kAlphabet + 1);
+for (let s = 0; s < kAlphabet; ++s) {
+  const bits = s < kTokenDirect ? 0 : ((s - kTokenDirect) >> 1) + kTokenDirectBits - 1;
+  kSymBits[s] = bits;
+  kSymBase[s] = s < kTokenDirect ? s : (2 + ((s - kTokenDirect) & 1)) * kPow2[bits];
+  kSymMag[s] = s === 0 ? 0 : s <= 2 ? 1 : 2;
+}
+
+/** Fills `slots` (kScale words at `at`) from frequencies (BuildRansSlots); false if malformed. */
+function buildSlots(freq, slots, at) {
+  let sum = 0;
+  for (const f of freq) sum += f;
+  if (sum === 0) {
+    for (let s = 0; s < kScale; ++s) slots[at + s] = (kScale << 17) | (s << 7) | kNoSymbol;
+    return true;
+  }
+  if (sum !== kScale) return false;
+  let start = at;
+  for (let i = 0; i < freq.length; ++i) {
+    for (let k = 0; k < freq[i]; ++k) slots[start + k] = (freq[i] << 17) | (k << 7) | i;
+    start += freq[i];
+  }
+  return true;
+}
+
+/**
+ * Decodes SKC3's body, bytes[pos..], into p (DecodeSkc3Body): entries, counts, tables and line
+ * starts from the range-coded side information, then the points. Throws ContourError where the
+ * C++ decoder returns an error.
+ */
+function decodeTurtleBody(bytes, pos, p, nentries, nlines) {
+  const end = bytes.length;
+  const varint = () => {
+    let v = 0;
+    for (let shift = 0; shift < 64; shift += 7) {
+      if (pos >= end) return null;
+      const b = bytes[pos++];
+      if (shift < 53) v += (b & 0x7f) * 2 ** shift;
+      else if (b & 0x7f) v = Infinity;
+      if (!(b & 0x80)) return v;
+    }
+    return null;
+  };
+  const sideLen = varint();
+  if (sideLen === null || sideLen > end - pos) throw truncated('SKC3 side information');
+  const sideAt = pos;
+  pos += sideLen;
+  const ransLen = varint();
+  if (ransLen === null || ransLen > end - pos) throw truncated('SKC3 symbols');
+  const ransAt = pos;
+  const rawAt = pos + ransLen;
+
+  const rc = new RangeDecoder(bytes, sideAt, sideAt + sideLen);
+  const step = p.step;
+  const kind = p.kind;
+  const m = {
+    index: intModel(), id: intModel(), version: intModel(), count: intModel(),
+    first: intModel(), nsym: intModel(), freq: intModel(),
+    join: new Uint16Array(1).fill(kOne / 2), closed: new Uint16Array(1).fill(kOne / 2),
+  };
+  const stride = kind === kPolylineSet ? 1 : 2;
+  let index = -1;
+  let id = -1;
+  let version = 0;
+  for (let e = 0; e < nentries; ++e) {
+    index = kind === kUpdate ? index + 1 + rc.int(m.index) : index + 1;
+    id = id + 1 + rc.int(m.id);
+    version += rc.int(m.version);
+    if (!rc.ok()) throw truncated('section entries');
+    if (index < 0 || index >= p.sectionCount) {
+      throw new ContourError(`contour.section_index=${index} outside [0, ${p.sectionCount})`);
+    }
+    if (id < 0 || id > kMaxExactId || version < 0 || version > kMaxExactId) {
+      throw new ContourError(`contour.section_id/version=${id}/${version} outside [0, 2^53)`);
+    }
+    p.index.push(index);
+    p.id.push(id);
+    p.version.push(version);
+  }
+  const counts = [];
+  let total = 0;
+  const cap = Math.min(kMaxContourPoints, 65536 + 512 * bytes.length);
+  for (let j = 0; j < nlines; ++j) {
+    const prev = j >= stride ? counts[j - stride] : 0;
+    const n = prev + rc.int(m.count);
+    if (!rc.ok()) throw truncated('point counts');
+    if (n < 0) throw new ContourError(`contour.points=${n} for a polyline`);
+    total += n;
+    if (n > cap || total > cap) {
+      throw new ContourError(`contour.points=${total} outside [0, ${cap}] for a ` +
+                             `${bytes.length}-byte message`);
+    }
+    counts.push(n);
+  }
+  const slots = new Uint32Array(kTables * kScale);
+  for (let t = 0; t < kTables; ++t) {
+    const nsym = rc.int(m.nsym);
+    if (nsym < 0 || nsym > kAlphabet) {
+      throw new ContourError(`contour.table_symbols=${nsym} outside [0, ${kAlphabet}]`);
+    }
+    const freq = [];
+    for (let i = 0; i < nsym; ++i) {
+      const f = rc.int(m.freq);
+      if (f < 0 || f > kScale) {
+        throw new ContourError(`contour.table_frequency=${f} outside [0, ${kScale}]`);
+      }
+      freq.push(f);
+    }
+    if (!rc.ok()) throw truncated('symbol tables');
+    if (!buildSlots(freq, slots, t * kScale)) {
+      throw new ContourError(`contour: symbol table ${t} frequencies do not sum to ${kScale}`);
+    }
+  }
+  // Per line: join, first point (fx, fy), closed, the start angle or -1.
+  const join = new Uint8Array(nlines);
+  const closedOf = new Uint8Array(nlines);
+  const theta0 = new Int32Array(nlines).fill(-1);
+  const fx = new Float64Array(nlines);
+  const fy = new Float64Array(nlines);
+  const valid = new Uint8Array(nlines);
+  for (let j = 0; j < nlines; ++j) {
+    if (counts[j] === 0) continue;
+    const hasCtx = j >= stride && counts[j - stride] > 0;
+    if (hasCtx) join[j] = rc.bit(m.join, 0);
+    if (!join[j]) {
+      fx[j] = rc.int(m.first);
+      fy[j] = rc.int(m.first);
+    }
+    if (counts[j] >= 2) closedOf[j] = rc.bit(m.closed, 0);
+    const coded = closedOf[j] ? counts[j] - 1 : counts[j];
+    const carried = join[j] && valid[j - stride];
+    if (coded >= 2 && !carried) theta0[j] = rc.raw(kAngleBits);
+    valid[j] = carried || coded >= 2 ? 1 : 0;
+    if (!rc.ok()) throw truncated('line starts');
+  }
+  if (!rc.ok()) throw truncated('line starts');
+  if (rc.consumed() !== sideLen) {
+    throw new ContourError(`contour: ${sideLen - rc.consumed()} trailing bytes in the SKC3 ` +
+                           'side information');
+  }
+
+  // The rANS stream: 16-bit little-endian words; both states first.
+  const ransEnd = ransAt + (ransLen & ~1);
+  let wp = ransAt;
+  let overrun = false;
+  const word = () => {
+    if (wp >= ransEnd) {
+      overrun = true;
+      return 0;
+    }
+    const w = bytes[wp] | (bytes[wp + 1] << 8);
+    wp += 2;
+    return w;
+  };
+  let x0 = word() * 65536;
+  x0 += word();
+  let x1 = word() * 65536;
+  x1 += word();
+  // The raw bits: least significant first from the low end of each byte.
+  let rp = rawAt;
+  let rcur = 0;
+  let rleft = 0;
+  let rawOverrun = false;
+  const getBits = (count) => {
+    let v = 0;
+    let mul = 1;
+    while (count > 0) {
+      if (rleft === 0) {
+        if (rp < end) {
+          rcur = bytes[rp++];
+        } else {
+          rawOverrun = true;
+          rcur = 0;
+        }
+        rleft = 8;
+      }
+      const t = count < rleft ? count : rleft;
+      v += (rcur & ((1 << t) - 1)) * mul;
+      rcur >>>= t;
+      rleft -= t;
+      mul *= 2 ** t;
+      count -= t;
+    }
+    return v;
+  };
+  const unzigNum = (zz) => (zz % 2 === 1 ? -(zz + 1) / 2 : zz / 2);
+
+  const limit = kMaxQuantised * step;
+  const hs = step * kHalfAlong;
+  const vs = step * kAcross;
+  const outside = () => new ContourError('contour: decoded point outside [-2^52, 2^52] steps, ' +
+                                         'or a symbol from an empty table');
+  // The carried turtle of each side: theta, omega, lp, l1, actx, magE, valid.
+  const turtles = [new Float64Array(7), new Float64Array(7)];
+  let block = null;
+  let blockAt = 0;
+  let left = total;
+  for (let j = 0; j < nlines; ++j) {
+    const n = counts[j];
+    if (2 * n > (block ? block.length - blockAt : 0)) {
+      block = allocate(Float64Array, 2 * Math.max(n, Math.min(left, 1 << 16)));
+      blockAt = 0;
+    }
+    const out = block ? block.subarray(blockAt, blockAt + 2 * n) : new Float64Array(0);
+    blockAt += 2 * n;
+    left -= n;
+    p.lines.push(out);
+    const t = turtles[j % stride];
+    if (n === 0) {
+      t.fill(0);
+      continue;
+    }
+    let px;
+    let py;
+    if (join[j]) {
+      const ctx = p.lines[j - stride];
+      px = ctx[ctx.length - 2];
+      py = ctx[ctx.length - 1];
+    } else {
+      t.fill(0);
+      let rx = 0;
+      let ry = 0;
+      if (j >= stride && p.lines[j - stride].length) {
+        const ctx = p.lines[j - stride];
+        rx = roundAway(ctx[ctx.length - 2] / step);
+        ry = roundAway(ctx[ctx.length - 1] / step);
+      }
+      const x = rx + fx[j];
+      const y = ry + fy[j];
+      if (Math.abs(x) > kMaxQuantised || Math.abs(y) > kMaxQuantised) {
+        throw new ContourError('contour: decoded point outside [-2^52, 2^52] steps');
+      }
+      px = x * step;
+      py = y * step;
+    }
+    if (theta0[j] >= 0) {
+      t.fill(0);
+      t[0] = theta0[j];
+      t[4] = kAlongStart;
+      t[6] = 1;
+    }
+    out[0] = px;
+    out[1] = py;
+    const closed = closedOf[j] === 1;
+    const coded = closed ? n - 1 : n;
+    let theta = t[0];
+    let omega = t[1];
+    let lp = t[2];
+    let l1 = t[3];
+    let actx = t[4];
+    let magE = t[5];
+    let bad = false;
+    for (let k = 1; k < coded; ++k) {
+      // RansDecoder::Decode, the stream read inline (a call per symbol costs more than it).
+      let s = slots[actx * kScale + (x0 & (kScale - 1))];
+      x0 = (s >>> 17) * (x0 >>> kScaleBits) + ((s >>> 7) & (kScale - 1));
+      if (x0 < kRansLow) {
+        if (wp < ransEnd) {
+          x0 = x0 * 65536 + (bytes[wp] | (bytes[wp + 1] << 8));
+          wp += 2;
+        } else {
+          overrun = true;
+          x0 *= 65536;
+        }
+      }
+      const asym = s & 127;
+      const abits = kSymBits[asym];
+      const a = unzigNum(kSymBase[asym] + (abits ? getBits(abits) : 0));
+      const am = kSymMag[asym];
+      s = slots[(kAlongTables + 3 * magE + am) * kScale + (x1 & (kScale - 1))];
+      x1 = (s >>> 17) * (x1 >>> kScaleBits) + ((s >>> 7) & (kScale - 1));
+      if (x1 < kRansLow) {
+        if (wp < ransEnd) {
+          x1 = x1 * 65536 + (bytes[wp] | (bytes[wp + 1] << 8));
+          wp += 2;
+        } else {
+          overrun = true;
+          x1 *= 65536;
+        }
+      }
+      const esym = s & 127;
+      const ebits = kSymBits[esym];
+      const e = unzigNum(kSymBase[esym] + (ebits ? getBits(ebits) : 0));
+      const th = (theta + omega) & kAngleMask;
+      const len = lp + a;
+      const ux = kCos[th];
+      const uy = kCos[(th - kAngles / 4) & kAngleMask];
+      const ls = (2 * len + (e & 1)) * hs;
+      const es = e * vs;
+      px += ls * ux - es * uy;
+      py += ls * uy + es * ux;
+      if (asym === kNoSymbol || esym === kNoSymbol || len > kMaxChord || len < -kMaxChord ||
+          !(Math.abs(px) <= limit) || !(Math.abs(py) <= limit)) {
+        bad = true;
+        break;
+      }
+      const lc = len < 1 ? 1 : len > kRecipMax ? kRecipMax : len;
+      const ec = e < -lc ? -lc : e > lc ? lc : e;
+      const d = (ec * kTurn[lc]) >> 16;
+      theta = (th + d) & kAngleMask;
+      omega = clamp(omega + d, -kMaxTurn, kMaxTurn);
+      // The chord in half spacings (the row's parity is half a spacing along), continued.
+      const half = 2 * len + (e & 1);
+      const mm = half > 0 ? Math.floor((half * 13) / 256) : 0;
+      lp = Math.floor((half + clamp(half - l1, -mm, mm)) / 2);
+      l1 = half;
+      actx = am;
+      magE = kSymMag[esym];
+      out[2 * k] = px;
+      out[2 * k + 1] = py;
+    }
+    if (bad) throw outside();
+    if (overrun) throw truncated('points');
+    t[0] = theta;
+    t[1] = omega;
+    t[2] = lp;
+    t[3] = l1;
+    t[4] = actx;
+    t[5] = magE;
+    if (closed) {
+      out[2 * n - 2] = out[0];
+      out[2 * n - 1] = out[1];
+    }
+  }
+  if (overrun || (ransLen & 1) || wp !== ransEnd || x0 !== kRansLow || x1 !== kRansLow) {
+    throw new ContourError('contour: the SKC3 symbol stream does not end where it began');
+  }
+  // Every byte used, the unused high bits of the last one zero.
+  if (rawOverrun || rp !== end || (rleft > 0 && rcur !== 0)) {
+    throw new ContourError('contour: the SKC3 raw bits do not end with the last symbol');
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
 // The contour format.
 
 /** A bounded reader over the message (the C++ Reader). */
@@ -748,10 +1158,11 @@ function parse(bytes) {
   if (!(bytes instanceof Uint8Array)) throw new ContourError('contour: bytes must be a Uint8Array');
   const r = new Reader(bytes);
   if (bytes.length < 4 || kMagic.some((m, i) => bytes[i] !== m) ||
-      (bytes[3] !== 0x31 && bytes[3] !== 0x32)) {
-    throw new ContourError('contour: bad magic (want SKC2 or SKC1)');
+      (bytes[3] !== 0x31 && bytes[3] !== 0x32 && bytes[3] !== 0x33)) {
+    throw new ContourError('contour: bad magic (want SKC3, SKC2 or SKC1)');
   }
-  const skc2 = bytes[3] === 0x32;
+  const skc3 = bytes[3] === 0x33;
+  const skc2 = bytes[3] === 0x32 || skc3;  // the same header
   r.pos = 4;
   if (r.pos >= bytes.length) throw truncated('kind');
   const kind = bytes[r.pos++];
@@ -765,9 +1176,10 @@ function parse(bytes) {
   }
   if (r.pos >= bytes.length) throw truncated('coding');
   const coding = bytes[r.pos++];
-  if (skc2 ? coding !== kCurve : coding > kRans) {
+  if (skc3 ? coding !== kTurtle : skc2 ? coding !== kCurve : coding > kRans) {
     throw new ContourError(`contour.coding=${coding} outside ` +
-                           (skc2 ? '[2, 2] for SKC2' : '[0, 1] for SKC1'));
+                           (skc3 ? '[3, 3] for SKC3' : skc2 ? '[2, 2] for SKC2'
+                             : '[0, 1] for SKC1'));
   }
 
   const p = { kind, step, coding, scheme: null, sectionCount: 0, spliceAt: 0, removed: 0,
@@ -819,6 +1231,10 @@ function parse(bytes) {
   }
   if (coding === kCurve) {
     decodeCurveBody(bytes, r.pos, p, kind === kPolylineSet ? 0 : nlines / 2, nlines);
+    return p;
+  }
+  if (coding === kTurtle) {
+    decodeTurtleBody(bytes, r.pos, p, kind === kPolylineSet ? 0 : nlines / 2, nlines);
     return p;
   }
 

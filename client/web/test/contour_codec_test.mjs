@@ -1,6 +1,6 @@
 // The web client's contour decoder (src/contour_codec.js) against the C++ codec. The fixtures
-// (tests/web/contour_fixtures.cc) hold messages from the C++ encoder (SKC2, and SKC1 from the
-// older encoder) with what the C++ decoder made of them; every one must decode to the same
+// (tests/web/contour_fixtures.cc) hold messages from the C++ encoder (SKC3, and SKC2 and SKC1
+// from the older encoders) with what the C++ decoder made of them; every one must decode to the same
 // points here (identical doubles: both repeat the same operations), and every truncated or
 // corrupted variant must get the C++ verdict: a ContourError where C++ refused, the same points
 // where it accepted. Last, the JS decode speed on the benchmark's 1,000-ball skin.
@@ -105,11 +105,12 @@ for (const set of fixtures.sets) {
   set.lines.forEach((l, i) => samePoints(l, lines[i], `${where} polyline ${i}`));
   const d = describeContour(bytes);
   check(d.coding === bytes[13] && d.step === set.step, where, `described as ${JSON.stringify(d)}`);
-  seen.add(d.coding === 0 ? 'varint' : d.coding === 2 ? 'curve' : d.scheme);
+  seen.add(d.coding === 0 ? 'varint' : d.coding === 2 ? 'curve' : d.coding === 3 ? 'turtle'
+    : d.scheme);
   if (d.scheme === 'raw' && d.precisionBits > 12) seen.add('raw, precision > 12');
   if (d.scheme === 'tagged') seen.add(`tagged`);
 }
-for (const want of ['curve', 'varint', 'raw', 'tagged', 'raw, precision > 12']) {
+for (const want of ['turtle', 'curve', 'varint', 'raw', 'tagged', 'raw, precision > 12']) {
   check(seen.has(want), 'coverage', `no fixture uses ${want} (seen: ${[...seen].join(', ')})`);
 }
 
@@ -225,12 +226,13 @@ check(thrown(() => decodeContours([0x53, 0x4b, 0x43, 0x31]), 'array') !== null, 
 }
 check(slowest < 1000, 'time', `one decode took ${slowest.toFixed(0)} ms`);
 
-// 5. Decode speed on the benchmark's skin, SKC2 and SKC1 alternately in one run (one snapshot
-//    each; best of several runs).
+// 5. Decode speed on the benchmark's skin, SKC3 (the default), SKC2 and SKC1 alternately in one
+//    run (one snapshot each; best of several runs).
 let speed = '';
 if (fixtures.bench) {
-  const forms = [hex(fixtures.bench.bytes), hex(fixtures.bench.skc1_bytes)];
-  const best = [Infinity, Infinity];
+  const forms = [hex(fixtures.bench.bytes), hex(fixtures.bench.skc2_bytes),
+                 hex(fixtures.bench.skc1_bytes)];
+  const best = [Infinity, Infinity, Infinity];
   let points = 0;
   for (let run = 0; run < 30; ++run) {
     forms.forEach((bytes, f) => {
@@ -246,7 +248,8 @@ if (fixtures.bench) {
   speed = `; bench skin ${points} points in ${bytes.length} bytes ` +
           `(${(bytes.length * 8 / points).toFixed(2)} bits/point), decode ` +
           `${best[0].toFixed(2)} ms = ${(points / best[0] / 1000).toFixed(1)} M points/s ` +
-          `(SKC1 ${forms[1].length} bytes: ${(points / best[1] / 1000).toFixed(1)} M points/s)`;
+          `(SKC2 ${forms[1].length} bytes: ${(points / best[1] / 1000).toFixed(1)} M points/s, ` +
+          `SKC1 ${forms[2].length} bytes: ${(points / best[2] / 1000).toFixed(1)} M points/s)`;
 }
 
 const ms = performance.now() - started;

@@ -25,8 +25,9 @@ namespace {
 
 constexpr char kMagic1[4] = {'S', 'K', 'C', '1'};
 constexpr char kMagic2[4] = {'S', 'K', 'C', '2'};
+constexpr char kMagic3[4] = {'S', 'K', 'C', '3'};
 enum Kind : uint8_t { kPolylineSet = 0, kSnapshot = 1, kUpdate = 2 };
-enum Coding : uint8_t { kVarint = 0, kRans = 1, kCurve = 2 };
+enum Coding : uint8_t { kVarint = 0, kRans = 1, kCurve = 2, kTurtle = 3 };
 constexpr double kMaxQuantised = 4503599627370496.0;  // 2^52
 
 using Q = std::array<int64_t, 2>;
@@ -298,10 +299,7 @@ int AcrossContext(int k, int64_t prev_e, int64_t a) {
   return small(prev_e) + 3 * small(a);
 }
 
-/// A section entry of a skin message: its index (updates only), id and version.
-struct Entry {
-  uint64_t index = 0, id = 0, version = 0;
-};
+using Entry = internal::SectionEntry;
 
 /// Section ids and versions must be exact JavaScript numbers in SKC2.
 constexpr uint64_t kMaxExactId = (1ull << 53) - 1;
@@ -438,14 +436,42 @@ std::optional<std::string> CurveBody(Kind kind, double step, const std::vector<E
   return rc.Finish();
 }
 
-/// The message: SKC2 with the curve coding where it places every point, SKC1 otherwise.
-/// `header` holds the kind's counts; SKC1 writes the section entries after it as varints, SKC2
-/// codes them in its body.
+/// Which format an encoder writes: the newest that places every point (SKC3, then SKC2, then
+/// SKC1), or one named for the benchmark and the fixtures.
+enum class Format { kBest, kSkc3, kSkc2, kSkc1 };
+
+/// Below this many points a message also tries SKC2 and keeps the smaller: SKC3's tables cost
+/// a few hundred bytes, which a short update does not earn back.
+constexpr size_t kSkc3TryBoth = 4096;
+
+/// The message: SKC3 where it places every point (or SKC2 where that is smaller), SKC2 where
+/// SKC3 cannot, SKC1 where neither can. `header` holds the kind's counts; SKC1 writes the section
+/// entries after it as varints, SKC2 and SKC3 code them in their bodies.
 std::string Encode(Kind kind, double step, const std::string& header,
                    const std::vector<Entry>& entries, const std::vector<const Polyline2*>& lines,
-                   const std::vector<QLine>& q, bool curve = true) {
+                   const std::vector<QLine>& q, Format format = Format::kBest) {
   std::optional<std::string> body;
-  if (curve) body = CurveBody(kind, step, entries, lines);
+  const char* magic = kMagic2;
+  Coding coding = kCurve;
+  if (format == Format::kBest || format == Format::kSkc3) {
+    size_t points = 0;
+    for (const Polyline2* l : lines) points += l->size();
+    body = internal::Skc3Body(kind, step, entries, lines);
+    if (body) {
+      magic = kMagic3;
+      coding = kTurtle;
+    }
+    if (!body || (points < kSkc3TryBoth && format == Format::kBest)) {
+      std::optional<std::string> skc2 = CurveBody(kind, step, entries, lines);
+      if (skc2 && (!body || skc2->size() < body->size())) {
+        body = std::move(skc2);
+        magic = kMagic2;
+        coding = kCurve;
+      }
+    }
+  } else if (format == Format::kSkc2) {
+    body = CurveBody(kind, step, entries, lines);
+  }
   if (!body) {
     std::string h = header;
     for (const Entry& e : entries) {
@@ -455,12 +481,12 @@ std::string Encode(Kind kind, double step, const std::string& header,
     }
     return Assemble(kind, step, h, q);
   }
-  std::string out(kMagic2, 4);
+  std::string out(magic, 4);
   out.push_back(static_cast<char>(kind));
   char sb[8];
   std::memcpy(sb, &step, 8);  // little-endian hosts only (x86-64, aarch64)
   out.append(sb, 8);
-  out.push_back(static_cast<char>(kCurve));
+  out.push_back(static_cast<char>(coding));
   out += header;
   out += *body;
   return out;
@@ -570,10 +596,12 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
   uint8_t kind = 0, coding = 0;
   Parsed p;
   if (!r.Bytes(magic, 4) ||
-      (std::memcmp(magic, kMagic1, 4) != 0 && std::memcmp(magic, kMagic2, 4) != 0)) {
-    return DataLoss("contour: bad magic (want SKC2 or SKC1)");
+      (std::memcmp(magic, kMagic1, 4) != 0 && std::memcmp(magic, kMagic2, 4) != 0 &&
+       std::memcmp(magic, kMagic3, 4) != 0)) {
+    return DataLoss("contour: bad magic (want SKC3, SKC2 or SKC1)");
   }
-  const bool skc2 = magic[3] == '2';
+  const bool skc3 = magic[3] == '3';
+  const bool skc2 = magic[3] == '2' || skc3;  // the same header
   if (!r.Bytes(&kind, 1)) return Truncated("kind");
   if (kind > kUpdate) return Outside("contour.kind", std::to_string(kind), "[0, 2]");
   p.kind = static_cast<Kind>(kind);
@@ -582,9 +610,11 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
     return Outside("contour.step", FormatNumber(p.step), "(0, inf)");
   }
   if (!r.Bytes(&coding, 1)) return Truncated("coding");
-  if (skc2 ? coding != kCurve : coding > kRans) {
+  if (skc3 ? coding != kTurtle : skc2 ? coding != kCurve : coding > kRans) {
     return InvalidArgument("contour.coding=" + std::to_string(coding) + " outside " +
-                           (skc2 ? "[2, 2] for SKC2" : "[0, 1] for SKC1"));
+                           (skc3   ? "[3, 3] for SKC3"
+                            : skc2 ? "[2, 2] for SKC2"
+                                   : "[0, 1] for SKC1"));
   }
   uint64_t nlines = 0;
   if (p.kind == kPolylineSet) {
@@ -625,12 +655,18 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
     }
     nlines = 2 * entries;
   }
-  if (coding == kCurve) {
+  if (coding == kCurve || coding == kTurtle) {
     // Bounded above by the section count (itself capped): no allocation beyond what the header
     // allows.
     std::vector<Entry> ent(p.kind == kPolylineSet ? 0 : nlines / 2);
-    SCULPT_RETURN_IF_ERROR(DecodeCurveBody(bytes.substr(r.pos), bytes.size(), p.kind, p.step,
-                                           nlines, p.section_count, &ent, &p.lines));
+    if (coding == kTurtle) {
+      SCULPT_RETURN_IF_ERROR(internal::DecodeSkc3Body(bytes.substr(r.pos), bytes.size(), p.kind,
+                                                      p.step, nlines, p.section_count, &ent,
+                                                      &p.lines));
+    } else {
+      SCULPT_RETURN_IF_ERROR(DecodeCurveBody(bytes.substr(r.pos), bytes.size(), p.kind, p.step,
+                                             nlines, p.section_count, &ent, &p.lines));
+    }
     for (const Entry& e : ent) {
       p.index.push_back(e.index);
       p.id.push_back(e.id);
@@ -723,6 +759,31 @@ StatusOr<std::string> EncodeContours(const std::vector<Polyline2>& polylines, do
   return Encode(kPolylineSet, step, header, {}, ptrs, q);
 }
 
+namespace {
+
+StatusOr<std::string> ContoursMessage(const std::vector<Polyline2>& polylines, double step,
+                                      Format format) {
+  std::vector<const Polyline2*> ptrs;
+  for (const Polyline2& p : polylines) ptrs.push_back(&p);
+  std::vector<QLine> q;
+  SCULPT_RETURN_IF_ERROR(Quantise(ptrs, step, &q));
+  std::string header;
+  PutVarint(header, polylines.size());
+  return Encode(kPolylineSet, step, header, {}, ptrs, q, format);
+}
+
+}  // namespace
+
+StatusOr<std::string> internal::EncodeContoursSkc2(const std::vector<Polyline2>& polylines,
+                                                   double step) {
+  return ContoursMessage(polylines, step, Format::kSkc2);
+}
+
+StatusOr<std::string> internal::EncodeContoursSkc3(const std::vector<Polyline2>& polylines,
+                                                   double step) {
+  return ContoursMessage(polylines, step, Format::kSkc3);
+}
+
 StatusOr<std::string> internal::EncodeContoursSkc1(const std::vector<Polyline2>& polylines,
                                                    double step) {
   std::vector<const Polyline2*> ptrs;
@@ -742,7 +803,7 @@ StatusOr<std::vector<Polyline2>> DecodeContours(std::string_view bytes) {
 
 namespace {
 
-StatusOr<std::string> SnapshotMessage(const Skin& skin, double step, bool curve) {
+StatusOr<std::string> SnapshotMessage(const Skin& skin, double step, Format format) {
   SCULPT_ASSIGN_OR_RETURN(const double s, SkinStep(skin, step));
   std::string header;
   PutVarint(header, skin.sections().size());
@@ -756,17 +817,25 @@ StatusOr<std::string> SnapshotMessage(const Skin& skin, double step, bool curve)
   }
   std::vector<QLine> q;
   SCULPT_RETURN_IF_ERROR(Quantise(ptrs, s, &q));
-  return Encode(kSnapshot, s, header, entries, ptrs, q, curve);
+  return Encode(kSnapshot, s, header, entries, ptrs, q, format);
 }
 
 }  // namespace
 
 StatusOr<std::string> EncodeSkinSnapshot(const Skin& skin, double step) {
-  return SnapshotMessage(skin, step, true);
+  return SnapshotMessage(skin, step, Format::kBest);
+}
+
+StatusOr<std::string> internal::EncodeSkinSnapshotSkc2(const Skin& skin, double step) {
+  return SnapshotMessage(skin, step, Format::kSkc2);
+}
+
+StatusOr<std::string> internal::EncodeSkinSnapshotSkc3(const Skin& skin, double step) {
+  return SnapshotMessage(skin, step, Format::kSkc3);
 }
 
 StatusOr<std::string> internal::EncodeSkinSnapshotSkc1(const Skin& skin, double step) {
-  return SnapshotMessage(skin, step, false);
+  return SnapshotMessage(skin, step, Format::kSkc1);
 }
 
 StatusOr<std::string> EncodeSkinUpdate(const Skin& skin, const SkinChange& change, double step) {

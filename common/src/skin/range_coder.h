@@ -1,6 +1,7 @@
 /// @brief An adaptive binary range coder (the scheme of LZMA's rc: 12-bit probabilities adapted by
 /// 1/32 of the error, carry-propagating 32-bit range) and a signed-integer binarisation on top of
-/// it; the entropy coder of the contour codec's curve coding (SKC2). Internal to sculpt::skin.
+/// it; the entropy coder of the contour codec's curve coding (SKC2) and of SKC3's side
+/// information. Internal to sculpt::skin.
 ///
 /// Written here rather than taken from a package: Debian's entropy coders (zstd's FSE, brotli,
 /// Draco's rANS) code whole blocks with static tables, and the web client needs a decoder it can

@@ -2,13 +2,50 @@
 /// clients that follow skins (and slice contours of the sculpture) without meshes. A plain
 /// library API: bytes in, bytes out, no networking.
 ///
-/// Bound: every decoded point is within step/sqrt(2) (Euclidean) of the encoded one. SKC2 keeps
-/// it as step/2 along and step/2 across the curve, SKC1 as step/2 in x and in y; the distance
-/// bound is the same (0.707 of the tolerance at step = chord tolerance).
+/// Bound: every decoded point is within step/sqrt(2) (Euclidean) of the encoded one. SKC3 keeps
+/// it as the covering radius of a hexagonal lattice in the curve's frame, SKC2 as step/2 along
+/// and step/2 across the curve, SKC1 as step/2 in x and in y; the distance bound is the same
+/// (0.707 of the tolerance at step = chord tolerance).
 ///
-/// Two formats (all integers little-endian; "varint" = unsigned LEB128, "zz" = zigzag):
+/// Three formats (all integers little-endian; "varint" = unsigned LEB128, "zz" = zigzag):
 ///
-/// SKC2 (what the encoders write): magic "SKC2", kind byte (0 polyline set, 1 skin snapshot,
+/// SKC3 (what the encoders write): the header of SKC2 below with magic "SKC3" and coding byte 3,
+///   then the body: varint length and bytes of the side information, varint length and bytes of
+///   the symbol stream, then the raw bits to the end of the message.
+///   - Side information: one range-coded stream (SKC2's coder and integer binarisation, each kind
+///     of value with its own models) holding the section entries and point counts exactly as SKC2
+///     codes them; then 13 frequency tables (per table its symbol count n <= 92, then n
+///     frequencies summing to 1024, or n = 0 for an unused table); then per non-empty line as in
+///     SKC2 the join flag, the first point (when not joined) and the closed flag, and, when the
+///     line codes two points or more and carries no turtle (below), its first direction as 14 raw
+///     bits (angle units of 2 pi / 2^14).
+///   - Symbol stream: rANS with 10-bit frequencies, two 32-bit states (initial and final value
+///     2^16), 16-bit little-endian words, the states first (state 0 then state 1, high word
+///     first); a state below 2^16 after a symbol reads one word. Along integers use state 0 and
+///     tables 0-3, across integers state 1 and tables 4-12.
+///   - Tokens: an integer v becomes z = zz(v); z < 16 is symbol z; otherwise with b = bit length
+///     of z, symbol 16 + 2 (b - 5) + (bit b-2 of z) and the b - 2 bits under it go to the raw bits
+///     (least significant first, packed from each byte's low end).
+///   - Per later point of a line, an along integer a then an across integer e place the point by
+///     the line's turtle: direction theta, turn omega, predicted chord lp and last chord l1 (all
+///     integers), and the last magnitude classes (0, 1, 2+) of a and e, which pick the tables
+///     (along: that of the previous a, or 3 for a line's first point after a sent direction;
+///     across: 4 + 3 class(previous e) + class(a)). With th = (theta + omega) mod 2^14, u =
+///     (C[th], C[th - 2^12]) (C the cosine table built as contour_codec_skc3.cc builds it) and v
+///     = u turned left, the chord len = lp + a, and the point is p + ((2 len + (e & 1)) hs) u +
+///     (e vs) v with hs = step 0.6123718516919304 and vs = step 1.060659160255457. Then, with
+///     lc = clamp(len, 1, 4096) and d = (clamp(e, -lc, lc) floor(147996223 / lc)) >> 16:
+///     theta = (th + d) mod 2^14, omega = clamp(omega + d, -2^11, 2^11), and with h = 2 len +
+///     (e & 1) (the chord in half spacings), lp = floor((h + clamp(h - l1, -m, m)) / 2) with
+///     m = floor(13 h / 256) (0 for h <= 0), l1 = h. A line
+///     that joins its context line carries that line's final turtle, if it has one; else its
+///     turtle starts at 0 with the sent direction. Double arithmetic in the order of
+///     contour_codec_skc3.cc, so the web client's decoder computes the same doubles.
+///   The encoder writes SKC2 instead where that is smaller (messages under 4096 points, where
+///   SKC3's tables do not pay), and where SKC3 cannot place a point (chords beyond 2^40 steps).
+///
+/// SKC2 (still decoded; written where smaller than SKC3 or where SKC3 cannot place a point):
+///   magic "SKC2", kind byte (0 polyline set, 1 skin snapshot,
 ///   2 skin update), step as float64, coding byte 2, then the kind's counts as varints (polyline
 ///   set: polyline count; snapshot: section count; update: section count after the update,
 ///   splice_at, removed, inserted, changed count), then one adaptive binary range-coded body
@@ -32,7 +69,7 @@
 ///     arithmetic (+ - * / and sqrt only, in the order of contour_codec.cc), so the web client's
 ///     decoder (client/web/src/contour_codec.js) computes the same doubles.
 ///   Where doubles cannot place a point within the bound (coordinates near 2^52 steps), or an id
-///   is 2^53 or more, the encoder writes SKC1 instead.
+///   is 2^53 or more, the encoder writes SKC1 instead (of SKC3 or SKC2).
 ///
 /// SKC1 (still decoded; written only as that fallback): magic "SKC1", kind byte, step as float64,
 ///   coding byte (0 varint residuals, 1 Draco rANS symbols), then the kind's header (below), then
@@ -63,7 +100,7 @@
 namespace sculpt::skin {
 
 /// Upper bounds a decoder enforces on untrusted input (points also to 65536 + 256 per message
-/// byte in SKC1, + 512 per byte in SKC2).
+/// byte in SKC1, + 512 per byte in SKC2 and SKC3).
 inline constexpr uint64_t kMaxContourPoints = 1ull << 26;
 inline constexpr uint64_t kMaxContourPolylines = 1ull << 24;
 

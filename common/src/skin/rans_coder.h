@@ -1,0 +1,206 @@
+/// @brief A static-table rANS coder of whole symbols (SKC3's point coder): per-message frequency
+/// tables of at most kRansAlphabet symbols at 11-bit precision, two interleaved 32-bit states
+/// sharing one stream of 16-bit words, one table lookup per decoded symbol; and the token scheme
+/// that maps a signed integer to a symbol plus raw extra bits (a separate bit stream).
+/// Internal to sculpt::skin.
+///
+/// Written here rather than taken from a package: Debian ships no library with a public
+/// table-driven entropy coder API (zstd's FSE and Huff0 are internal to libzstd, brotli and zlib
+/// expose only whole-stream compression, Draco's rANS reads its own symbol format with adaptive
+/// precision), and the web client needs a decoder it can mirror bit for bit
+/// (client/web/src/contour_codec.js does). Integer arithmetic only.
+#ifndef SCULPT_SKIN_RANS_CODER_H_
+#define SCULPT_SKIN_RANS_CODER_H_
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace sculpt::skin::internal {
+
+inline constexpr int kRansScaleBits = 10;
+inline constexpr uint32_t kRansScale = 1u << kRansScaleBits;
+inline constexpr uint32_t kRansLow = 1u << 16;  // states live in [2^16, 2^32)
+
+/// Tokens: a zigzagged integer below kTokenDirect is its own symbol; above, the symbol names its
+/// bit length and the bit under the leading one, and the bits below those go raw.
+inline constexpr int kTokenDirectBits = 4;
+inline constexpr int kTokenDirect = 1 << kTokenDirectBits;
+inline constexpr int kTokenMaxBits = 42;  // zigzag values below 2^42: |v| < 2^41
+inline constexpr int kRansAlphabet = kTokenDirect + 2 * (kTokenMaxBits - kTokenDirectBits);
+inline constexpr int64_t kMaxTokenMagnitude = (int64_t{1} << 40);
+
+/// A signed integer's symbol and its raw extra bits (count and value). |v| <= kMaxTokenMagnitude.
+struct Token {
+  int symbol = 0;
+  int extra_bits = 0;
+  uint64_t extra = 0;
+};
+Token MakeToken(int64_t v);
+/// The extra bit count of a symbol (0 for the direct ones).
+inline int TokenExtraBits(int symbol) {
+  return symbol < kTokenDirect ? 0 : (symbol - kTokenDirect) / 2 + kTokenDirectBits - 1;
+}
+/// The integer of a symbol and its extra bits.
+inline int64_t TokenValue(int symbol, uint64_t extra) {
+  uint64_t zz;
+  if (symbol < kTokenDirect) {
+    zz = static_cast<uint64_t>(symbol);
+  } else {
+    const int n = (symbol - kTokenDirect) / 2 + kTokenDirectBits - 1;  // raw, under the top two
+    zz = ((uint64_t{2} | static_cast<uint64_t>((symbol - kTokenDirect) & 1)) << n) | extra;
+  }
+  return static_cast<int64_t>(zz >> 1) ^ -static_cast<int64_t>(zz & 1);
+}
+
+/// Scales symbol counts to frequencies summing to kRansScale, every used symbol at least 1.
+/// Empty (all zero) counts give an empty table (all zero).
+std::vector<uint32_t> NormaliseCounts(const std::vector<uint64_t>& counts);
+
+/// The decoder's view of one table: per slot, the symbol (7 bits), slot - start of the symbol
+/// (kRansScaleBits) and its frequency (above), in one word so a table stays small in cache.
+using RansSlot = uint32_t;
+inline constexpr int kSlotBiasShift = 7;
+inline constexpr int kSlotFreqShift = kSlotBiasShift + kRansScaleBits;
+inline constexpr RansSlot MakeSlot(uint32_t freq, uint32_t bias, uint32_t symbol) {
+  return (freq << kSlotFreqShift) | (bias << kSlotBiasShift) | symbol;
+}
+/// A symbol value that marks a slot of an empty table (its use is a decode error).
+inline constexpr uint16_t kRansNoSymbol = kRansAlphabet;
+
+/// Fills `slots` (kRansScale entries) from frequencies that sum to kRansScale (or are all zero:
+/// every slot then decodes kRansNoSymbol and leaves the state as it was). False if they sum to
+/// anything else or there are more than kRansAlphabet.
+bool BuildRansSlots(const std::vector<uint32_t>& freq, RansSlot* slots);
+
+/// Collects symbols with their frequency tables and state (0 or 1), then writes them in reverse.
+/// Not thread-safe.
+class RansEncoder {
+ public:
+  /// `freq` and `start` of the symbol in its table; `lane` is 0 or 1.
+  void Put(uint32_t freq, uint32_t start, int lane) { syms_.push_back({freq, start, lane}); }
+  /// The words of every symbol put, little-endian bytes, the states first.
+  std::string Finish() const;
+
+ private:
+  struct Sym {
+    uint32_t freq, start;
+    int lane;
+  };
+  std::vector<Sym> syms_;
+};
+
+/// Reads RansEncoder's stream from untrusted bytes: past the end reads zeros and is noted, so a
+/// caller checks ok() at the end (every word was there, every word was read, both states back
+/// at their start). Never reads outside `bytes`.
+class RansDecoder {
+ public:
+  explicit RansDecoder(std::string_view bytes)
+      : p_(reinterpret_cast<const uint8_t*>(bytes.data())),
+        end_(p_ + (bytes.size() & ~size_t{1})),
+        odd_(bytes.size() & 1) {
+    // Two statements each: the operands of | are unsequenced.
+    x0_ = Word() << 16;
+    x0_ |= Word();
+    x1_ = Word() << 16;
+    x1_ |= Word();
+  }
+  /// The next symbol of `lane` (0 or 1) from `table` (kRansScale slots).
+  [[gnu::always_inline]] uint32_t Decode(const RansSlot* table, int lane) {
+    // Two named states rather than an array, so both stay in registers.
+    return lane == 0 ? Step(table, x0_) : Step(table, x1_);
+  }
+  /// True when the stream was read exactly and ended where the encoder began.
+  bool ok() const {
+    return !overrun_ && !odd_ && p_ == end_ && x0_ == kRansLow && x1_ == kRansLow;
+  }
+  bool overrun() const { return overrun_; }
+
+ private:
+  [[gnu::always_inline]] uint32_t Step(const RansSlot* table, uint32_t& state) {
+    uint32_t x = state;
+    const RansSlot s = table[x & (kRansScale - 1)];
+    x = (s >> kSlotFreqShift) * (x >> kRansScaleBits) + ((s >> kSlotBiasShift) & (kRansScale - 1));
+    // Branch-free renormalisation: whether a word is due is what the data makes it, so a branch
+    // would be mispredicted about once in three symbols. The load is guarded by a branch that
+    // only the stream's end takes.
+    const bool need = x < kRansLow;
+    const bool have = p_ != end_;
+    const uint32_t w =
+        have ? static_cast<uint32_t>(p_[0]) | (static_cast<uint32_t>(p_[1]) << 8) : 0;
+    overrun_ |= need & !have;
+    x = need ? (x << 16) | w : x;
+    p_ += (need & have) ? 2 : 0;
+    state = x;
+    return s & 127;
+  }
+  [[gnu::always_inline]] uint32_t Word() {
+    if (p_ == end_) {
+      overrun_ = true;
+      return 0;
+    }
+    const uint32_t w = static_cast<uint32_t>(p_[0]) | (static_cast<uint32_t>(p_[1]) << 8);
+    p_ += 2;
+    return w;
+  }
+  const uint8_t* p_;
+  const uint8_t* end_;
+  bool odd_;
+  bool overrun_ = false;
+  uint32_t x0_ = 0, x1_ = 0;
+};
+
+/// Raw bits, least significant first, packed into bytes from the low end.
+class BitWriter {
+ public:
+  void Put(uint64_t v, int count);  // count <= 57
+  std::string Finish() const;
+
+ private:
+  std::string out_;
+  uint64_t acc_ = 0;
+  int n_ = 0;
+};
+
+/// Reads BitWriter's bits from untrusted bytes; past the end reads zeros and is noted.
+class BitReader {
+ public:
+  explicit BitReader(std::string_view bytes)
+      : p_(reinterpret_cast<const uint8_t*>(bytes.data())), end_(p_ + bytes.size()) {}
+  /// `count` <= 48 bits (0 reads nothing).
+  [[gnu::always_inline]] uint64_t Get(int count) {
+    if (n_ < count) [[unlikely]]
+      Refill(count);
+    const uint64_t v = acc_ & ((uint64_t{1} << count) - 1);
+    acc_ >>= count;
+    n_ -= count;
+    return v;
+  }
+  /// True when no read went past the end and every whole byte was used (the unused bits of the
+  /// last byte are zero).
+  bool ok() const { return !overrun_ && p_ == end_ && n_ < 8 && acc_ == 0; }
+
+ private:
+  [[gnu::always_inline]] void Refill(int count) {
+    while (n_ <= 56 && p_ < end_) {
+      acc_ |= static_cast<uint64_t>(*p_++) << n_;
+      n_ += 8;
+    }
+    if (n_ < count) {  // past the end: zeros
+      overrun_ = true;
+      n_ = count;
+    }
+  }
+  const uint8_t* p_;
+  const uint8_t* end_;
+  uint64_t acc_ = 0;
+  int n_ = 0;
+  bool overrun_ = false;
+};
+
+}  // namespace sculpt::skin::internal
+
+#endif  // SCULPT_SKIN_RANS_CODER_H_

@@ -1,0 +1,166 @@
+#include "skin/rans_coder.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+#include <string>
+#include <vector>
+
+namespace sculpt::skin::internal {
+namespace {
+
+/// Tables of `n` symbols with geometric-ish weights, as the contour codec's residuals have.
+std::vector<uint32_t> Table(std::mt19937_64& rng, int n) {
+  std::vector<uint64_t> counts(n);
+  for (int i = 0; i < n; ++i) counts[i] = 1 + (rng() % 1000) / (1 + i);
+  return NormaliseCounts(counts);
+}
+
+TEST(RansCoderTest, RoundTripsSymbolsOnTwoLanesThroughSeveralTables) {
+  std::mt19937_64 rng(1);
+  std::vector<std::vector<uint32_t>> freq{
+      Table(rng, 3), Table(rng, 40), Table(rng, kRansAlphabet), {kRansScale}};
+  std::vector<std::vector<uint32_t>> start(freq.size());
+  std::vector<RansSlot> slots(freq.size() * kRansScale);
+  for (size_t t = 0; t < freq.size(); ++t) {
+    ASSERT_TRUE(BuildRansSlots(freq[t], &slots[t * kRansScale]));
+    start[t].assign(freq[t].size() + 1, 0);
+    for (size_t i = 0; i < freq[t].size(); ++i) start[t][i + 1] = start[t][i] + freq[t][i];
+  }
+  struct Put {
+    size_t table;
+    uint32_t symbol;
+  };
+  std::vector<Put> puts;
+  RansEncoder enc;
+  for (int i = 0; i < 20000; ++i) {
+    const size_t t = rng() % freq.size();
+    // Draw by frequency so the stream looks like the data the tables describe.
+    const uint32_t slot = rng() % kRansScale;
+    uint32_t s = 0;
+    while (start[t][s + 1] <= slot) ++s;
+    puts.push_back({t, s});
+    enc.Put(freq[t][s], start[t][s], i & 1);
+  }
+  const std::string bytes = enc.Finish();
+  RansDecoder dec(bytes);
+  for (size_t i = 0; i < puts.size(); ++i) {
+    ASSERT_EQ(dec.Decode(&slots[puts[i].table * kRansScale], static_cast<int>(i & 1)),
+              puts[i].symbol)
+        << i;
+  }
+  EXPECT_TRUE(dec.ok());
+}
+
+TEST(RansCoderTest, EmptyStreamHoldsOnlyTheStates) {
+  const std::string bytes = RansEncoder().Finish();
+  EXPECT_EQ(bytes.size(), 8u);
+  EXPECT_TRUE(RansDecoder(bytes).ok());
+  EXPECT_FALSE(RansDecoder(bytes.substr(0, 7)).ok());
+  EXPECT_FALSE(RansDecoder(bytes + std::string(2, '\0')).ok());
+}
+
+TEST(RansCoderTest, RejectsTruncatedStreams) {
+  std::mt19937_64 rng(2);
+  const std::vector<uint32_t> freq = Table(rng, 20);
+  std::vector<RansSlot> slots(kRansScale);
+  ASSERT_TRUE(BuildRansSlots(freq, slots.data()));
+  std::vector<uint32_t> start(freq.size() + 1, 0);
+  for (size_t i = 0; i < freq.size(); ++i) start[i + 1] = start[i] + freq[i];
+  RansEncoder enc;
+  for (int i = 0; i < 500; ++i) {
+    const uint32_t s = static_cast<uint32_t>(rng() % freq.size());
+    enc.Put(freq[s], start[s], i & 1);
+  }
+  const std::string bytes = enc.Finish();
+  for (size_t n = 0; n < bytes.size(); ++n) {
+    RansDecoder dec(std::string_view(bytes).substr(0, n));
+    for (int i = 0; i < 500; ++i) dec.Decode(slots.data(), i & 1);
+    EXPECT_FALSE(dec.ok()) << n;
+  }
+}
+
+TEST(RansCoderTest, GarbageDecodesToSymbolsOfTheTable) {
+  std::mt19937_64 rng(3);
+  const std::vector<uint32_t> freq = Table(rng, 30);
+  std::vector<RansSlot> slots(2 * kRansScale);
+  ASSERT_TRUE(BuildRansSlots(freq, slots.data()));
+  ASSERT_TRUE(BuildRansSlots({}, slots.data() + kRansScale));  // an empty table
+  for (int trial = 0; trial < 200; ++trial) {
+    std::string bytes(rng() % 64, '\0');
+    for (char& c : bytes) c = static_cast<char>(rng());
+    RansDecoder dec(bytes);
+    for (int i = 0; i < 200; ++i) {
+      EXPECT_LT(dec.Decode(slots.data(), i & 1), freq.size());
+      EXPECT_EQ(dec.Decode(slots.data() + kRansScale, i & 1), kRansNoSymbol);
+    }
+  }
+}
+
+TEST(RansCoderTest, NormalisedCountsSumToTheScale) {
+  std::mt19937_64 rng(4);
+  for (int trial = 0; trial < 300; ++trial) {
+    std::vector<uint64_t> counts(1 + rng() % kRansAlphabet);
+    for (uint64_t& c : counts) {
+      c = rng() % 3 == 0 ? 0 : rng() % 2 ? 1 : rng() % 1000000000;
+    }
+    const std::vector<uint32_t> f = NormaliseCounts(counts);
+    uint32_t sum = 0;
+    for (size_t i = 0; i < f.size(); ++i) {
+      EXPECT_EQ(f[i] == 0, counts[i] == 0) << i;
+      sum += f[i];
+    }
+    bool any = false;
+    for (uint64_t c : counts) any = any || c > 0;
+    EXPECT_EQ(sum, any ? kRansScale : 0u);
+  }
+}
+
+TEST(RansCoderTest, RejectsTablesThatDoNotSumToTheScale) {
+  std::vector<RansSlot> slots(kRansScale);
+  EXPECT_FALSE(BuildRansSlots({kRansScale - 1}, slots.data()));
+  EXPECT_FALSE(BuildRansSlots({kRansScale, 1}, slots.data()));
+  EXPECT_FALSE(BuildRansSlots(std::vector<uint32_t>(kRansAlphabet + 1, 1), slots.data()));
+  EXPECT_TRUE(BuildRansSlots({kRansScale / 2, kRansScale / 2}, slots.data()));
+}
+
+TEST(RansCoderTest, TokensRoundTripEveryMagnitude) {
+  std::vector<int64_t> values{0, 1, -1, 7, -8, 8, 15, 16, -17, 1000, -123456};
+  for (int b = 0; b <= 40; ++b) {
+    values.push_back(int64_t{1} << b);
+    values.push_back(-(int64_t{1} << b));
+    values.push_back((int64_t{1} << b) - 1);
+  }
+  for (int64_t v : values) {
+    const Token t = MakeToken(v);
+    ASSERT_GE(t.symbol, 0);
+    ASSERT_LT(t.symbol, kRansAlphabet) << v;
+    EXPECT_EQ(t.extra_bits, TokenExtraBits(t.symbol));
+    EXPECT_EQ(TokenValue(t.symbol, t.extra), v);
+  }
+}
+
+TEST(RansCoderTest, RawBitsRoundTripAndEndExactly) {
+  std::mt19937_64 rng(5);
+  BitWriter w;
+  std::vector<std::pair<uint64_t, int>> puts;
+  for (int i = 0; i < 1000; ++i) {
+    const int n = static_cast<int>(rng() % 41);
+    const uint64_t v = n ? rng() & ((uint64_t{1} << n) - 1) : 0;
+    puts.push_back({v, n});
+    w.Put(v, n);
+  }
+  const std::string bytes = w.Finish();
+  BitReader r(bytes);
+  for (const auto& [v, n] : puts) ASSERT_EQ(r.Get(n), v);
+  EXPECT_TRUE(r.ok());
+  BitReader shorter(std::string_view(bytes).substr(0, bytes.size() - 1));
+  for (const auto& [v, n] : puts) shorter.Get(n);
+  EXPECT_FALSE(shorter.ok());
+  BitReader longer(bytes + '\0');
+  for (const auto& [v, n] : puts) longer.Get(n);
+  EXPECT_FALSE(longer.ok());
+}
+
+}  // namespace
+}  // namespace sculpt::skin::internal
