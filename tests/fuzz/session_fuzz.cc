@@ -245,7 +245,7 @@ class World {
   // late by a scheduler time slice on a loaded machine (a thread preempted between taking a
   // strand and queueing it), so whatever an invariant depends on is waited for, not assumed.
   template <typename Pred>
-  bool WaitFor(Pred done, std::chrono::milliseconds limit = std::chrono::seconds(10)) {
+  bool WaitFor(Pred done, std::chrono::milliseconds limit = std::chrono::seconds(5)) {
     const auto deadline = std::chrono::steady_clock::now() + limit;
     while (!done()) {
       if (io_->poll() > 0) continue;
