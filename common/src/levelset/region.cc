@@ -301,6 +301,8 @@ StatusOr<LeafApplyResult> ApplyLeafRecords(Sculpture& sculpture, std::string_vie
                    std::string("[0, ") + std::to_string(s.size() / 21) + "] for the payload size",
                    Status::Code::kDataLoss);
   }
+  FloatGrid& g = *sculpture.impl().grid;
+  const float bg = g.background();
   std::vector<Rec> recs;
   recs.reserve(n);
   uint64_t total_values = 0;
@@ -322,6 +324,13 @@ StatusOr<LeafApplyResult> ApplyLeafRecords(Sculpture& sculpture, std::string_vie
       if (!Get(s, &r.uniform) || !std::isfinite(r.uniform)) {
         return DataLoss("leaf records: uniform value of record " + std::to_string(i) +
                         " missing or not finite");
+      }
+      // It becomes an inactive tile: outside or inside, +-background like every inactive value.
+      if (r.uniform != bg && r.uniform != -bg) {
+        return Outside("leaf records: uniform value of record " + std::to_string(i),
+                       std::to_string(r.uniform),
+                       "{-" + std::to_string(bg) + ", " + std::to_string(bg) + "} (+-background)",
+                       Status::Code::kDataLoss);
       }
     } else if (r.type == kLeaf) {
       if (s.size() < 2 * kMaskBytes + 2) {
@@ -368,8 +377,6 @@ StatusOr<LeafApplyResult> ApplyLeafRecords(Sculpture& sculpture, std::string_vie
     const char* src = s.data() + plane * total_values;
     for (uint64_t i = 0; i < total_values; ++i) vb[i * 4 + plane] = static_cast<uint8_t>(src[i]);
   }
-  FloatGrid& g = *sculpture.impl().grid;
-  const float bg = g.background();
   for (float v : values) {
     if (!std::isfinite(v) || std::abs(v) >= bg) {
       return DataLoss("leaf records: an active value outside (-background, background)");

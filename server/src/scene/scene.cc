@@ -609,7 +609,7 @@ void Scene::MaybeSnapshot(bool force) {
     // writes happen in the background, the history's after its snapshot's.
     auto history = std::make_shared<const std::string>(HistoryFileBytes(name, seq));
     snapshots_->WriteAsync(seq, name, sculpture.Clone(),
-                           [this, seq, name, round, history](Status s) {
+                           [this, seq, name = name, round, history](Status s) {
       if (s.ok()) s = WriteHistoryFile(config_.data_dir, name, seq, *history);
       // kUnavailable: superseded by a newer snapshot before it was written, which is fine.
       if (!s.ok() && s.code() != Status::Code::kUnavailable) {

@@ -3,7 +3,9 @@
 #include "sculpt/levelset/region.h"
 
 #include <gtest/gtest.h>
+#include <zstd.h>
 
+#include <cstring>
 #include <random>
 
 #include "sculpt/levelset/edit.h"
@@ -145,6 +147,39 @@ TEST(RegionTest, BadRecordsAreRefusedAndChangeNothing) {
   }
   EXPECT_EQ(refused, 200);
   EXPECT_FALSE(ApplyLeafRecords(replica, "").ok());
+}
+
+// A uniform record becomes an inactive tile, so its value must be +-background like every other
+// inactive value. Found by the leaf_records fuzz target: a uniform 0.3 was written as a tile and
+// the replica was no longer a valid level set (CheckLevelSet: a tile not equal to +-background).
+TEST(RegionTest, RejectsUniformValueOtherThanBackground) {
+  auto records = [](float uniform) {
+    std::string raw = "SLR1";
+    const uint32_t n = 1;
+    const int32_t origin[3] = {64, 64, 64};
+    const uint64_t version = 0;
+    raw.append(reinterpret_cast<const char*>(&n), sizeof n);
+    raw.append(reinterpret_cast<const char*>(origin), sizeof origin);
+    raw.append(reinterpret_cast<const char*>(&version), sizeof version);
+    raw.push_back(0);  // a uniform record
+    raw.append(reinterpret_cast<const char*>(&uniform), sizeof uniform);
+    std::string out(8 + ZSTD_compressBound(raw.size()), '\0');
+    const uint64_t raw_size = raw.size();
+    std::memcpy(out.data(), &raw_size, 8);
+    out.resize(8 + ZSTD_compress(out.data() + 8, out.size() - 8, raw.data(), raw.size(), 1));
+    return out;
+  };
+  Sculpture replica = Sphere(10);  // voxel 1, half-width 4: background 4
+  const uint64_t h = replica.StateHash();
+  auto bad = ApplyLeafRecords(replica, records(0.3f));
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().code(), Status::Code::kDataLoss);
+  ASSERT_NE(bad.status().violation(), nullptr);
+  EXPECT_EQ(bad.status().violation()->field, "leaf records: uniform value of record 0");
+  EXPECT_EQ(replica.StateHash(), h);
+  auto inside = ApplyLeafRecords(replica, records(-4.0f));
+  ASSERT_TRUE(inside.ok()) << inside.status().ToString();
+  EXPECT_TRUE(replica.CheckLevelSet(8).ok());
 }
 
 // Recovery from a snapshot plus the log tail must start from the tracked volume the live
