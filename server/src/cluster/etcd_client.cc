@@ -8,6 +8,9 @@
 #include <boost/beast/http.hpp>
 #include <nlohmann/json.hpp>
 
+// Every call of a coroutine is made in its own statement and its awaitable then awaited
+// (`auto x_call = F(args); auto x = co_await std::move(x_call);`): g++ 12 destroys temporaries
+// of a co_await expression's arguments twice (heap corruption seen with a braced PutOp).
 namespace sculpt::server::cluster {
 namespace {
 
@@ -308,7 +311,8 @@ asio::awaitable<StatusOr<std::string>> EtcdClient::Call(std::string target, std:
   // itself returned is final (another member would say the same).
   for (size_t i = 0; i < endpoints_.size(); ++i) {
     const size_t k = (preferred_ + i) % endpoints_.size();
-    auto answer = co_await CallOne(endpoints_[k], target, body);
+    auto answer_call = CallOne(endpoints_[k], target, body);
+    auto answer = co_await std::move(answer_call);
     if (answer.ok() || answer.status().code() != Status::Code::kUnavailable) {
       if (answer.ok()) preferred_ = k;
       co_return answer;
@@ -321,48 +325,56 @@ asio::awaitable<StatusOr<std::string>> EtcdClient::Call(std::string target, std:
 asio::awaitable<StatusOr<Lease>> EtcdClient::Grant(std::chrono::milliseconds ttl) {
   // etcd's TTL is whole seconds: rounded up, so the lease outlives what the caller asked.
   const int64_t seconds = std::max<int64_t>(1, (ttl.count() + 999) / 1000);
-  auto body = co_await Call("/v3/lease/grant", GrantBody(seconds));
+  auto body_call = Call("/v3/lease/grant", GrantBody(seconds));
+  auto body = co_await std::move(body_call);
   if (!body.ok()) co_return body.status();
   co_return ParseGrant(*body);
 }
 
 asio::awaitable<StatusOr<std::chrono::milliseconds>> EtcdClient::KeepAlive(int64_t lease) {
-  auto body = co_await Call("/v3/lease/keepalive", LeaseIdBody(lease));
+  auto body_call = Call("/v3/lease/keepalive", LeaseIdBody(lease));
+  auto body = co_await std::move(body_call);
   if (!body.ok()) co_return body.status();
   co_return ParseKeepAlive(lease, *body);
 }
 
 asio::awaitable<Status> EtcdClient::Revoke(int64_t lease) {
-  auto body = co_await Call("/v3/lease/revoke", LeaseIdBody(lease));
+  auto body_call = Call("/v3/lease/revoke", LeaseIdBody(lease));
+  auto body = co_await std::move(body_call);
   co_return body.status();
 }
 
 asio::awaitable<StatusOr<int64_t>> EtcdClient::Put(PutOp put) {
-  auto body = co_await Call("/v3/kv/put", PutBody(put));
+  auto body_call = Call("/v3/kv/put", PutBody(put));
+  auto body = co_await std::move(body_call);
   if (!body.ok()) co_return body.status();
   co_return ParseRevision("/v3/kv/put", *body);
 }
 
 asio::awaitable<StatusOr<std::optional<KeyValue>>> EtcdClient::Get(std::string key) {
-  auto body = co_await Call("/v3/kv/range", RangeBody(key, ""));
+  auto body_call = Call("/v3/kv/range", RangeBody(key, ""));
+  auto body = co_await std::move(body_call);
   if (!body.ok()) co_return body.status();
   co_return ParseGet(*body);
 }
 
 asio::awaitable<StatusOr<std::vector<KeyValue>>> EtcdClient::GetPrefix(std::string prefix) {
-  auto body = co_await Call("/v3/kv/range", RangeBody(prefix, PrefixEnd(prefix)));
+  auto body_call = Call("/v3/kv/range", RangeBody(prefix, PrefixEnd(prefix)));
+  auto body = co_await std::move(body_call);
   if (!body.ok()) co_return body.status();
   co_return ParseRange(*body);
 }
 
 asio::awaitable<StatusOr<TxnResult>> EtcdClient::Txn(TxnRequest txn) {
-  auto body = co_await Call("/v3/kv/txn", TxnBody(txn));
+  auto body_call = Call("/v3/kv/txn", TxnBody(txn));
+  auto body = co_await std::move(body_call);
   if (!body.ok()) co_return body.status();
   co_return ParseTxn(*body);
 }
 
 asio::awaitable<StatusOr<int64_t>> EtcdClient::Delete(std::string key) {
-  auto body = co_await Call("/v3/kv/deleterange", RangeBody(key, ""));
+  auto body_call = Call("/v3/kv/deleterange", RangeBody(key, ""));
+  auto body = co_await std::move(body_call);
   if (!body.ok()) co_return body.status();
   co_return ParseDeleted(*body);
 }
