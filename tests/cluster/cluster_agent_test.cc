@@ -56,8 +56,8 @@ TEST_F(ClusterAgentTest, StopsAcknowledgingWithinTheTtlWhenEtcdIsGoneAndRecovers
   const auto paused = std::chrono::steady_clock::now();
   ASSERT_EQ(kill(etcd_->process().pid(), SIGSTOP), 0);
   ASSERT_TRUE(WaitFor([&] { return !agent_->fence()->held(); }, milliseconds(4000)));
-  const auto fenced_ms = std::chrono::duration_cast<milliseconds>(
-                             std::chrono::steady_clock::now() - paused).count();
+  const auto fenced_ms =
+      std::chrono::duration_cast<milliseconds>(std::chrono::steady_clock::now() - paused).count();
   // Never later than the lease could last in etcd; not at once either (the lease was fresh).
   EXPECT_LE(fenced_ms, 2000);
   EXPECT_GE(fenced_ms, 500);

@@ -1,11 +1,10 @@
 // The [cluster] section of sculptd's configuration: read, checked, and absent by default.
-#include "config/server_config.h"
-
 #include <gtest/gtest.h>
 
 #include <fstream>
 
 #include "cluster/processes.h"
+#include "config/server_config.h"
 
 namespace sculpt::server {
 namespace {
@@ -42,7 +41,8 @@ advertise = "127.0.0.1:7420"
 advertise_http = "127.0.0.1:7421"
 lease_ttl_ms = 3000
 prefix = "test/"
-)", &c);
+)",
+                        &c);
   ASSERT_TRUE(s.ok()) << s;
   EXPECT_TRUE(c.cluster.enabled());
   EXPECT_EQ(c.cluster.etcd.size(), 2u);
@@ -67,8 +67,9 @@ TEST_F(ClusterConfigTest, RejectsMemberWithoutEtcd) {
 
 TEST_F(ClusterConfigTest, RejectsMissingOrBadMemberName) {
   for (const char* member : {"", "a/b", "with space"}) {
-    const Status s = Load(std::string("[cluster]\netcd = [\"http://127.0.0.1:2379\"]\nmember = \"") +
-                          member + "\"\n");
+    const Status s =
+        Load(std::string("[cluster]\netcd = [\"http://127.0.0.1:2379\"]\nmember = \"") + member +
+             "\"\n");
     EXPECT_EQ(s.code(), Status::Code::kInvalidArgument) << member;
     ASSERT_NE(s.violation(), nullptr);
     EXPECT_EQ(s.violation()->field, "cluster.member");
@@ -78,7 +79,8 @@ TEST_F(ClusterConfigTest, RejectsMissingOrBadMemberName) {
 TEST_F(ClusterConfigTest, RejectsLeaseTtlOutOfRange) {
   for (const char* ttl : {"999", "60001"}) {
     const Status s = Load(std::string("[cluster]\netcd = [\"http://127.0.0.1:2379\"]\n"
-                                      "member = \"a\"\nlease_ttl_ms = ") + ttl + "\n");
+                                      "member = \"a\"\nlease_ttl_ms = ") +
+                          ttl + "\n");
     EXPECT_EQ(s.code(), Status::Code::kInvalidArgument) << ttl;
     EXPECT_NE(s.message().find("cluster.lease_ttl_ms"), std::string::npos) << s;
   }
@@ -87,8 +89,7 @@ TEST_F(ClusterConfigTest, RejectsLeaseTtlOutOfRange) {
 TEST_F(ClusterConfigTest, RejectsMalformedEtcdEndpoint) {
   for (const char* e : {"https://127.0.0.1:2379", "http://127.0.0.1", "http://127.0.0.1:0",
                         "http://127.0.0.1:2379/v3"}) {
-    const Status s =
-        Load(std::string("[cluster]\netcd = [\"") + e + "\"]\nmember = \"a\"\n");
+    const Status s = Load(std::string("[cluster]\netcd = [\"") + e + "\"]\nmember = \"a\"\n");
     EXPECT_EQ(s.code(), Status::Code::kInvalidArgument) << e;
     ASSERT_NE(s.violation(), nullptr) << s;
     EXPECT_EQ(s.violation()->field, "cluster.etcd[0]");

@@ -20,8 +20,8 @@ class EtcdClientTest : public ::testing::Test {
     ASSERT_TRUE(c.ok()) << c.status();
     client_ = std::move(c).value().release();
     // etcd takes about a second to elect itself.
-    ASSERT_TRUE(WaitFor([] { return client_->Sync(client_->Get("ping")).ok(); },
-                        std::chrono::seconds(15)))
+    ASSERT_TRUE(
+        WaitFor([] { return client_->Sync(client_->Get("ping")).ok(); }, std::chrono::seconds(15)))
         << "etcd did not start; its log is in " << etcd_->dir();
   }
   static void TearDownTestSuite() {
@@ -123,9 +123,9 @@ TEST_F(EtcdClientTest, RejectsPutUnderUnknownLease) {
 }
 
 TEST_F(EtcdClientTest, FallsBackToTheNextEndpoint) {
-  auto two = EtcdClient::Create({{"http://127.0.0.1:" + std::to_string(sculpt::testing::FreePort()),
-                                  etcd_->endpoint()},
-                                 std::chrono::milliseconds(500)});
+  auto two = EtcdClient::Create(
+      {{"http://127.0.0.1:" + std::to_string(sculpt::testing::FreePort()), etcd_->endpoint()},
+       std::chrono::milliseconds(500)});
   ASSERT_TRUE(two.ok());
   EXPECT_TRUE((*two)->Sync((*two)->Put({"t5/k", "v"})).ok());
 }

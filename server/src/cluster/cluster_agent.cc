@@ -56,8 +56,7 @@ MemberRecord ClusterAgent::SelfRecord() const {
 
 Status ClusterAgent::Start(const std::string& tcp, const std::string& http) {
   if (started_) return FailedPrecondition("ClusterAgent started twice");
-  auto client = EtcdClient::Create(
-      {config_.etcd, std::max(std::chrono::milliseconds(100), tick_)});
+  auto client = EtcdClient::Create({config_.etcd, std::max(std::chrono::milliseconds(100), tick_)});
   if (!client.ok()) return client.status();
   etcd_ = std::move(client).value();
   tcp_ = tcp;
@@ -75,7 +74,8 @@ Status ClusterAgent::Start(const std::string& tcp, const std::string& http) {
   spdlog::info("cluster: member {} registered (tcp {}, http {}), lease TTL {} ms", config_.member,
                tcp_, http_.empty() ? "off" : http_, config_.lease_ttl_ms);
   // The routing table is filled before the first client can be told this member's ports.
-  if (const Status read = etcd_->Sync(Refresh()); !read.ok()) LogEtcdTrouble("reading the cluster", read);
+  if (const Status read = etcd_->Sync(Refresh()); !read.ok())
+    LogEtcdTrouble("reading the cluster", read);
   timer_ = std::make_unique<asio::steady_timer>(etcd_->io());
   asio::co_spawn(etcd_->io(), Loop(), asio::detached);
   return Status::Ok();
@@ -97,8 +97,9 @@ void ClusterAgent::Stop() {
     co_return co_await std::move(call);
   };
   const Status s = etcd_->Sync(revoke());
-  if (!s.ok()) spdlog::warn("cluster: lease not revoked at stop ({}); it expires by itself", s.ToString());
-  etcd_.reset();  // joins the agent's thread; the loop's frame goes with its io_context
+  if (!s.ok())
+    spdlog::warn("cluster: lease not revoked at stop ({}); it expires by itself", s.ToString());
+  etcd_.reset();     // joins the agent's thread; the loop's frame goes with its io_context
   fence_->Revoke();  // again: an acquisition may have completed while the lease was revoked
 }
 
@@ -218,8 +219,8 @@ asio::awaitable<void> ClusterAgent::MaybeAcquire() {
     members = members_;
   }
   if (owned_) {
-    const bool ours = st.owner && st.owner->member == config_.member &&
-                      st.owner->epoch == owned_epoch_.load();
+    const bool ours =
+        st.owner && st.owner->member == config_.member && st.owner->epoch == owned_epoch_.load();
     if (!ours) LoseOwnership("its owner key is gone or names another member");
     co_return;
   }
@@ -231,8 +232,7 @@ asio::awaitable<void> ClusterAgent::MaybeAcquire() {
   std::string reason;
   if (st.epoch) {
     if (st.epoch->member != config_.member) {
-      reason = "its last owner " + st.epoch->member + " (epoch " +
-               std::to_string(st.epoch->epoch) +
+      reason = "its last owner " + st.epoch->member + " (epoch " + std::to_string(st.epoch->epoch) +
                ") is gone; failover to another member is not built yet";
     }
   } else if (const auto pick = PickMember(members, scene_); pick && *pick != config_.member) {
@@ -259,7 +259,7 @@ asio::awaitable<void> ClusterAgent::MaybeAcquire() {
     co_return;
   }
   if (!r->succeeded) co_return;  // another member was faster; the next Refresh shows it
-  if (stopping_) co_return;       // Stop revokes the lease: the owner key goes with it
+  if (stopping_) co_return;      // Stop revokes the lease: the owner key goes with it
   owned_ = true;
   owned_epoch_ = epoch;
   fence_->Grant(epoch, lease_valid_until_);
@@ -301,10 +301,10 @@ Route ClusterAgent::RouteScene(const std::string& requested) const {
   }
   if (r.scene == scene_) {
     r.kind = Route::Kind::kUnavailable;
-    r.reason = "scene " + scene_ + " has no owner now: " +
-               (it != scenes_.end() && it->second.owner
-                    ? "this member's lease is not confirmed by etcd"
-                    : waiting_reason_);
+    r.reason =
+        "scene " + scene_ + " has no owner now: " +
+        (it != scenes_.end() && it->second.owner ? "this member's lease is not confirmed by etcd"
+                                                 : waiting_reason_);
     return r;
   }
   if (it != scenes_.end()) {

@@ -90,7 +90,7 @@ class ClusterAgent : public SceneRouter {
   mutable std::mutex mu_;
   std::map<std::string, SceneState> scenes_;  // guarded by mu_
   std::vector<MemberRecord> members_;         // guarded by mu_
-  std::string waiting_reason_;                // guarded by mu_: why this member's scene has no owner
+  std::string waiting_reason_;  // guarded by mu_: why this member's scene has no owner
   std::atomic<uint64_t> owned_epoch_{0};
 };
 

@@ -33,8 +33,7 @@ StatusOr<std::string> FromBase64(const std::string& field, const std::string& te
   std::string out(text.size() / 4 * 3 + 3, '\0');
   size_t len = 0;
   if (sodium_base642bin(reinterpret_cast<unsigned char*>(out.data()), out.size(), text.data(),
-                        text.size(), nullptr, &len, nullptr,
-                        sodium_base64_VARIANT_ORIGINAL) != 0) {
+                        text.size(), nullptr, &len, nullptr, sodium_base64_VARIANT_ORIGINAL) != 0) {
     return Outside(field, text.substr(0, 64), "base64", Status::Code::kInternal);
   }
   out.resize(len);
@@ -90,13 +89,19 @@ StatusOr<Json> Parse(const std::string& target, const std::string& body) {
 // etcd's errors carry a gRPC code; the nearest Status code keeps the caller's decisions simple.
 Status FromGrpc(int64_t code, const std::string& message) {
   switch (code) {
-    case 3: return InvalidArgument("etcd: " + message);
-    case 5: return NotFound("etcd: " + message);
-    case 9: return FailedPrecondition("etcd: " + message);
-    case 8: return ResourceExhausted("etcd: " + message);
+    case 3:
+      return InvalidArgument("etcd: " + message);
+    case 5:
+      return NotFound("etcd: " + message);
+    case 9:
+      return FailedPrecondition("etcd: " + message);
+    case 8:
+      return ResourceExhausted("etcd: " + message);
     case 14:
-    case 4: return Status(Status::Code::kUnavailable, "etcd: " + message);
-    default: return Internal("etcd (gRPC code " + std::to_string(code) + "): " + message);
+    case 4:
+      return Status(Status::Code::kUnavailable, "etcd: " + message);
+    default:
+      return Internal("etcd (gRPC code " + std::to_string(code) + "): " + message);
   }
 }
 

@@ -3,21 +3,24 @@
 #ifndef SCULPT_SERVER_CLUSTER_ETCD_CLIENT_H_
 #define SCULPT_SERVER_CLUSTER_ETCD_CLIENT_H_
 
+// clang-format off: net/net.h must come first (<utility> before Boost.Asio for coroutines with
+// g++ 12), and Google style would regroup it after the Boost headers.
+#include "net/net.h"
+#include <boost/asio/co_spawn.hpp>
+#include <boost/asio/detached.hpp>
+#include <boost/asio/use_awaitable.hpp>
+// clang-format on
+
 #include <chrono>
 #include <cstdint>
 #include <future>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <thread>
-#include <stdexcept>
 #include <vector>
 
-#include "net/net.h"  // first: <utility> before Boost.Asio (coroutines with g++ 12)
-
-#include <boost/asio/co_spawn.hpp>
-#include <boost/asio/detached.hpp>
-#include <boost/asio/use_awaitable.hpp>
 #include "sculpt/core/status.h"
 
 namespace sculpt::server::cluster {
@@ -63,8 +66,8 @@ struct TxnRequest {
 
 struct TxnResult {
   bool succeeded = false;
-  int64_t revision = 0;         // the store's revision after the txn
-  std::vector<KeyValue> read;   // what failure_ranges read, in order (when not succeeded)
+  int64_t revision = 0;        // the store's revision after the txn
+  std::vector<KeyValue> read;  // what failure_ranges read, in order (when not succeeded)
 };
 
 /// A small etcd v3 client over the gateway (`POST /v3/kv/range` ...; one HTTP/1.1 connection

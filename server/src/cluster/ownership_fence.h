@@ -47,12 +47,14 @@ class OwnershipFence {
     const int64_t until = valid_until_ns_.load(std::memory_order_acquire);
     if (until != 0 && Ns(now) < until) return Status::Ok();
     const uint64_t epoch = epoch_.load(std::memory_order_acquire);
-    return Status(Status::Code::kUnavailable,
-                  "scene " + scene_ + ": this member is not its owner now (" +
-                      (epoch == 0 ? std::string("never acquired")
-                                  : "ownership of epoch " + std::to_string(epoch) +
-                                        (until == 0 ? " lost" : " not confirmed by etcd within its lease TTL")) +
-                      "): nothing is acknowledged here; reconnect through any member");
+    return Status(
+        Status::Code::kUnavailable,
+        "scene " + scene_ + ": this member is not its owner now (" +
+            (epoch == 0
+                 ? std::string("never acquired")
+                 : "ownership of epoch " + std::to_string(epoch) +
+                       (until == 0 ? " lost" : " not confirmed by etcd within its lease TTL")) +
+            "): nothing is acknowledged here; reconnect through any member");
   }
   bool held(Clock::time_point now = Clock::now()) const { return Check(now).ok(); }
   /// The epoch last granted (0: never).

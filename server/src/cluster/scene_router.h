@@ -17,10 +17,10 @@ struct Route {
     kUnavailable,  // known, but nobody may serve it now: `reason` says why
   };
   Kind kind = Kind::kUnknown;
-  std::string scene;   // the name asked for ("" resolved to this member's scene)
+  std::string scene;  // the name asked for ("" resolved to this member's scene)
   std::string member;
-  std::string tcp;     // HOST:PORT
-  std::string http;    // HOST:PORT; empty when the owner has no HTTP port
+  std::string tcp;   // HOST:PORT
+  std::string http;  // HOST:PORT; empty when the owner has no HTTP port
   uint64_t epoch = 0;
   std::string reason;
 };

@@ -104,7 +104,9 @@ Status ValidateClusterConfig(const ServerConfig& c) {
     }
     return Status::Ok();
   }
-  if (k.etcd.size() > 16) return Outside("cluster.etcd.size", std::to_string(k.etcd.size()), "[1, 16]");
+  if (k.etcd.size() > 16) {
+    return Outside("cluster.etcd.size", std::to_string(k.etcd.size()), "[1, 16]");
+  }
   for (size_t i = 0; i < k.etcd.size(); ++i) {
     const std::string key = "cluster.etcd[" + std::to_string(i) + "]";
     std::string rest = k.etcd[i];
@@ -125,9 +127,10 @@ Status ValidateClusterConfig(const ServerConfig& c) {
                              "not supported yet): set tls.allow_plaintext = true to accept that");
     }
   }
+  constexpr const char* kNameChars =
+      "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789._-";
   if (k.member.empty() || k.member.size() > 64 ||
-      k.member.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789._-") !=
-          std::string::npos) {
+      k.member.find_first_not_of(kNameChars) != std::string::npos) {
     return Outside("cluster.member", k.member, "1 to 64 characters of [A-Za-z0-9._-]");
   }
   for (auto [key, value] : {std::pair{"cluster.advertise", &k.advertise},
@@ -136,7 +139,8 @@ Status ValidateClusterConfig(const ServerConfig& c) {
     std::string host;
     uint16_t port = 0;
     if (!ParseHostPort(*value, &host, &port).ok() || port == 0 || IsWildcardHost(host)) {
-      return Outside(key, *value, "HOST:PORT clients can reach (no wildcard host, PORT in [1, 65535])");
+      return Outside(key, *value,
+                     "HOST:PORT clients can reach (no wildcard host, PORT in [1, 65535])");
     }
   }
   if (k.advertise.empty()) {
