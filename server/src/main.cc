@@ -11,6 +11,7 @@
 #include <thread>
 #include <vector>
 
+#include "cluster/cluster_agent.h"
 #include "config/server_config.h"
 #include "net/http_server.h"
 #include "net/server.h"
@@ -355,6 +356,16 @@ int main(int argc, char** argv) {
 
   sculpt::server::asio::io_context io;
   sculpt::server::Server server(io, config, **scene);
+  // Cluster mode (issue 17, docs/cluster.md): the scene is fenced and joins are routed from the
+  // first connection on; the agent reaches etcd once the ports are known.
+  std::unique_ptr<sculpt::server::cluster::ClusterAgent> cluster;
+  if (config.cluster.enabled()) {
+    cluster = std::make_unique<sculpt::server::cluster::ClusterAgent>(
+        config.cluster, config.scene.name,
+        [&server] { return static_cast<uint32_t>(server.JoinedSeats().joined); });
+    (*scene)->set_ownership_fence(cluster->fence());
+    server.set_router(cluster.get());
+  }
   auto port = server.Start();
   if (!port.ok()) {
     spdlog::error("{}", port.status().ToString());
@@ -393,6 +404,34 @@ int main(int argc, char** argv) {
                  config.tls.enabled() ? "https" : "http",
                  hc.listen.substr(0, hc.listen.rfind(':')), http_port, hc.web_root.string());
   }
+  if (cluster) {
+    // What other members send clients to: the configured addresses, else the bound ports on
+    // the listen hosts (ValidateConfig refused a wildcard host without cluster.advertise).
+    auto on_bound = [](const std::string& listen, uint16_t bound) {
+      return listen.substr(0, listen.rfind(':')) + ":" + std::to_string(bound);
+    };
+    const std::string tcp = !config.cluster.advertise.empty() ? config.cluster.advertise
+                                                              : on_bound(config.listen, *port);
+    std::string http_address;
+    if (http) {
+      http_address = !config.cluster.advertise_http.empty()
+                         ? config.cluster.advertise_http
+                         : on_bound(http_listen.empty() || http_listen == "off"
+                                        ? std::string("127.0.0.1:0")
+                                        : http_listen,
+                                    http_port);
+      const std::string host = http_address.substr(0, http_address.rfind(':'));
+      if (host == "0.0.0.0" || host == "::" || host == "[::]") {
+        spdlog::warn("cluster: the HTTP port listens on a wildcard address and "
+                     "cluster.advertise_http is not set: redirects name no WebSocket address");
+        http_address.clear();
+      }
+    }
+    if (const sculpt::Status s = cluster->Start(tcp, http_address); !s.ok()) {
+      spdlog::error("{}", s.ToString());
+      return 1;
+    }
+  }
   if (!port_file.empty() && !WritePortFile(port_file, *port, http_port)) {
     spdlog::error("cannot write the port file {}", port_file);
     return 1;
@@ -413,6 +452,9 @@ int main(int argc, char** argv) {
   sculpt::server::asio::signal_set signals(io, SIGINT, SIGTERM);
   signals.async_wait([&](const boost::system::error_code&, int sig) {
     spdlog::info("signal {}: shutting down", sig);
+    // Leaves the cluster first: the lease is revoked, so the scene is fenced and others see
+    // this member gone at once.
+    if (cluster) cluster->Stop();
     server.Stop();
     if (http) http->Stop();
     (*scene)->FlushAndSnapshot();

@@ -250,6 +250,16 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
       }
       case v1::ServerMessage::kError:
         return OnErrorLocked(m.error());
+      case v1::ServerMessage::kRedirect:
+        // Cluster mode: the scene's owner is another member; Join follows it.
+        if (phase == Phase::kAwaitJoin) {
+          redirect = std::move(*m.mutable_redirect());
+          // Closed here, before the server's Bye and close are read, so the kDisconnected event
+          // names the owner rather than the end of the stream.
+          CloseConnLocked(conn, "redirected to the scene's owner, member " + redirect->member() +
+                                    " at " + redirect->tcp_address());
+        }
+        return;
       case v1::ServerMessage::kBye: {
         Event e;
         e.type = Event::Type::kBye;
@@ -410,6 +420,12 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
         RefuseUndoLocked(u->first, u->second, error);
         u = pending.erase(u);
       }
+    }
+    if (error.code() == v1::ERROR_CODE_UNAVAILABLE && error.client_seq() != 0) {
+      // Cluster mode: the member may not acknowledge the scene now (it lost its ownership).
+      // Nothing was acknowledged, so the request stays pending and Reconnect() resends it with
+      // the same client_seq; the scene's owner recognises one it applied (Ack.duplicate).
+      return EmitLocked(std::move(e));
     }
     auto it = error.client_seq() != 0 ? pending.find(error.client_seq()) : pending.end();
     if (it != pending.end()) {
@@ -609,6 +625,7 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
   std::map<std::string, uint32_t> next_chunk;
   size_t objects_complete = 0;
   std::optional<Status> join_failure;
+  std::optional<v1::Redirect> redirect;  // the answer to the JoinScene in flight, if redirected
   v1::SceneInfo scene_info;
 
   uint64_t next_seq = 1;
@@ -774,7 +791,7 @@ StatusOr<v1::Welcome> Client::Hello(const std::string& token, v1::Role role,
   h->set_client_name(name);
   h->set_client_id(client_id);
   d.phase = Impl::Phase::kAwaitWelcome;
-  d.QueueLocked(Impl::Frame(m), 0);
+  d.QueueLocked(Client::Impl::Frame(m), 0);
   const bool settled = d.cv.wait_for(lock, d.options.timeout, [&] {
     return d.phase != Impl::Phase::kAwaitWelcome || d.handshake_error.has_value();
   });
@@ -793,30 +810,40 @@ StatusOr<v1::Welcome> Client::Hello(const std::string& token, v1::Role role,
   return d.welcome;
 }
 
-StatusOr<JoinedScene> Client::Join(const std::string& scene) {
-  Impl& d = *impl_;
+namespace {
+
+// One JoinScene on the current connection. A Redirect answer closes the connection and is left
+// in d.redirect for Join to follow.
+StatusOr<JoinedScene> JoinHere(Client::Impl& d, const std::string& scene) {
   std::unique_lock<std::mutex> lock(d.mu);
-  if (d.phase == Impl::Phase::kJoined) {
+  if (d.phase == Client::Impl::Phase::kJoined) {
     return FailedPrecondition(
         "already joined on this connection (the server ignores a second "
         "JoinScene)");
   }
-  if (d.phase != Impl::Phase::kAuthed) {
+  if (d.phase != Client::Impl::Phase::kAuthed) {
     return FailedPrecondition("Join needs an authenticated connection: call Hello first");
   }
   d.handshake_error.reset();
   d.join_failure.reset();
+  d.redirect.reset();
   d.join = JoinedScene{};
   v1::ClientMessage m;
   m.mutable_join()->set_scene(scene);
   m.mutable_join()->set_skip_state(d.options.skip_state);
-  d.phase = Impl::Phase::kAwaitJoin;
-  d.QueueLocked(Impl::Frame(m), 0);
+  d.phase = Client::Impl::Phase::kAwaitJoin;
+  d.QueueLocked(Client::Impl::Frame(m), 0);
   const bool settled = d.cv.wait_for(lock, d.options.timeout, [&] {
-    return d.phase != Impl::Phase::kAwaitJoin || d.handshake_error || d.join_failure;
+    return d.phase != Client::Impl::Phase::kAwaitJoin || d.handshake_error || d.join_failure ||
+           d.redirect;
   });
+  if (d.redirect) {
+    return Status(Status::Code::kUnavailable, "scene " + d.redirect->scene() +
+                                                  " is owned by member " + d.redirect->member() +
+                                                  " at " + d.redirect->tcp_address());
+  }
   if (d.handshake_error) {
-    if (d.phase == Impl::Phase::kAwaitJoin) d.phase = Impl::Phase::kAuthed;
+    if (d.phase == Client::Impl::Phase::kAwaitJoin) d.phase = Client::Impl::Phase::kAuthed;
     return ErrorToStatus(*d.handshake_error);
   }
   if (d.join_failure) {
@@ -827,7 +854,7 @@ StatusOr<JoinedScene> Client::Join(const std::string& scene) {
     return Status(Status::Code::kUnavailable,
                   "no complete scene state within " + Ms(d.options.timeout));
   }
-  if (d.phase != Impl::Phase::kJoinComplete) {
+  if (d.phase != Client::Impl::Phase::kJoinComplete) {
     return Status(Status::Code::kUnavailable,
                   "connection lost while joining: " + d.disconnect_reason);
   }
@@ -841,8 +868,51 @@ StatusOr<JoinedScene> Client::Join(const std::string& scene) {
     p.written = true;
     d.QueueLocked(p.frame, seq);
   }
-  d.phase = Impl::Phase::kJoined;
+  d.phase = Client::Impl::Phase::kJoined;
   return std::move(d.join);
+}
+
+}  // namespace
+
+StatusOr<JoinedScene> Client::Join(const std::string& scene) {
+  auto joined = JoinHere(*impl_, scene);
+  std::string token, name;
+  v1::Role role = v1::ROLE_UNSPECIFIED;
+  uint64_t id = 0;
+  v1::Redirect redirect;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mu);
+    if (joined.ok() || !impl_->redirect) return joined;
+    redirect = *std::exchange(impl_->redirect, std::nullopt);
+    token = impl_->token;
+    role = impl_->role;
+    name = impl_->name;
+    id = impl_->client_id;
+    ++impl_->stats.redirects;
+  }
+  // Cluster mode: the member asked is not the scene's owner. One redirect is followed: a
+  // second would mean the members disagree (an owner changing hands, or a forged answer).
+  std::string host;
+  uint16_t port = 0;
+  if (!ParseServerAddress(redirect.tcp_address(), &host, &port).ok() || port == 0) {
+    return Status(Status::Code::kUnavailable,
+                  "redirected to an unusable address: Redirect.tcp_address=" +
+                      redirect.tcp_address().substr(0, 128) + " (member " +
+                      redirect.member().substr(0, 64) + ")");
+  }
+  SCULPT_RETURN_IF_ERROR(Connect(host, port));
+  auto welcome = Hello(token, role, name, id);
+  if (!welcome.ok()) return welcome.status();
+  auto again = JoinHere(*impl_, scene);
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  if (!again.ok() && impl_->redirect) {
+    const v1::Redirect second = *std::exchange(impl_->redirect, std::nullopt);
+    return Status(Status::Code::kUnavailable,
+                  "redirected twice: member " + redirect.member() + " named the owner, which sent "
+                  "this client on to member " + second.member().substr(0, 64) +
+                  " (the members disagree about the owner; try again)");
+  }
+  return again;
 }
 
 Status Client::Reconnect() {
@@ -1040,7 +1110,7 @@ StatusOr<v1::HistoryAnswer> Client::History(const std::string& object, const std
   h->set_author(author);
   h->set_limit(limit);
   d.history_waiting.insert(id);
-  d.QueueLocked(Impl::Frame(m), 0);
+  d.QueueLocked(Client::Impl::Frame(m), 0);
   const auto timeout = d.options.timeout;
   d.cv.wait_for(lock, timeout, [&] {
     return d.history_answers.count(id) > 0 || d.phase == Impl::Phase::kDisconnected;
@@ -1189,6 +1259,9 @@ Status ErrorToStatus(const v1::Error& error) {
       break;
     case v1::ERROR_CODE_RESOURCE_EXHAUSTED:
       code = Status::Code::kResourceExhausted;
+      break;
+    case v1::ERROR_CODE_UNAVAILABLE:
+      code = Status::Code::kUnavailable;
       break;
     case v1::ERROR_CODE_UNAUTHENTICATED:
     case v1::ERROR_CODE_PERMISSION_DENIED:

@@ -88,6 +88,78 @@ Status CheckKeys(const std::string& path, const toml::table& t, const std::strin
   return Status::Ok();
 }
 
+// A host clients can be sent to: not a wildcard address.
+bool IsWildcardHost(const std::string& host) {
+  return host.empty() || host == "0.0.0.0" || host == "::" || host == "[::]";
+}
+
+Status ValidateClusterConfig(const ServerConfig& c) {
+  const ClusterConfig& k = c.cluster;
+  if (!k.enabled()) {
+    if (!k.member.empty() || !k.advertise.empty() || !k.advertise_http.empty()) {
+      return InvalidArgument(
+          "cluster.etcd is empty but cluster.member=" + k.member +
+          " is set: cluster mode needs etcd endpoints (etcd = [\"http://HOST:PORT\"]); leave "
+          "out the [cluster] section for a single process");
+    }
+    return Status::Ok();
+  }
+  if (k.etcd.size() > 16) {
+    return Outside("cluster.etcd.size", std::to_string(k.etcd.size()), "[1, 16]");
+  }
+  for (size_t i = 0; i < k.etcd.size(); ++i) {
+    const std::string key = "cluster.etcd[" + std::to_string(i) + "]";
+    std::string rest = k.etcd[i];
+    if (rest.rfind("https://", 0) == 0) {
+      return Outside(key, k.etcd[i], "http://HOST:PORT (TLS to etcd is not supported yet)");
+    }
+    if (rest.rfind("http://", 0) == 0) rest = rest.substr(7);
+    while (!rest.empty() && rest.back() == '/') rest.pop_back();
+    std::string host;
+    uint16_t port = 0;
+    if (rest.find('/') != std::string::npos || !ParseHostPort(rest, &host, &port).ok() ||
+        port == 0 || host.empty()) {
+      return Outside(key, k.etcd[i], "http://HOST:PORT with PORT in [1, 65535]");
+    }
+    if (!IsLoopbackListen(rest) && !c.tls.allow_plaintext) {
+      return InvalidArgument(key + "=" + k.etcd[i] +
+                             " is beyond loopback and etcd is reached in plaintext (TLS to etcd is "
+                             "not supported yet): set tls.allow_plaintext = true to accept that");
+    }
+  }
+  constexpr const char* kNameChars =
+      "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789._-";
+  if (k.member.empty() || k.member.size() > 64 ||
+      k.member.find_first_not_of(kNameChars) != std::string::npos) {
+    return Outside("cluster.member", k.member, "1 to 64 characters of [A-Za-z0-9._-]");
+  }
+  for (auto [key, value] : {std::pair{"cluster.advertise", &k.advertise},
+                            std::pair{"cluster.advertise_http", &k.advertise_http}}) {
+    if (value->empty()) continue;
+    std::string host;
+    uint16_t port = 0;
+    if (!ParseHostPort(*value, &host, &port).ok() || port == 0 || IsWildcardHost(host)) {
+      return Outside(key, *value,
+                     "HOST:PORT clients can reach (no wildcard host, PORT in [1, 65535])");
+    }
+  }
+  if (k.advertise.empty()) {
+    std::string host;
+    uint16_t port = 0;
+    SCULPT_RETURN_IF_ERROR(ParseHostPort(c.listen, &host, &port));
+    if (IsWildcardHost(host)) {
+      return InvalidArgument("cluster.advertise is empty and listen=" + c.listen +
+                             " is a wildcard address: name the HOST:PORT other members send "
+                             "clients to (cluster.advertise)");
+    }
+  }
+  SCULPT_RETURN_IF_ERROR(Range("cluster.lease_ttl_ms", k.lease_ttl_ms, 1000, 60000));
+  if (k.prefix.empty() || k.prefix.size() > 128) {
+    return Outside("cluster.prefix", k.prefix, "1 to 128 bytes");
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 Status LoadConfigFile(const std::string& path, ServerConfig* c) {
@@ -101,7 +173,27 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
        << e.source().begin.column << ": " << e.description();
     return InvalidArgument(os.str());
   }
-  SCULPT_RETURN_IF_ERROR(CheckKeys(path, root, "", {"server", "limits", "scene", "tls"}));
+  SCULPT_RETURN_IF_ERROR(
+      CheckKeys(path, root, "", {"server", "limits", "scene", "tls", "cluster"}));
+  if (const toml::table* t = root["cluster"].as_table()) {
+    SCULPT_RETURN_IF_ERROR(CheckKeys(path, *t, "cluster",
+                                     {"etcd", "member", "advertise", "advertise_http",
+                                      "lease_ttl_ms", "prefix"}));
+    if (const toml::node* e = t->get("etcd")) {
+      const toml::array* a = e->as_array();
+      if (!a) return Outside("cluster.etcd", "not an array", "arrays of \"http://HOST:PORT\"");
+      c->cluster.etcd.clear();
+      for (const auto& x : *a) {
+        if (!x.is_string()) return Outside("cluster.etcd", "not a string", "\"http://HOST:PORT\"");
+        c->cluster.etcd.push_back(x.value_or(std::string()));
+      }
+    }
+    Get(*t, "member", &c->cluster.member);
+    Get(*t, "advertise", &c->cluster.advertise);
+    Get(*t, "advertise_http", &c->cluster.advertise_http);
+    Get(*t, "lease_ttl_ms", &c->cluster.lease_ttl_ms);
+    Get(*t, "prefix", &c->cluster.prefix);
+  }
   if (const toml::table* t = root["tls"].as_table()) {
     SCULPT_RETURN_IF_ERROR(CheckKeys(path, *t, "tls",
                                      {"cert_file", "key_file", "client_ca_file", "allow_plaintext"}));
@@ -470,7 +562,7 @@ Status ValidateConfig(const ServerConfig& c) {
       }
     }
   }
-  return Status::Ok();
+  return ValidateClusterConfig(c);
 }
 
 uint32_t ViewerSeats(const LimitsConfig& l) {

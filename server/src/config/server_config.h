@@ -141,6 +141,25 @@ struct TlsConfig {
   bool enabled() const { return !cert_file.empty(); }
 };
 
+/// Cluster mode (issue 17, docs/cluster.md): off while `etcd` is empty, and then sculptd is the
+/// single process it always was.
+struct ClusterConfig {
+  std::vector<std::string> etcd;  // etcd client URLs, http://HOST:PORT
+  std::string member;             // this member's name, unique in the cluster
+  /// HOST:PORT clients are sent to for this member's TCP port; empty: listen's host with the
+  /// bound port (listen must then name a host, not a wildcard).
+  std::string advertise;
+  /// HOST:PORT of this member's HTTP port (WebSocket clients); empty: the HTTP port's host and
+  /// bound port.
+  std::string advertise_http;
+  /// The lease TTL of this member's keys: a dead owner's scenes are free again after it, and an
+  /// owner cut off from etcd stops acknowledging before it.
+  int lease_ttl_ms = 2000;
+  /// Prefix of every key this cluster keeps in etcd.
+  std::string prefix = "sculpt/";
+  bool enabled() const { return !etcd.empty(); }
+};
+
 struct ServerConfig {
   std::string listen = "127.0.0.1:7420";
   std::string data_dir = "./sculpt-data";
@@ -158,6 +177,7 @@ struct ServerConfig {
   LimitsConfig limits;
   SceneConfig scene;
   TlsConfig tls;
+  ClusterConfig cluster;
 };
 
 /// Reads a TOML file into `config` (keys not present keep their values). InvalidArgument naming

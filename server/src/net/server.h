@@ -31,6 +31,10 @@ namespace boost::asio::ssl {
 class context;
 }  // namespace boost::asio::ssl
 
+namespace sculpt::server::cluster {
+class SceneRouter;
+}  // namespace sculpt::server::cluster
+
 namespace sculpt::server {
 
 class Session;
@@ -88,6 +92,11 @@ class Server {
   /// Start.
   std::shared_ptr<boost::asio::ssl::context> http_tls_context() const { return http_tls_; }
 
+  /// Cluster mode (issue 17): where a JoinScene is served (cluster/scene_router.h); null (the
+  /// default): this process serves its scene alone. Set before Start; outlives the server.
+  void set_router(const cluster::SceneRouter* router) { router_ = router; }
+  const cluster::SceneRouter* router() const { return router_; }
+
   /// Runs a session on a connection another front accepted (the HTTP server's WebSocket
   /// upgrades). False, and the transport closed, after Stop.
   bool Adopt(Strand strand, std::shared_ptr<Transport> transport);
@@ -132,6 +141,7 @@ class Server {
   std::atomic<bool> stopped_{false};
   ServerStats stats_;
   std::unique_ptr<Authenticator> auth_;
+  const cluster::SceneRouter* router_ = nullptr;
 };
 
 }  // namespace sculpt::server

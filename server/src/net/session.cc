@@ -2,6 +2,8 @@
 /// send queue of one client, independent of its transport.
 #include "net/session.h"
 
+#include "cluster/scene_router.h"
+
 #include <sodium.h>
 #include <spdlog/spdlog.h>
 
@@ -576,6 +578,36 @@ void Session::OnAuthenticated(AuthResult r, v1::Role role, uint64_t client_id,
   Send(out);
 }
 
+bool Session::RouteJoin(const v1::JoinScene& j) {
+  // Cluster mode: the routing table is read without waiting on etcd (cluster/cluster_agent.h).
+  const cluster::Route r = server_.router()->RouteScene(j.scene());
+  switch (r.kind) {
+    case cluster::Route::Kind::kLocal:
+    case cluster::Route::Kind::kUnknown:
+      return true;
+    case cluster::Route::Kind::kRedirect: {
+      v1::ServerMessage m;
+      v1::Redirect* d = m.mutable_redirect();
+      d->set_scene(r.scene);
+      d->set_member(r.member);
+      d->set_tcp_address(r.tcp);
+      d->set_http_address(r.http);
+      d->set_epoch(r.epoch);
+      Send(m);
+      // The Bye follows the Redirect out before the connection closes.
+      Close("redirected to member " + r.member + " (" + r.tcp + "), the owner of scene " + r.scene,
+            true);
+      return false;
+    }
+    case cluster::Route::Kind::kUnavailable:
+      SendError(ProtocolError(v1::ERROR_CODE_UNAVAILABLE, "JoinScene.scene", r.scene,
+                              "scenes with a live owner", r.reason));
+      Close("scene " + r.scene + " unavailable", true);
+      return false;
+  }
+  return true;
+}
+
 void Session::OnJoin(const v1::JoinScene& j) {
   if (state_ != State::kAuthed) {
     SendError(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, "JoinScene", "before Hello",
@@ -583,6 +615,7 @@ void Session::OnJoin(const v1::JoinScene& j) {
     return Close("join before hello", true);
   }
   if (!Charge("JoinScene", j.skip_state() ? kJoinSkipStateCost : kJoinCost, Clock::now())) return;
+  if (!joined_ && server_.router() && !RouteJoin(j)) return;
   if (!j.scene().empty() && j.scene() != server_.scene().name()) {
     SendError(ProtocolError(v1::ERROR_CODE_NOT_FOUND, "JoinScene.scene", j.scene(),
                             "{" + server_.scene().name() + "}", "unknown scene"));

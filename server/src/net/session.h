@@ -106,6 +106,9 @@ class Session : public std::enable_shared_from_this<Session> {
   void OnHello(const v1::Hello& h);
   void OnAuthenticated(AuthResult r, v1::Role role, uint64_t client_id, const std::string& name);
   void OnJoin(const v1::JoinScene& j);
+  // Cluster mode: redirects (or refuses) a join the router says is not served here; false when
+  // it answered and the session is closing.
+  bool RouteJoin(const v1::JoinScene& j);
   void OnStroke(const v1::Stroke& s, Clock::time_point received);
   void OnHover(const v1::Hover& h);
   void OnSubscribe(const v1::Subscribe& sub);

@@ -12,9 +12,9 @@ v1::ErrorCode ToWireCode(Status::Code code) {
     case Status::Code::kNotFound: return v1::ERROR_CODE_NOT_FOUND;
     case Status::Code::kFailedPrecondition: return v1::ERROR_CODE_FAILED_PRECONDITION;
     case Status::Code::kResourceExhausted: return v1::ERROR_CODE_RESOURCE_EXHAUSTED;
+    case Status::Code::kUnavailable: return v1::ERROR_CODE_UNAVAILABLE;  // cluster: not owner now
     case Status::Code::kOk:
     case Status::Code::kDataLoss:
-    case Status::Code::kUnavailable:
     case Status::Code::kInternal: return v1::ERROR_CODE_INTERNAL;
   }
   return v1::ERROR_CODE_INTERNAL;

@@ -6,6 +6,7 @@
 
 #include <chrono>
 
+#include "cluster/ownership_fence.h"
 #include "scene/scene.h"
 #include "store/edit_log.h"
 
@@ -101,16 +102,35 @@ void Scene::AnswerWhenDurable(uint64_t seq, std::function<void()> answer) {
   ReleaseDurable(log_->durable_seq());
 }
 
+CommitOutcome Scene::Fenced(const CommitOutcome& out) const {
+  if (!fence_) return out;
+  Status held = fence_->Check();
+  if (held.ok()) return out;
+  // Not an ack: no sequence, no records, so the requester hears a refusal it may resend.
+  CommitOutcome refused;
+  refused.status = std::move(held);
+  refused.client_seq = out.client_seq;
+  return refused;
+}
+
 void Scene::RunCommit(const std::shared_ptr<EditOp>& op) {
   CommitOutcome out;
   out.client_seq = op->client_seq();
+  // Cluster fencing: a member that is not the scene's owner now sequences nothing, and (below)
+  // acknowledges nothing, also what it logged while it still was.
+  if (fence_) {
+    if (Status held = fence_->Check(); !held.ok()) {
+      out.status = std::move(held);
+      return op->Answer(out);
+    }
+  }
   if (resend_.IsResend(op->stream(), op->client_id(), op->client_seq())) {
     // Already applied: acknowledged once everything logged so far is durable, never re-applied.
     out.duplicate = true;
     op->Duplicate(*this);
     return AnswerWhenDurable(next_seq_ - 1, [this, op, out] {
       Observe("answered", op->operation(), out.global_seq_last);
-      op->Answer(out);
+      op->Answer(Fenced(out));
     });
   }
   const uint64_t first = next_seq_;
@@ -172,7 +192,7 @@ void Scene::RunCommit(const std::shared_ptr<EditOp>& op) {
   out.records = static_cast<uint32_t>(records.size());
   AnswerWhenDurable(last, [this, op, out] {
     Observe("answered", op->operation(), out.global_seq_last);
-    op->Answer(out);
+    op->Answer(Fenced(out));
   });
   MaybeSnapshot();
   if (applied.status.ok() && sculpture) {

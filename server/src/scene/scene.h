@@ -40,6 +40,10 @@
 #include "sculpt/levelset/sculpture.h"
 #include "sculpt/skin/skin.h"
 
+namespace sculpt::server::cluster {
+class OwnershipFence;
+}  // namespace sculpt::server::cluster
+
 namespace sculpt::server {
 
 class EditHistory;
@@ -99,6 +103,12 @@ class Scene {
   SceneSummary Info() const;
   const std::string& name() const { return config_.scene.name; }
   uint64_t global_seq() const { return applied_seq_.load(); }
+  /// Cluster mode (issue 17): edits are sequenced and acknowledged only while `fence` holds; an
+  /// edit it refuses is answered with its Unavailable error, never acknowledged. Null (the
+  /// default, a single process): always. Set before the scene serves anyone.
+  void set_ownership_fence(std::shared_ptr<const cluster::OwnershipFence> fence) {
+    fence_ = std::move(fence);
+  }
 
   /// Waits until every queued stroke is applied and durable (tests, shutdown).
   void Flush();
@@ -316,6 +326,9 @@ class Scene {
   void LoadHistory(const std::string& object, uint64_t snapshot_seq);
   void Commit(std::shared_ptr<EditOp> op);
   void RunCommit(const std::shared_ptr<EditOp>& op);
+  // `out`, or, when the ownership fence no longer holds, a refusal carrying its error.
+  CommitOutcome Fenced(const CommitOutcome& out) const;
+  std::shared_ptr<const cluster::OwnershipFence> fence_;  // set before serving; null: always owner
   // Queues `answer` until the log is durable up to `seq` (in sequence order with every other).
   void AnswerWhenDurable(uint64_t seq, std::function<void()> answer);
   void MaybeSnapshot(bool force = false);

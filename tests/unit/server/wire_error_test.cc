@@ -14,7 +14,7 @@ TEST(WireErrorTest, MapsEveryStatusCode) {
   EXPECT_EQ(ToWireCode(Status::Code::kFailedPrecondition), v1::ERROR_CODE_FAILED_PRECONDITION);
   EXPECT_EQ(ToWireCode(Status::Code::kResourceExhausted), v1::ERROR_CODE_RESOURCE_EXHAUSTED);
   EXPECT_EQ(ToWireCode(Status::Code::kDataLoss), v1::ERROR_CODE_INTERNAL);
-  EXPECT_EQ(ToWireCode(Status::Code::kUnavailable), v1::ERROR_CODE_INTERNAL);
+  EXPECT_EQ(ToWireCode(Status::Code::kUnavailable), v1::ERROR_CODE_UNAVAILABLE);
   EXPECT_EQ(ToWireCode(Status::Code::kInternal), v1::ERROR_CODE_INTERNAL);
   EXPECT_EQ(ToWireCode(Status::Code::kOk), v1::ERROR_CODE_INTERNAL);
 }

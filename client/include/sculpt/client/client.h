@@ -131,6 +131,7 @@ struct ClientStats {
   uint64_t poses_acked = 0;        // sum of Ack.edits over fresh (non-duplicate) acks
   uint64_t events_dropped = 0;     // queue overflow (no handler and nobody draining)
   uint64_t reconnects = 0;
+  uint64_t redirects = 0;  // cluster mode: JoinScene answers naming another member, followed
   uint64_t replication_messages = 0;  // EditBroadcast, LeafDelta, MeshChunk
   uint64_t undos_sent = 0;            // distinct undo and redo requests
   uint64_t undos_resent = 0;          // of the frames written again after a reconnect
@@ -188,6 +189,11 @@ class Client {
   /// Joins a scene (empty: the server's default) and waits for SceneInfo and every StateChunk;
   /// then resends the un-acked strokes. The server's Error (e.g. NOT_FOUND) as a Status;
   /// DataLoss for chunks out of order; Unavailable on a drop or timeout.
+  /// Cluster mode (docs/cluster.md): when the member answers with a Redirect to the scene's
+  /// owner, the client closes that connection (a kDisconnected event names the owner), connects
+  /// to the owner, says Hello again with the same arguments and joins there; later Reconnect()
+  /// calls go to the owner. One redirect is followed: Unavailable for a second one, and for a
+  /// redirect to an address that does not parse.
   StatusOr<JoinedScene> Join(const std::string& scene = "");
   /// Drops any connection, then Connect + Hello + Join with the last arguments; the un-acked
   /// strokes are resent with their client_seq. FailedPrecondition before a first Join.

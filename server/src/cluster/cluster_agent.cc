@@ -1,0 +1,321 @@
+/// @brief ClusterAgent: lease, membership, scene ownership and the routing table.
+#include "cluster/cluster_agent.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+
+#include "cluster/placement.h"
+
+// Every call of a coroutine is made in its own statement and its awaitable then awaited
+// (`auto x_call = F(args); auto x = co_await std::move(x_call);`): g++ 12 destroys temporaries
+// of a co_await expression's arguments twice (heap corruption seen with a braced PutOp).
+namespace sculpt::server::cluster {
+namespace {
+
+using Clock = OwnershipFence::Clock;
+
+// The fence ends this much before the lease could end in etcd: a keep-alive's deadline is taken
+// from when it was sent (etcd resets the TTL later than that), less a margin for the two clocks'
+// rates and for the time between Check() and the ack leaving the process.
+std::chrono::milliseconds Margin(std::chrono::milliseconds ttl) {
+  return std::min(std::chrono::milliseconds(250), ttl / 8);
+}
+
+// Plain functions for what the coroutines log: g++ 12 mishandles string literals handed to
+// templates inside a coroutine.
+void LogEtcdTrouble(const std::string& what, const Status& s) {
+  spdlog::warn("cluster: {}: {}", what, s.ToString());
+}
+
+}  // namespace
+
+ClusterAgent::ClusterAgent(ClusterConfig config, std::string scene,
+                           std::function<uint32_t()> sessions)
+    : config_(std::move(config)),
+      scene_(std::move(scene)),
+      keys_{config_.prefix},
+      sessions_(std::move(sessions)),
+      fence_(std::make_shared<OwnershipFence>(scene_)),
+      tick_(std::max(50, config_.lease_ttl_ms / 4)) {
+  waiting_reason_ = "this member has not reached etcd yet";
+}
+
+ClusterAgent::~ClusterAgent() { Stop(); }
+
+MemberRecord ClusterAgent::SelfRecord() const {
+  MemberRecord m;
+  m.name = config_.member;
+  m.tcp = tcp_;
+  m.http = http_;
+  m.offers = {scene_};
+  if (owned_) m.owns = {scene_};
+  m.sessions = sessions_ ? sessions_() : 0;
+  return m;
+}
+
+Status ClusterAgent::Start(const std::string& tcp, const std::string& http) {
+  if (started_) return FailedPrecondition("ClusterAgent started twice");
+  auto client = EtcdClient::Create({config_.etcd, std::max(std::chrono::milliseconds(100), tick_)});
+  if (!client.ok()) return client.status();
+  etcd_ = std::move(client).value();
+  tcp_ = tcp;
+  http_ = http;
+  started_ = true;
+  const Status registered = etcd_->Sync(Register());
+  if (!registered.ok()) {
+    std::string list;
+    for (const std::string& e : config_.etcd) list += (list.empty() ? "" : ", ") + e;
+    return Status(registered.code(), "cluster: cannot register member " + config_.member +
+                                         " with etcd at " + list + ": " + registered.message() +
+                                         " (is etcd running? `etcdctl --endpoints " + list +
+                                         " endpoint health`)");
+  }
+  spdlog::info("cluster: member {} registered (tcp {}, http {}), lease TTL {} ms", config_.member,
+               tcp_, http_.empty() ? "off" : http_, config_.lease_ttl_ms);
+  // The routing table is filled before the first client can be told this member's ports.
+  if (const Status read = etcd_->Sync(Refresh()); !read.ok())
+    LogEtcdTrouble("reading the cluster", read);
+  timer_ = std::make_unique<asio::steady_timer>(etcd_->io());
+  asio::co_spawn(etcd_->io(), Loop(), asio::detached);
+  return Status::Ok();
+}
+
+void ClusterAgent::Stop() {
+  if (stopping_.exchange(true)) return;
+  fence_->Revoke();
+  owned_epoch_ = 0;
+  if (!etcd_) return;
+  asio::post(etcd_->io(), [this] {
+    if (timer_) timer_->cancel();
+  });
+  // Our keys go now rather than after the TTL: other members see this one leave at once. The
+  // epoch record stays: this member, restarted, takes its scene back with epoch + 1.
+  auto revoke = [this]() -> asio::awaitable<Status> {
+    if (lease_ == 0) co_return Status::Ok();
+    auto call = etcd_->Revoke(lease_);
+    co_return co_await std::move(call);
+  };
+  const Status s = etcd_->Sync(revoke());
+  if (!s.ok())
+    spdlog::warn("cluster: lease not revoked at stop ({}); it expires by itself", s.ToString());
+  etcd_.reset();     // joins the agent's thread; the loop's frame goes with its io_context
+  fence_->Revoke();  // again: an acquisition may have completed while the lease was revoked
+}
+
+asio::awaitable<Status> ClusterAgent::Register() {
+  const auto sent = Clock::now();
+  auto lease_call = etcd_->Grant(std::chrono::milliseconds(config_.lease_ttl_ms));
+  auto lease = co_await std::move(lease_call);
+  if (!lease.ok()) co_return lease.status();
+  lease_ = lease->id;
+  // The fence follows the TTL asked for when etcd granted more (its minimum is 2 s).
+  const auto ttl = std::min(lease->ttl, std::chrono::milliseconds(config_.lease_ttl_ms));
+  lease_valid_until_ = sent + ttl - Margin(ttl);
+  auto put_call = etcd_->Put({keys_.Member(config_.member), EncodeMember(SelfRecord()), lease_});
+  auto put = co_await std::move(put_call);
+  co_return put.status();
+}
+
+asio::awaitable<void> ClusterAgent::Loop() {
+  while (!stopping_) {
+    co_await Tick();
+    boost::system::error_code ec;
+    timer_->expires_after(tick_);
+    co_await timer_->async_wait(asio::redirect_error(asio::use_awaitable, ec));
+  }
+}
+
+asio::awaitable<void> ClusterAgent::Tick() {
+  co_await KeepLeaseAlive();
+  if (stopping_) co_return;
+  const Status refreshed = co_await Refresh();
+  if (!refreshed.ok()) {
+    LogEtcdTrouble("reading the cluster", refreshed);
+    co_return;
+  }
+  if (stopping_) co_return;
+  co_await MaybeAcquire();
+}
+
+asio::awaitable<void> ClusterAgent::KeepLeaseAlive() {
+  const auto sent = Clock::now();
+  auto ttl_call = etcd_->KeepAlive(lease_);
+  auto ttl = co_await std::move(ttl_call);
+  if (ttl.ok()) {
+    const auto t = std::min(*ttl, std::chrono::milliseconds(config_.lease_ttl_ms));
+    lease_valid_until_ = sent + t - Margin(t);
+    if (owned_) fence_->Extend(lease_valid_until_);
+    co_return;
+  }
+  if (ttl.status().code() != Status::Code::kNotFound) {
+    // etcd out of reach: the fence runs out by itself at lease_valid_until_.
+    LogEtcdTrouble("lease keep-alive", ttl.status());
+    co_return;
+  }
+  // The lease is gone (we were cut off past its TTL, or Stop revoked it): so is every key under
+  // it.
+  if (owned_) LoseOwnership("its lease expired in etcd");
+  if (stopping_) co_return;
+  LogEtcdTrouble("lease expired; registering again", ttl.status());
+  const Status again = co_await Register();
+  if (!again.ok()) LogEtcdTrouble("registering again", again);
+}
+
+asio::awaitable<Status> ClusterAgent::Refresh() {
+  auto put_call = etcd_->Put({keys_.Member(config_.member), EncodeMember(SelfRecord()), lease_});
+  auto put = co_await std::move(put_call);
+  if (!put.ok()) co_return put.status();
+  auto members_call = etcd_->GetPrefix(keys_.Members());
+  auto members = co_await std::move(members_call);
+  if (!members.ok()) co_return members.status();
+  auto scenes_call = etcd_->GetPrefix(keys_.Scenes());
+  auto scenes = co_await std::move(scenes_call);
+  if (!scenes.ok()) co_return scenes.status();
+
+  std::vector<MemberRecord> live;
+  for (const KeyValue& kv : *members) {
+    auto m = DecodeMember(kv.value);
+    // Another member's record is untrusted input: a bad one is skipped, never fatal.
+    if (m.ok() && kv.key == keys_.Member(m->name)) live.push_back(std::move(m).value());
+  }
+  std::map<std::string, SceneState> table;
+  for (const KeyValue& kv : *scenes) {
+    std::string scene, kind;
+    if (!keys_.ParseSceneKey(kv.key, &scene, &kind)) continue;
+    SceneState& st = table[scene];
+    if (kind == "owner") {
+      // An owner key not under a lease would outlive its owner: not honoured.
+      auto o = DecodeOwner(kv.value);
+      if (o.ok() && kv.lease != 0) st.owner = std::move(o).value();
+    } else {
+      auto e = DecodeEpoch(kv.value);
+      if (e.ok()) {
+        st.epoch = std::move(e).value();
+        st.epoch_mod_revision = kv.mod_revision;
+      }
+    }
+  }
+  std::lock_guard<std::mutex> lock(mu_);
+  members_ = std::move(live);
+  scenes_ = std::move(table);
+  co_return Status::Ok();
+}
+
+void ClusterAgent::LoseOwnership(const std::string& why) {
+  fence_->Revoke();
+  owned_ = false;
+  owned_epoch_ = 0;
+  spdlog::error("cluster: member {} no longer owns scene {} ({}): acknowledging nothing for it",
+                config_.member, scene_, why);
+}
+
+asio::awaitable<void> ClusterAgent::MaybeAcquire() {
+  SceneState st;
+  std::vector<MemberRecord> members;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (auto it = scenes_.find(scene_); it != scenes_.end()) st = it->second;
+    members = members_;
+  }
+  if (owned_) {
+    const bool ours =
+        st.owner && st.owner->member == config_.member && st.owner->epoch == owned_epoch_.load();
+    if (!ours) LoseOwnership("its owner key is gone or names another member");
+    co_return;
+  }
+  if (st.owner) co_return;  // another member serves it; RouteScene redirects there
+  // Who may take a scene without an owner: the member that held it last (it has the data; a
+  // restart or a lease lost while cut off), or, for a scene never owned, the placement's pick.
+  // A scene whose last owner is another member waits for it: taking it over needs a standby
+  // that followed its edits, which is not built yet (docs/cluster.md).
+  std::string reason;
+  if (st.epoch) {
+    if (st.epoch->member != config_.member) {
+      reason = "its last owner " + st.epoch->member + " (epoch " + std::to_string(st.epoch->epoch) +
+               ") is gone; failover to another member is not built yet";
+    }
+  } else if (const auto pick = PickMember(members, scene_); pick && *pick != config_.member) {
+    reason = "placed on member " + *pick + ", which has not taken it yet";
+  }
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    waiting_reason_ = reason.empty() ? "being acquired by this member" : reason;
+  }
+  if (!reason.empty()) co_return;
+
+  const uint64_t epoch = (st.epoch ? st.epoch->epoch : 0) + 1;
+  OwnerRecord owner{config_.member, tcp_, http_, epoch};
+  TxnRequest txn;
+  // Nobody owns it, and nobody bumped the epoch since we read it.
+  txn.compares = {{keys_.Owner(scene_), Compare::Target::kCreateRevision, 0},
+                  {keys_.Epoch(scene_), Compare::Target::kModRevision, st.epoch_mod_revision}};
+  txn.success = {{keys_.Owner(scene_), EncodeOwner(owner), lease_},
+                 {keys_.Epoch(scene_), EncodeEpoch({epoch, config_.member}), 0}};
+  auto r_call = etcd_->Txn(std::move(txn));
+  auto r = co_await std::move(r_call);
+  if (!r.ok()) {
+    LogEtcdTrouble("acquiring scene " + scene_, r.status());
+    co_return;
+  }
+  if (!r->succeeded) co_return;  // another member was faster; the next Refresh shows it
+  if (stopping_) co_return;      // Stop revokes the lease: the owner key goes with it
+  owned_ = true;
+  owned_epoch_ = epoch;
+  fence_->Grant(epoch, lease_valid_until_);
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    SceneState& mine = scenes_[scene_];
+    mine.owner = owner;
+    mine.epoch = EpochRecord{epoch, config_.member};
+    waiting_reason_.clear();
+  }
+  spdlog::info("cluster: member {} owns scene {} at epoch {}", config_.member, scene_, epoch);
+  // The new load right away, so placement elsewhere sees it before the next tick.
+  auto put_call = etcd_->Put({keys_.Member(config_.member), EncodeMember(SelfRecord()), lease_});
+  auto put = co_await std::move(put_call);
+  if (!put.ok()) LogEtcdTrouble("publishing the load", put.status());
+}
+
+uint64_t ClusterAgent::owned_epoch() const { return fence_->held() ? owned_epoch_.load() : 0; }
+
+Route ClusterAgent::RouteScene(const std::string& requested) const {
+  Route r;
+  r.scene = requested.empty() ? scene_ : requested;
+  if (r.scene == scene_ && fence_->held()) {
+    r.kind = Route::Kind::kLocal;
+    r.member = config_.member;
+    r.epoch = fence_->epoch();
+    return r;
+  }
+  std::lock_guard<std::mutex> lock(mu_);
+  const auto it = scenes_.find(r.scene);
+  if (it != scenes_.end() && it->second.owner && it->second.owner->member != config_.member) {
+    const OwnerRecord& o = *it->second.owner;
+    r.kind = Route::Kind::kRedirect;
+    r.member = o.member;
+    r.tcp = o.tcp;
+    r.http = o.http;
+    r.epoch = o.epoch;
+    return r;
+  }
+  if (r.scene == scene_) {
+    r.kind = Route::Kind::kUnavailable;
+    r.reason =
+        "scene " + scene_ + " has no owner now: " +
+        (it != scenes_.end() && it->second.owner ? "this member's lease is not confirmed by etcd"
+                                                 : waiting_reason_);
+    return r;
+  }
+  if (it != scenes_.end()) {
+    r.kind = Route::Kind::kUnavailable;
+    r.reason = "scene " + r.scene + " has no owner now" +
+               (it->second.epoch ? " (last: " + it->second.epoch->member + ", epoch " +
+                                       std::to_string(it->second.epoch->epoch) + ")"
+                                 : std::string());
+    return r;
+  }
+  return r;  // kUnknown
+}
+
+}  // namespace sculpt::server::cluster

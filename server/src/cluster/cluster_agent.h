@@ -1,0 +1,99 @@
+/// @brief ClusterAgent: this member's presence in etcd (lease, membership record), the ownership
+/// of its scene (acquired by txn with a new epoch, fenced locally), and the routing table
+/// sessions read to redirect a JoinScene to a scene's owner.
+#ifndef SCULPT_SERVER_CLUSTER_CLUSTER_AGENT_H_
+#define SCULPT_SERVER_CLUSTER_CLUSTER_AGENT_H_
+
+#include <atomic>
+#include <chrono>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "cluster/etcd_client.h"
+#include "cluster/ownership_fence.h"
+#include "cluster/records.h"
+#include "cluster/scene_router.h"
+#include "config/server_config.h"
+
+namespace sculpt::server::cluster {
+
+/// One sculptd's part in a cluster (docs/cluster.md). Every `lease_ttl_ms / 4` it: keeps its
+/// lease alive (the fence's deadline follows each answered keep-alive), refreshes
+/// `members/<name>` with its load, reads every member and scene key, and, if its scene has no
+/// owner and this member may take it (a new scene placed here, least loaded, or a scene whose
+/// last owner was this member), acquires `scenes/<scene>/owner` with epoch + 1 in one txn.
+/// All etcd traffic runs on the EtcdClient's own thread; sessions only read the routing table
+/// (RouteScene) and the commit pipeline only reads the fence.
+/// Thread safety: Start and Stop from the owning thread; RouteScene, fence() and the accessors
+/// from any thread.
+class ClusterAgent : public SceneRouter {
+ public:
+  /// `scene`: the scene this process serves (config.scene.name); `sessions`: its joined sessions
+  /// now (called on the agent's thread).
+  ClusterAgent(ClusterConfig config, std::string scene, std::function<uint32_t()> sessions);
+  ~ClusterAgent() override;
+
+  /// Connects to etcd, grants the lease and registers this member with its advertised
+  /// addresses (HOST:PORT; http empty when the HTTP port is off), then runs the loop above in
+  /// the background. Unavailable naming the endpoints when etcd does not answer; InvalidArgument
+  /// for a malformed endpoint.
+  Status Start(const std::string& tcp, const std::string& http);
+  /// Revokes the lease (this member's keys and its scene's owner key go at once), stops the
+  /// loop and fences the scene. Idempotent.
+  void Stop();
+
+  /// What the commit pipeline consults; valid from construction (not held until acquired).
+  std::shared_ptr<const OwnershipFence> fence() const { return fence_; }
+  Route RouteScene(const std::string& scene) const override;
+  /// The epoch this member holds its scene at, 0 when it does not.
+  uint64_t owned_epoch() const;
+
+ private:
+  asio::awaitable<void> Loop();
+  asio::awaitable<void> Tick();
+  asio::awaitable<Status> Register();
+  asio::awaitable<void> KeepLeaseAlive();
+  asio::awaitable<Status> Refresh();
+  asio::awaitable<void> MaybeAcquire();
+  // Lost the scene (lease gone, owner key no longer ours): fence at once and say why.
+  void LoseOwnership(const std::string& why);
+  MemberRecord SelfRecord() const;
+
+  const ClusterConfig config_;
+  const std::string scene_;
+  const Keys keys_;
+  const std::function<uint32_t()> sessions_;
+  const std::shared_ptr<OwnershipFence> fence_;
+  const std::chrono::milliseconds tick_;
+  std::unique_ptr<EtcdClient> etcd_;
+
+  // The agent's thread only (the EtcdClient's io_context), after Start.
+  std::string tcp_;
+  std::string http_;
+  int64_t lease_ = 0;
+  OwnershipFence::Clock::time_point lease_valid_until_{};
+  bool owned_ = false;
+  std::unique_ptr<asio::steady_timer> timer_;
+  std::atomic<bool> stopping_{false};
+  bool started_ = false;  // the owning thread's
+
+  // What the last Refresh read; RouteScene's table.
+  struct SceneState {
+    std::optional<OwnerRecord> owner;
+    std::optional<EpochRecord> epoch;
+    int64_t epoch_mod_revision = 0;
+  };
+  mutable std::mutex mu_;
+  std::map<std::string, SceneState> scenes_;  // guarded by mu_
+  std::vector<MemberRecord> members_;         // guarded by mu_
+  std::string waiting_reason_;  // guarded by mu_: why this member's scene has no owner
+  std::atomic<uint64_t> owned_epoch_{0};
+};
+
+}  // namespace sculpt::server::cluster
+
+#endif  // SCULPT_SERVER_CLUSTER_CLUSTER_AGENT_H_

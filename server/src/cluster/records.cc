@@ -1,0 +1,126 @@
+/// @brief JSON codecs of the cluster's etcd values (nlohmann::json).
+#include "cluster/records.h"
+
+#include <nlohmann/json.hpp>
+
+namespace sculpt::server::cluster {
+namespace {
+
+using Json = nlohmann::json;
+
+constexpr size_t kMaxText = 256;
+constexpr size_t kMaxList = 1024;
+
+StatusOr<Json> ParseObject(const char* what, const std::string& text) {
+  Json j = Json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded() || !j.is_object()) {
+    return Outside(what, text.substr(0, 64), "a JSON object");
+  }
+  return j;
+}
+
+Status Text(const Json& j, const std::string& field, bool required, std::string* out) {
+  const auto it = j.find(field);
+  if (it == j.end()) {
+    return required ? Outside(field, "missing", "a string") : Status::Ok();
+  }
+  if (!it->is_string() || it->get_ref<const std::string&>().size() > kMaxText) {
+    return Outside(field, it->dump().substr(0, 64),
+                   "a string of at most " + std::to_string(kMaxText) + " bytes");
+  }
+  *out = it->get<std::string>();
+  if (required && out->empty()) return Outside(field, "\"\"", "a non-empty string");
+  return Status::Ok();
+}
+
+Status Count(const Json& j, const std::string& field, uint64_t* out) {
+  const auto it = j.find(field);
+  if (it == j.end() || !it->is_number_unsigned()) {
+    return Outside(field, it == j.end() ? "missing" : it->dump().substr(0, 64),
+                   "an unsigned integer");
+  }
+  *out = it->get<uint64_t>();
+  return Status::Ok();
+}
+
+Status List(const Json& j, const std::string& field, std::vector<std::string>* out) {
+  const auto it = j.find(field);
+  if (it == j.end()) return Status::Ok();
+  if (!it->is_array() || it->size() > kMaxList) {
+    return Outside(field, it->dump().substr(0, 64),
+                   "an array of at most " + std::to_string(kMaxList) + " strings");
+  }
+  for (const Json& x : *it) {
+    if (!x.is_string() || x.get_ref<const std::string&>().size() > kMaxText) {
+      return Outside(field, x.dump().substr(0, 64), "strings");
+    }
+    out->push_back(x.get<std::string>());
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+std::string EncodeMember(const MemberRecord& m) {
+  return Json{{"name", m.name},     {"tcp", m.tcp},   {"http", m.http},
+              {"offers", m.offers}, {"owns", m.owns}, {"sessions", m.sessions}}
+      .dump();
+}
+
+std::string EncodeOwner(const OwnerRecord& o) {
+  return Json{{"member", o.member}, {"tcp", o.tcp}, {"http", o.http}, {"epoch", o.epoch}}.dump();
+}
+
+std::string EncodeEpoch(const EpochRecord& e) {
+  return Json{{"epoch", e.epoch}, {"member", e.member}}.dump();
+}
+
+StatusOr<MemberRecord> DecodeMember(const std::string& text) {
+  SCULPT_ASSIGN_OR_RETURN(Json j, ParseObject("member record", text));
+  MemberRecord m;
+  SCULPT_RETURN_IF_ERROR(Text(j, "name", true, &m.name));
+  SCULPT_RETURN_IF_ERROR(Text(j, "tcp", true, &m.tcp));
+  SCULPT_RETURN_IF_ERROR(Text(j, "http", false, &m.http));
+  SCULPT_RETURN_IF_ERROR(List(j, "offers", &m.offers));
+  SCULPT_RETURN_IF_ERROR(List(j, "owns", &m.owns));
+  uint64_t sessions = 0;
+  SCULPT_RETURN_IF_ERROR(Count(j, "sessions", &sessions));
+  m.sessions = static_cast<uint32_t>(std::min<uint64_t>(sessions, UINT32_MAX));
+  return m;
+}
+
+StatusOr<OwnerRecord> DecodeOwner(const std::string& text) {
+  SCULPT_ASSIGN_OR_RETURN(Json j, ParseObject("owner record", text));
+  OwnerRecord o;
+  SCULPT_RETURN_IF_ERROR(Text(j, "member", true, &o.member));
+  SCULPT_RETURN_IF_ERROR(Text(j, "tcp", true, &o.tcp));
+  SCULPT_RETURN_IF_ERROR(Text(j, "http", false, &o.http));
+  SCULPT_RETURN_IF_ERROR(Count(j, "epoch", &o.epoch));
+  if (o.epoch == 0) return Outside("epoch", "0", "[1, 2^64)");
+  return o;
+}
+
+StatusOr<EpochRecord> DecodeEpoch(const std::string& text) {
+  SCULPT_ASSIGN_OR_RETURN(Json j, ParseObject("epoch record", text));
+  EpochRecord e;
+  SCULPT_RETURN_IF_ERROR(Count(j, "epoch", &e.epoch));
+  SCULPT_RETURN_IF_ERROR(Text(j, "member", true, &e.member));
+  return e;
+}
+
+bool Keys::ParseSceneKey(const std::string& key, std::string* scene, std::string* kind) const {
+  const std::string scenes = Scenes();
+  if (key.compare(0, scenes.size(), scenes) != 0) return false;
+  for (const char* k : {"/owner", "/epoch"}) {
+    const std::string suffix = k;
+    if (key.size() > scenes.size() + suffix.size() &&
+        key.compare(key.size() - suffix.size(), suffix.size(), suffix) == 0) {
+      *scene = key.substr(scenes.size(), key.size() - scenes.size() - suffix.size());
+      *kind = suffix.substr(1);
+      return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace sculpt::server::cluster

@@ -1,0 +1,136 @@
+// The [cluster] section of sculptd's configuration: read, checked, and absent by default.
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "cluster/processes.h"
+#include "config/server_config.h"
+
+namespace sculpt::server {
+namespace {
+
+class ClusterConfigTest : public ::testing::Test {
+ protected:
+  // Loads `toml` into a default configuration and validates it.
+  Status Load(const std::string& toml, ServerConfig* c) {
+    const auto path = dir_.path() / "sculptd.toml";
+    std::ofstream(path) << toml;
+    SCULPT_RETURN_IF_ERROR(LoadConfigFile(path.string(), c));
+    return ValidateConfig(*c);
+  }
+  Status Load(const std::string& toml) {
+    ServerConfig c;
+    return Load(toml, &c);
+  }
+  sculpt::testing::TempDir dir_{"sculpt-cluster-config"};
+};
+
+TEST_F(ClusterConfigTest, AbsentSectionIsSingleProcess) {
+  ServerConfig c;
+  EXPECT_FALSE(c.cluster.enabled());
+  ASSERT_TRUE(Load("[server]\ndata_dir = \"d\"\n", &c).ok());
+  EXPECT_FALSE(c.cluster.enabled());
+}
+
+TEST_F(ClusterConfigTest, ReadsTheSection) {
+  ServerConfig c;
+  const Status s = Load(R"([cluster]
+etcd = ["http://127.0.0.1:2379", "127.0.0.1:22379"]
+member = "m-1"
+advertise = "127.0.0.1:7420"
+advertise_http = "127.0.0.1:7421"
+lease_ttl_ms = 3000
+prefix = "test/"
+)",
+                        &c);
+  ASSERT_TRUE(s.ok()) << s;
+  EXPECT_TRUE(c.cluster.enabled());
+  EXPECT_EQ(c.cluster.etcd.size(), 2u);
+  EXPECT_EQ(c.cluster.member, "m-1");
+  EXPECT_EQ(c.cluster.advertise, "127.0.0.1:7420");
+  EXPECT_EQ(c.cluster.advertise_http, "127.0.0.1:7421");
+  EXPECT_EQ(c.cluster.lease_ttl_ms, 3000);
+  EXPECT_EQ(c.cluster.prefix, "test/");
+}
+
+TEST_F(ClusterConfigTest, DefaultLeaseTtlIsTwoSeconds) {
+  ServerConfig c;
+  ASSERT_TRUE(Load("[cluster]\netcd = [\"http://127.0.0.1:2379\"]\nmember = \"a\"\n", &c).ok());
+  EXPECT_EQ(c.cluster.lease_ttl_ms, 2000);
+}
+
+TEST_F(ClusterConfigTest, RejectsMemberWithoutEtcd) {
+  const Status s = Load("[cluster]\nmember = \"a\"\n");
+  EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);
+  EXPECT_NE(s.message().find("cluster.etcd is empty"), std::string::npos) << s;
+}
+
+TEST_F(ClusterConfigTest, RejectsMissingOrBadMemberName) {
+  for (const char* member : {"", "a/b", "with space"}) {
+    const Status s =
+        Load(std::string("[cluster]\netcd = [\"http://127.0.0.1:2379\"]\nmember = \"") + member +
+             "\"\n");
+    EXPECT_EQ(s.code(), Status::Code::kInvalidArgument) << member;
+    ASSERT_NE(s.violation(), nullptr);
+    EXPECT_EQ(s.violation()->field, "cluster.member");
+  }
+}
+
+TEST_F(ClusterConfigTest, RejectsLeaseTtlOutOfRange) {
+  for (const char* ttl : {"999", "60001"}) {
+    const Status s = Load(std::string("[cluster]\netcd = [\"http://127.0.0.1:2379\"]\n"
+                                      "member = \"a\"\nlease_ttl_ms = ") +
+                          ttl + "\n");
+    EXPECT_EQ(s.code(), Status::Code::kInvalidArgument) << ttl;
+    EXPECT_NE(s.message().find("cluster.lease_ttl_ms"), std::string::npos) << s;
+  }
+}
+
+TEST_F(ClusterConfigTest, RejectsMalformedEtcdEndpoint) {
+  for (const char* e : {"https://127.0.0.1:2379", "http://127.0.0.1", "http://127.0.0.1:0",
+                        "http://127.0.0.1:2379/v3"}) {
+    const Status s = Load(std::string("[cluster]\netcd = [\"") + e + "\"]\nmember = \"a\"\n");
+    EXPECT_EQ(s.code(), Status::Code::kInvalidArgument) << e;
+    ASSERT_NE(s.violation(), nullptr) << s;
+    EXPECT_EQ(s.violation()->field, "cluster.etcd[0]");
+  }
+  EXPECT_FALSE(Load("[cluster]\netcd = \"http://127.0.0.1:2379\"\nmember = \"a\"\n").ok());
+}
+
+TEST_F(ClusterConfigTest, RejectsPlaintextEtcdBeyondLoopback) {
+  const Status s = Load("[cluster]\netcd = [\"http://10.1.2.3:2379\"]\nmember = \"a\"\n");
+  EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);
+  EXPECT_NE(s.message().find("tls.allow_plaintext"), std::string::npos) << s;
+}
+
+TEST_F(ClusterConfigTest, RejectsWildcardListenWithoutAdvertise) {
+  const Status s = Load(R"([server]
+listen = "0.0.0.0:7420"
+sculptor_token = "a-sculptor-secret"
+viewer_token = "a-viewer-secret"
+[tls]
+allow_plaintext = true
+[cluster]
+etcd = ["http://127.0.0.1:2379"]
+member = "a"
+)");
+  EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);
+  EXPECT_NE(s.message().find("cluster.advertise is empty"), std::string::npos) << s;
+}
+
+TEST_F(ClusterConfigTest, RejectsWildcardAdvertise) {
+  const Status s = Load(
+      "[cluster]\netcd = [\"http://127.0.0.1:2379\"]\nmember = \"a\"\nadvertise = "
+      "\"0.0.0.0:7420\"\n");
+  ASSERT_NE(s.violation(), nullptr) << s;
+  EXPECT_EQ(s.violation()->field, "cluster.advertise");
+}
+
+TEST_F(ClusterConfigTest, RejectsUnknownKey) {
+  const Status s = Load("[cluster]\netcd = [\"http://127.0.0.1:2379\"]\nmember = \"a\"\nttl = 3\n");
+  EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);
+  EXPECT_NE(s.message().find("unknown key cluster.ttl"), std::string::npos) << s;
+}
+
+}  // namespace
+}  // namespace sculpt::server

@@ -1,0 +1,138 @@
+// Child processes of the cluster tests: an etcd from Debian's etcd-server on free loopback ports
+// with a temporary data directory, and sculptd members; each is killed and its directory
+// removed when the object goes away (and killed with the test process, by PR_SET_PDEATHSIG).
+#ifndef SCULPT_TESTS_CLUSTER_PROCESSES_H_
+#define SCULPT_TESTS_CLUSTER_PROCESSES_H_
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "net/net.h"
+
+namespace sculpt::testing {
+
+namespace fs = std::filesystem;
+
+inline constexpr const char* kEtcdBinary = "/usr/bin/etcd";
+
+inline bool HaveEtcd() { return access(kEtcdBinary, X_OK) == 0; }
+
+/// A port the kernel just handed out and released (a small race with other processes, accepted
+/// in tests: etcd needs its ports named on its command line).
+inline uint16_t FreePort() {
+  boost::asio::io_context io;
+  boost::asio::ip::tcp::acceptor a(io, {boost::asio::ip::make_address("127.0.0.1"), 0});
+  return a.local_endpoint().port();
+}
+
+/// A fresh directory under the system's temporary folder, removed by the destructor.
+class TempDir {
+ public:
+  explicit TempDir(const std::string& stem) {
+    std::string tmpl = (fs::temp_directory_path() / (stem + ".XXXXXX")).string();
+    path_ = mkdtemp(tmpl.data()) ? fs::path(tmpl) : fs::path();
+  }
+  ~TempDir() {
+    std::error_code ec;
+    if (!path_.empty()) fs::remove_all(path_, ec);
+  }
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+/// fork + exec with stdout and stderr appended to `log`; the child dies with the test.
+class ChildProcess {
+ public:
+  ChildProcess(std::vector<std::string> args, const fs::path& log) {
+    // Everything the child needs is made before fork: only async-signal-safe calls after it.
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    const std::string log_path = log.string();
+    pid_ = fork();
+    if (pid_ == 0) {
+      prctl(PR_SET_PDEATHSIG, SIGKILL);
+      const int fd = open(log_path.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+      if (fd >= 0) {
+        dup2(fd, 1);
+        dup2(fd, 2);
+      }
+      execv(argv[0], argv.data());
+      _exit(127);
+    }
+  }
+  ~ChildProcess() { Kill(SIGKILL); }
+  ChildProcess(const ChildProcess&) = delete;
+  ChildProcess& operator=(const ChildProcess&) = delete;
+
+  pid_t pid() const { return pid_; }
+  bool running() const { return pid_ > 0; }
+  /// Sends `sig` and reaps the process.
+  void Kill(int sig) {
+    if (pid_ <= 0) return;
+    kill(pid_, sig);
+    int status = 0;
+    waitpid(pid_, &status, 0);
+    pid_ = -1;
+  }
+
+ private:
+  pid_t pid_ = -1;
+};
+
+/// One etcd member on free loopback ports; endpoint() is its client URL.
+class EtcdProcess {
+ public:
+  EtcdProcess() : dir_("sculpt-etcd") {
+    client_port_ = FreePort();
+    const uint16_t peer = FreePort();
+    const std::string client = "http://127.0.0.1:" + std::to_string(client_port_);
+    const std::string peer_url = "http://127.0.0.1:" + std::to_string(peer);
+    process_ = std::make_unique<ChildProcess>(
+        std::vector<std::string>{kEtcdBinary, "--name", "t", "--data-dir",
+                                 (dir_.path() / "data").string(), "--listen-client-urls", client,
+                                 "--advertise-client-urls", client, "--listen-peer-urls", peer_url,
+                                 "--initial-advertise-peer-urls", peer_url, "--initial-cluster",
+                                 "t=" + peer_url},
+        dir_.path() / "etcd.log");
+  }
+  ~EtcdProcess() { process_.reset(); }
+
+  std::string endpoint() const { return "http://127.0.0.1:" + std::to_string(client_port_); }
+  const fs::path& dir() const { return dir_.path(); }
+  ChildProcess& process() { return *process_; }
+
+ private:
+  TempDir dir_;  // first: outlives the process
+  uint16_t client_port_ = 0;
+  std::unique_ptr<ChildProcess> process_;
+};
+
+/// Polls `ready` every 20 ms until it holds or `limit` passes; true when it held.
+template <typename F>
+bool WaitFor(F ready, std::chrono::milliseconds limit) {
+  const auto end = std::chrono::steady_clock::now() + limit;
+  while (std::chrono::steady_clock::now() < end) {
+    if (ready()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return ready();
+}
+
+}  // namespace sculpt::testing
+
+#endif  // SCULPT_TESTS_CLUSTER_PROCESSES_H_
