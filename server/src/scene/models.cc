@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -30,6 +31,13 @@ namespace sculpt::server {
 namespace {
 
 constexpr const char* kModelFileHeader = "sculpt-model-state";
+
+// The server's wall clock, ms since 1970: when an intent was committed (the history view).
+uint64_t WallClockMs() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count());
+}
 
 // The library names fields "intent.*"; on the wire they are the message's.
 Status Rename(const Status& s) {
@@ -157,6 +165,7 @@ Status ModelBook::Open(const std::vector<ObjectConfig>& objects, const std::stri
     } else {
       return saved.status();
     }
+    entry.history = History("model intent", undo_depth_);
     models_[o.name] = std::move(entry);
   }
   return Status::Ok();
@@ -166,6 +175,7 @@ void ModelBook::Replay(uint64_t seq, const codec::ModelRecord& r) {
   auto it = models_.find(r.edit.object);
   if (it == models_.end() || seq <= it->second.file_seq) return;
   Entry& entry = it->second;
+  State before{entry.model, entry.checker};
   // Checked when it was made.
   auto out = hetero::ApplyIntent(&entry.model, &entry.checker, r.edit.intent);
   if (!out.ok() || !out->applied) {
@@ -174,6 +184,8 @@ void ModelBook::Replay(uint64_t seq, const codec::ModelRecord& r) {
     return;
   }
   entry.version = r.model_version;
+  // As live: the model before it is what an undo rebuilds from.
+  entry.history.Commit(seq, HistoryAuthor(r.client_id), 0, r.edit.intent, std::move(before));
 }
 
 bool ModelBook::Save(uint64_t seq) {
@@ -189,6 +201,12 @@ bool ModelBook::Save(uint64_t seq) {
       spdlog::error("model {} at seq {} not saved: {}", name, seq, s.ToString());
       saved_all = false;
     }
+  }
+  // A restart starts from these files: intents before them can be undone no more, live as
+  // after a restart (so the log's undo records replay to the same models).
+  for (auto& [name, entry] : models_) {
+    entry.history.Clear("the snapshot round at seq " + std::to_string(seq) +
+                        " keeps the model without its earlier intents");
   }
   return saved_all;
 }
@@ -226,12 +244,73 @@ Status ModelBook::PrepareIntent(const codec::ModelEdit& edit, IntentPlan* plan) 
   return Status::Ok();
 }
 
-ModelBook::Stamp ModelBook::ApplyIntent(IntentPlan plan) {
+ModelBook::Stamp ModelBook::ApplyIntent(IntentPlan plan, uint64_t seq, const std::string& author,
+                                        const hetero::EditIntent& intent, uint64_t wall_ms) {
   Entry& entry = models_.at(plan.object);
+  if (!author.empty()) {
+    entry.history.Commit(seq, author, wall_ms, intent,
+                         State{std::move(entry.model), std::move(entry.checker)});
+  }
   entry.model = std::move(plan.next);
   entry.checker = std::move(plan.next_checker);
   entry.version = plan.version;
   return {entry.version, ModelHash(entry.model)};
+}
+
+StatusOr<uint64_t> ModelBook::UndoTarget(const std::string& object, const std::string& author,
+                                         bool redo, uint64_t* undone_at) const {
+  auto it = models_.find(object);
+  if (it == models_.end()) return NotFound("object " + object + " holds no hyperpatch model");
+  const History& h = it->second.history;
+  if (undone_at) *undone_at = redo ? h.RedoUndoneAt(author) : 0;
+  return redo ? h.RedoTarget(author) : h.UndoTarget(author);
+}
+
+StatusOr<UndoOutcome> ModelBook::Undo(const std::string& object, const std::string& author,
+                                      bool redo, uint64_t at_seq) {
+  auto it = models_.find(object);
+  if (it == models_.end()) return NotFound("object " + object + " holds no hyperpatch model");
+  Entry& entry = it->second;
+  // An intent re-applied by the rebuild: on a copy, kept only when the model stays valid.
+  auto reapply = [](State& s, const hetero::EditIntent& intent) {
+    State next = s;
+    auto out = hetero::ApplyIntent(&next.model, &next.checker, intent);
+    if (!out.ok() || !out->applied) return false;
+    s = std::move(next);
+    return true;
+  };
+  State state{entry.model, entry.checker};
+  auto out = redo ? entry.history.Redo(author, &state, reapply)
+                  : entry.history.Undo(author, at_seq, &state, reapply);
+  if (!out.ok()) return out;
+  entry.model = std::move(state.model);
+  entry.checker = std::move(state.checker);
+  ++entry.version;
+  return out;
+}
+
+void ModelBook::ReplayUndo(uint64_t seq, const codec::UndoRecord& r) {
+  auto it = models_.find(r.object);
+  if (it == models_.end() || seq <= it->second.file_seq) return;
+  auto out = Undo(r.object, HistoryAuthor(r.client_id), r.redo, seq);
+  if (!out.ok()) {
+    spdlog::warn("{} of a model intent at seq {} refused on replay: {}",
+                 r.redo ? "redo" : "undo", seq, out.status().ToString());
+  }
+}
+
+std::pair<size_t, size_t> ModelBook::UndoDepth(const std::string& object,
+                                               const std::string& author) const {
+  auto it = models_.find(object);
+  if (it == models_.end()) return {0, 0};
+  return {it->second.history.undo_depth(author), it->second.history.redo_depth(author)};
+}
+
+std::vector<HistoryEntry> ModelBook::Entries(const std::string& object,
+                                             const std::string& author) const {
+  auto it = models_.find(object);
+  if (it == models_.end()) return {};
+  return it->second.history.Entries(author);
 }
 
 std::optional<ModelBook::Stamp> ModelBook::StampOf(const std::string& object) const {
@@ -291,12 +370,14 @@ struct Scene::ModelOp final : EditOp {
     rec.edit = edit;
     rec.model_version = plan->version;
     records->push_back(codec::EncodeLogRecord(rec));
+    seq = first_seq;
     return Status::Ok();
   }
 
   Applied Apply(Scene& scene) override {
     moved = plan->moved;
-    stamp = scene.models_.ApplyIntent(std::move(*plan));
+    stamp = scene.models_.ApplyIntent(std::move(*plan), seq, HistoryAuthor(client), edit.intent,
+                                      WallClockMs());
     plan.reset();
     return Applied{};  // the voxels are not re-voxelised
   }
@@ -330,6 +411,7 @@ struct Scene::ModelOp final : EditOp {
   std::function<void(ModelOutcome)> done;
   std::optional<ModelBook::IntentPlan> plan;
   std::optional<hetero::Rejection> rejection;
+  uint64_t seq = 0;
   size_t moved = 0;
   ModelBook::Stamp stamp;
 };
