@@ -47,8 +47,9 @@ void Configure(InProcessServer& srv) {
                                                {"gold", {1.0, 0.85, 0.1}}});
   ASSERT_TRUE(model.ok()) << model.status();
   hetero::ValidityChecker checker;
-  auto a = hetero::LibraryBox({30, 0, 0}, {34, 4, 4}, {1, 0});
-  auto b = hetero::LibraryBox({34, 0, 0}, {38, 4, 4}, {0, 1});
+  const std::vector<double> clay{1, 0}, gold{0, 1};
+  auto a = hetero::LibraryBox({30, 0, 0}, {34, 4, 4}, clay);
+  auto b = hetero::LibraryBox({34, 0, 0}, {38, 4, 4}, gold);
   ASSERT_TRUE(a.ok() && b.ok());
   for (const auto* p : {&*a, &*b}) {
     auto r = hetero::AddCellChecked(&*model, &checker, *p, hetero::CellSource::kLibrary);

@@ -7,9 +7,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
+#include <cstring>
 #include <deque>
 #include <map>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -120,6 +122,79 @@ class BookHistory {
     cleared_ = why;
   }
 
+  /// The history as bytes to keep beside the book's file of a snapshot round, so a restart from
+  /// that file undoes what was undoable before it: `put_state(const State&)` and
+  /// `put_edit(const Edit&)` return each one's bytes.
+  template <typename PutState, typename PutEdit>
+  std::string Serialize(PutState put_state, PutEdit put_edit) const {
+    std::string out("SBH1");
+    PutString(out, cleared_);
+    Put(out, static_cast<uint32_t>(fell_off_.size()));
+    for (const auto& [author, n] : fell_off_) {
+      PutString(out, author);
+      Put(out, n);
+    }
+    Put(out, static_cast<uint32_t>(records_.size()));
+    for (const Record& r : records_) {
+      Put(out, r.seq);
+      Put(out, r.wall_ms);
+      Put(out, r.undone_at);
+      const uint8_t flags[2] = {static_cast<uint8_t>(r.active), static_cast<uint8_t>(r.stack)};
+      Put(out, flags);
+      PutString(out, r.author);
+      PutString(out, put_edit(r.edit));
+      PutString(out, put_state(r.before));
+    }
+    return out;
+  }
+  /// Replaces the history with what Serialize wrote; `get_state(std::string_view)` and
+  /// `get_edit(std::string_view)` return StatusOr of each. DataLoss naming what is truncated or
+  /// malformed (the history is then empty, `cleared` saying so).
+  template <typename GetState, typename GetEdit>
+  Status Parse(std::string_view in, GetState get_state, GetEdit get_edit) {
+    Clear("its saved history did not parse");
+    std::deque<Record> records;
+    std::map<std::string, uint64_t> fell_off;
+    std::string cleared;
+    uint32_t n = 0;
+    if (in.substr(0, 4) != "SBH1") return DataLoss("book history: magic outside {SBH1}");
+    in.remove_prefix(4);
+    if (!GetString(in, &cleared) || !Get(in, &n)) return DataLoss("book history: header truncated");
+    for (uint32_t i = 0; i < n; ++i) {
+      std::string author;
+      uint64_t count = 0;
+      if (!GetString(in, &author) || !Get(in, &count)) {
+        return DataLoss("book history: fell-off counts truncated");
+      }
+      fell_off[author] = count;
+    }
+    if (!Get(in, &n)) return DataLoss("book history: record count truncated");
+    for (uint32_t i = 0; i < n; ++i) {
+      uint64_t seq = 0, wall_ms = 0, undone_at = 0;
+      uint8_t flags[2];
+      std::string author, edit, state;
+      if (!Get(in, &seq) || !Get(in, &wall_ms) || !Get(in, &undone_at) || !Get(in, &flags) ||
+          !GetString(in, &author) || !GetString(in, &edit) || !GetString(in, &state) ||
+          flags[1] > static_cast<uint8_t>(Stack::kDead)) {
+        return DataLoss("book history: record " + std::to_string(i) + " truncated or malformed");
+      }
+      auto e = get_edit(std::string_view(edit));
+      if (!e.ok()) return DataLoss("book history: record " + std::to_string(i) + ": edit: " +
+                                   e.status().message());
+      auto st = get_state(std::string_view(state));
+      if (!st.ok()) return DataLoss("book history: record " + std::to_string(i) + ": state: " +
+                                    st.status().message());
+      records.push_back(Record{seq, wall_ms, std::move(author), std::move(e).value(),
+                               std::move(st).value(), flags[0] != 0,
+                               static_cast<Stack>(flags[1]), undone_at});
+    }
+    if (!in.empty()) return DataLoss("book history: bytes after the end");
+    records_ = std::move(records);
+    fell_off_ = std::move(fell_off);
+    cleared_ = std::move(cleared);
+    return Status::Ok();
+  }
+
   size_t undo_depth(const std::string& author) const { return Count(author, Stack::kUndo); }
   size_t redo_depth(const std::string& author) const { return Count(author, Stack::kRedo); }
   size_t size() const { return records_.size(); }
@@ -167,6 +242,29 @@ class BookHistory {
     return static_cast<size_t>(std::count_if(records_.begin(), records_.end(), [&](const Record& r) {
       return r.author == author && r.stack == stack;
     }));
+  }
+
+  template <typename T>
+  static void Put(std::string& s, const T& v) {
+    s.append(reinterpret_cast<const char*>(&v), sizeof v);
+  }
+  static void PutString(std::string& s, const std::string& v) {
+    Put(s, static_cast<uint32_t>(v.size()));
+    s.append(v);
+  }
+  template <typename T>
+  static bool Get(std::string_view& s, T* v) {
+    if (s.size() < sizeof(T)) return false;
+    std::memcpy(v, s.data(), sizeof(T));
+    s.remove_prefix(sizeof(T));
+    return true;
+  }
+  static bool GetString(std::string_view& s, std::string* v) {
+    uint32_t n = 0;
+    if (!Get(s, &n) || s.size() < n) return false;
+    v->assign(s.data(), n);
+    s.remove_prefix(n);
+    return true;
   }
 
   template <typename ApplyFn>

@@ -142,6 +142,22 @@ namespace {
 std::string ModelFilePath(const std::string& data_dir, const std::string& object) {
   return (std::filesystem::path(data_dir) / "models" / (object + ".json")).string();
 }
+// The model's undo history of the same round: the model file's seq (8 bytes), then
+// BookHistory::Serialize's bytes.
+std::string ModelHistoryPath(const std::string& data_dir, const std::string& object) {
+  return (std::filesystem::path(data_dir) / "models" / (object + ".history")).string();
+}
+std::string IntentBytes(const hetero::EditIntent& intent) {
+  codec::ModelRecord r;
+  r.edit.intent = intent;
+  return codec::EncodeLogRecord(r);
+}
+StatusOr<hetero::EditIntent> IntentFromBytes(std::string_view bytes) {
+  SCULPT_ASSIGN_OR_RETURN(codec::EditLogRecord rec, codec::DecodeLogRecord(0, bytes));
+  const auto* r = std::get_if<codec::ModelRecord>(&rec);
+  if (!r) return DataLoss("not a model intent");
+  return r->edit.intent;
+}
 }  // namespace
 
 Status ModelBook::Open(const std::vector<ObjectConfig>& objects, const std::string& data_dir) {
@@ -166,6 +182,29 @@ Status ModelBook::Open(const std::vector<ObjectConfig>& objects, const std::stri
       return saved.status();
     }
     entry.history = History("model intent", undo_depth_);
+    if (entry.file_seq > 0) {
+      // The undo history kept with the model file of the same round (none: nothing to undo).
+      std::ifstream in(ModelHistoryPath(data_dir_, o.name), std::ios::binary);
+      const std::string bytes((std::istreambuf_iterator<char>(in)),
+                              std::istreambuf_iterator<char>());
+      uint64_t seq = 0;
+      if (bytes.size() >= sizeof seq) std::memcpy(&seq, bytes.data(), sizeof seq);
+      Status s = FailedPrecondition("no undo history was kept with the model file at seq " +
+                                    std::to_string(entry.file_seq));
+      if (in && bytes.size() >= sizeof seq && seq == entry.file_seq) {
+        auto state = [](std::string_view b) -> StatusOr<State> {
+          SCULPT_ASSIGN_OR_RETURN(hetero::CompositeModel m, hetero::ModelFromJson(std::string(b)));
+          return State{std::move(m), hetero::ValidityChecker{}};
+        };
+        s = entry.history.Parse(std::string_view(bytes).substr(sizeof seq), state,
+                                IntentFromBytes);
+      }
+      if (!s.ok()) {
+        spdlog::warn("model {}: {}; its earlier intents can no longer be undone", o.name,
+                     s.ToString());
+        entry.history.Clear(s.message());
+      }
+    }
     models_[o.name] = std::move(entry);
   }
   return Status::Ok();
@@ -200,13 +239,17 @@ bool ModelBook::Save(uint64_t seq) {
         !s.ok()) {
       spdlog::error("model {} at seq {} not saved: {}", name, seq, s.ToString());
       saved_all = false;
+      continue;
     }
-  }
-  // A restart starts from these files: intents before them can be undone no more, live as
-  // after a restart (so the log's undo records replay to the same models).
-  for (auto& [name, entry] : models_) {
-    entry.history.Clear("the snapshot round at seq " + std::to_string(seq) +
-                        " keeps the model without its earlier intents");
+    // Its undo history, for a restart from this file (Open checks the seq matches).
+    std::string bytes(reinterpret_cast<const char*>(&seq), sizeof seq);
+    bytes += entry.history.Serialize(
+        [](const State& st) { return hetero::ModelToJson(st.model); }, IntentBytes);
+    if (const Status s = store::WriteFileDurably(ModelHistoryPath(data_dir_, name), bytes);
+        !s.ok()) {
+      spdlog::error("undo history of model {} at seq {} not saved: {}", name, seq, s.ToString());
+      saved_all = false;
+    }
   }
   return saved_all;
 }

@@ -105,8 +105,9 @@ class ModelBook {
                     const hetero::EditIntent& intent = {}, uint64_t wall_ms = 0);
 
   /// Per-author undo and redo of model intents (issue 15, BookHistory): each model keeps its
-  /// intents since the last Save (a snapshot round, which recovery starts from) with the model
-  /// before each. Intents kept per author and model (set before Open).
+  /// recent intents with the model before each, saved beside the model file at each Save
+  /// (data_dir/models/<object>.history) and loaded by Open with it. Intents kept per author and
+  /// model (set before Open).
   void set_undo_depth(size_t depth) { undo_depth_ = depth; }
   bool has_model(const std::string& object) const { return models_.count(object) != 0; }
   /// The sequence of the intent an undo (redo) by `author` would take back (put back), and for

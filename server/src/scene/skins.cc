@@ -106,6 +106,29 @@ StatusOr<skin::SkinChange> ApplyBallOp(skin::Skin& sk, const codec::BallEdit& e)
 std::string SkinFilePath(const std::string& data_dir, const std::string& name) {
   return (std::filesystem::path(data_dir) / "skins" / (name + ".pb")).string();
 }
+// The skin's undo history of the same round: the skin file's seq (8 bytes), then
+// BookHistory::Serialize's bytes.
+std::string SkinHistoryPath(const std::string& data_dir, const std::string& name) {
+  return (std::filesystem::path(data_dir) / "skins" / (name + ".history")).string();
+}
+
+std::string BallEditBytes(const codec::BallEdit& e) {
+  codec::BallEditRecord r;
+  r.edit = e;
+  return codec::EncodeLogRecord(r);
+}
+StatusOr<codec::BallEdit> BallEditFromBytes(std::string_view bytes) {
+  SCULPT_ASSIGN_OR_RETURN(codec::EditLogRecord rec, codec::DecodeLogRecord(0, bytes));
+  const auto* r = std::get_if<codec::BallEditRecord>(&rec);
+  if (!r) return DataLoss("not a ball edit");
+  if (!r->edit_status.ok()) return DataLoss(r->edit_status.message());
+  return r->edit;
+}
+std::string ChainBytes(const skin::Skin& sk) {
+  codec::SavedSkin saved;
+  for (const skin::OrientedBall& o : sk.balls()) saved.balls.push_back({o.c.x, o.c.y, o.r, o.theta});
+  return codec::EncodeSavedSkin(saved);
+}
 
 // Sends one subscriber its slice, from contours already computed.
 void SendSlice(const std::string& object, const ReplicaSink& sink, double step,
@@ -243,7 +266,8 @@ Status SkinBook::Open(const std::vector<SkinConfig>& skins, const std::string& d
       return InvalidArgument("scene.skins " + c.name + ": " + built.status().message());
     }
     Entry entry{{c.origin, c.u, c.v}, std::move(built).value(), version, file_seq, {},
-                History("ball edit", undo_depth_)};
+                History("ball edit", undo_depth_), opt};
+    LoadHistory(c.name, entry);
     skins_.emplace(c.name, std::move(entry));
   }
   return Status::Ok();
@@ -288,13 +312,16 @@ bool SkinBook::Save(uint64_t seq) {
     if (const Status s = SaveSkinFile(SkinFilePath(data_dir_, name), saved); !s.ok()) {
       spdlog::error("skin {} at seq {} not saved: {}", name, seq, s.ToString());
       saved_all = false;
+      continue;
     }
-  }
-  // A restart starts from these files: ball edits before them can be undone no more, live as
-  // after a restart (so the log's undo records replay to the same chains).
-  for (auto& [name, entry] : skins_) {
-    entry.history.Clear("the snapshot round at seq " + std::to_string(seq) +
-                        " keeps the skin without its earlier ball edits");
+    // Its undo history, for a restart from this file (Open checks the seq matches).
+    std::string bytes(reinterpret_cast<const char*>(&seq), sizeof seq);
+    bytes += entry.history.Serialize(ChainBytes, BallEditBytes);
+    if (const Status s = store::WriteFileDurably(SkinHistoryPath(data_dir_, name), bytes);
+        !s.ok()) {
+      spdlog::error("undo history of skin {} at seq {} not saved: {}", name, seq, s.ToString());
+      saved_all = false;
+    }
   }
   return saved_all;
 }
@@ -343,6 +370,31 @@ size_t SkinBook::ApplyBallEdit(BallEditPlan plan, uint64_t seq, const std::strin
     }
   }
   return entry.skin.balls().size();
+}
+
+void SkinBook::LoadHistory(const std::string& name, Entry& entry) {
+  if (entry.file_seq == 0) return;  // built from the scene: nothing before it to undo
+  std::ifstream in(SkinHistoryPath(data_dir_, name), std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  uint64_t seq = 0;
+  if (bytes.size() >= sizeof seq) std::memcpy(&seq, bytes.data(), sizeof seq);
+  const std::string why = "no undo history of skin " + name + " was kept with its file at seq " +
+                          std::to_string(entry.file_seq);
+  if (!in || bytes.size() < sizeof seq || seq != entry.file_seq) return entry.history.Clear(why);
+  const skin::SkinOptions options = entry.options;
+  auto chain = [&options](std::string_view b) -> StatusOr<skin::Skin> {
+    SCULPT_ASSIGN_OR_RETURN(codec::SavedSkin saved, codec::DecodeSavedSkin(b));
+    std::vector<skin::OrientedBall> balls;
+    for (const codec::SkinBall& x : saved.balls) balls.push_back({{x.x, x.y}, x.r, x.theta});
+    return skin::Skin::Build(std::move(balls), options);
+  };
+  const Status s =
+      entry.history.Parse(std::string_view(bytes).substr(sizeof seq), chain, BallEditFromBytes);
+  if (!s.ok()) {
+    spdlog::warn("undo history of skin {}: {}; its earlier ball edits can no longer be undone",
+                 name, s.ToString());
+    entry.history.Clear(why);
+  }
 }
 
 void SkinBook::SendWhole(const std::string& name, Entry& entry) {

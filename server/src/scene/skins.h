@@ -75,9 +75,10 @@ class SkinBook {
   size_t ApplyBallEdit(BallEditPlan plan, uint64_t seq = 0, const std::string& author = {},
                        const codec::BallEdit& edit = {}, uint64_t wall_ms = 0);
 
-  /// Per-author undo and redo of ball edits (issue 15, BookHistory): each skin keeps its ball
-  /// edits since the last Save (a snapshot round, which recovery starts from) with the chain
-  /// before each. Ball edits kept per author and skin (set before Open).
+  /// Per-author undo and redo of ball edits (issue 15, BookHistory): each skin keeps its recent
+  /// ball edits with the chain before each, saved beside the skin file at each Save
+  /// (data_dir/skins/<name>.history) and loaded by Open with it. Ball edits kept per author and
+  /// skin (set before Open).
   void set_undo_depth(size_t depth) { undo_depth_ = depth; }
   bool has_skin(const std::string& name) const { return skins_.count(name) != 0; }
   /// The sequence of the ball edit of `skin` that an undo (or redo) by `author` would take back
@@ -139,9 +140,12 @@ class SkinBook {
     uint64_t file_seq = 0;                 // the skin file held the log up to this seq at start-up
     std::map<uint64_t, ReplicaSink> subs;  // by session
     History history{"ball edit", 64};
+    skin::SkinOptions options;  // how the chain is built (a saved history's chains are rebuilt)
   };
   // Sends the skin's contour subscribers the whole skin (after an undo or redo).
   void SendWhole(const std::string& name, Entry& entry);
+  // Loads the undo history kept with the skin's file (none, or another round's: empty).
+  void LoadHistory(const std::string& name, Entry& entry);
   struct SliceSub {
     ReplicaSink sink;
     levelset::SliceRequest request;

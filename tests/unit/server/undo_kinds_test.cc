@@ -359,6 +359,32 @@ TEST_F(UndoKindsTest, UndoAndRedoOfAModelIntentKeepTheOtherSculptorsIntent) {
   EXPECT_EQ(ModelHash(*scene_), both) << "redo after the restart";
 }
 
+// The skin's and the model's histories are saved with their files at a snapshot round: a
+// restart from that round undoes the edits made before it as the live server would have.
+TEST_F(UndoKindsTest, BallEditsAndIntentsAreUndoneAcrossASnapshotAndARestart) {
+  AddModelObject();
+  scene_ = Open("a");
+  ASSERT_TRUE(scene_);
+  const auto initial = Balls(*scene_);
+  const uint64_t model = ModelHash(*scene_);
+  Ball(*scene_, kA, 1, codec::BallOp::kMove, 2, 0.5, 1.5, 3.0);
+  Ball(*scene_, kB, 1, codec::BallOp::kOrient, 3, 0, 0, 0, 0.25);
+  ASSERT_TRUE(Intent(*scene_, kA, 1, Corner(0, 0, 0, 0), {-0.25, 0, 0}).status.ok());
+  scene_->FlushAndSnapshot();
+  scene_.reset();
+  scene_ = Open("a");
+  ASSERT_TRUE(scene_);
+  const UndoCommandOutcome model_undo = Undo(*scene_, kA, 1, "part");
+  ASSERT_TRUE(model_undo.status.ok()) << model_undo.status;
+  EXPECT_EQ(ModelHash(*scene_), model);
+  const UndoCommandOutcome ball_undo = Undo(*scene_, kA, 2, "profile");
+  ASSERT_TRUE(ball_undo.status.ok()) << ball_undo.status;
+  EXPECT_EQ(ball_undo.replayed, 1u);
+  const auto undone = Balls(*scene_);
+  EXPECT_EQ(undone[2].c.x, initial[2].c.x) << "A's move is gone after the restart";
+  EXPECT_EQ(undone[3].theta, 0.25) << "B's orientation stays";
+}
+
 TEST_F(UndoKindsTest, UndoOfAnUnknownObjectOrSkinIsNotFound) {
   scene_ = Open("a");
   ASSERT_TRUE(scene_);
