@@ -43,8 +43,8 @@ void Configure(InProcessServer& srv) {
   skin.chord_tolerance = 0.02;
   skin.balls = {{-12, 0, 3, 0}, {-6, 1, 2.5, 0}, {0, 0, 3, 0}, {6, -1, 2.5, 0}, {12, 0, 3, 0}};
   c.scene.skins = {skin};
-  auto model = hetero::CompositeModel::Create({{"clay", {0.8, 0.5, 0.3}},
-                                               {"gold", {1.0, 0.85, 0.1}}});
+  auto model =
+      hetero::CompositeModel::Create({{"clay", {0.8, 0.5, 0.3}}, {"gold", {1.0, 0.85, 0.1}}});
   ASSERT_TRUE(model.ok()) << model.status();
   hetero::ValidityChecker checker;
   const std::vector<double> clay{1, 0}, gold{0, 1};
@@ -155,7 +155,8 @@ class UndoKindsClientTest : public ::testing::Test {
     auto sk = scene.SkinCopy("profile");
     EXPECT_TRUE(sk.ok());
     if (!sk.ok()) return out;
-    for (const skin::OrientedBall& b : sk->balls()) out.insert(out.end(), {b.c.x, b.c.y, b.r, b.theta});
+    for (const skin::OrientedBall& b : sk->balls())
+      out.insert(out.end(), {b.c.x, b.c.y, b.r, b.theta});
     return out;
   }
   static uint64_t ModelHash(Scene& scene) {

@@ -99,7 +99,8 @@ StatusOr<CellImage::Part> CellImage::ReadPart(std::string_view& in) {
     c.origin = {o[0], o[1], o[2]};
     c.active = active != 0;
     if (o[0] % kLeafDim || o[1] % kLeafDim || o[2] % kLeafDim || c.level > 4 ||
-        (c.level == 0 && c.leaf >= nleaves) || (i > 0 && !CellLess(img.cells[i - 1].origin, c.origin))) {
+        (c.level == 0 && c.leaf >= nleaves) ||
+        (i > 0 && !CellLess(img.cells[i - 1].origin, c.origin))) {
       return Outside(std::string("cell image: cell ") + std::to_string(i) +
                          " has an unaligned or unsorted origin, level",
                      std::to_string(c.level),

@@ -36,13 +36,13 @@ class BookHistory {
  public:
   /// `kind_name` is what the history view calls its edits ("ball edit", "model intent").
   BookHistory(const char* kind_name, size_t depth_per_author, size_t max_edits = 1024)
-      : kind_name_(kind_name), depth_(std::max<size_t>(depth_per_author, 1)),
+      : kind_name_(kind_name),
+        depth_(std::max<size_t>(depth_per_author, 1)),
         max_edits_(std::max<size_t>(max_edits, 1)) {}
 
   /// Records an edit just applied at `seq` by `author` (its state before it in `before`), as
   /// the author's newest undoable edit; the author's redo stack is dropped, as a new stroke does.
-  void Commit(uint64_t seq, const std::string& author, uint64_t wall_ms, Edit edit,
-              State before) {
+  void Commit(uint64_t seq, const std::string& author, uint64_t wall_ms, Edit edit, State before) {
     for (Record& r : records_) {
       if (r.author == author && r.stack == Stack::kRedo) r.stack = Stack::kDead;
     }
@@ -66,11 +66,11 @@ class BookHistory {
     if (r) return r->seq;
     auto fell = fell_off_.find(author);
     if (fell != fell_off_.end() && fell->second > 0) {
-      return FieldViolation(Status::Code::kOutOfRange, "author", "\"" + author + "\"",
-                            "authors with an edit within depth_per_author=" +
-                                std::to_string(depth_),
-                            "undo: author=\"" + author + "\" has no " + kind_name_ +
-                                " left within depth_per_author=" + std::to_string(depth_));
+      return FieldViolation(
+          Status::Code::kOutOfRange, "author", "\"" + author + "\"",
+          "authors with an edit within depth_per_author=" + std::to_string(depth_),
+          "undo: author=\"" + author + "\" has no " + kind_name_ +
+              " left within depth_per_author=" + std::to_string(depth_));
     }
     return FieldViolation(Status::Code::kFailedPrecondition, "author", "\"" + author + "\"",
                           "authors with an edit to undo",
@@ -179,14 +179,16 @@ class BookHistory {
         return DataLoss("book history: record " + std::to_string(i) + " truncated or malformed");
       }
       auto e = get_edit(std::string_view(edit));
-      if (!e.ok()) return DataLoss("book history: record " + std::to_string(i) + ": edit: " +
-                                   e.status().message());
+      if (!e.ok())
+        return DataLoss("book history: record " + std::to_string(i) +
+                        ": edit: " + e.status().message());
       auto st = get_state(std::string_view(state));
-      if (!st.ok()) return DataLoss("book history: record " + std::to_string(i) + ": state: " +
-                                    st.status().message());
+      if (!st.ok())
+        return DataLoss("book history: record " + std::to_string(i) +
+                        ": state: " + st.status().message());
       records.push_back(Record{seq, wall_ms, std::move(author), std::move(e).value(),
-                               std::move(st).value(), flags[0] != 0,
-                               static_cast<Stack>(flags[1]), undone_at});
+                               std::move(st).value(), flags[0] != 0, static_cast<Stack>(flags[1]),
+                               undone_at});
     }
     if (!in.empty()) return DataLoss("book history: bytes after the end");
     records_ = std::move(records);
@@ -239,9 +241,9 @@ class BookHistory {
     return best;
   }
   size_t Count(const std::string& author, Stack stack) const {
-    return static_cast<size_t>(std::count_if(records_.begin(), records_.end(), [&](const Record& r) {
-      return r.author == author && r.stack == stack;
-    }));
+    return static_cast<size_t>(
+        std::count_if(records_.begin(), records_.end(),
+                      [&](const Record& r) { return r.author == author && r.stack == stack; }));
   }
 
   template <typename T>

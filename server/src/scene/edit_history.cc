@@ -233,8 +233,8 @@ PreparedEdit EditHistory::PreparePaint(const levelset::Sculpture& sculpture,
   return p;
 }
 
-StatusOr<levelset::EditResult> EditHistory::ApplyPaint(levelset::Sculpture& sculpture,
-                                                       uint64_t seq, const std::string& author,
+StatusOr<levelset::EditResult> EditHistory::ApplyPaint(levelset::Sculpture& sculpture, uint64_t seq,
+                                                       const std::string& author,
                                                        const codec::Paint& paint,
                                                        uint64_t wall_ms) {
   // The kernel checks the paint before it writes anything: a refusal records nothing.
@@ -400,10 +400,10 @@ StatusOr<EditHistory> EditHistory::Parse(std::string_view in, EditHistoryOptions
     const bool no_requests = has_sweep || has_paint;
     if ((has_sweep && has_paint) || (no_requests && nreq != 0) ||
         (!no_requests && (nreq == 0 || nreq > levelset::kMaxEditsPerBatch))) {
-      return Outside(
-          where + ": requests", std::to_string(nreq),
-          std::string("{0} (a sweep or a paint) or [1, ") + std::to_string(levelset::kMaxEditsPerBatch) + "]",
-          Status::Code::kDataLoss);
+      return Outside(where + ": requests", std::to_string(nreq),
+                     std::string("{0} (a sweep or a paint) or [1, ") +
+                         std::to_string(levelset::kMaxEditsPerBatch) + "]",
+                     Status::Code::kDataLoss);
     }
     r.requests.resize(nreq);
     int32_t box[6];
@@ -579,8 +579,8 @@ uint64_t EditHistory::RedoUndoneAt(const std::string& author) const {
   return records_[it->second.redo.back() - first_id_].undone_at;
 }
 
-StatusOr<UndoOutcome> EditHistory::Undo(levelset::Sculpture& sculpture,
-                                        const std::string& author, uint64_t at_seq) {
+StatusOr<UndoOutcome> EditHistory::Undo(levelset::Sculpture& sculpture, const std::string& author,
+                                        uint64_t at_seq) {
   SCULPT_RETURN_IF_ERROR(UndoTarget(author).status());
   const uint64_t id = authors_[author].undo.back();
   SCULPT_ASSIGN_OR_RETURN(UndoOutcome out, Rebuild(sculpture, id, /*activate=*/false));

@@ -23,8 +23,8 @@
 #include "sculpt/core/check.h"
 #include "sculpt/hetero/model_io.h"
 #include "sculpt/hetero/validity.h"
-#include "store/edit_log.h"
 #include "store/durable_file.h"
+#include "store/edit_log.h"
 #include "store/resend_table.h"
 
 namespace sculpt::server {
@@ -196,8 +196,7 @@ Status ModelBook::Open(const std::vector<ObjectConfig>& objects, const std::stri
           SCULPT_ASSIGN_OR_RETURN(hetero::CompositeModel m, hetero::ModelFromJson(std::string(b)));
           return State{std::move(m), hetero::ValidityChecker{}};
         };
-        s = entry.history.Parse(std::string_view(bytes).substr(sizeof seq), state,
-                                IntentFromBytes);
+        s = entry.history.Parse(std::string_view(bytes).substr(sizeof seq), state, IntentFromBytes);
       }
       if (!s.ok()) {
         spdlog::warn("model {}: {}; its earlier intents can no longer be undone", o.name,
@@ -243,8 +242,8 @@ bool ModelBook::Save(uint64_t seq) {
     }
     // Its undo history, for a restart from this file (Open checks the seq matches).
     std::string bytes(reinterpret_cast<const char*>(&seq), sizeof seq);
-    bytes += entry.history.Serialize(
-        [](const State& st) { return hetero::ModelToJson(st.model); }, IntentBytes);
+    bytes += entry.history.Serialize([](const State& st) { return hetero::ModelToJson(st.model); },
+                                     IntentBytes);
     if (const Status s = store::WriteFileDurably(ModelHistoryPath(data_dir_, name), bytes);
         !s.ok()) {
       spdlog::error("undo history of model {} at seq {} not saved: {}", name, seq, s.ToString());
@@ -337,8 +336,8 @@ void ModelBook::ReplayUndo(uint64_t seq, const codec::UndoRecord& r) {
   if (it == models_.end() || seq <= it->second.file_seq) return;
   auto out = Undo(r.object, HistoryAuthor(r.client_id), r.redo, seq);
   if (!out.ok()) {
-    spdlog::warn("{} of a model intent at seq {} refused on replay: {}",
-                 r.redo ? "redo" : "undo", seq, out.status().ToString());
+    spdlog::warn("{} of a model intent at seq {} refused on replay: {}", r.redo ? "redo" : "undo",
+                 seq, out.status().ToString());
   }
 }
 

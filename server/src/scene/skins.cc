@@ -27,8 +27,8 @@
 #include "sculpt/core/check.h"
 #include "sculpt/levelset/slice.h"
 #include "sculpt/skin/contour_codec.h"
-#include "store/edit_log.h"
 #include "store/durable_file.h"
+#include "store/edit_log.h"
 #include "store/resend_table.h"
 
 namespace sculpt::server {
@@ -126,7 +126,8 @@ StatusOr<codec::BallEdit> BallEditFromBytes(std::string_view bytes) {
 }
 std::string ChainBytes(const skin::Skin& sk) {
   codec::SavedSkin saved;
-  for (const skin::OrientedBall& o : sk.balls()) saved.balls.push_back({o.c.x, o.c.y, o.r, o.theta});
+  for (const skin::OrientedBall& o : sk.balls())
+    saved.balls.push_back({o.c.x, o.c.y, o.r, o.theta});
   return codec::EncodeSavedSkin(saved);
 }
 
@@ -265,8 +266,13 @@ Status SkinBook::Open(const std::vector<SkinConfig>& skins, const std::string& d
     if (!built.ok()) {
       return InvalidArgument("scene.skins " + c.name + ": " + built.status().message());
     }
-    Entry entry{{c.origin, c.u, c.v}, std::move(built).value(), version, file_seq, {},
-                History("ball edit", undo_depth_), opt};
+    Entry entry{{c.origin, c.u, c.v},
+                std::move(built).value(),
+                version,
+                file_seq,
+                {},
+                History("ball edit", undo_depth_),
+                opt};
     LoadHistory(c.name, entry);
     skins_.emplace(c.name, std::move(entry));
   }
@@ -454,8 +460,8 @@ void SkinBook::ReplayUndo(uint64_t seq, const codec::UndoRecord& r) {
   if (it == skins_.end() || seq <= it->second.file_seq) return;
   auto out = Undo(r.object, HistoryAuthor(r.client_id), r.redo, seq);
   if (!out.ok()) {
-    spdlog::warn("{} of a ball edit at seq {} refused on replay: {}", r.redo ? "redo" : "undo",
-                 seq, out.status().ToString());
+    spdlog::warn("{} of a ball edit at seq {} refused on replay: {}", r.redo ? "redo" : "undo", seq,
+                 out.status().ToString());
   }
 }
 

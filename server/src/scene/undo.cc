@@ -85,8 +85,8 @@ struct Scene::UndoOp final : EditOp {
         // for a redo.
         uint64_t undone_at = 0;
         auto m = scene.models_.UndoTarget(command.object, author, redo, &undone_at);
-        if (m.ok() && (!target.ok() || (redo ? undone_at > h.RedoUndoneAt(author)
-                                             : *m > *target))) {
+        if (m.ok() &&
+            (!target.ok() || (redo ? undone_at > h.RedoUndoneAt(author) : *m > *target))) {
           target = m;
           book = kModelBook;
         }

@@ -576,10 +576,10 @@ namespace {
 // A sphere with three declared materials (material 0 everywhere until painted).
 Sculpture PaintedSphere() {
   Sculpture s = Sphere();
-  EXPECT_TRUE(levelset::SetMaterials(s, {{"clay", {0.6, 0.4, 0.3}},
-                                         {"gold", {0.9, 0.8, 0.1}},
-                                         {"jade", {0.1, 0.7, 0.4}}})
-                  .ok());
+  EXPECT_TRUE(
+      levelset::SetMaterials(
+          s, {{"clay", {0.6, 0.4, 0.3}}, {"gold", {0.9, 0.8, 0.1}}, {"jade", {0.1, 0.7, 0.4}}})
+          .ok());
   return s;
 }
 

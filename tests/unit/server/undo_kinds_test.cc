@@ -37,9 +37,8 @@ class UndoKindsTest : public ::testing::Test {
     config_.fsync = "group";
     config_.group_commit_ms = 2;
     config_.scene.objects.front().radius = 12;
-    config_.scene.materials = {{"clay", {0.8, 0.5, 0.3}},
-                               {"gold", {1.0, 0.85, 0.1}},
-                               {"jade", {0.1, 0.7, 0.4}}};
+    config_.scene.materials = {
+        {"clay", {0.8, 0.5, 0.3}}, {"gold", {1.0, 0.85, 0.1}}, {"jade", {0.1, 0.7, 0.4}}};
     SkinConfig skin;
     skin.name = "profile";
     skin.origin = {0, 0, 0};
@@ -54,9 +53,8 @@ class UndoKindsTest : public ::testing::Test {
 
   // A second object "part": two glued boxes as a hyperpatch model (models.h).
   void AddModelObject() {
-    auto model = hetero::CompositeModel::Create({{"clay", {0.8, 0.5, 0.3}},
-                                                 {"gold", {1.0, 0.85, 0.1}},
-                                                 {"jade", {0.1, 0.7, 0.4}}});
+    auto model = hetero::CompositeModel::Create(
+        {{"clay", {0.8, 0.5, 0.3}}, {"gold", {1.0, 0.85, 0.1}}, {"jade", {0.1, 0.7, 0.4}}});
     ASSERT_TRUE(model.ok()) << model.status();
     model_ = std::move(model).value();
     hetero::ValidityChecker checker;
@@ -122,8 +120,7 @@ class UndoKindsTest : public ::testing::Test {
     EXPECT_TRUE(out.status.ok()) << out.status;
     return out;
   }
-  static ModelOutcome Intent(Scene& scene, uint64_t client, uint64_t seq, uint32_t corner,
-                             Vec3 d) {
+  static ModelOutcome Intent(Scene& scene, uint64_t client, uint64_t seq, uint32_t corner, Vec3 d) {
     codec::ModelEdit e;
     e.client_seq = seq;
     e.object = "part";
