@@ -17,6 +17,8 @@ namespace {
 using nlohmann::json;
 
 std::string KindName(const v1::HistoryEntry& e) {
+  // Servers that name the kind (paints, ball edits, model intents) say it themselves.
+  if (!e.kind_name().empty()) return e.kind_name();
   std::string kind;
   switch (e.kind()) {
     case v1::EDIT_KIND_PRESS: kind = "press"; break;

@@ -133,6 +133,8 @@ std::string EncodeLogRecord(const UndoRecord& u) {
   q->set_object(u.object);
   q->set_redo(u.redo);
   r.set_author(u.author);
+  r.set_target_book(u.target_book);
+  r.set_target_seq(u.target_seq);
   return Tagged(LogTag::kUndo, r);
 }
 
@@ -213,6 +215,8 @@ StatusOr<EditLogRecord> DecodeLogRecord(uint64_t seq, std::string_view payload) 
       u.object = r.request().object();
       u.redo = r.request().redo();
       u.author = r.author();
+      u.target_book = r.target_book();
+      u.target_seq = r.target_seq();
       u.user = r.user();
       return EditLogRecord(std::move(u));
     }

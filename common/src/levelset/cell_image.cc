@@ -51,12 +51,16 @@ bool Get(std::string_view& s, T* v) {
   return true;
 }
 
+const openvdb::FloatGrid& GridOf(const Sculpture::Impl& impl, int grid) {
+  return grid < 0 ? *impl.grid : *impl.fractions[static_cast<size_t>(grid)];
+}
+
 }  // namespace
 
-void CellImage::AppendTo(std::string& out) const {
-  Put(out, static_cast<uint32_t>(cells_.size()));
-  Put(out, static_cast<uint32_t>(leaves_.size()));
-  for (const Cell& c : cells_) {
+void CellImage::AppendPart(const Part& part, std::string& out) {
+  Put(out, static_cast<uint32_t>(part.cells.size()));
+  Put(out, static_cast<uint32_t>(part.leaves.size()));
+  for (const Cell& c : part.cells) {
     const int32_t o[3] = {c.origin.x, c.origin.y, c.origin.z};
     Put(out, o);
     Put(out, c.level);
@@ -64,10 +68,16 @@ void CellImage::AppendTo(std::string& out) const {
     Put(out, c.value);
     Put(out, c.leaf);
   }
-  for (const Leaf& l : leaves_) Put(out, l);
+  for (const Leaf& l : part.leaves) Put(out, l);
 }
 
-StatusOr<CellImage> CellImage::ReadFrom(std::string_view& in) {
+void CellImage::AppendTo(std::string& out) const {
+  AppendPart(sdf_, out);
+  Put(out, static_cast<uint8_t>(fractions_.size()));
+  for (const Part& p : fractions_) AppendPart(p, out);
+}
+
+StatusOr<CellImage::Part> CellImage::ReadPart(std::string_view& in) {
   uint32_t ncells = 0, nleaves = 0;
   if (!Get(in, &ncells) || !Get(in, &nleaves)) return DataLoss("cell image: counts truncated");
   constexpr size_t kCellBytes = 12 + 1 + 1 + 4 + 4;
@@ -76,10 +86,10 @@ StatusOr<CellImage> CellImage::ReadFrom(std::string_view& in) {
         "cell image: cells", std::to_string(ncells) + ", leaves=" + std::to_string(nleaves),
         std::string("what ") + std::to_string(in.size()) + " bytes hold", Status::Code::kDataLoss);
   }
-  CellImage img;
-  img.cells_.resize(ncells);
+  Part img;
+  img.cells.resize(ncells);
   for (uint32_t i = 0; i < ncells; ++i) {
-    Cell& c = img.cells_[i];
+    Cell& c = img.cells[i];
     int32_t o[3];
     uint8_t active = 0;
     if (!Get(in, &o) || !Get(in, &c.level) || !Get(in, &active) || !Get(in, &c.value) ||
@@ -89,7 +99,8 @@ StatusOr<CellImage> CellImage::ReadFrom(std::string_view& in) {
     c.origin = {o[0], o[1], o[2]};
     c.active = active != 0;
     if (o[0] % kLeafDim || o[1] % kLeafDim || o[2] % kLeafDim || c.level > 4 ||
-        (c.level == 0 && c.leaf >= nleaves) || (i > 0 && !CellLess(img.cells_[i - 1].origin, c.origin))) {
+        (c.level == 0 && c.leaf >= nleaves) ||
+        (i > 0 && !CellLess(img.cells[i - 1].origin, c.origin))) {
       return Outside(std::string("cell image: cell ") + std::to_string(i) +
                          " has an unaligned or unsorted origin, level",
                      std::to_string(c.level),
@@ -101,32 +112,53 @@ StatusOr<CellImage> CellImage::ReadFrom(std::string_view& in) {
   if (in.size() < static_cast<size_t>(nleaves) * sizeof(Leaf)) {
     return DataLoss("cell image: leaves truncated");
   }
-  img.leaves_.resize(nleaves);
+  img.leaves.resize(nleaves);
   // An empty image has no buffer: memcpy's pointers must not be null, even for no bytes.
-  if (nleaves > 0) std::memcpy(img.leaves_.data(), in.data(), nleaves * sizeof(Leaf));
+  if (nleaves > 0) std::memcpy(img.leaves.data(), in.data(), nleaves * sizeof(Leaf));
   in.remove_prefix(nleaves * sizeof(Leaf));
   return img;
 }
 
-CellImage CellImage::Capture(const Sculpture& sculpture, const VoxelBox& box) {
+StatusOr<CellImage> CellImage::ReadFrom(std::string_view& in, bool with_fractions) {
   CellImage img;
-  if (box.Empty()) return img;
-  const Tree& tree = sculpture.impl().grid->tree();
-  std::vector<Int3> cells = AllLeafCells(box);
-  std::sort(cells.begin(), cells.end(), CellLess);
-  img.cells_.reserve(cells.size());
+  SCULPT_ASSIGN_OR_RETURN(img.sdf_, ReadPart(in));
+  if (!with_fractions) return img;
+  uint8_t n = 0;
+  if (!Get(in, &n)) return DataLoss("cell image: fraction grid count truncated");
+  if (n > 64) {
+    return Outside("cell image: fraction grids", std::to_string(n), "[0, 64]",
+                   Status::Code::kDataLoss);
+  }
+  for (uint8_t m = 0; m < n; ++m) {
+    SCULPT_ASSIGN_OR_RETURN(Part p, ReadPart(in));
+    if (p.cells.size() != img.sdf_.cells.size()) {
+      return Outside("cell image: fraction grid " + std::to_string(m) + " cells",
+                     std::to_string(p.cells.size()),
+                     "{" + std::to_string(img.sdf_.cells.size()) + "} (the SDF's)",
+                     Status::Code::kDataLoss);
+    }
+    img.fractions_.push_back(std::move(p));
+  }
+  return img;
+}
+
+CellImage::Part CellImage::CapturePart(const Sculpture& sculpture, int grid,
+                                       const std::vector<Int3>& cells) {
+  Part img;
+  const Tree& tree = GridOf(sculpture.impl(), grid).tree();
+  img.cells.reserve(cells.size());
   // Counted first so the copies land in one allocation (a stroke's footprint holds ~100 leaves).
   size_t leaves = 0;
   for (const Int3& c : cells) leaves += tree.probeConstLeaf(Coord(c.x, c.y, c.z)) != nullptr;
-  img.leaves_.reserve(leaves);
+  img.leaves.reserve(leaves);
   for (const Int3& c : cells) {
     const Coord xyz(c.x, c.y, c.z);
     Cell cell;
     cell.origin = c;
     if (const LeafT* leaf = tree.probeConstLeaf(xyz)) {
       cell.level = 0;
-      cell.leaf = static_cast<uint32_t>(img.leaves_.size());
-      Leaf& l = img.leaves_.emplace_back();
+      cell.leaf = static_cast<uint32_t>(img.leaves.size());
+      Leaf& l = img.leaves.emplace_back();
       const auto& mask = leaf->getValueMask();
       for (openvdb::Index32 w = 0; w < 8; ++w) {
         l.mask[w] = mask.template getWord<openvdb::Index64>(w);
@@ -138,60 +170,95 @@ CellImage CellImage::Capture(const Sculpture& sculpture, const VoxelBox& box) {
       cell.value = tree.getValue(xyz);
       cell.active = tree.isValueOn(xyz);
     }
-    img.cells_.push_back(cell);
+    img.cells.push_back(cell);
   }
   return img;
+}
+
+CellImage CellImage::Capture(const Sculpture& sculpture, const VoxelBox& box) {
+  CellImage img;
+  if (box.Empty()) return img;
+  std::vector<Int3> cells = AllLeafCells(box);
+  std::sort(cells.begin(), cells.end(), CellLess);
+  img.sdf_ = CapturePart(sculpture, -1, cells);
+  const int n = static_cast<int>(sculpture.impl().fractions.size());
+  for (int m = 0; m < n; ++m) img.fractions_.push_back(CapturePart(sculpture, m, cells));
+  return img;
+}
+
+void CellImage::KeepPart(Part& part, const std::vector<Int3>& keep) {
+  std::vector<Cell> kept;
+  std::vector<Leaf> kept_leaves;
+  for (const Cell& c : part.cells) {
+    if (!std::binary_search(keep.begin(), keep.end(), c.origin, CellLess)) continue;
+    Cell k = c;
+    if (c.level == 0) {
+      k.leaf = static_cast<uint32_t>(kept_leaves.size());
+      kept_leaves.push_back(part.leaves[c.leaf]);
+    }
+    kept.push_back(k);
+  }
+  part.cells = std::move(kept);
+  part.leaves = std::move(kept_leaves);
+  part.cells.shrink_to_fit();
+  part.leaves.shrink_to_fit();
 }
 
 void CellImage::Keep(const std::vector<Int3>& cells) {
   std::vector<Int3> keep = cells;
   std::sort(keep.begin(), keep.end(), CellLess);
-  std::vector<Cell> kept;
-  std::vector<Leaf> kept_leaves;
-  for (const Cell& c : cells_) {
-    if (!std::binary_search(keep.begin(), keep.end(), c.origin, CellLess)) continue;
-    Cell k = c;
-    if (c.level == 0) {
-      k.leaf = static_cast<uint32_t>(kept_leaves.size());
-      kept_leaves.push_back(leaves_[c.leaf]);
-    }
-    kept.push_back(k);
-  }
-  cells_ = std::move(kept);
-  leaves_ = std::move(kept_leaves);
-  cells_.shrink_to_fit();
-  leaves_.shrink_to_fit();
+  KeepPart(sdf_, keep);
+  for (Part& p : fractions_) KeepPart(p, keep);
 }
 
-const CellImage::Cell* CellImage::Find(const Int3& origin) const {
-  auto it = std::lower_bound(cells_.begin(), cells_.end(), origin,
+const CellImage::Cell* CellImage::Part::Find(const Int3& origin) const {
+  auto it = std::lower_bound(cells.begin(), cells.end(), origin,
                              [](const Cell& c, const Int3& o) { return CellLess(c.origin, o); });
-  return it != cells_.end() && it->origin == origin ? &*it : nullptr;
+  return it != cells.end() && it->origin == origin ? &*it : nullptr;
 }
 
-bool CellImage::Holds(const Int3& cell) const { return Find(cell) != nullptr; }
+bool CellImage::Holds(const Int3& cell) const { return sdf_.Find(cell) != nullptr; }
 
 std::vector<Int3> CellImage::Cells() const {
   std::vector<Int3> out;
-  out.reserve(cells_.size());
-  for (const Cell& c : cells_) out.push_back(c.origin);
+  out.reserve(sdf_.cells.size());
+  for (const Cell& c : sdf_.cells) out.push_back(c.origin);
   return out;
 }
 
+size_t CellImage::Part::MemoryBytes() const {
+  return cells.capacity() * sizeof(Cell) + leaves.capacity() * sizeof(Leaf);
+}
+
 size_t CellImage::MemoryBytes() const {
-  return cells_.capacity() * sizeof(Cell) + leaves_.capacity() * sizeof(Leaf);
+  size_t n = sdf_.MemoryBytes() + fractions_.capacity() * sizeof(Part);
+  for (const Part& p : fractions_) n += p.MemoryBytes();
+  return n;
 }
 
 void CellImage::Clear() {
-  cells_ = {};
-  leaves_ = {};
+  sdf_ = {};
+  fractions_ = {};
 }
 
 size_t CellImage::RestoreAll(Sculpture& sculpture) const { return Restore(sculpture, Cells()); }
 
 size_t CellImage::Restore(Sculpture& sculpture, const std::vector<Int3>& cells) const {
+  const size_t written = RestorePart(sdf_, sculpture, -1, cells);
+  // An image taken under other materials than the sculpture holds now puts back no fractions
+  // (the scene never redeclares materials while it runs).
+  if (fractions_.size() == sculpture.impl().fractions.size()) {
+    for (size_t m = 0; m < fractions_.size(); ++m) {
+      RestorePart(fractions_[m], sculpture, static_cast<int>(m), cells);
+    }
+  }
+  return written;
+}
+
+size_t CellImage::RestorePart(const Part& part, Sculpture& sculpture, int grid,
+                              const std::vector<Int3>& cells) {
   Sculpture::Impl& impl = sculpture.impl();
-  Tree& tree = impl.grid->tree();
+  Tree& tree = (grid < 0 ? *impl.grid : *impl.fractions[static_cast<size_t>(grid)]).tree();
   // Cells that a node larger than a leaf held: that node is re-collapsed below once uniform.
   struct Collapse {
     Int3 origin;
@@ -203,13 +270,13 @@ size_t CellImage::Restore(Sculpture& sculpture, const std::vector<Int3>& cells) 
   std::vector<Collapse> collapse;
   size_t written = 0;
   for (const Int3& o : cells) {
-    const Cell* c = Find(o);
+    const Cell* c = part.Find(o);
     if (!c) continue;
     ++written;
     const Coord xyz(o.x, o.y, o.z);
     if (c->level == 0) {
       LeafT* leaf = tree.touchLeaf(xyz);
-      const Leaf& l = leaves_[c->leaf];
+      const Leaf& l = part.leaves[c->leaf];
       openvdb::util::NodeMask<LeafT::LOG2DIM> mask;
       for (openvdb::Index32 w = 0; w < 8; ++w) mask.template getWord<openvdb::Index64>(w) = l.mask[w];
       leaf->setValueMask(mask);
@@ -229,7 +296,7 @@ size_t CellImage::Restore(Sculpture& sculpture, const std::vector<Int3>& cells) 
         collapse.push_back({Floor(o, kNode2Dim), 3, c->value, c->active, c->level == 4});
       }
     }
-    impl.bounds.expand(openvdb::CoordBBox(xyz, xyz.offsetBy(kLeafDim - 1)));
+    if (grid < 0) impl.bounds.expand(openvdb::CoordBBox(xyz, xyz.offsetBy(kLeafDim - 1)));
   }
   if (collapse.empty()) return written;
   // Smaller nodes first, so that a root child whose leaf parents all collapsed collapses too.

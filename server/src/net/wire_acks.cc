@@ -110,6 +110,7 @@ v1::HistoryAnswer ToWireAnswer(const HistoryOutcome& o) {
     e->set_time_ms(in.wall_ms);
     e->set_undone(in.undone);
     e->set_undoable(in.undoable);
+    e->set_kind_name(in.kind_name);
     e->set_user(in.user);
   }
   return a;

@@ -53,7 +53,8 @@ StatusOr<LoggedEdit> DecodeLogRecord(uint64_t seq, const std::string& payload) {
     e.stream = ResendStream::kUndos;
     e.client_id = u->client_id;
     e.client_seq = u->client_seq;
-    e.object = u->object;
+    // An undo of a skin's ball edit names the skin, not an object (no sculpture changes).
+    if (u->target_book != 2) e.object = u->object;
   }
   e.record = std::move(record);
   return e;

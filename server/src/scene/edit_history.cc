@@ -3,11 +3,14 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <tuple>
 #include <type_traits>
 #include <unordered_set>
 
+#include "scene/paint.h"
+#include "sculpt/codec/log_records.h"
 #include "sculpt/core/check.h"
 #include "sculpt/levelset/materials.h"
 
@@ -45,8 +48,41 @@ std::string Quoted(const std::string& s) { return "\"" + s + "\""; }
 // The serialized history: this magic, then the sizes of the structs written as they are in
 // memory (a build with other layouts refuses the bytes rather than misreading them). SEH2 adds
 // each record's commit time after its seq; SEH1 files (without it) still load, times unknown.
-constexpr char kMagic[4] = {'S', 'E', 'H', '2'};
+// SEH3 adds a paint per record (its PaintRecord bytes), the sequence of the undo that took it
+// back, and the fraction grids in each pre-image.
+constexpr char kMagic[4] = {'S', 'E', 'H', '3'};
+constexpr char kMagicV2[4] = {'S', 'E', 'H', '2'};
 constexpr char kMagicV1[4] = {'S', 'E', 'H', '1'};
+
+// The voxels a paint reads and may write: its tool's box, one voxel wider (the kernel's own
+// box, materials.cc, pads by one) and one more for rounding.
+VoxelBox PaintBox(const levelset::Sculpture& sculpture, const codec::Paint& paint) {
+  const levelset::Aabb b = levelset::ToolBounds(paint.Tool());
+  const double dx = sculpture.voxel_size();
+  auto lo = [dx](double v) { return static_cast<int>(std::floor(v / dx)) - 2; };
+  auto hi = [dx](double v) { return static_cast<int>(std::ceil(v / dx)) + 2; };
+  return VoxelBox{{lo(b.min.x), lo(b.min.y), lo(b.min.z)}, {hi(b.max.x), hi(b.max.y), hi(b.max.z)}};
+}
+
+// The kernel's paint as an edit result: fractions only, no tracked scalar moves.
+StatusOr<levelset::EditResult> PaintAsEdit(levelset::Sculpture& sculpture,
+                                           const codec::Paint& paint) {
+  SCULPT_ASSIGN_OR_RETURN(levelset::MaterialEditResult m, ApplyPaint(sculpture, paint));
+  levelset::EditResult r;
+  r.changed = m.changed_voxels > 0;
+  r.dirty_leaves = std::move(m.dirty_leaves);
+  r.changed_voxels = m.changed_voxels;
+  r.volume_before = r.volume_after = sculpture.volume();
+  r.reference_volume = sculpture.reference_volume();
+  r.elapsed_ms = m.elapsed_ms;
+  return r;
+}
+
+std::string PaintBytes(const codec::Paint& paint) {
+  codec::PaintRecord rec;
+  rec.paint = paint;
+  return codec::EncodeLogRecord(rec);
+}
 static_assert(std::is_trivially_copyable_v<levelset::EditRequest>);
 static_assert(std::is_trivially_copyable_v<levelset::EditSettings>);
 static_assert(std::is_trivially_copyable_v<ReplayState>);
@@ -159,10 +195,6 @@ PreparedEdit EditHistory::Prepare(const levelset::Sculpture& sculpture,
     p.not_undoable = "compensation=global reads and writes the whole object";
     return p;
   }
-  if (levelset::MaterialCount(sculpture) > 0) {
-    p.not_undoable = "the object has material fractions, which pre-images do not hold yet";
-    return p;
-  }
   p.footprint = VoxelBox{f.min, f.max};
   p.image = CellImage::Capture(sculpture, p.footprint);
   return p;
@@ -173,10 +205,6 @@ PreparedEdit EditHistory::PrepareSweep(const levelset::Sculpture& sculpture,
   PreparedEdit p;
   p.sweep = request;
   p.before = levelset::CaptureReplayState(sculpture);
-  if (levelset::MaterialCount(sculpture) > 0) {
-    p.not_undoable = "the object has material fractions, which pre-images do not hold yet";
-    return p;
-  }
   const levelset::EditFootprint f = levelset::SweepFootprintOf(sculpture, request);
   p.footprint = VoxelBox{f.min, f.max};
   p.image = CellImage::Capture(sculpture, p.footprint);
@@ -195,6 +223,28 @@ StatusOr<levelset::EditResult> EditHistory::ApplySweep(levelset::Sculpture& scul
   return res;
 }
 
+PreparedEdit EditHistory::PreparePaint(const levelset::Sculpture& sculpture,
+                                       const codec::Paint& paint) const {
+  PreparedEdit p;
+  p.paint = paint;
+  p.before = levelset::CaptureReplayState(sculpture);
+  p.footprint = PaintBox(sculpture, paint);
+  p.image = CellImage::Capture(sculpture, p.footprint);
+  return p;
+}
+
+StatusOr<levelset::EditResult> EditHistory::ApplyPaint(levelset::Sculpture& sculpture, uint64_t seq,
+                                                       const std::string& author,
+                                                       const codec::Paint& paint,
+                                                       uint64_t wall_ms) {
+  // The kernel checks the paint before it writes anything: a refusal records nothing.
+  PreparedEdit p = PreparePaint(sculpture, paint);
+  p.wall_ms = wall_ms;
+  StatusOr<levelset::EditResult> res = PaintAsEdit(sculpture, paint);
+  if (res.ok()) Commit(std::move(p), seq, author, *res, sculpture);
+  return res;
+}
+
 void EditHistory::Commit(PreparedEdit prepared, uint64_t seq, const std::string& author,
                          const levelset::EditResult& result,
                          const levelset::Sculpture& sculpture) {
@@ -208,6 +258,7 @@ void EditHistory::Commit(PreparedEdit prepared, uint64_t seq, const std::string&
   r.author = author;
   r.requests = std::move(prepared.requests);
   r.sweep = std::move(prepared.sweep);
+  r.paint = std::move(prepared.paint);
   r.settings = prepared.settings;
   r.footprint = prepared.footprint;
   r.before = prepared.before;
@@ -264,6 +315,9 @@ std::string EditHistory::Serialize() const {
     PutString(out, r.author);
     Put(out, static_cast<uint8_t>(r.sweep.has_value()));
     if (r.sweep) PutSweep(out, *r.sweep);
+    Put(out, static_cast<uint8_t>(r.paint.has_value()));
+    if (r.paint) PutString(out, PaintBytes(*r.paint));
+    Put(out, r.undone_at);
     Put(out, static_cast<uint32_t>(r.requests.size()));
     for (const levelset::EditRequest& q : r.requests) Put(out, q);
     Put(out, r.settings);
@@ -299,10 +353,12 @@ StatusOr<EditHistory> EditHistory::Parse(std::string_view in, EditHistoryOptions
   EditHistory h(options);
   uint32_t req_size = 0, set_size = 0, n = 0;
   if (in.size() < 4 ||
-      (std::memcmp(in.data(), kMagic, 4) != 0 && std::memcmp(in.data(), kMagicV1, 4) != 0)) {
-    return DataLoss("edit history: magic outside {SEH1, SEH2}");
+      (std::memcmp(in.data(), kMagic, 4) != 0 && std::memcmp(in.data(), kMagicV2, 4) != 0 &&
+       std::memcmp(in.data(), kMagicV1, 4) != 0)) {
+    return DataLoss("edit history: magic outside {SEH1, SEH2, SEH3}");
   }
-  const bool has_times = std::memcmp(in.data(), kMagic, 4) == 0;
+  const bool v3 = std::memcmp(in.data(), kMagic, 4) == 0;
+  const bool has_times = v3 || std::memcmp(in.data(), kMagicV2, 4) == 0;
   in.remove_prefix(4);
   if (!Get(in, &req_size) || !Get(in, &set_size) || !Get(in, &h.first_id_) ||
       !GetString(in, &h.cleared_) || !Get(in, &n)) {
@@ -327,13 +383,27 @@ StatusOr<EditHistory> EditHistory::Parse(std::string_view in, EditHistoryOptions
       r.sweep.emplace();
       if (!GetSweep(in, &*r.sweep)) return DataLoss(where + ": sweep truncated");
     }
+    uint8_t has_paint = 0;
+    if (v3) {
+      std::string bytes;
+      if (!Get(in, &has_paint)) return DataLoss(where + " truncated");
+      if (has_paint) {
+        if (!GetString(in, &bytes)) return DataLoss(where + ": paint truncated");
+        auto rec = codec::DecodeLogRecord(0, bytes);
+        const auto* paint = rec.ok() ? std::get_if<codec::PaintRecord>(&*rec) : nullptr;
+        if (!paint) return DataLoss(where + ": paint does not parse");
+        r.paint = paint->paint;
+      }
+      if (!Get(in, &r.undone_at)) return DataLoss(where + " truncated");
+    }
     if (!Get(in, &nreq)) return DataLoss(where + " truncated");
-    if ((has_sweep && nreq != 0) ||
-        (!has_sweep && (nreq == 0 || nreq > levelset::kMaxEditsPerBatch))) {
-      return Outside(
-          where + ": requests", std::to_string(nreq),
-          std::string("{0} (a sweep) or [1, ") + std::to_string(levelset::kMaxEditsPerBatch) + "]",
-          Status::Code::kDataLoss);
+    const bool no_requests = has_sweep || has_paint;
+    if ((has_sweep && has_paint) || (no_requests && nreq != 0) ||
+        (!no_requests && (nreq == 0 || nreq > levelset::kMaxEditsPerBatch))) {
+      return Outside(where + ": requests", std::to_string(nreq),
+                     std::string("{0} (a sweep or a paint) or [1, ") +
+                         std::to_string(levelset::kMaxEditsPerBatch) + "]",
+                     Status::Code::kDataLoss);
     }
     r.requests.resize(nreq);
     int32_t box[6];
@@ -351,7 +421,7 @@ StatusOr<EditHistory> EditHistory::Parse(std::string_view in, EditHistoryOptions
     r.reinitialised = flags[0] != 0;
     r.active = flags[1] != 0;
     r.stack = static_cast<Stack>(flags[2]);
-    StatusOr<CellImage> img = CellImage::ReadFrom(in);
+    StatusOr<CellImage> img = CellImage::ReadFrom(in, /*with_fractions=*/v3);
     if (!img.ok()) return DataLoss(where + ": " + img.status().message());
     r.image = std::move(img).value();
     h.bytes_ += RecordBytes(r);
@@ -402,7 +472,10 @@ void EditHistory::Clear(const std::string& why) {
 
 uint64_t EditHistory::RecordBytes(const Record& r) {
   return sizeof(Record) + r.author.capacity() +
-         r.requests.capacity() * sizeof(levelset::EditRequest) + r.image.MemoryBytes();
+         r.requests.capacity() * sizeof(levelset::EditRequest) + r.image.MemoryBytes() +
+         (r.paint ? sizeof(codec::Paint) + r.paint->object.capacity() +
+                        r.paint->fractions.capacity() * sizeof(double)
+                  : 0);
 }
 
 void EditHistory::DropFront() {
@@ -449,8 +522,13 @@ std::vector<HistoryEntry> EditHistory::Entries(const std::string& author) const 
     if (r.sweep) {
       e.sweep = true;
       e.kind = r.sweep->add ? levelset::EditKind::kAdd : levelset::EditKind::kSubtract;
+      e.kind_name = r.sweep->add ? "sweep-add" : "sweep-subtract";
+    } else if (r.paint) {
+      e.paint = true;
+      e.kind_name = r.paint->fractions.empty() ? "paint" : "fill";
     } else {
       e.kind = r.requests.front().kind;
+      e.kind_name = levelset::EditKindName(e.kind);
     }
     e.poses = static_cast<uint32_t>(r.requests.size());
     e.undone = !r.active;
@@ -495,8 +573,14 @@ StatusOr<uint64_t> EditHistory::RedoTarget(const std::string& author) const {
   return records_[it->second.redo.back() - first_id_].seq;
 }
 
-StatusOr<UndoOutcome> EditHistory::Undo(levelset::Sculpture& sculpture,
-                                        const std::string& author) {
+uint64_t EditHistory::RedoUndoneAt(const std::string& author) const {
+  auto it = authors_.find(author);
+  if (it == authors_.end() || it->second.redo.empty()) return 0;
+  return records_[it->second.redo.back() - first_id_].undone_at;
+}
+
+StatusOr<UndoOutcome> EditHistory::Undo(levelset::Sculpture& sculpture, const std::string& author,
+                                        uint64_t at_seq) {
   SCULPT_RETURN_IF_ERROR(UndoTarget(author).status());
   const uint64_t id = authors_[author].undo.back();
   SCULPT_ASSIGN_OR_RETURN(UndoOutcome out, Rebuild(sculpture, id, /*activate=*/false));
@@ -505,6 +589,7 @@ StatusOr<UndoOutcome> EditHistory::Undo(levelset::Sculpture& sculpture,
   a.undo.pop_back();
   a.redo.push_back(id);
   At(id).stack = Stack::kRedo;
+  At(id).undone_at = at_seq;
   return out;
 }
 
@@ -522,12 +607,13 @@ StatusOr<UndoOutcome> EditHistory::Redo(levelset::Sculpture& sculpture,
 
 bool EditHistory::NeedsReplay(const Record& r, const ReplayState& state,
                               const CellSet& region) const {
-  if (!r.sweep && ReadsVolume(r.requests.front(), r.settings) &&
+  if (!r.sweep && !r.paint && ReadsVolume(r.requests.front(), r.settings) &&
       !(SameBits(state.volume, r.before.volume) &&
         SameBits(state.reference_volume, r.before.reference_volume))) {
     return true;
   }
-  if (r.settings.reinit_every_k > 0 && state.edits_since_reinit != r.before.edits_since_reinit) {
+  if (!r.paint && r.settings.reinit_every_k > 0 &&
+      state.edits_since_reinit != r.before.edits_since_reinit) {
     return true;
   }
   if (!region.box().Intersects(r.footprint)) return false;
@@ -548,6 +634,7 @@ ReplayState EditHistory::Transfer(const Record& r, const ReplayState& state) {
       state.edits_since_reinit == r.before.edits_since_reinit) {
     return r.after;
   }
+  if (r.paint) return state;  // a paint moves no tracked scalar
   ReplayState out;
   out.volume = state.volume + r.volume_change;
   if (r.sweep) {
@@ -613,6 +700,9 @@ Status EditHistory::ReplayOne(levelset::Sculpture& sculpture, size_t index, bool
   if (r.sweep) {
     levelset::RestoreReplayState(sculpture, state);
     res = levelset::ApplySweep(sculpture, *r.sweep);
+  } else if (r.paint) {
+    levelset::RestoreReplayState(sculpture, state);
+    res = PaintAsEdit(sculpture, *r.paint);
   } else {
     res = levelset::ReplayEdits(sculpture, r.requests, r.settings, state);
   }

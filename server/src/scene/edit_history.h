@@ -1,5 +1,6 @@
-/// @brief EditHistory: per-author undo and redo of level-set edit batches on one object (issue 15),
-/// by restoring pre-images and replaying the later edits that the change reaches.
+/// @brief EditHistory: per-author undo and redo of level-set edit batches and paints on one object
+/// (issue 15), by restoring pre-images (signed distances and material fractions) and replaying
+/// the later edits that the change reaches.
 #ifndef SCULPT_SERVER_SCENE_EDIT_HISTORY_H_
 #define SCULPT_SERVER_SCENE_EDIT_HISTORY_H_
 
@@ -12,6 +13,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "sculpt/codec/paint_messages.h"
 #include "sculpt/core/status.h"
 #include "sculpt/levelset/cell_image.h"
 #include "sculpt/levelset/edit.h"
@@ -58,6 +60,10 @@ struct HistoryEntry {
   std::string author;
   levelset::EditKind kind = levelset::EditKind::kPress;  // a sweep: kAdd or kSubtract
   bool sweep = false;
+  bool paint = false;  // a paint or fill of material fractions (`kind` then means nothing)
+  /// What the history view prints: "press", "add", ..., "sweep", "paint", "fill", "ball edit",
+  /// "model intent".
+  std::string kind_name;
   uint32_t poses = 0;
   bool undone = false;
   bool undoable = false;  // on its author's undo stack (within the depth)
@@ -69,7 +75,8 @@ struct HistoryEntry {
 /// Opaque to callers: pass it to Commit.
 struct PreparedEdit {
   std::vector<levelset::EditRequest> requests;  // a batch, or
-  std::optional<levelset::SweepRequest> sweep;  // a sweep
+  std::optional<levelset::SweepRequest> sweep;  // a sweep, or
+  std::optional<codec::Paint> paint;            // a paint or fill (as logged)
   levelset::EditSettings settings;
   levelset::ReplayState before;
   levelset::VoxelBox footprint;
@@ -97,10 +104,9 @@ class EditHistory {
   explicit EditHistory(EditHistoryOptions options = {});
 
   /// Right before ApplyEdits(sculpture, requests, settings): captures the tracked scalars, the
-  /// footprint and a pre-image of the footprint's leaves (about 0.1 ms for a press). Never
-  /// fails; an edit that cannot be undone (global compensation, which reads and writes the whole
-  /// object; a sculpture with materials, whose fractions the pre-image does not hold) is marked
-  /// so and Commit clears the history.
+  /// footprint and a pre-image of the footprint's leaves, material fractions included (about
+  /// 0.1 ms for a press). Never fails; an edit that cannot be undone (global compensation, which
+  /// reads and writes the whole object) is marked so and Commit clears the history.
   PreparedEdit Prepare(const levelset::Sculpture& sculpture,
                        const std::vector<levelset::EditRequest>& requests,
                        const levelset::EditSettings& settings) const;
@@ -126,6 +132,13 @@ class EditHistory {
                                             const std::string& author,
                                             const levelset::SweepRequest& request,
                                             uint64_t wall_ms = 0);
+  /// The same for a paint or fill of material fractions (ApplyPaint, paint.h), which reads and
+  /// writes only the fractions of the voxels inside its tool and moves no tracked scalar; its
+  /// footprint is the tool's voxel box. The kernel's error otherwise (nothing recorded then).
+  PreparedEdit PreparePaint(const levelset::Sculpture& sculpture, const codec::Paint& paint) const;
+  StatusOr<levelset::EditResult> ApplyPaint(levelset::Sculpture& sculpture, uint64_t seq,
+                                            const std::string& author, const codec::Paint& paint,
+                                            uint64_t wall_ms = 0);
 
   /// Takes back `author`'s most recent edit that is not undone. FailedPrecondition when the
   /// author has nothing to undo; OutOfRange when its edits within reach are exhausted and older
@@ -133,10 +146,16 @@ class EditHistory {
   /// Internal if a replay fails (not expected: every replayed edit was accepted before), the
   /// sculpture then holding a partial result. The sculpture and history are unchanged on the
   /// first two.
-  StatusOr<UndoOutcome> Undo(levelset::Sculpture& sculpture, const std::string& author);
+  /// `at_seq` is the global sequence of the undo itself (RedoUndoneAt reports it).
+  StatusOr<UndoOutcome> Undo(levelset::Sculpture& sculpture, const std::string& author,
+                             uint64_t at_seq = 0);
   /// Re-applies `author`'s most recently undone edit at its place in the order.
   /// FailedPrecondition when there is none (never undone, or a new edit by the author since).
   StatusOr<UndoOutcome> Redo(levelset::Sculpture& sculpture, const std::string& author);
+  /// The `at_seq` of the undo that took back the edit Redo(author) would re-apply (0 when
+  /// unknown or none): how the scene orders it against the author's undone ball edits and model
+  /// intents.
+  uint64_t RedoUndoneAt(const std::string& author) const;
 
   /// The global sequence of the edit Undo(author) / Redo(author) would take back or re-apply,
   /// with the same errors, without changing anything: the pipeline's prepare step (check, then
@@ -179,6 +198,7 @@ class EditHistory {
     std::string author;
     std::vector<levelset::EditRequest> requests;  // empty for a sweep
     std::optional<levelset::SweepRequest> sweep;
+    std::optional<codec::Paint> paint;
     levelset::EditSettings settings;
     levelset::VoxelBox footprint;
     /// Scalars at its place in the current order (before and after it; for an undone edit
@@ -192,6 +212,7 @@ class EditHistory {
     levelset::CellImage image;
     bool active = true;
     Stack stack = Stack::kUndo;
+    uint64_t undone_at = 0;  // the sequence of the undo that took it back (0: unknown)
   };
   struct AuthorStacks {
     std::vector<uint64_t> undo;  // record ids, oldest first

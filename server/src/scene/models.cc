@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -22,14 +23,21 @@
 #include "sculpt/core/check.h"
 #include "sculpt/hetero/model_io.h"
 #include "sculpt/hetero/validity.h"
-#include "store/edit_log.h"
 #include "store/durable_file.h"
+#include "store/edit_log.h"
 #include "store/resend_table.h"
 
 namespace sculpt::server {
 namespace {
 
 constexpr const char* kModelFileHeader = "sculpt-model-state";
+
+// The server's wall clock, ms since 1970: when an intent was committed (the history view).
+uint64_t WallClockMs() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count());
+}
 
 // The library names fields "intent.*"; on the wire they are the message's.
 Status Rename(const Status& s) {
@@ -134,6 +142,22 @@ namespace {
 std::string ModelFilePath(const std::string& data_dir, const std::string& object) {
   return (std::filesystem::path(data_dir) / "models" / (object + ".json")).string();
 }
+// The model's undo history of the same round: the model file's seq (8 bytes), then
+// BookHistory::Serialize's bytes.
+std::string ModelHistoryPath(const std::string& data_dir, const std::string& object) {
+  return (std::filesystem::path(data_dir) / "models" / (object + ".history")).string();
+}
+std::string IntentBytes(const hetero::EditIntent& intent) {
+  codec::ModelRecord r;
+  r.edit.intent = intent;
+  return codec::EncodeLogRecord(r);
+}
+StatusOr<hetero::EditIntent> IntentFromBytes(std::string_view bytes) {
+  SCULPT_ASSIGN_OR_RETURN(codec::EditLogRecord rec, codec::DecodeLogRecord(0, bytes));
+  const auto* r = std::get_if<codec::ModelRecord>(&rec);
+  if (!r) return DataLoss("not a model intent");
+  return r->edit.intent;
+}
 }  // namespace
 
 Status ModelBook::Open(const std::vector<ObjectConfig>& objects, const std::string& data_dir) {
@@ -157,6 +181,29 @@ Status ModelBook::Open(const std::vector<ObjectConfig>& objects, const std::stri
     } else {
       return saved.status();
     }
+    entry.history = History("model intent", undo_depth_);
+    if (entry.file_seq > 0) {
+      // The undo history kept with the model file of the same round (none: nothing to undo).
+      std::ifstream in(ModelHistoryPath(data_dir_, o.name), std::ios::binary);
+      const std::string bytes((std::istreambuf_iterator<char>(in)),
+                              std::istreambuf_iterator<char>());
+      uint64_t seq = 0;
+      if (bytes.size() >= sizeof seq) std::memcpy(&seq, bytes.data(), sizeof seq);
+      Status s = FailedPrecondition("no undo history was kept with the model file at seq " +
+                                    std::to_string(entry.file_seq));
+      if (in && bytes.size() >= sizeof seq && seq == entry.file_seq) {
+        auto state = [](std::string_view b) -> StatusOr<State> {
+          SCULPT_ASSIGN_OR_RETURN(hetero::CompositeModel m, hetero::ModelFromJson(std::string(b)));
+          return State{std::move(m), hetero::ValidityChecker{}};
+        };
+        s = entry.history.Parse(std::string_view(bytes).substr(sizeof seq), state, IntentFromBytes);
+      }
+      if (!s.ok()) {
+        spdlog::warn("model {}: {}; its earlier intents can no longer be undone", o.name,
+                     s.ToString());
+        entry.history.Clear(s.message());
+      }
+    }
     models_[o.name] = std::move(entry);
   }
   return Status::Ok();
@@ -166,6 +213,7 @@ void ModelBook::Replay(uint64_t seq, const codec::ModelRecord& r) {
   auto it = models_.find(r.edit.object);
   if (it == models_.end() || seq <= it->second.file_seq) return;
   Entry& entry = it->second;
+  State before{entry.model, entry.checker};
   // Checked when it was made.
   auto out = hetero::ApplyIntent(&entry.model, &entry.checker, r.edit.intent);
   if (!out.ok() || !out->applied) {
@@ -174,6 +222,8 @@ void ModelBook::Replay(uint64_t seq, const codec::ModelRecord& r) {
     return;
   }
   entry.version = r.model_version;
+  // As live: the model before it is what an undo rebuilds from.
+  entry.history.Commit(seq, HistoryAuthor(r.client_id), 0, r.edit.intent, std::move(before));
 }
 
 bool ModelBook::Save(uint64_t seq) {
@@ -187,6 +237,16 @@ bool ModelBook::Save(uint64_t seq) {
             SaveModelFile(ModelFilePath(data_dir_, name), seq, entry.version, entry.model);
         !s.ok()) {
       spdlog::error("model {} at seq {} not saved: {}", name, seq, s.ToString());
+      saved_all = false;
+      continue;
+    }
+    // Its undo history, for a restart from this file (Open checks the seq matches).
+    std::string bytes(reinterpret_cast<const char*>(&seq), sizeof seq);
+    bytes += entry.history.Serialize([](const State& st) { return hetero::ModelToJson(st.model); },
+                                     IntentBytes);
+    if (const Status s = store::WriteFileDurably(ModelHistoryPath(data_dir_, name), bytes);
+        !s.ok()) {
+      spdlog::error("undo history of model {} at seq {} not saved: {}", name, seq, s.ToString());
       saved_all = false;
     }
   }
@@ -226,12 +286,73 @@ Status ModelBook::PrepareIntent(const codec::ModelEdit& edit, IntentPlan* plan) 
   return Status::Ok();
 }
 
-ModelBook::Stamp ModelBook::ApplyIntent(IntentPlan plan) {
+ModelBook::Stamp ModelBook::ApplyIntent(IntentPlan plan, uint64_t seq, const std::string& author,
+                                        const hetero::EditIntent& intent, uint64_t wall_ms) {
   Entry& entry = models_.at(plan.object);
+  if (!author.empty()) {
+    entry.history.Commit(seq, author, wall_ms, intent,
+                         State{std::move(entry.model), std::move(entry.checker)});
+  }
   entry.model = std::move(plan.next);
   entry.checker = std::move(plan.next_checker);
   entry.version = plan.version;
   return {entry.version, ModelHash(entry.model)};
+}
+
+StatusOr<uint64_t> ModelBook::UndoTarget(const std::string& object, const std::string& author,
+                                         bool redo, uint64_t* undone_at) const {
+  auto it = models_.find(object);
+  if (it == models_.end()) return NotFound("object " + object + " holds no hyperpatch model");
+  const History& h = it->second.history;
+  if (undone_at) *undone_at = redo ? h.RedoUndoneAt(author) : 0;
+  return redo ? h.RedoTarget(author) : h.UndoTarget(author);
+}
+
+StatusOr<UndoOutcome> ModelBook::Undo(const std::string& object, const std::string& author,
+                                      bool redo, uint64_t at_seq) {
+  auto it = models_.find(object);
+  if (it == models_.end()) return NotFound("object " + object + " holds no hyperpatch model");
+  Entry& entry = it->second;
+  // An intent re-applied by the rebuild: on a copy, kept only when the model stays valid.
+  auto reapply = [](State& s, const hetero::EditIntent& intent) {
+    State next = s;
+    auto out = hetero::ApplyIntent(&next.model, &next.checker, intent);
+    if (!out.ok() || !out->applied) return false;
+    s = std::move(next);
+    return true;
+  };
+  State state{entry.model, entry.checker};
+  auto out = redo ? entry.history.Redo(author, &state, reapply)
+                  : entry.history.Undo(author, at_seq, &state, reapply);
+  if (!out.ok()) return out;
+  entry.model = std::move(state.model);
+  entry.checker = std::move(state.checker);
+  ++entry.version;
+  return out;
+}
+
+void ModelBook::ReplayUndo(uint64_t seq, const codec::UndoRecord& r) {
+  auto it = models_.find(r.object);
+  if (it == models_.end() || seq <= it->second.file_seq) return;
+  auto out = Undo(r.object, HistoryAuthor(r.client_id), r.redo, seq);
+  if (!out.ok()) {
+    spdlog::warn("{} of a model intent at seq {} refused on replay: {}", r.redo ? "redo" : "undo",
+                 seq, out.status().ToString());
+  }
+}
+
+std::pair<size_t, size_t> ModelBook::UndoDepth(const std::string& object,
+                                               const std::string& author) const {
+  auto it = models_.find(object);
+  if (it == models_.end()) return {0, 0};
+  return {it->second.history.undo_depth(author), it->second.history.redo_depth(author)};
+}
+
+std::vector<HistoryEntry> ModelBook::Entries(const std::string& object,
+                                             const std::string& author) const {
+  auto it = models_.find(object);
+  if (it == models_.end()) return {};
+  return it->second.history.Entries(author);
 }
 
 std::optional<ModelBook::Stamp> ModelBook::StampOf(const std::string& object) const {
@@ -291,12 +412,14 @@ struct Scene::ModelOp final : EditOp {
     rec.edit = edit;
     rec.model_version = plan->version;
     records->push_back(codec::EncodeLogRecord(rec));
+    seq = first_seq;
     return Status::Ok();
   }
 
   Applied Apply(Scene& scene) override {
     moved = plan->moved;
-    stamp = scene.models_.ApplyIntent(std::move(*plan));
+    stamp = scene.models_.ApplyIntent(std::move(*plan), seq, HistoryAuthor(client), edit.intent,
+                                      WallClockMs());
     plan.reset();
     return Applied{};  // the voxels are not re-voxelised
   }
@@ -330,6 +453,7 @@ struct Scene::ModelOp final : EditOp {
   std::function<void(ModelOutcome)> done;
   std::optional<ModelBook::IntentPlan> plan;
   std::optional<hetero::Rejection> rejection;
+  uint64_t seq = 0;
   size_t moved = 0;
   ModelBook::Stamp stamp;
 };

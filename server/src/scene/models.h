@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "config/server_config.h"
+#include "scene/book_history.h"
 #include "sculpt/codec/log_records.h"
 #include "sculpt/codec/model_messages.h"
 #include "sculpt/core/status.h"
@@ -98,8 +99,33 @@ class ModelBook {
   /// reason, plan->now the model as it stays).
   Status PrepareIntent(const codec::ModelEdit& edit, IntentPlan* plan) const;
   /// Puts a prepared intent in place (nothing else may change the model between the two calls)
-  /// and returns the model's new version and hash.
-  Stamp ApplyIntent(IntentPlan plan);
+  /// and returns the model's new version and hash. Records `intent` (logged at `seq`) as
+  /// `author`'s newest undoable intent on the object (not recorded without an author).
+  Stamp ApplyIntent(IntentPlan plan, uint64_t seq = 0, const std::string& author = {},
+                    const hetero::EditIntent& intent = {}, uint64_t wall_ms = 0);
+
+  /// Per-author undo and redo of model intents (issue 15, BookHistory): each model keeps its
+  /// recent intents with the model before each, saved beside the model file at each Save
+  /// (data_dir/models/<object>.history) and loaded by Open with it. Intents kept per author and
+  /// model (set before Open).
+  void set_undo_depth(size_t depth) { undo_depth_ = depth; }
+  bool has_model(const std::string& object) const { return models_.count(object) != 0; }
+  /// The sequence of the intent an undo (redo) by `author` would take back (put back), and for
+  /// a redo the sequence of the undo that took it back (`undone_at`, may be null). NotFound for
+  /// an object without a model, else BookHistory's errors.
+  StatusOr<uint64_t> UndoTarget(const std::string& object, const std::string& author, bool redo,
+                                uint64_t* undone_at = nullptr) const;
+  /// Takes back (puts back) that intent: the model is rebuilt from before it with the later
+  /// intents re-applied (one that would now leave the model invalid is skipped), its version
+  /// raised. `at_seq` is the undo's own sequence. UndoTarget's errors, nothing changed.
+  StatusOr<UndoOutcome> Undo(const std::string& object, const std::string& author, bool redo,
+                             uint64_t at_seq);
+  /// Recovery: the logged undo or redo of an intent at `seq`, unless the model's file holds it.
+  void ReplayUndo(uint64_t seq, const codec::UndoRecord& record);
+  /// Undoable and redoable intents of `author` on `object` (0, 0 without a model).
+  std::pair<size_t, size_t> UndoDepth(const std::string& object, const std::string& author) const;
+  /// The model's intents as the history view lists them (empty without a model).
+  std::vector<HistoryEntry> Entries(const std::string& object, const std::string& author) const;
   /// The object's model version and hash now; nullopt for an object without a model.
   std::optional<Stamp> StampOf(const std::string& object) const;
 
@@ -108,14 +134,21 @@ class ModelBook {
   bool empty() const { return models_.empty(); }
 
  private:
+  struct State {
+    hetero::CompositeModel model;
+    hetero::ValidityChecker checker;
+  };
+  using History = BookHistory<State, hetero::EditIntent>;
   struct Entry {
     hetero::CompositeModel model;
     hetero::ValidityChecker checker;
     uint64_t version = 0;
     uint64_t file_seq = 0;  // the model file held the log up to this seq at start-up
+    History history{"model intent", 64};
   };
 
   std::string data_dir_;
+  size_t undo_depth_ = 64;
   std::map<std::string, Entry> models_;
 };
 

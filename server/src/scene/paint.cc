@@ -5,9 +5,11 @@
 
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <cmath>
 
 #include "scene/answer_once.h"
+#include "scene/edit_history.h"
 #include "scene/scene.h"
 #include "sculpt/codec/frame.h"
 #include "sculpt/core/check.h"
@@ -15,6 +17,16 @@
 #include "store/edit_log.h"
 
 namespace sculpt::server {
+namespace {
+
+// The server's wall clock, ms since 1970: when a paint was committed (the history view).
+uint64_t WallClockMs() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count());
+}
+
+}  // namespace
 
 StatusOr<levelset::MaterialEditResult> ApplyPaint(levelset::Sculpture& sculpture,
                                                   const codec::Paint& p) {
@@ -38,7 +50,8 @@ Status ReplayPaint(levelset::Sculpture& sculpture, uint64_t seq, const codec::Pa
 // The scene's paint path
 
 // A paint: checked against the object (its material count) before anything reaches the log,
-// applied from the logged message exactly as recovery applies it, replicated as changed leaves
+// applied from the logged message exactly as recovery applies it (through the object's undo
+// history, which keeps the pre-image of the fractions it writes), replicated as changed leaves
 // (it has no replay form).
 struct Scene::PaintOp final : EditOp {
   PaintOp(uint64_t client, codec::Paint p, std::function<void(PaintOutcome)> d)
@@ -63,6 +76,7 @@ struct Scene::PaintOp final : EditOp {
     record.client_id = client;
     record.paint = paint;
     records->push_back(codec::EncodeLogRecord(record));
+    seq = first_seq;
     // Applied as recovery will apply the record (the wire's floats, exactly).
     logged = codec::AsLogged(paint);
     return Status::Ok();
@@ -71,7 +85,9 @@ struct Scene::PaintOp final : EditOp {
   Applied Apply(Scene& scene) override {
     Applied a;
     a.object = paint.object;
-    auto res = ApplyPaint(scene.sculptures_.at(paint.object), logged);
+    auto res = scene.HistoryOf(paint.object)
+                   .ApplyPaint(scene.sculptures_.at(paint.object), seq, HistoryAuthor(client),
+                               logged, WallClockMs());
     if (!res.ok()) {
       a.status = res.status();
       return a;
@@ -100,6 +116,7 @@ struct Scene::PaintOp final : EditOp {
   codec::Paint paint;
   std::function<void(PaintOutcome)> done;
   codec::Paint logged;
+  uint64_t seq = 0;
   uint64_t changed_voxels = 0;
   size_t dirty_leaves = 0;
 };

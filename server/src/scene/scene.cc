@@ -178,10 +178,19 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
       history.Clear("a sweep changed " + w->object);
       return ReplaySweep(s, rec.seq, *w);
     }
-    if (auto* p = std::get_if<codec::PaintRecord>(&e.record)) return ReplayPaint(s, rec.seq, *p);
+    if (auto* p = std::get_if<codec::PaintRecord>(&e.record)) {
+      // Through the history as live, so a later undo of it (or past it) replays the same.
+      auto res = history.ApplyPaint(s, rec.seq, HistoryAuthor(p->client_id), p->paint);
+      if (!res.ok()) {
+        spdlog::warn("paint at seq {} refused on replay: {}", rec.seq, res.status().ToString());
+      }
+      return Status::Ok();
+    }
     if (auto* u = std::get_if<codec::UndoRecord>(&e.record)) {
+      // An undo of a model intent or a ball edit is replayed with its book, below.
+      if (u->target_book != 0) return Status::Ok();
       const std::string author = HistoryAuthor(u->client_id);
-      auto out = u->redo ? history.Redo(s, author) : history.Undo(s, author);
+      auto out = u->redo ? history.Redo(s, author) : history.Undo(s, author, rec.seq);
       if (!out.ok()) {
         spdlog::warn("{} at seq {} refused on replay: {}", u->redo ? "redo" : "undo", rec.seq,
                      out.status().ToString());
@@ -244,6 +253,8 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
                return all;
              }()) +
       ") in " + std::to_string(NowSeconds() - t0) + " s";
+  scene->skins_.set_undo_depth(scene->config_.limits.undo_depth);
+  scene->models_.set_undo_depth(scene->config_.limits.undo_depth);
   SCULPT_RETURN_IF_ERROR(
       scene->skins_.Open(scene->config_.scene.skins, scene->config_.data_dir, &scene->resend_));
   SCULPT_RETURN_IF_ERROR(
@@ -260,6 +271,10 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
         e.record);
     if (auto* b = std::get_if<codec::BallEditRecord>(&e.record)) scene->skins_.Replay(lr.seq, *b);
     if (auto* m = std::get_if<codec::ModelRecord>(&e.record)) scene->models_.Replay(lr.seq, *m);
+    if (auto* u = std::get_if<codec::UndoRecord>(&e.record)) {
+      if (u->target_book == 1) scene->models_.ReplayUndo(lr.seq, *u);
+      if (u->target_book == 2) scene->skins_.ReplayUndo(lr.seq, *u);
+    }
     return Status::Ok();
   }));
   // Resends of edits whose records were dropped with the log before the last snapshot.

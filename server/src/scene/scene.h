@@ -189,16 +189,21 @@ class Scene {
   StatusOr<ModelSummary> ModelInfo(const std::string& object);
 
   /// Per-author undo and redo (issue 15, undo.cc): takes back the client's own most recent
-  /// stroke on the object as if it had never been made (later strokes by anyone replayed
-  /// without it), or puts back the one it undid most recently. Logged (an UndoRecord after
-  /// 0x04, replayed by recovery), replicated as changed leaves, `done` once durable. Refused by
-  /// name: nothing to undo or redo (FailedPrecondition), beyond the history (OutOfRange). The
-  /// history reaches back to the object's last snapshot (recovery can rebuild no further) and at
-  /// most limits.undo_depth strokes per author. A resend is acknowledged as a duplicate.
+  /// edit as if it had never been made (later edits by anyone replayed without it), or puts back
+  /// the one it undid most recently. command.object names an object (its strokes and paints,
+  /// EditHistory, and for a `model` object its intents, ModelBook: the newest of them) or a skin
+  /// (its ball edits, SkinBook). Logged (an UndoRecord after 0x04 naming the history and the
+  /// edit chosen, replayed by recovery), replicated as changed leaves (a skin's contour
+  /// subscribers get the whole skin), `done` once durable. Refused by name: nothing to undo or
+  /// redo (FailedPrecondition), beyond the history (OutOfRange), an unknown object or skin
+  /// (NotFound). The stroke history reaches back to the object's last snapshot (the history file
+  /// kept with it), the ball-edit and intent histories to the last snapshot round; at most
+  /// limits.undo_depth edits per author. A resend is acknowledged as a duplicate.
   /// The command was decoded by codec::DecodeUndo (its object name's length checked).
   void Undo(uint64_t client_id, codec::UndoCommand command,
             std::function<void(UndoCommandOutcome)> done);
-  /// Strokes `client_id` can undo / redo on `object` now (tests, tools); 0 for an unknown object.
+  /// Edits `client_id` can undo / redo on `object` (or skin) now (tests, tools); 0 for an unknown
+  /// name.
   std::pair<size_t, size_t> UndoDepth(const std::string& object, uint64_t client_id);
   /// The history view (issue 15, undo.cc; the query already checked by DecodeHistoryRequest):
   /// the object's edits as its undo history holds them, newest first, at most query.limit, only

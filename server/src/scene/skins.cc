@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -26,12 +27,19 @@
 #include "sculpt/core/check.h"
 #include "sculpt/levelset/slice.h"
 #include "sculpt/skin/contour_codec.h"
-#include "store/edit_log.h"
 #include "store/durable_file.h"
+#include "store/edit_log.h"
 #include "store/resend_table.h"
 
 namespace sculpt::server {
 namespace {
+
+// The server's wall clock, ms since 1970: when a ball edit was committed (the history view).
+uint64_t WallClockMs() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count());
+}
 
 // Slices are quantised to an eighth of their sample spacing.
 constexpr double kSliceQuantumPerStep = 1.0 / 8;
@@ -97,6 +105,30 @@ StatusOr<skin::SkinChange> ApplyBallOp(skin::Skin& sk, const codec::BallEdit& e)
 
 std::string SkinFilePath(const std::string& data_dir, const std::string& name) {
   return (std::filesystem::path(data_dir) / "skins" / (name + ".pb")).string();
+}
+// The skin's undo history of the same round: the skin file's seq (8 bytes), then
+// BookHistory::Serialize's bytes.
+std::string SkinHistoryPath(const std::string& data_dir, const std::string& name) {
+  return (std::filesystem::path(data_dir) / "skins" / (name + ".history")).string();
+}
+
+std::string BallEditBytes(const codec::BallEdit& e) {
+  codec::BallEditRecord r;
+  r.edit = e;
+  return codec::EncodeLogRecord(r);
+}
+StatusOr<codec::BallEdit> BallEditFromBytes(std::string_view bytes) {
+  SCULPT_ASSIGN_OR_RETURN(codec::EditLogRecord rec, codec::DecodeLogRecord(0, bytes));
+  const auto* r = std::get_if<codec::BallEditRecord>(&rec);
+  if (!r) return DataLoss("not a ball edit");
+  if (!r->edit_status.ok()) return DataLoss(r->edit_status.message());
+  return r->edit;
+}
+std::string ChainBytes(const skin::Skin& sk) {
+  codec::SavedSkin saved;
+  for (const skin::OrientedBall& o : sk.balls())
+    saved.balls.push_back({o.c.x, o.c.y, o.r, o.theta});
+  return codec::EncodeSavedSkin(saved);
 }
 
 // Sends one subscriber its slice, from contours already computed.
@@ -234,7 +266,14 @@ Status SkinBook::Open(const std::vector<SkinConfig>& skins, const std::string& d
     if (!built.ok()) {
       return InvalidArgument("scene.skins " + c.name + ": " + built.status().message());
     }
-    Entry entry{{c.origin, c.u, c.v}, std::move(built).value(), version, file_seq, {}};
+    Entry entry{{c.origin, c.u, c.v},
+                std::move(built).value(),
+                version,
+                file_seq,
+                {},
+                History("ball edit", undo_depth_),
+                opt};
+    LoadHistory(c.name, entry);
     skins_.emplace(c.name, std::move(entry));
   }
   return Status::Ok();
@@ -249,6 +288,7 @@ void SkinBook::Replay(uint64_t seq, const codec::BallEditRecord& r) {
   }
   Entry& entry = it->second;
   if (seq <= entry.file_seq) return;  // the skin file holds it
+  skin::Skin before = entry.skin;
   // The codec checked the logged edit as the live server checked it.
   Status st = r.edit_status;
   if (st.ok()) st = CheckBallIndex(entry.skin, r.edit);
@@ -258,6 +298,8 @@ void SkinBook::Replay(uint64_t seq, const codec::BallEditRecord& r) {
     return;
   }
   entry.version = r.skin_version;
+  // As live: the chain before it is what an undo rebuilds from.
+  entry.history.Commit(seq, HistoryAuthor(r.client_id), 0, r.edit, std::move(before));
 }
 
 bool SkinBook::Save(uint64_t seq) {
@@ -275,6 +317,15 @@ bool SkinBook::Save(uint64_t seq) {
     // Written before the log rolls, so the segments a snapshot lets go are already covered.
     if (const Status s = SaveSkinFile(SkinFilePath(data_dir_, name), saved); !s.ok()) {
       spdlog::error("skin {} at seq {} not saved: {}", name, seq, s.ToString());
+      saved_all = false;
+      continue;
+    }
+    // Its undo history, for a restart from this file (Open checks the seq matches).
+    std::string bytes(reinterpret_cast<const char*>(&seq), sizeof seq);
+    bytes += entry.history.Serialize(ChainBytes, BallEditBytes);
+    if (const Status s = store::WriteFileDurably(SkinHistoryPath(data_dir_, name), bytes);
+        !s.ok()) {
+      spdlog::error("undo history of skin {} at seq {} not saved: {}", name, seq, s.ToString());
       saved_all = false;
     }
   }
@@ -303,8 +354,10 @@ StatusOr<SkinBook::BallEditPlan> SkinBook::PrepareBallEdit(const codec::BallEdit
   return plan;
 }
 
-size_t SkinBook::ApplyBallEdit(BallEditPlan plan) {
+size_t SkinBook::ApplyBallEdit(BallEditPlan plan, uint64_t seq, const std::string& author,
+                               const codec::BallEdit& edit, uint64_t wall_ms) {
   Entry& entry = skins_.at(plan.skin);
+  if (!author.empty()) entry.history.Commit(seq, author, wall_ms, edit, std::move(entry.skin));
   entry.skin = std::move(plan.next);
   entry.version = plan.version;
   if (!entry.subs.empty()) {
@@ -323,6 +376,109 @@ size_t SkinBook::ApplyBallEdit(BallEditPlan plan) {
     }
   }
   return entry.skin.balls().size();
+}
+
+void SkinBook::LoadHistory(const std::string& name, Entry& entry) {
+  if (entry.file_seq == 0) return;  // built from the scene: nothing before it to undo
+  std::ifstream in(SkinHistoryPath(data_dir_, name), std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  uint64_t seq = 0;
+  if (bytes.size() >= sizeof seq) std::memcpy(&seq, bytes.data(), sizeof seq);
+  const std::string why = "no undo history of skin " + name + " was kept with its file at seq " +
+                          std::to_string(entry.file_seq);
+  if (!in || bytes.size() < sizeof seq || seq != entry.file_seq) return entry.history.Clear(why);
+  const skin::SkinOptions options = entry.options;
+  auto chain = [&options](std::string_view b) -> StatusOr<skin::Skin> {
+    SCULPT_ASSIGN_OR_RETURN(codec::SavedSkin saved, codec::DecodeSavedSkin(b));
+    std::vector<skin::OrientedBall> balls;
+    for (const codec::SkinBall& x : saved.balls) balls.push_back({{x.x, x.y}, x.r, x.theta});
+    return skin::Skin::Build(std::move(balls), options);
+  };
+  const Status s =
+      entry.history.Parse(std::string_view(bytes).substr(sizeof seq), chain, BallEditFromBytes);
+  if (!s.ok()) {
+    spdlog::warn("undo history of skin {}: {}; its earlier ball edits can no longer be undone",
+                 name, s.ToString());
+    entry.history.Clear(why);
+  }
+}
+
+void SkinBook::SendWhole(const std::string& name, Entry& entry) {
+  if (entry.subs.empty()) return;
+  auto bytes = skin::EncodeSkinSnapshot(entry.skin);
+  if (!bytes.ok()) {
+    spdlog::error("skin {}: snapshot not encoded: {}", name, bytes.status().ToString());
+    return;
+  }
+  codec::ContourUpdateFrame u;
+  u.skin = name;
+  u.data = std::move(bytes).value();
+  u.sections = static_cast<uint32_t>(entry.skin.sections().size());
+  u.skin_version = entry.version;
+  u.balls = Balls(entry.skin);
+  auto frame = codec::EncodeContourUpdate(std::move(u));
+  for (auto& [id, sink] : entry.subs) sink.send(frame);
+}
+
+namespace {
+// A ball edit re-applied by an undo's rebuild: on a copy, kept only when the chain takes it.
+bool ReapplyBallEdit(skin::Skin& sk, const codec::BallEdit& e) {
+  if (!CheckBallIndex(sk, e).ok()) return false;
+  skin::Skin next = sk;
+  if (!ApplyBallOp(next, e).ok()) return false;
+  sk = std::move(next);
+  return true;
+}
+}  // namespace
+
+StatusOr<uint64_t> SkinBook::UndoTarget(const std::string& skin, const std::string& author,
+                                        bool redo) const {
+  SCULPT_ASSIGN_OR_RETURN(const Entry* entry, Find("UndoRequest.object", skin));
+  return redo ? entry->history.RedoTarget(author) : entry->history.UndoTarget(author);
+}
+
+StatusOr<UndoOutcome> SkinBook::Undo(const std::string& skin, const std::string& author, bool redo,
+                                     uint64_t at_seq) {
+  auto it = skins_.find(skin);
+  if (it == skins_.end()) {
+    return Outside("UndoRequest.object", skin, "the scene's objects and skins",
+                   Status::Code::kNotFound);
+  }
+  Entry& entry = it->second;
+  skin::Skin state = entry.skin;
+  auto out = redo ? entry.history.Redo(author, &state, ReapplyBallEdit)
+                  : entry.history.Undo(author, at_seq, &state, ReapplyBallEdit);
+  if (!out.ok()) return out;
+  entry.skin = std::move(state);
+  ++entry.version;
+  SendWhole(skin, entry);
+  return out;
+}
+
+void SkinBook::ReplayUndo(uint64_t seq, const codec::UndoRecord& r) {
+  auto it = skins_.find(r.object);
+  if (it == skins_.end() || seq <= it->second.file_seq) return;
+  auto out = Undo(r.object, HistoryAuthor(r.client_id), r.redo, seq);
+  if (!out.ok()) {
+    spdlog::warn("{} of a ball edit at seq {} refused on replay: {}", r.redo ? "redo" : "undo", seq,
+                 out.status().ToString());
+  }
+}
+
+std::pair<size_t, size_t> SkinBook::UndoDepth(const std::string& skin,
+                                              const std::string& author) const {
+  auto it = skins_.find(skin);
+  if (it == skins_.end()) return {0, 0};
+  return {it->second.history.undo_depth(author), it->second.history.redo_depth(author)};
+}
+
+StatusOr<std::vector<HistoryEntry>> SkinBook::Entries(const std::string& skin,
+                                                      const std::string& author,
+                                                      std::string* cleared, size_t* held) const {
+  SCULPT_ASSIGN_OR_RETURN(const Entry* entry, Find("HistoryRequest.object", skin));
+  *cleared = entry->history.cleared_reason();
+  *held = entry->history.size();
+  return entry->history.Entries(author);
 }
 
 size_t SkinBook::ball_count(const std::string& skin) const {
@@ -454,11 +610,13 @@ struct Scene::BallEditOp final : EditOp {
     rec.skin_version = p.version;
     records->push_back(codec::EncodeLogRecord(rec));
     plan.emplace(std::move(p));
+    seq = first_seq;
     return Status::Ok();
   }
 
   Applied Apply(Scene& scene) override {
-    balls = scene.skins_.ApplyBallEdit(std::move(*plan));
+    balls = scene.skins_.ApplyBallEdit(std::move(*plan), seq, HistoryAuthor(client), edit,
+                                       WallClockMs());
     plan.reset();
     return Applied{};  // no sculpture changed
   }
@@ -484,6 +642,7 @@ struct Scene::BallEditOp final : EditOp {
   codec::BallEdit edit;
   std::function<void(SkinOutcome)> done;
   std::optional<SkinBook::BallEditPlan> plan;
+  uint64_t seq = 0;
   size_t sections = 0;
   size_t balls = 0;
 };

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "config/server_config.h"
+#include "scene/book_history.h"
 #include "scene/commit.h"
 #include "scene/replica_sink.h"
 #include "sculpt/codec/log_records.h"
@@ -68,8 +69,35 @@ class SkinBook {
   StatusOr<BallEditPlan> PrepareBallEdit(const codec::BallEdit& edit) const;
   /// Puts a prepared edit in place (nothing else may change the skin between the two calls),
   /// sets its version, and sends the skin's contour subscribers an update holding the changed
-  /// sections and the whole chain. Returns the skin's ball count.
-  size_t ApplyBallEdit(BallEditPlan plan);
+  /// sections and the whole chain. Records `edit` (logged at `seq`) as `author`'s newest
+  /// undoable ball edit of the skin (not recorded without an author). Returns the skin's ball
+  /// count.
+  size_t ApplyBallEdit(BallEditPlan plan, uint64_t seq = 0, const std::string& author = {},
+                       const codec::BallEdit& edit = {}, uint64_t wall_ms = 0);
+
+  /// Per-author undo and redo of ball edits (issue 15, BookHistory): each skin keeps its recent
+  /// ball edits with the chain before each, saved beside the skin file at each Save
+  /// (data_dir/skins/<name>.history) and loaded by Open with it. Ball edits kept per author and
+  /// skin (set before Open).
+  void set_undo_depth(size_t depth) { undo_depth_ = depth; }
+  bool has_skin(const std::string& name) const { return skins_.count(name) != 0; }
+  /// The sequence of the ball edit of `skin` that an undo (or redo) by `author` would take back
+  /// (put back): NotFound naming UndoRequest.object for an unknown skin, else BookHistory's.
+  StatusOr<uint64_t> UndoTarget(const std::string& skin, const std::string& author,
+                                bool redo) const;
+  /// Takes back (puts back) that ball edit: the chain is rebuilt from before it with the later
+  /// ball edits re-applied, the version raised, and contour subscribers get the whole skin.
+  /// `at_seq` is the undo's own sequence. UndoTarget's errors, nothing changed.
+  StatusOr<UndoOutcome> Undo(const std::string& skin, const std::string& author, bool redo,
+                             uint64_t at_seq);
+  /// Recovery: the logged undo or redo of a ball edit at `seq`, unless the skin's file holds it.
+  void ReplayUndo(uint64_t seq, const codec::UndoRecord& record);
+  /// Undoable and redoable ball edits of `author` on `skin` (0, 0 for an unknown skin).
+  std::pair<size_t, size_t> UndoDepth(const std::string& skin, const std::string& author) const;
+  /// The skin's history view (newest last), and why it was last cleared. NotFound naming
+  /// HistoryRequest.object for an unknown skin.
+  StatusOr<std::vector<HistoryEntry>> Entries(const std::string& skin, const std::string& author,
+                                              std::string* cleared, size_t* held) const;
   /// Balls of `skin` now; 0 for an unknown skin.
   size_t ball_count(const std::string& skin) const;
 
@@ -104,13 +132,20 @@ class SkinBook {
   size_t subscriber_count() const;
 
  private:
+  using History = BookHistory<skin::Skin, codec::BallEdit>;
   struct Entry {
     levelset::SweepPlane plane;
     skin::Skin skin;
     uint64_t version = 0;
     uint64_t file_seq = 0;                 // the skin file held the log up to this seq at start-up
     std::map<uint64_t, ReplicaSink> subs;  // by session
+    History history{"ball edit", 64};
+    skin::SkinOptions options;  // how the chain is built (a saved history's chains are rebuilt)
   };
+  // Sends the skin's contour subscribers the whole skin (after an undo or redo).
+  void SendWhole(const std::string& name, Entry& entry);
+  // Loads the undo history kept with the skin's file (none, or another round's: empty).
+  void LoadHistory(const std::string& name, Entry& entry);
   struct SliceSub {
     ReplicaSink sink;
     levelset::SliceRequest request;
@@ -119,6 +154,7 @@ class SkinBook {
   StatusOr<const Entry*> Find(const std::string& field, const std::string& name) const;
 
   std::string data_dir_;
+  size_t undo_depth_ = 64;
   std::map<std::string, Entry> skins_;
   std::map<std::string, std::map<uint64_t, SliceSub>> slices_;  // object -> session -> sub
 };

@@ -59,9 +59,12 @@ void Scene::ClearHistories(const std::string& why) {
 }
 
 // An undo or redo: Prepare checks there is something to take back (a refusal names why and
-// changes nothing) and logs the request; Apply runs the history's undo or redo, which restores
-// the region and replays the later strokes it reaches, exactly as recovery will (the history is
-// rebuilt by recovery from the same records). Replicas get the changed leaves.
+// changes nothing), chooses which history holds the author's newest edit (the object's strokes
+// and paints, its model's intents, or, when the request names a skin, the skin's ball edits)
+// and logs the request with that choice; Apply runs that history's undo or redo, which restores
+// the region and replays the later strokes it reaches (or rebuilds the skin or model), exactly
+// as recovery will (the histories are rebuilt by recovery from the same records). Replicas get
+// the changed leaves.
 struct Scene::UndoOp final : EditOp {
   UndoOp(uint64_t client, codec::UndoCommand c, std::function<void(UndoCommandOutcome)> d)
       : client(client), command(std::move(c)), done(std::move(d)) {}
@@ -71,25 +74,42 @@ struct Scene::UndoOp final : EditOp {
   uint64_t client_seq() const override { return command.client_seq; }
 
   Status Prepare(Scene& scene, uint64_t first_seq, std::vector<std::string>* records) override {
-    auto it = scene.sculptures_.find(command.object);
-    if (it == scene.sculptures_.end()) {
-      return Outside("UndoRequest.object", command.object, "the scene's objects",
+    const std::string author = HistoryAuthor(client);
+    const bool redo = command.redo;
+    StatusOr<uint64_t> target = Status(Status::Code::kInternal, "unset");
+    if (scene.sculptures_.count(command.object)) {
+      EditHistory& h = scene.HistoryOf(command.object);
+      target = redo ? h.RedoTarget(author) : h.UndoTarget(author);
+      book = kObjectBook;
+      if (scene.models_.has_model(command.object)) {
+        // The author's newest edit of any kind: by sequence for an undo, by when it was undone
+        // for a redo.
+        uint64_t undone_at = 0;
+        auto m = scene.models_.UndoTarget(command.object, author, redo, &undone_at);
+        if (m.ok() &&
+            (!target.ok() || (redo ? undone_at > h.RedoUndoneAt(author) : *m > *target))) {
+          target = m;
+          book = kModelBook;
+        }
+      }
+    } else if (scene.skins_.has_skin(command.object)) {
+      target = scene.skins_.UndoTarget(command.object, author, redo);
+      book = kSkinBook;
+    } else {
+      return Outside("UndoRequest.object", command.object, "the scene's objects and skins",
                      Status::Code::kNotFound);
     }
-    EditHistory& h = scene.HistoryOf(command.object);
-    const std::string author = HistoryAuthor(client);
-    if (command.redo) {
-      if (h.redo_depth(author) == 0) {
+    if (!target.ok()) {
+      if (redo && target.status().code() == Status::Code::kFailedPrecondition) {
         return Outside("UndoRequest.redo", "true",
-                       std::string("requests with an undone stroke to redo on ") + command.object +
-                           " (none since this client's last undo, or a stroke came after it)",
+                       std::string("requests with an undone edit to redo on ") + command.object +
+                           " (none since this client's last undo, or an edit came after it)",
                        Status::Code::kFailedPrecondition);
       }
-      SCULPT_RETURN_IF_ERROR(h.RedoTarget(author).status());
-    } else {
       // The history says why not (nothing ever, fell off the depth, cleared by a sweep).
-      SCULPT_RETURN_IF_ERROR(h.UndoTarget(author).status());
+      return target.status();
     }
+    seq = first_seq;
     codec::UndoRecord rec;
     rec.global_seq = first_seq;
     rec.client_id = client;
@@ -97,25 +117,50 @@ struct Scene::UndoOp final : EditOp {
     rec.object = command.object;
     rec.redo = command.redo;
     rec.author = author;
+    rec.target_book = book;
+    rec.target_seq = *target;
     records->push_back(codec::EncodeLogRecord(rec));
     return Status::Ok();
   }
 
   Applied Apply(Scene& scene) override {
     Applied a;
-    a.object = command.object;
-    a.bounds_may_change = true;
-    EditHistory& h = scene.HistoryOf(command.object);
-    levelset::Sculpture& s = scene.sculptures_.at(command.object);
     const std::string author = HistoryAuthor(client);
-    auto out = command.redo ? h.Redo(s, author) : h.Undo(s, author);
-    if (!out.ok()) {
-      a.status = out.status();
+    const std::string& name = command.object;
+    if (book == kSkinBook) {
+      // A skin's chain changed, no voxels: nothing to replicate but the contour update.
+      auto out = scene.skins_.Undo(name, author, command.redo, seq);
+      if (!out.ok()) {
+        a.status = out.status();
+        return a;
+      }
+      outcome = *out;
+      depth = scene.skins_.UndoDepth(name, author);
       return a;
     }
-    outcome = *out;
-    a.dirty_leaves = out->dirty_leaves;
-    depth = {h.undo_depth(author), h.redo_depth(author)};
+    EditHistory& h = scene.HistoryOf(name);
+    if (book == kModelBook) {
+      // The model changed; the voxelised object is not re-voxelised (as for the intent itself).
+      auto out = scene.models_.Undo(name, author, command.redo, seq);
+      if (!out.ok()) {
+        a.status = out.status();
+        return a;
+      }
+      outcome = *out;
+    } else {
+      a.object = name;
+      a.bounds_may_change = true;
+      levelset::Sculpture& s = scene.sculptures_.at(name);
+      auto out = command.redo ? h.Redo(s, author) : h.Undo(s, author, seq);
+      if (!out.ok()) {
+        a.status = out.status();
+        return a;
+      }
+      outcome = *out;
+      a.dirty_leaves = out->dirty_leaves;
+    }
+    const auto m = scene.models_.UndoDepth(name, author);
+    depth = {h.undo_depth(author) + m.first, h.redo_depth(author) + m.second};
     return a;
   }
 
@@ -140,9 +185,16 @@ struct Scene::UndoOp final : EditOp {
     done(std::move(a));
   }
 
+  // Which history the undo takes from (UndoRecord.target_book).
+  static constexpr uint32_t kObjectBook = 0;
+  static constexpr uint32_t kModelBook = 1;
+  static constexpr uint32_t kSkinBook = 2;
+
   uint64_t client;
   codec::UndoCommand command;
   std::function<void(UndoCommandOutcome)> done;
+  uint32_t book = kObjectBook;
+  uint64_t seq = 0;
   UndoOutcome outcome;
   std::pair<size_t, size_t> depth;
 };
@@ -261,11 +313,36 @@ void Scene::History(codec::HistoryQuery query, std::function<void(HistoryOutcome
     once(std::move(a));
   };
   Post(CurrentRequester(), "history", refuse, [this, query = std::move(query), once, refuse] {
-    if (!sculptures_.count(query.object)) {
-      return refuse(Outside("HistoryRequest.object", query.object, "the scene's objects",
-                            Status::Code::kNotFound));
-    }
-    const EditHistory& h = HistoryOf(query.object);
+    std::vector<HistoryEntry> entries;
+    HistoryOutcome a;
+    // The edits filed under `author` (every author's when empty).
+    const auto gather = [&](const std::string& author) -> Status {
+      entries.clear();
+      if (sculptures_.count(query.object)) {
+        const EditHistory& h = HistoryOf(query.object);
+        entries = h.Entries(author);
+        a.held = static_cast<uint32_t>(h.size());
+        a.cleared = h.cleared_reason();
+        // The model's intents among the strokes and paints, in global order.
+        std::vector<HistoryEntry> intents = models_.Entries(query.object, author);
+        a.held += static_cast<uint32_t>(intents.size());
+        entries.insert(entries.end(), intents.begin(), intents.end());
+        std::stable_sort(entries.begin(), entries.end(), [](const HistoryEntry& x,
+                                                            const HistoryEntry& y) {
+          return x.seq < y.seq;
+        });
+      } else if (skins_.has_skin(query.object)) {
+        size_t held = 0;
+        auto e = skins_.Entries(query.object, author, &a.cleared, &held);
+        if (!e.ok()) return e.status();
+        entries = std::move(e).value();
+        a.held = static_cast<uint32_t>(held);
+      } else {
+        return Outside("HistoryRequest.object", query.object, "the scene's objects and skins",
+                       Status::Code::kNotFound);
+      }
+      return Status::Ok();
+    };
     // An entry's author is the client id its edits are filed under (HistoryAuthor).
     const auto UserOf = [this](const HistoryEntry& e) {
       uint64_t id = 0;
@@ -273,19 +350,16 @@ void Scene::History(codec::HistoryQuery query, std::function<void(HistoryOutcome
       const auto [p, ec] = std::from_chars(e.author.data(), end, id);
       return ec == std::errc() && p == end ? AuthorUser(id) : std::string();
     };
-    std::vector<HistoryEntry> entries = h.Entries(query.author);
+    if (Status s = gather(query.author); !s.ok()) return refuse(s);
     if (entries.empty() && !query.author.empty()) {
       // A user's name (named users): the edits of every client it sculpted from.
-      entries = h.Entries("");
+      if (Status s = gather(""); !s.ok()) return refuse(s);
       std::erase_if(entries, [&](const HistoryEntry& e) { return UserOf(e) != query.author; });
     }
     for (HistoryEntry& e : entries) e.user = UserOf(e);
-    HistoryOutcome a;
     a.request_id = query.request_id;
     a.object = query.object;
     a.matching = static_cast<uint32_t>(entries.size());
-    a.held = static_cast<uint32_t>(h.size());
-    a.cleared = h.cleared_reason();
     for (auto it = entries.rbegin(); it != entries.rend() && a.entries.size() < query.limit; ++it) {
       a.entries.push_back(*it);
     }
@@ -297,10 +371,11 @@ std::pair<size_t, size_t> Scene::UndoDepth(const std::string& object, uint64_t c
   std::promise<std::pair<size_t, size_t>> p;
   auto fail = [&p](const Status&) { p.set_value({0, 0}); };
   Post("undo depth", fail, [&] {
-    if (!sculptures_.count(object)) return p.set_value({0, 0});
-    EditHistory& h = HistoryOf(object);
     const std::string author = HistoryAuthor(client_id);
-    p.set_value({h.undo_depth(author), h.redo_depth(author)});
+    if (!sculptures_.count(object)) return p.set_value(skins_.UndoDepth(object, author));
+    EditHistory& h = HistoryOf(object);
+    const auto m = models_.UndoDepth(object, author);
+    p.set_value({h.undo_depth(author) + m.first, h.redo_depth(author) + m.second});
   });
   return p.get_future().get();
 }

@@ -250,6 +250,21 @@ TEST_F(LogRecordsTest, UndoRoundTrips) {
   EXPECT_EQ(back.author, "3");
 }
 
+// The undo's choice (which history, which edit) is logged so that recovery takes back the same
+// edit; records without it read as the object's stroke history (book 0).
+TEST_F(LogRecordsTest, UndoTargetRoundTripsAndOlderRecordsReadAsBookZero) {
+  UndoRecord u{9, 3, 4, "profile", false, "3"};
+  u.target_book = 2;
+  u.target_seq = 6;
+  const auto back = DecodeAs<UndoRecord>(EncodeLogRecord(u));
+  EXPECT_EQ(back.target_book, 2u);
+  EXPECT_EQ(back.target_seq, 6u);
+  EXPECT_EQ(back.object, "profile");
+  const auto old = DecodeAs<UndoRecord>(EncodeLogRecord(UndoRecord{7, 3, 2, "clay", true, "3"}));
+  EXPECT_EQ(old.target_book, 0u);
+  EXPECT_EQ(old.target_seq, 0u);
+}
+
 TEST_F(LogRecordsTest, SavedSkinRoundTrips) {
   SavedSkin s;
   s.seq = 900;

@@ -14,7 +14,9 @@
 #include <vector>
 
 #include "levelset/sculpture_impl.h"
+#include "scene/paint.h"
 #include "sculpt/levelset/edit.h"
+#include "sculpt/levelset/materials.h"
 #include "sculpt/levelset/region.h"
 
 namespace sculpt::server {
@@ -52,6 +54,7 @@ struct Logged {
   std::string author;
   std::vector<EditRequest> reqs;
   std::optional<levelset::SweepRequest> sweep;
+  std::optional<codec::Paint> paint;
 };
 
 // The scene as a log: every edit goes through the history, as the pipeline will apply it.
@@ -63,14 +66,21 @@ class UndoScene {
   levelset::EditResult Edit(const std::string& author, std::vector<EditRequest> reqs) {
     auto r = history_.Apply(live_, ++seq_, author, reqs, settings_);
     EXPECT_TRUE(r.ok()) << r.status().ToString();
-    log_.push_back({author, std::move(reqs), std::nullopt});
+    log_.push_back({author, std::move(reqs), std::nullopt, std::nullopt});
     undone_.push_back(false);
     return r.ok() ? *r : levelset::EditResult{};
   }
   levelset::EditResult Sweep(const std::string& author, const levelset::SweepRequest& sweep) {
     auto r = history_.ApplySweep(live_, ++seq_, author, sweep);
     EXPECT_TRUE(r.ok()) << r.status().ToString();
-    log_.push_back({author, {}, sweep});
+    log_.push_back({author, {}, sweep, std::nullopt});
+    undone_.push_back(false);
+    return r.ok() ? *r : levelset::EditResult{};
+  }
+  levelset::EditResult Paint(const std::string& author, const codec::Paint& paint) {
+    auto r = history_.ApplyPaint(live_, ++seq_, author, paint);
+    EXPECT_TRUE(r.ok()) << r.status().ToString();
+    log_.push_back({author, {}, std::nullopt, paint});
     undone_.push_back(false);
     return r.ok() ? *r : levelset::EditResult{};
   }
@@ -91,6 +101,11 @@ class UndoScene {
     Sculpture s = initial_.Clone();
     for (size_t i = 0; i < log_.size(); ++i) {
       if (undone_[i]) continue;
+      if (log_[i].paint) {
+        auto r = ApplyPaint(s, *log_[i].paint);
+        EXPECT_TRUE(r.ok()) << r.status().ToString();
+        continue;
+      }
       auto r = log_[i].sweep ? levelset::ApplySweep(s, *log_[i].sweep)
                              : levelset::ApplyEdits(s, log_[i].reqs, settings_);
       EXPECT_TRUE(r.ok()) << r.status().ToString();
@@ -101,6 +116,7 @@ class UndoScene {
   void ExpectEqualsFresh(const char* where) const {
     const Sculpture f = Fresh();
     EXPECT_EQ(live_.StateHash(), f.StateHash()) << where;
+    EXPECT_EQ(levelset::MaterialStateHash(live_), levelset::MaterialStateHash(f)) << where;
     EXPECT_EQ(live_.volume(), f.volume()) << where;
     EXPECT_EQ(live_.reference_volume(), f.reference_volume()) << where;
     EXPECT_EQ(levelset::CaptureReplayState(live_).edits_since_reinit,
@@ -549,6 +565,111 @@ TEST(EditHistoryRefusalTest, NothingToUndoOrRedoNamesTheAuthor) {
   ASSERT_NE(redo.violation(), nullptr) << redo;
   EXPECT_EQ(redo.violation()->field, "author");
   EXPECT_EQ(redo.violation()->allowed_range, "authors with an undone edit to redo");
+}
+
+}  // namespace
+}  // namespace sculpt::server
+
+namespace sculpt::server {
+namespace {
+
+// A sphere with three declared materials (material 0 everywhere until painted).
+Sculpture PaintedSphere() {
+  Sculpture s = Sphere();
+  EXPECT_TRUE(
+      levelset::SetMaterials(
+          s, {{"clay", {0.6, 0.4, 0.3}}, {"gold", {0.9, 0.8, 0.1}}, {"jade", {0.1, 0.7, 0.4}}})
+          .ok());
+  return s;
+}
+
+codec::Paint PaintAt(Vec3 at, uint32_t material, double radius = 4, double weight = 0.7) {
+  codec::Paint p;
+  p.object = "clay";
+  p.tool = levelset::ToolKind::kSphere;
+  p.tool_size = {radius, radius, radius};
+  p.position = at;
+  p.material = material;
+  p.weight = weight;
+  return p;
+}
+
+// The paint hard case of issue 15: A paints, B paints over it, A presses there, A undoes its
+// paint. B's paint and A's press stay; the fractions (and voxels) equal a fresh replay without
+// A's paint; redo returns to the exact state.
+TEST(EditHistoryPaintTest, UndoOfAPaintUnderAnOverlappingPaintEqualsFreshReplayWithoutIt) {
+  UndoScene scene(PaintedSphere());
+  const uint64_t blank = levelset::MaterialStateHash(scene.live());
+  const levelset::EditResult a = scene.Paint("A", PaintAt({20, 0, 0}, 1));
+  EXPECT_FALSE(a.dirty_leaves.empty());
+  EXPECT_NE(levelset::MaterialStateHash(scene.live()), blank);
+  scene.Paint("B", PaintAt({19, 2, 1}, 2));
+  scene.Edit("B", Stroke({20, -2, 0}, {19, 2, 1}, 3));
+  const uint64_t sdf = scene.live().StateHash();
+  const uint64_t fractions = levelset::MaterialStateHash(scene.live());
+  EXPECT_EQ(*scene.history().UndoTarget("A"), 1u);
+  const UndoOutcome u = scene.Undo("A");
+  EXPECT_EQ(u.seq, 1u);
+  EXPECT_EQ(u.replayed, 2u) << "B's paint and B's press read what A's paint wrote";
+  EXPECT_NE(levelset::MaterialStateHash(scene.live()), fractions);
+  scene.ExpectEqualsFresh("undo of A's paint");
+  scene.Redo("A");
+  EXPECT_EQ(scene.live().StateHash(), sdf);
+  EXPECT_EQ(levelset::MaterialStateHash(scene.live()), fractions);
+  scene.ExpectEqualsFresh("redo of A's paint");
+}
+
+// Level-set edits on a painted object stay undoable: the pre-image holds the fractions the
+// press carried, so undo puts back the paint under it exactly.
+TEST(EditHistoryPaintTest, UndoOfAPressOnAPaintedObjectRestoresTheCarriedFractions) {
+  UndoScene scene(PaintedSphere());
+  scene.Paint("B", PaintAt({20, 0, 0}, 2, 5, 1.0));
+  const uint64_t painted = levelset::MaterialStateHash(scene.live());
+  const uint64_t sdf = scene.live().StateHash();
+  scene.Edit("A", Stroke({21, -2, 0}, {21, 2, 0}, 3, EditKind::kAdd));
+  EXPECT_NE(levelset::MaterialStateHash(scene.live()), painted) << "the add carried paint out";
+  scene.Paint("B", PaintAt({21, 1, 0}, 1));
+  scene.Undo("A");
+  scene.ExpectEqualsFresh("undo of A's add under B's second paint");
+  scene.Undo("B");
+  scene.ExpectEqualsFresh("undo of B's second paint");
+  EXPECT_EQ(scene.live().StateHash(), sdf);
+  EXPECT_EQ(levelset::MaterialStateHash(scene.live()), painted);
+  for (int i = 0; i < 10; ++i) {
+    scene.Redo("A");
+    scene.Undo("A");
+  }
+  EXPECT_EQ(levelset::MaterialStateHash(scene.live()), painted) << "alternation drifted";
+  EXPECT_TRUE(scene.history().cleared_reason().empty()) << scene.history().cleared_reason();
+}
+
+// The history kept beside a snapshot holds the paints and the fractions of every pre-image: a
+// restart undoes a paint as the live server does.
+TEST(EditHistoryPaintTest, APaintIsUndoneAfterARestartFromASnapshotAsWithout) {
+  UndoScene scene(PaintedSphere());
+  scene.Paint("A", PaintAt({20, 0, 0}, 1));
+  scene.Edit("B", Stroke({20, -2, 0}, {19, 2, 1}, 3));
+  scene.Paint("B", PaintAt({19, 1, 0}, 2));
+  auto vdb = scene.live().SerializeVdb();
+  ASSERT_TRUE(vdb.ok());
+  const std::string bytes = scene.history().Serialize();
+  auto restarted = Sculpture::DeserializeVdb(*vdb);
+  ASSERT_TRUE(restarted.ok());
+  ASSERT_EQ(levelset::MaterialStateHash(*restarted), levelset::MaterialStateHash(scene.live()));
+  auto history = EditHistory::Parse(bytes);
+  ASSERT_TRUE(history.ok()) << history.status().ToString();
+  EXPECT_EQ(history->Serialize(), bytes);
+  const std::vector<HistoryEntry> entries = history->Entries();
+  ASSERT_EQ(entries.size(), 3u);
+  EXPECT_EQ(entries[0].kind_name, "paint");
+  EXPECT_TRUE(entries[0].paint);
+  EXPECT_EQ(entries[1].kind_name, "press");
+  auto after_restart = history->Undo(*restarted, "A");
+  ASSERT_TRUE(after_restart.ok()) << after_restart.status().ToString();
+  scene.Undo("A");
+  EXPECT_EQ(restarted->StateHash(), scene.live().StateHash());
+  EXPECT_EQ(levelset::MaterialStateHash(*restarted), levelset::MaterialStateHash(scene.live()));
+  scene.ExpectEqualsFresh("paint undone after a restart");
 }
 
 }  // namespace

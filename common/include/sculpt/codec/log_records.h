@@ -107,6 +107,11 @@ struct UndoRecord {
   std::string object;
   bool redo = false;  // false: undo
   std::string author;
+  /// What it takes back or puts back, as the live server chose it: the object's stroke and paint
+  /// history (0; older logs), its model's intents (1) or a skin's ball edits (2, `object` then
+  /// names the skin), and the edit's sequence (0: older logs, the history's own choice).
+  uint32_t target_book = 0;
+  uint64_t target_seq = 0;
   std::string user;  // the authenticated user who made it (named users), else empty
 };
 

@@ -20,7 +20,8 @@ namespace sculpt::levelset {
 /// or the background with no node at all). Restoring writes exactly that back, and where a cell
 /// was held by a larger node that has since been split, re-collapses the node once every cell of
 /// it is uniform again, so a restored tree hashes (Sculpture::StateHash) as the captured one.
-/// Material fractions are not held (EditHistory refuses sculptures with materials).
+/// When the sculpture declares materials, the same cells of every fraction grid are held the same
+/// way, so a restore puts back the fractions too (MaterialStateHash as captured).
 /// Thread safety: a value type; Capture and Restore need the usual one-writer rule on the
 /// sculpture.
 class CellImage {
@@ -40,18 +41,21 @@ class CellImage {
   /// Writes every held cell back.
   size_t RestoreAll(Sculpture& sculpture) const;
 
-  /// Appends the held cells to `out` (for a snapshot of the server's own undo history).
+  /// Appends the held cells to `out` (for a snapshot of the server's own undo history): the
+  /// signed distances, then a byte counting the fraction grids and each grid's cells.
   void AppendTo(std::string& out) const;
-  /// Reads what AppendTo wrote from the front of `in` and advances it. Only for bytes this
-  /// process's build wrote; still bounds-checked: DataLoss naming the field for a truncated or
-  /// malformed image.
-  static StatusOr<CellImage> ReadFrom(std::string_view& in);
+  /// Reads what AppendTo wrote from the front of `in` and advances it; `with_fractions` false
+  /// reads the older layout without the fraction grids. Only for bytes this process's build
+  /// wrote; still bounds-checked: DataLoss naming the field for a truncated or malformed image.
+  static StatusOr<CellImage> ReadFrom(std::string_view& in, bool with_fractions = true);
 
   bool Holds(const Int3& cell) const;
   /// Origins of the held cells, sorted (z, y, x).
   std::vector<Int3> Cells() const;
-  size_t cell_count() const { return cells_.size(); }
-  size_t leaf_count() const { return leaves_.size(); }
+  size_t cell_count() const { return sdf_.cells.size(); }
+  size_t leaf_count() const { return sdf_.leaves.size(); }
+  /// Fraction grids held (0: the sculpture had no materials when captured).
+  size_t fraction_grids() const { return fractions_.size(); }
   /// Heap bytes held (the measure of an undo step's memory).
   size_t MemoryBytes() const;
   void Clear();
@@ -70,10 +74,24 @@ class CellImage {
     uint64_t mask[8];
     float values[512];
   };
-  const Cell* Find(const Int3& origin) const;
+  /// The cells of one grid.
+  struct Part {
+    std::vector<Cell> cells;  // sorted by (z, y, x)
+    std::vector<Leaf> leaves;
+    const Cell* Find(const Int3& origin) const;
+    size_t MemoryBytes() const;
+  };
+  // `grid`: -1 the signed distances, m >= 0 the fractions of material m.
+  static Part CapturePart(const Sculpture& sculpture, int grid,
+                          const std::vector<Int3>& sorted_cells);
+  static void KeepPart(Part& part, const std::vector<Int3>& sorted_keep);
+  static size_t RestorePart(const Part& part, Sculpture& sculpture, int grid,
+                            const std::vector<Int3>& cells);
+  static void AppendPart(const Part& part, std::string& out);
+  static StatusOr<Part> ReadPart(std::string_view& in);
 
-  std::vector<Cell> cells_;  // sorted by (z, y, x)
-  std::vector<Leaf> leaves_;
+  Part sdf_;
+  std::vector<Part> fractions_;  // one per fraction grid, the same cells as sdf_
 };
 
 }  // namespace sculpt::levelset
