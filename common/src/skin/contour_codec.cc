@@ -551,8 +551,12 @@ Status DecodeCurveBody(std::string_view body, size_t message_size, Kind kind, do
         rx = static_cast<int64_t>(std::llround(ctx->back().x / step));
         ry = static_cast<int64_t>(std::llround(ctx->back().y / step));
       }
-      const int64_t x = rx + rc.Int(models->first), y = ry + rc.Int(models->first);
-      if (std::abs(static_cast<double>(x)) > kMaxQuantised ||
+      // Checked sums: a context point far outside the range rounds to INT64_MIN (the fuzzer's
+      // contour target found rx + a delta overflowing).
+      int64_t x = 0, y = 0;
+      const bool x_overflow = __builtin_add_overflow(rx, rc.Int(models->first), &x);
+      const bool y_overflow = __builtin_add_overflow(ry, rc.Int(models->first), &y);
+      if (x_overflow || y_overflow || std::abs(static_cast<double>(x)) > kMaxQuantised ||
           std::abs(static_cast<double>(y)) > kMaxQuantised) {
         return InvalidArgument("contour: decoded point outside [-2^52, 2^52] steps");
       }
