@@ -75,6 +75,11 @@ class RawServerTest : public ::testing::Test {
     io_.stop();
     for (auto& t : threads_) t.join();
     threads_.clear();
+    // Handlers the stop left queued (the acceptor's aborted accept, closed sessions' reads) run
+    // now, against the server they belong to; left queued, the next Start()'s threads would run
+    // them against a destroyed one.
+    io_.restart();
+    io_.poll();
     http_.reset();
     server_.reset();
     scene_.reset();
