@@ -54,7 +54,7 @@ StatusOr<LoggedEdit> DecodeLogRecord(uint64_t seq, const std::string& payload) {
     e.client_id = u->client_id;
     e.client_seq = u->client_seq;
     // An undo of a skin's ball edit names the skin, not an object (no sculpture changes).
-    if (u->target_book != 2) e.object = u->object;
+    if (u->target_book != codec::kUndoSkinBook) e.object = u->object;
   }
   e.record = std::move(record);
   return e;

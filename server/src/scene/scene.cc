@@ -188,7 +188,7 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
     }
     if (auto* u = std::get_if<codec::UndoRecord>(&e.record)) {
       // An undo of a model intent or a ball edit is replayed with its book, below.
-      if (u->target_book != 0) return Status::Ok();
+      if (u->target_book != codec::kUndoObjectBook) return Status::Ok();
       const std::string author = HistoryAuthor(u->client_id);
       auto out = u->redo ? history.Redo(s, author) : history.Undo(s, author, rec.seq);
       if (!out.ok()) {
@@ -272,8 +272,8 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
     if (auto* b = std::get_if<codec::BallEditRecord>(&e.record)) scene->skins_.Replay(lr.seq, *b);
     if (auto* m = std::get_if<codec::ModelRecord>(&e.record)) scene->models_.Replay(lr.seq, *m);
     if (auto* u = std::get_if<codec::UndoRecord>(&e.record)) {
-      if (u->target_book == 1) scene->models_.ReplayUndo(lr.seq, *u);
-      if (u->target_book == 2) scene->skins_.ReplayUndo(lr.seq, *u);
+      if (u->target_book == codec::kUndoModelBook) scene->models_.ReplayUndo(lr.seq, *u);
+      if (u->target_book == codec::kUndoSkinBook) scene->skins_.ReplayUndo(lr.seq, *u);
     }
     return Status::Ok();
   }));

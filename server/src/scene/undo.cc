@@ -80,7 +80,7 @@ struct Scene::UndoOp final : EditOp {
     if (scene.sculptures_.count(command.object)) {
       EditHistory& h = scene.HistoryOf(command.object);
       target = redo ? h.RedoTarget(author) : h.UndoTarget(author);
-      book = kObjectBook;
+      book = codec::kUndoObjectBook;
       if (scene.models_.has_model(command.object)) {
         // The author's newest edit of any kind: by sequence for an undo, by when it was undone
         // for a redo.
@@ -89,12 +89,12 @@ struct Scene::UndoOp final : EditOp {
         if (m.ok() &&
             (!target.ok() || (redo ? undone_at > h.RedoUndoneAt(author) : *m > *target))) {
           target = m;
-          book = kModelBook;
+          book = codec::kUndoModelBook;
         }
       }
     } else if (scene.skins_.has_skin(command.object)) {
       target = scene.skins_.UndoTarget(command.object, author, redo);
-      book = kSkinBook;
+      book = codec::kUndoSkinBook;
     } else {
       return Outside("UndoRequest.object", command.object, "the scene's objects and skins",
                      Status::Code::kNotFound);
@@ -127,7 +127,7 @@ struct Scene::UndoOp final : EditOp {
     Applied a;
     const std::string author = HistoryAuthor(client);
     const std::string& name = command.object;
-    if (book == kSkinBook) {
+    if (book == codec::kUndoSkinBook) {
       // A skin's chain changed, no voxels: nothing to replicate but the contour update.
       auto out = scene.skins_.Undo(name, author, command.redo, seq);
       if (!out.ok()) {
@@ -139,7 +139,7 @@ struct Scene::UndoOp final : EditOp {
       return a;
     }
     EditHistory& h = scene.HistoryOf(name);
-    if (book == kModelBook) {
+    if (book == codec::kUndoModelBook) {
       // The model changed; the voxelised object is not re-voxelised (as for the intent itself).
       auto out = scene.models_.Undo(name, author, command.redo, seq);
       if (!out.ok()) {
@@ -185,15 +185,10 @@ struct Scene::UndoOp final : EditOp {
     done(std::move(a));
   }
 
-  // Which history the undo takes from (UndoRecord.target_book).
-  static constexpr uint32_t kObjectBook = 0;
-  static constexpr uint32_t kModelBook = 1;
-  static constexpr uint32_t kSkinBook = 2;
-
   uint64_t client;
   codec::UndoCommand command;
   std::function<void(UndoCommandOutcome)> done;
-  uint32_t book = kObjectBook;
+  uint32_t book = codec::kUndoObjectBook;  // which history it takes from (UndoRecord.target_book)
   uint64_t seq = 0;
   UndoOutcome outcome;
   std::pair<size_t, size_t> depth;

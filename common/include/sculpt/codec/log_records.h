@@ -49,7 +49,7 @@ struct StrokePoseRecord {
 
   /// The last pose of its stroke (or a pose standing alone): the stroke is complete with it.
   bool completes() const { return pose_index + 1 >= pose_count; }
-  std::string user;  // the authenticated user who made it (named users), else empty
+  std::string user = {};  // the authenticated user who made it (named users), else empty
 };
 
 /// A paint or fill (issue 7).
@@ -59,7 +59,7 @@ struct PaintRecord {
   /// Encoded in its wire form (floats for the tool); decoded unchecked (the live server checked
   /// it against the limits of its time). Apply AsLogged(paint) live.
   Paint paint;
-  std::string user;  // the authenticated user who made it (named users), else empty
+  std::string user = {};  // the authenticated user who made it (named users), else empty
 };
 
 /// A sweep of a skin's outline into an object (issue 6): the outline and plane travel in the
@@ -75,7 +75,7 @@ struct SweepRecord {
   /// Not ok (InvalidArgument naming the field) for a record whose plane, outline or axis has the
   /// wrong number of values: `request` is then incomplete and recovery skips the sweep.
   Status request_status;
-  std::string user;  // the authenticated user who made it (named users), else empty
+  std::string user = {};  // the authenticated user who made it (named users), else empty
 };
 
 /// An accepted model intent (issue 7) and the model version it produced.
@@ -84,7 +84,7 @@ struct ModelRecord {
   uint64_t client_id = 0;
   ModelEdit edit;  // decoded unchecked: the live server checked it
   uint64_t model_version = 0;
-  std::string user;  // the authenticated user who made it (named users), else empty
+  std::string user = {};  // the authenticated user who made it (named users), else empty
 };
 
 /// A ball edit of a skin (issue 6) and the skin version it produced.
@@ -96,8 +96,13 @@ struct BallEditRecord {
   /// The check DecodeSkinBallEdit makes of the logged edit, as the live server made it.
   Status edit_status;
   uint64_t skin_version = 0;
-  std::string user;  // the authenticated user who made it (named users), else empty
+  std::string user = {};  // the authenticated user who made it (named users), else empty
 };
+
+/// The histories an undo takes from (UndoRecord.target_book; the values are on disk).
+inline constexpr uint32_t kUndoObjectBook = 0;
+inline constexpr uint32_t kUndoModelBook = 1;
+inline constexpr uint32_t kUndoSkinBook = 2;
 
 /// An undo or redo request (issue 15).
 struct UndoRecord {
@@ -108,11 +113,12 @@ struct UndoRecord {
   bool redo = false;  // false: undo
   std::string author;
   /// What it takes back or puts back, as the live server chose it: the object's stroke and paint
-  /// history (0; older logs), its model's intents (1) or a skin's ball edits (2, `object` then
-  /// names the skin), and the edit's sequence (0: older logs, the history's own choice).
+  /// history (kUndoObjectBook; older logs), its model's intents (kUndoModelBook) or a skin's ball
+  /// edits (kUndoSkinBook, `object` then names the skin), and the edit's sequence (0: older
+  /// logs, the history's own choice).
   uint32_t target_book = 0;
   uint64_t target_seq = 0;
-  std::string user;  // the authenticated user who made it (named users), else empty
+  std::string user = {};  // the authenticated user who made it (named users), else empty
 };
 
 /// One edit-log record, decoded.
