@@ -18,15 +18,10 @@ using std::chrono::milliseconds;
 class ClusterAgentTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    if (!sculpt::testing::HaveEtcd()) {
-      GTEST_SKIP() << sculpt::testing::kEtcdBinary
-                   << " is missing: install Debian's etcd-server (deploy/install-deps.sh)";
-    }
+    if (!sculpt::testing::HaveEtcd()) GTEST_SKIP() << sculpt::testing::kNoEtcd;
     etcd_ = std::make_unique<EtcdProcess>();
-    auto c = EtcdClient::Create({{etcd_->endpoint()}, milliseconds(500)});
+    auto c = sculpt::testing::ConnectWhenReady(*etcd_);
     ASSERT_TRUE(c.ok()) << c.status();
-    ASSERT_TRUE(WaitFor([&] { return (*c)->Sync((*c)->Get("ping")).ok(); }, milliseconds(15000)))
-        << "etcd did not start; its log is in " << etcd_->dir();
   }
   void TearDown() override {
     if (etcd_) kill(etcd_->process().pid(), SIGCONT);

@@ -65,17 +65,11 @@ class Member {
 class ClusterRoutingTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    if (!sculpt::testing::HaveEtcd()) {
-      GTEST_SKIP() << sculpt::testing::kEtcdBinary
-                   << " is missing: install Debian's etcd-server (deploy/install-deps.sh)";
-    }
+    if (!sculpt::testing::HaveEtcd()) GTEST_SKIP() << sculpt::testing::kNoEtcd;
     etcd_ = std::make_unique<EtcdProcess>();
-    auto c = EtcdClient::Create({{etcd_->endpoint()}, milliseconds(500)});
+    auto c = sculpt::testing::ConnectWhenReady(*etcd_);
     ASSERT_TRUE(c.ok()) << c.status();
     etcd_client_ = std::move(c).value();
-    ASSERT_TRUE(WaitFor([&] { return etcd_client_->Sync(etcd_client_->Get("ping")).ok(); },
-                        milliseconds(15000)))
-        << "etcd did not start; its log is in " << etcd_->dir();
   }
   void TearDown() override {
     members_.clear();  // SIGKILL and reap each sculptd before etcd goes

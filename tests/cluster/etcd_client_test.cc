@@ -16,13 +16,9 @@ class EtcdClientTest : public ::testing::Test {
   static void SetUpTestSuite() {
     if (!sculpt::testing::HaveEtcd()) return;
     etcd_ = new EtcdProcess();
-    auto c = EtcdClient::Create({{etcd_->endpoint()}, std::chrono::milliseconds(500)});
+    auto c = sculpt::testing::ConnectWhenReady(*etcd_);
     ASSERT_TRUE(c.ok()) << c.status();
     client_ = std::move(c).value().release();
-    // etcd takes about a second to elect itself.
-    ASSERT_TRUE(
-        WaitFor([] { return client_->Sync(client_->Get("ping")).ok(); }, std::chrono::seconds(15)))
-        << "etcd did not start; its log is in " << etcd_->dir();
   }
   static void TearDownTestSuite() {
     delete client_;
@@ -31,10 +27,7 @@ class EtcdClientTest : public ::testing::Test {
     etcd_ = nullptr;
   }
   void SetUp() override {
-    if (!sculpt::testing::HaveEtcd()) {
-      GTEST_SKIP() << sculpt::testing::kEtcdBinary
-                   << " is missing: install Debian's etcd-server (deploy/install-deps.sh)";
-    }
+    if (!sculpt::testing::HaveEtcd()) GTEST_SKIP() << sculpt::testing::kNoEtcd;
   }
   EtcdClient& c() { return *client_; }
 

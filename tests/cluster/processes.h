@@ -19,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "cluster/etcd_client.h"
 #include "net/net.h"
 
 namespace sculpt::testing {
@@ -131,6 +132,24 @@ bool WaitFor(F ready, std::chrono::milliseconds limit) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   return ready();
+}
+
+/// Why a test that needs etcd is skipped.
+inline constexpr const char* kNoEtcd =
+    "/usr/bin/etcd is missing: install Debian's etcd-server (deploy/install-deps.sh)";
+
+/// A client of `etcd` once it answers (it takes about a second to elect itself); Unavailable,
+/// naming its log, when it did not within 15 s.
+inline StatusOr<std::unique_ptr<server::cluster::EtcdClient>> ConnectWhenReady(
+    const EtcdProcess& etcd) {
+  auto c = server::cluster::EtcdClient::Create({{etcd.endpoint()}, std::chrono::milliseconds(500)});
+  if (!c.ok()) return c.status();
+  server::cluster::EtcdClient& client = **c;
+  if (!WaitFor([&] { return client.Sync(client.Get("ping")).ok(); }, std::chrono::seconds(15))) {
+    return Status(Status::Code::kUnavailable,
+                  "etcd did not start; its log is in " + etcd.dir().string());
+  }
+  return c;
 }
 
 }  // namespace sculpt::testing
