@@ -61,8 +61,8 @@ struct HistoryEntry {
   levelset::EditKind kind = levelset::EditKind::kPress;  // a sweep: kAdd or kSubtract
   bool sweep = false;
   bool paint = false;  // a paint or fill of material fractions (`kind` then means nothing)
-  /// What the history view prints: "press", "add", ..., "sweep", "paint", "fill", "ball edit",
-  /// "model intent".
+  /// What the history view prints: "press", "add", ..., "sweep-add", "sweep-subtract", "paint",
+  /// "fill", "ball edit", "model intent".
   std::string kind_name;
   uint32_t poses = 0;
   bool undone = false;

@@ -175,8 +175,7 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
     if (!r) batch.clear();
     EditHistory& history = raw_scene->HistoryOf(e.object.empty() ? s.name() : e.object);
     if (auto* w = std::get_if<codec::SweepRecord>(&e.record)) {
-      history.Clear("a sweep changed " + w->object);
-      return ReplaySweep(s, rec.seq, *w);
+      return ReplaySweep(s, history, rec.seq, *w);  // through the history, as live
     }
     if (auto* p = std::get_if<codec::PaintRecord>(&e.record)) {
       // Through the history as live, so a later undo of it (or past it) replays the same.

@@ -174,12 +174,15 @@ bool PlaneCrosses(const levelset::SweepPlane& plane, const std::vector<levelset:
 // ---------------------------------------------------------------------------------------------
 // Sweeps in the edit log; skin files beside the snapshots
 
-Status ReplaySweep(levelset::Sculpture& sculpture, uint64_t seq, const codec::SweepRecord& r) {
+Status ReplaySweep(levelset::Sculpture& sculpture, EditHistory& history, uint64_t seq,
+                   const codec::SweepRecord& r) {
   if (!r.request_status.ok()) {
     spdlog::warn("sweep at seq {} not replayed: {}", seq, r.request_status.ToString());
     return Status::Ok();
   }
-  (void)levelset::ApplySweep(sculpture, r.request);
+  // A sweep the live server refused after logging it is refused identically here. The record
+  // keeps no commit time: the history view shows the time of a replayed sweep as unknown.
+  (void)history.ApplySweep(sculpture, seq, HistoryAuthor(r.client_id), r.request);
   return Status::Ok();
 }
 
@@ -652,8 +655,10 @@ void Scene::EditSkin(uint64_t client_id, codec::BallEdit e, std::function<void(S
 }
 
 // A sweep: the skin's outline and plane go into the record (so recovery needs no skin), the
-// kernel request is built from the record, checked against the object, and applied from it.
-// Replicas get the changed leaves (a sweep has no replay form).
+// kernel request is built from the record, checked against the object, and applied from it
+// through the object's undo history under its author, exactly as recovery applies the record
+// (ReplaySweep), so the author can undo it and an undo of it or past it replays the same after a
+// restart. Replicas get the changed leaves (a sweep has no replay form), as for its undo.
 struct Scene::SweepOp final : EditOp {
   SweepOp(uint64_t client, codec::SkinSweepRequest s, std::function<void(SkinOutcome)> d)
       : client(client), sweep(std::move(s)), done(std::move(d)) {}
@@ -680,6 +685,7 @@ struct Scene::SweepOp final : EditOp {
     rec.request = q;
     request = std::move(q);
     records->push_back(codec::EncodeLogRecord(rec));
+    seq = first_seq;
     return Status::Ok();
   }
 
@@ -687,9 +693,10 @@ struct Scene::SweepOp final : EditOp {
     Applied a;
     a.object = sweep.object;
     a.bounds_may_change = true;
-    auto res = levelset::ApplySweep(scene.sculptures_.at(sweep.object), request);
-    // Not recorded in the undo history: the strokes before it can no longer be taken back.
-    scene.HistoryOf(sweep.object).Clear("a sweep changed " + sweep.object);
+    // A sweep the kernel refuses changes nothing and is not recorded.
+    auto res = scene.HistoryOf(sweep.object)
+                   .ApplySweep(scene.sculptures_.at(sweep.object), seq, HistoryAuthor(client),
+                               request, WallClockMs());
     if (!res.ok()) {
       a.status = res.status();
       return a;
@@ -720,6 +727,7 @@ struct Scene::SweepOp final : EditOp {
   codec::SkinSweepRequest sweep;
   std::function<void(SkinOutcome)> done;
   levelset::SweepRequest request;
+  uint64_t seq = 0;
   double volume_after = 0;
   size_t dirty_leaves = 0;
 };

@@ -26,6 +26,8 @@
 
 namespace sculpt::server {
 
+class EditHistory;
+
 /// The ball skins of a scene and who watches them: each skin with its sketch plane, its version
 /// (ball edits applied since the scene first built it), the log sequence its file held at start
 /// and its contour subscribers; and each object's slice subscribers. A ball edit rebuilds at
@@ -159,9 +161,11 @@ class SkinBook {
   std::map<std::string, std::map<uint64_t, SliceSub>> slices_;  // object -> session -> sub
 };
 
-/// Recovery: applies a logged sweep as the live server did. A sweep the kernel refuses, or a
-/// malformed record, is skipped with a warning (Ok, nothing applied), as live.
-Status ReplaySweep(levelset::Sculpture& sculpture, uint64_t seq, const codec::SweepRecord& record);
+/// Recovery: applies a logged sweep as the live server did, through the object's undo history
+/// under its author (so undo and redo after a restart replay the same). A sweep the kernel
+/// refuses, or a malformed record, is skipped with a warning (Ok, nothing applied or recorded).
+Status ReplaySweep(levelset::Sculpture& sculpture, EditHistory& history, uint64_t seq,
+                   const codec::SweepRecord& record);
 
 /// Writes a skin's state to `path` atomically (temporary file, fsync, rename). Internal on I/O
 /// errors.

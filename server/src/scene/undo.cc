@@ -59,8 +59,8 @@ void Scene::ClearHistories(const std::string& why) {
 }
 
 // An undo or redo: Prepare checks there is something to take back (a refusal names why and
-// changes nothing), chooses which history holds the author's newest edit (the object's strokes
-// and paints, its model's intents, or, when the request names a skin, the skin's ball edits)
+// changes nothing), chooses which history holds the author's newest edit (the object's strokes,
+// paints and sweeps, its model's intents, or, when the request names a skin, the skin's ball edits)
 // and logs the request with that choice; Apply runs that history's undo or redo, which restores
 // the region and replays the later strokes it reaches (or rebuilds the skin or model), exactly
 // as recovery will (the histories are rebuilt by recovery from the same records). Replicas get
@@ -106,7 +106,7 @@ struct Scene::UndoOp final : EditOp {
                            " (none since this client's last undo, or an edit came after it)",
                        Status::Code::kFailedPrecondition);
       }
-      // The history says why not (nothing ever, fell off the depth, cleared by a sweep).
+      // The history says why not (nothing ever, fell off the depth, its snapshot history unusable).
       return target.status();
     }
     seq = first_seq;

@@ -1,7 +1,7 @@
-// Per-author undo and redo of paints, ball edits and model intents through the scene's commit
-// pipeline (issue 15): the author's newest edit of any kind is taken back as if never made while
-// the others' later edits stay, redo returns the exact state, and a restart after the undo (the
-// log replayed) gives the same state and the same next undo.
+// Per-author undo and redo of paints, sweeps, ball edits and model intents through the scene's
+// commit pipeline (issue 15): the author's newest edit of any kind is taken back as if never
+// made while the others' later edits stay, redo returns the exact state, and a restart after the
+// undo (the log replayed) gives the same state and the same next undo.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "integration/raw_client.h"
 #include "scene/scene.h"
 #include "sculpt/hetero/composite_model.h"
 #include "sculpt/hetero/construction.h"
@@ -142,6 +143,44 @@ class UndoKindsTest : public ::testing::Test {
     scene.Undo(client, c, [&done](UndoCommandOutcome o) { done.set_value(std::move(o)); });
     return done.get_future().get();
   }
+  // The skin "profile" (in the plane z = 0, x in about [-15, 15], |y| <= 3) extruded `depth`
+  // along +z into "clay": an add grows a slab out of the sphere at both ends of x.
+  static SkinOutcome Sweep(Scene& scene, uint64_t client, uint64_t seq, bool add, double depth) {
+    codec::SkinSweepRequest s;
+    s.client_seq = seq;
+    s.skin = "profile";
+    s.object = "clay";
+    s.mode = levelset::SweepRequest::Mode::kExtrude;
+    s.add = add;
+    s.depth = depth;
+    std::promise<SkinOutcome> done;
+    scene.SweepSkin(client, s, [&done](SkinOutcome o) { done.set_value(std::move(o)); });
+    SkinOutcome out = done.get_future().get();
+    EXPECT_TRUE(out.status.ok()) << out.status;
+    return out;
+  }
+  // A 3-pose press stroke at `at` (moving along +x, +y), as a client sends it.
+  static StrokeOutcome Press(Scene& scene, uint64_t client, uint64_t seq, Vec3 at) {
+    const v1::ClientMessage m = testing::RawClient::PressStroke(seq, at, 3, 2.0);
+    auto limits = scene.LimitsFor("clay");
+    EXPECT_TRUE(limits.ok());
+    auto stroke = codec::DecodeStroke(m.stroke(), *limits);
+    EXPECT_TRUE(stroke.ok()) << stroke.status();
+    std::promise<StrokeOutcome> p;
+    scene.Submit(client, std::move(stroke).value(),
+                 [&p](const StrokeOutcome& o) { p.set_value(o); });
+    StrokeOutcome out = p.get_future().get();
+    EXPECT_TRUE(out.status.ok()) << out.status;
+    return out;
+  }
+  // The object's tracked volume and reference volume.
+  static std::pair<double, double> Volumes(Scene& scene) {
+    std::pair<double, double> v;
+    EXPECT_TRUE(scene.Inspect("clay", [&](const levelset::Sculpture& s) {
+      v = {s.volume(), s.reference_volume()};
+    }));
+    return v;
+  }
   static HistoryOutcome History(Scene& scene, const std::string& object) {
     codec::HistoryQuery q;
     q.object = object;
@@ -262,6 +301,158 @@ TEST_F(UndoKindsTest, StrokesOnAPaintedObjectAndPaintsUndoNewestFirst) {
   ASSERT_TRUE(second.status.ok()) << second.status;
   EXPECT_EQ(second.target_seq, 2u) << "then A's stroke";
   EXPECT_EQ(Hashes(*scene_), painted) << "voxels and fractions as before the stroke";
+}
+
+// Where B presses: on the sphere near +x, inside the slab a sweep-add grows there (z in [0, 3]),
+// so B's stroke reads and writes voxels the sweep wrote; without the sweep it presses the sphere.
+constexpr Vec3 kOnTheSlab{12.5, 0, 2.5};
+
+// A sweeps a skin into the object, B presses overlapping, A undoes: B's stroke stays (replayed
+// without the sweep), A's sweep is gone, and the object equals a scene whose log never had the
+// sweep (hash and tracked volumes bit for bit).
+TEST_F(UndoKindsTest, UndoOfASweepUnderAnotherSculptorsPressEqualsAReplayWithoutIt) {
+  scene_ = Open("a");
+  ASSERT_TRUE(scene_);
+  const auto blank = Hashes(*scene_);
+  const SkinOutcome sweep = Sweep(*scene_, kA, 1, /*add=*/true, 3.0);
+  ASSERT_GT(sweep.dirty_leaves, 0u) << "the sweep changed nothing";
+  Press(*scene_, kB, 1, kOnTheSlab);
+  const auto both = Hashes(*scene_);
+
+  const UndoCommandOutcome u = Undo(*scene_, kA, 1, "clay");
+  ASSERT_TRUE(u.status.ok()) << u.status;
+  EXPECT_EQ(u.target_seq, sweep.global_seq) << "A's sweep";
+  EXPECT_EQ(u.replayed, 1u) << "B's overlapping press is replayed without the sweep";
+  EXPECT_EQ(u.replayed_by.count(std::to_string(kB)), 1u);
+  EXPECT_EQ(u.undo_depth, 0u);
+  EXPECT_EQ(u.redo_depth, 1u);
+  const auto undone = Hashes(*scene_);
+  EXPECT_NE(undone, both);
+  EXPECT_NE(undone, blank) << "B's press is gone too";
+
+  auto fresh = Open("fresh");
+  ASSERT_TRUE(fresh);
+  Press(*fresh, kB, 1, kOnTheSlab);
+  EXPECT_EQ(Hashes(*fresh), undone) << "differs from a replay of the log without A's sweep";
+  EXPECT_EQ(Volumes(*fresh), Volumes(*scene_)) << "volume bookkeeping as without the sweep";
+  // B can still undo its press: the sweep did not clear the history.
+  const UndoCommandOutcome b = Undo(*scene_, kB, 2, "clay");
+  ASSERT_TRUE(b.status.ok()) << b.status;
+  EXPECT_EQ(Hashes(*scene_), blank);
+}
+
+// Redo of an undone sweep with nothing between returns exactly (hash, volume within 1e-6
+// relative), also alternated; the history names it a sweep, undone or not.
+TEST_F(UndoKindsTest, RedoOfASweepIsExactAndTheHistoryNamesItASweep) {
+  scene_ = Open("a");
+  ASSERT_TRUE(scene_);
+  Press(*scene_, kB, 1, kOnTheSlab);
+  const SkinOutcome sweep = Sweep(*scene_, kA, 1, /*add=*/false, 2.0);  // cuts a slot
+  ASSERT_GT(sweep.dirty_leaves, 0u);
+  Press(*scene_, kB, 2, {11.5, 0, 1});  // in the slot's wall
+  const auto before = Hashes(*scene_);
+  const auto before_volumes = Volumes(*scene_);
+
+  auto entry = [](const HistoryOutcome& h, uint64_t seq) -> const HistoryEntry* {
+    for (const HistoryEntry& e : h.entries) {
+      if (e.seq == seq) return &e;
+    }
+    return nullptr;
+  };
+  {
+    const HistoryOutcome h = History(*scene_, "clay");
+    ASSERT_TRUE(h.status.ok()) << h.status;
+    EXPECT_EQ(h.cleared, "") << "a sweep no longer clears the history";
+    ASSERT_EQ(h.entries.size(), 3u);
+    const HistoryEntry* e = entry(h, sweep.global_seq);
+    ASSERT_NE(e, nullptr);
+    EXPECT_TRUE(e->sweep);
+    EXPECT_EQ(e->kind_name, "sweep-subtract");
+    EXPECT_EQ(e->author, std::to_string(kA));
+    EXPECT_FALSE(e->undone);
+    EXPECT_TRUE(e->undoable);
+    EXPECT_GT(e->wall_ms, 0u);
+  }
+  const UndoCommandOutcome u = Undo(*scene_, kA, 1, "clay");
+  ASSERT_TRUE(u.status.ok()) << u.status;
+  EXPECT_EQ(u.target_seq, sweep.global_seq);
+  const auto undone = Hashes(*scene_);
+  EXPECT_NE(undone, before);
+  {
+    const HistoryOutcome h = History(*scene_, "clay");
+    const HistoryEntry* e = entry(h, sweep.global_seq);
+    ASSERT_NE(e, nullptr);
+    EXPECT_TRUE(e->sweep);
+    EXPECT_TRUE(e->undone);
+    EXPECT_FALSE(e->undoable) << "on the redo stack";
+  }
+  for (int i = 0; i < 3; ++i) {
+    const UndoCommandOutcome r = Undo(*scene_, kA, 2 + 2 * i, "clay", /*redo=*/true);
+    ASSERT_TRUE(r.status.ok()) << r.status;
+    EXPECT_EQ(r.target_seq, sweep.global_seq);
+    EXPECT_EQ(Hashes(*scene_), before) << "redo " << i;
+    const auto v = Volumes(*scene_);
+    EXPECT_NEAR(v.first, before_volumes.first, 1e-6 * before_volumes.first) << "redo " << i;
+    EXPECT_NEAR(v.second, before_volumes.second, 1e-6 * before_volumes.second) << "redo " << i;
+    ASSERT_TRUE(Undo(*scene_, kA, 3 + 2 * i, "clay").status.ok()) << i;
+    EXPECT_EQ(Hashes(*scene_), undone) << "undo " << i;
+  }
+  ASSERT_TRUE(Undo(*scene_, kA, 10, "clay", /*redo=*/true).status.ok());
+  const HistoryOutcome h = History(*scene_, "clay");
+  const HistoryEntry* e = entry(h, sweep.global_seq);
+  ASSERT_NE(e, nullptr);
+  EXPECT_FALSE(e->undone);
+}
+
+// The undo of a sweep after a restart (the log replayed through the history; and from a
+// snapshot whose history file holds the sweep, with B's press in the log tail) equals the same
+// undo without a restart, and the undo itself survives the next restart.
+TEST_F(UndoKindsTest, UndoOfASweepAfterARestartEqualsNoRestart) {
+  config_.snapshot_every_edits = 0;  // snapshots only when asked
+  config_.snapshot_every_seconds = 0;
+  scene_ = Open("a");
+  auto snap = Open("snap");
+  auto control = Open("control");
+  ASSERT_TRUE(scene_ && snap && control);
+  for (Scene* s : {scene_.get(), snap.get(), control.get()}) Sweep(*s, kA, 1, true, 3.0);
+  snap->FlushAndSnapshot();
+  for (Scene* s : {scene_.get(), snap.get(), control.get()}) Press(*s, kB, 1, kOnTheSlab);
+  const auto both = Hashes(*control);
+  scene_->Flush();
+  snap->Flush();
+
+  scene_.reset();  // a restart without a snapshot: the whole log replays
+  snap.reset();
+  scene_ = Open("a");
+  snap = Open("snap");
+  ASSERT_TRUE(scene_ && snap);
+  EXPECT_EQ(Hashes(*scene_), both) << "recovered from the log";
+  EXPECT_EQ(Hashes(*snap), both) << "recovered from the snapshot and the tail";
+  EXPECT_EQ(scene_->UndoDepth("clay", kA), std::make_pair(size_t{1}, size_t{0}));
+  EXPECT_EQ(snap->UndoDepth("clay", kA), std::make_pair(size_t{1}, size_t{0}));
+
+  Scene* all[3] = {scene_.get(), snap.get(), control.get()};
+  UndoCommandOutcome acks[3];
+  for (int i = 0; i < 3; ++i) acks[i] = Undo(*all[i], kA, 1, "clay");
+  for (int i = 0; i < 3; ++i) {
+    ASSERT_TRUE(acks[i].status.ok()) << i << " " << acks[i].status;
+    EXPECT_EQ(acks[i].target_seq, acks[2].target_seq) << i;
+    EXPECT_EQ(acks[i].replayed, acks[2].replayed) << i;
+  }
+  const auto undone = Hashes(*control);
+  EXPECT_NE(undone, both);
+  EXPECT_EQ(Hashes(*scene_), undone) << "undo after a restart from the log";
+  EXPECT_EQ(Hashes(*snap), undone) << "undo after a restart from the snapshot";
+  EXPECT_EQ(Volumes(*scene_), Volumes(*control));
+  EXPECT_EQ(Volumes(*snap), Volumes(*control));
+
+  scene_->Flush();
+  scene_.reset();
+  scene_ = Open("a");
+  ASSERT_TRUE(scene_);
+  EXPECT_EQ(Hashes(*scene_), undone) << "the undo of the sweep recovered";
+  ASSERT_TRUE(Undo(*scene_, kA, 2, "clay", /*redo=*/true).status.ok());
+  EXPECT_EQ(Hashes(*scene_), both) << "redo after the second restart";
 }
 
 // A moves a ball, B orients another, A undoes: B's edit stays, A's is gone (the chain equals a
