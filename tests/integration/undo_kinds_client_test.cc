@@ -1,17 +1,20 @@
-/// @brief Per-user undo of paints, ball edits and model intents end to end (issue 15): two
+/// @brief Per-user undo of paints, sweeps, ball edits and model intents end to end (issue 15): two
 /// sculptors on the real server in-process, over loopback. A's undo takes back A's newest edit
 /// as if never made (a fresh server that only got B's edit has the same hashes), B's stays, redo
 /// returns the exact state, and a restart after the undo recovers it.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <memory>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "integration/in_process_server.h"
 #include "integration/raw_client.h"
 #include "scene/scene.h"
+#include "sculpt/client/replica.h"
 #include "sculpt/hetero/composite_model.h"
 #include "sculpt/hetero/construction.h"
 #include "sculpt/hetero/hyperpatch.h"
@@ -42,7 +45,14 @@ void Configure(InProcessServer& srv) {
   skin.name = "profile";
   skin.chord_tolerance = 0.02;
   skin.balls = {{-12, 0, 3, 0}, {-6, 1, 2.5, 0}, {0, 0, 3, 0}, {6, -1, 2.5, 0}, {12, 0, 3, 0}};
-  c.scene.skins = {skin};
+  // A bar in the plane z = 8, x in about [11, 29]: swept 4 along +z it grows out of the sphere
+  // (radius 24) at +x, where PressArc's strokes at z = 10 press.
+  SkinConfig bar;
+  bar.name = "bar";
+  bar.origin = {0, 0, 8};
+  bar.chord_tolerance = 0.02;
+  bar.balls = {{14, 0, 3, 0}, {20, 0, 3, 0}, {26, 0, 3, 0}};
+  c.scene.skins = {skin, bar};
   auto model =
       hetero::CompositeModel::Create({{"clay", {0.8, 0.5, 0.3}}, {"gold", {1.0, 0.85, 0.1}}});
   ASSERT_TRUE(model.ok()) << model.status();
@@ -220,6 +230,74 @@ TEST_F(UndoKindsClientTest, PaintUndoOfTwoSculptorsEqualsAFreshReplayAndSurvives
   ASSERT_TRUE(a.Enter(srv_.config().sculptor_token, v1::ROLE_SCULPTOR, kA));
   ASSERT_TRUE(Undo(a, 5, "clay", /*redo=*/true).accepted());
   EXPECT_EQ(Hashes(srv_.scene()), both) << "redo after the restart";
+}
+
+// A sweeps the bar into the sphere, B presses across it, A undoes and redoes: replicas get the
+// changed leaves of the undo (B's press replayed without the sweep) as for strokes, and a
+// replica whose interest box holds only part of the region converges on each.
+TEST_F(UndoKindsClientTest, SweepUndoAndRedoConvergeOnAPartialReplica) {
+  auto watcher = srv_.Joined(v1::ROLE_VIEWER, /*skip_state=*/true, "watcher");
+  ASSERT_TRUE(watcher);
+  client::ReplicaOptions part;
+  // y >= 8: the replica holds about 8 more around it (down to y = 0), half the bar.
+  part.interest = levelset::Aabb{{18, 8, 6}, {30, 14, 14}};
+  client::Replica replica(*watcher, part);
+  ASSERT_TRUE(replica.Start().ok());
+  ASSERT_TRUE(replica.WaitLoaded(1, std::chrono::seconds(20)));
+  const levelset::VoxelBox held = replica.held();
+  ASSERT_FALSE(held.Empty());
+  // Where the bar and the press reach below the held region (y < held.min.y), in voxels.
+  const levelset::VoxelBox outside{{held.min.x, held.min.y - 24, held.min.z},
+                                   {held.max.x, held.min.y - 1, held.max.z}};
+  auto converged = [&](const char* what) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (replica.RegionHash(held) != srv_.scene().RegionHash("clay", held) &&
+           std::chrono::steady_clock::now() < end) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    EXPECT_EQ(replica.RegionHash(held), srv_.scene().RegionHash("clay", held))
+        << "the partial replica did not converge after " << what;
+  };
+
+  v1::ClientMessage sweep;
+  v1::SkinSweep* w = sweep.mutable_skin_sweep();
+  w->set_client_seq(1);
+  w->set_skin("bar");
+  w->set_object("clay");
+  w->set_mode(v1::SKIN_SWEEP_MODE_EXTRUDE);
+  w->set_kind(v1::EDIT_KIND_ADD);
+  w->set_depth(4);
+  ASSERT_TRUE(a_->Send(sweep));
+  auto swept = a_->ReadUntil(v1::ServerMessage::kSkinAck);
+  ASSERT_TRUE(swept && swept->skin_ack().accepted()) << (swept ? swept->DebugString() : "");
+  ASSERT_TRUE(b_->Send(testing::RawClient::PressStroke(1, {20.7, -1, 10}, 4, 2.5)));
+  ASSERT_TRUE(b_->ReadUntil(v1::ServerMessage::kAck));
+  const uint64_t both = srv_.scene().StateHash("clay");
+  const uint64_t inside_both = srv_.scene().RegionHash("clay", held);
+  const uint64_t outside_both = srv_.scene().RegionHash("clay", outside);
+  converged("the sweep and the press");
+
+  const v1::UndoAck u = Undo(*a_, 2, "clay");
+  ASSERT_TRUE(u.accepted()) << u.DebugString();
+  EXPECT_EQ(u.target_seq(), swept->skin_ack().global_seq());
+  EXPECT_EQ(u.replayed(), 1u) << "B's press, across the bar";
+  EXPECT_NE(srv_.scene().RegionHash("clay", held), inside_both) << "the undo missed the box";
+  EXPECT_NE(srv_.scene().RegionHash("clay", outside), outside_both)
+      << "the undone region does not reach beyond the replica's box (y >= " << held.min.y
+      << " voxels): the case is not exercised";
+  converged("the undo of the sweep");
+  const v1::HistoryAnswer h = History(*b_, "clay");
+  ASSERT_EQ(h.entries_size(), 2);
+  EXPECT_TRUE(h.entries(1).sweep());
+  EXPECT_EQ(h.entries(1).kind_name(), "sweep-add");
+  EXPECT_TRUE(h.entries(1).undone());
+
+  ASSERT_TRUE(Undo(*a_, 3, "clay", /*redo=*/true).accepted());
+  EXPECT_EQ(srv_.scene().StateHash("clay"), both) << "redo returns the exact state";
+  converged("the redo of the sweep");
+  EXPECT_EQ(replica.stats().hash_mismatches, 0u);
+  EXPECT_EQ(replica.stats().errors, 0u);
+  EXPECT_EQ(srv_.scene().replication_stats().divergences.load(), 0u);
 }
 
 // A moves a ball, B orients another, A undoes through UndoRequest.object = the skin: B's edit
