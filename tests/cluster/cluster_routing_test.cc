@@ -237,13 +237,14 @@ TEST_F(ClusterRoutingTest, StandbyTakesOverWithEveryReplicatedStrokeAfterTheOwne
   ASSERT_TRUE(WaitFor([&] { return Owner().has_value(); }, milliseconds(5000)));
   ASSERT_EQ(Owner()->member, "a");
   Member& b = Start("b");
-  Member& c = Start("c", "standby = false\n");
   ASSERT_NE(b.WaitPort(), 0) << "member b did not start; see " << dir_.path() / "b.log";
-  ASSERT_NE(c.WaitPort(), 0) << "member c did not start; see " << dir_.path() / "c.log";
   ASSERT_TRUE(WaitFor([&] { return Standby().has_value() && Standby()->member == "b"; },
                       milliseconds(5000)))
       << "a named no standby; see " << dir_.path() / "a.log";
   EXPECT_EQ(Standby()->epoch, 1u);
+  // c comes after b was named: a keeps its standby while it lives.
+  Member& c = Start("c");
+  ASSERT_NE(c.WaitPort(), 0) << "member c did not start; see " << dir_.path() / "c.log";
 
   sculpt::client::ClientOptions options;
   options.timeout = milliseconds(10000);
@@ -302,17 +303,24 @@ TEST_F(ClusterRoutingTest, StandbyTakesOverWithEveryReplicatedStrokeAfterTheOwne
   EXPECT_EQ(Epoch()->member, "b");
   EXPECT_EQ(Epoch()->epoch, 2u);
 
-  // Through c again: redirected to b, the new owner, which holds every acknowledged stroke.
-  sculpt::client::Client again(options);
+  // The same client (same client id) through c again: redirected to b, the new owner, which
+  // holds every acknowledged stroke.
+  sculpt::client::Client& again = client;
   StatusOr<sculpt::client::JoinedScene> rejoined = Status(Status::Code::kUnavailable, "not yet");
   ASSERT_TRUE(WaitFor(
       [&] {
-        rejoined = Join(again, c.port());
+        Status s = again.Connect("127.0.0.1", c.port());
+        if (s.ok()) {
+          s = again.Hello("sculpt-dev-sculptor", v1::ROLE_SCULPTOR, "cluster-test",
+                          again.client_id())
+                  .status();
+        }
+        rejoined = s.ok() ? again.Join("") : StatusOr<sculpt::client::JoinedScene>(s);
         return rejoined.ok();
       },
       milliseconds(10000)))
       << rejoined.status();
-  EXPECT_EQ(again.stats().redirects, 1u);
+  EXPECT_EQ(again.stats().redirects, 2u);
   ASSERT_EQ(rejoined->info.objects_size(), 1);
   EXPECT_EQ(rejoined->info.global_seq(), acked_seq);
   {
@@ -327,11 +335,19 @@ TEST_F(ClusterRoutingTest, StandbyTakesOverWithEveryReplicatedStrokeAfterTheOwne
     ASSERT_TRUE(again.SendStroke(stroke).ok());
   }
   ASSERT_TRUE(again.WaitAllAcked(milliseconds(10000)));
-  EXPECT_EQ(again.stats().acks, 3u);
+  EXPECT_EQ(again.stats().acks, static_cast<uint64_t>(kStrokes) + 3);
   EXPECT_EQ(again.stats().refused, 0u);
-  EXPECT_GT(again.stats().last_global_seq, acked_seq);
+  const uint64_t new_seq = again.stats().last_global_seq;
+  EXPECT_GT(new_seq, acked_seq);
   EXPECT_EQ(Owner()->epoch, 2u) << "the new strokes were acknowledged under epoch 2";
-  // The new owner names a new standby among those that may follow: none left (c may not).
+  // The new owner names a new standby among the members left, and it catches up.
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto m = MemberOf("c");
+        return Standby() && Standby()->member == "c" && m && m->follow_seq >= new_seq;
+      },
+      milliseconds(15000)))
+      << "b named no new standby, or c did not catch up; see " << dir_.path() / "c.log";
   std::cout << "failover: " << took_ms << " ms from kill -9 to the standby owning the scene\n";
 }
 
