@@ -33,19 +33,19 @@ class Member {
  public:
   // `extra`: more lines of the [cluster] section.
   Member(const std::string& name, const std::string& etcd, const fs::path& base,
-         const std::string& extra = "")
+         const std::string& extra = "", const std::vector<std::string>& args = {})
       : name_(name), port_file_(base / (name + ".ports")) {
     const fs::path config = base / (name + ".toml");
     std::ofstream(config) << "[cluster]\netcd = [\"" << etcd << "\"]\nmember = \"" << name
                           << "\"\nlease_ttl_ms = " << kLeaseTtlMs << "\nprefix = \"t/\"\n"
                           << extra;
     fs::remove(port_file_);
-    process_ = std::make_unique<ChildProcess>(
-        std::vector<std::string>{std::string(SCULPT_BIN_DIR) + "/sculptd", "serve", "--config",
-                                 config.string(), "--listen", "127.0.0.1:0", "--data",
-                                 (base / (name + "-data")).string(), "--port-file",
-                                 port_file_.string()},
-        base / (name + ".log"));
+    std::vector<std::string> argv{std::string(SCULPT_BIN_DIR) + "/sculptd", "serve", "--config",
+                                  config.string(), "--listen", "127.0.0.1:0", "--data",
+                                  (base / (name + "-data")).string(), "--port-file",
+                                  port_file_.string()};
+    argv.insert(argv.end(), args.begin(), args.end());
+    process_ = std::make_unique<ChildProcess>(argv, base / (name + ".log"));
   }
   // The TCP port once the member is registered in etcd and listening (0 after 10 s).
   uint16_t WaitPort() {
@@ -84,8 +84,10 @@ class ClusterRoutingTest : public ::testing::Test {
     etcd_.reset();
   }
 
-  Member& Start(const std::string& name, const std::string& extra = "") {
-    members_.push_back(std::make_unique<Member>(name, etcd_->endpoint(), dir_.path(), extra));
+  Member& Start(const std::string& name, const std::string& extra = "",
+                const std::vector<std::string>& args = {}) {
+    members_.push_back(
+        std::make_unique<Member>(name, etcd_->endpoint(), dir_.path(), extra, args));
     return *members_.back();
   }
   std::optional<OwnerRecord> Owner() {
@@ -232,18 +234,21 @@ TEST_F(ClusterRoutingTest, RestartedOwnerTakesItsSceneBackWithTheNextEpoch) {
 // client, joining again through c, is redirected to b and finds every stroke (state hash and
 // sequence equal to what a acknowledged), and new strokes are acknowledged there.
 TEST_F(ClusterRoutingTest, StandbyTakesOverWithEveryReplicatedStrokeAfterTheOwnerIsKilled) {
-  Member& a = Start("a");
+  // Snapshots every 10 edits: the standby's copy snapshots and drops its log as it goes, so the
+  // takeover recovers from one of its snapshots and a trimmed log.
+  const std::vector<std::string> snap10{"--snapshot-every", "10"};
+  Member& a = Start("a", "", snap10);
   ASSERT_NE(a.WaitPort(), 0) << "member a did not start; see " << dir_.path() / "a.log";
   ASSERT_TRUE(WaitFor([&] { return Owner().has_value(); }, milliseconds(5000)));
   ASSERT_EQ(Owner()->member, "a");
-  Member& b = Start("b");
+  Member& b = Start("b", "", snap10);
   ASSERT_NE(b.WaitPort(), 0) << "member b did not start; see " << dir_.path() / "b.log";
   ASSERT_TRUE(WaitFor([&] { return Standby().has_value() && Standby()->member == "b"; },
                       milliseconds(5000)))
       << "a named no standby; see " << dir_.path() / "a.log";
   EXPECT_EQ(Standby()->epoch, 1u);
   // c comes after b was named: a keeps its standby while it lives.
-  Member& c = Start("c");
+  Member& c = Start("c", "", snap10);
   ASSERT_NE(c.WaitPort(), 0) << "member c did not start; see " << dir_.path() / "c.log";
 
   sculpt::client::ClientOptions options;
@@ -303,6 +308,19 @@ TEST_F(ClusterRoutingTest, StandbyTakesOverWithEveryReplicatedStrokeAfterTheOwne
   EXPECT_EQ(Owner()->epoch, 2u);
   EXPECT_EQ(Epoch()->member, "b");
   EXPECT_EQ(Epoch()->epoch, 2u);
+  // b's data directory is now its copy: a snapshot past the start, the resend table beside it,
+  // and what b held before moved aside.
+  const fs::path b_data = dir_.path() / "b-data";
+  uint64_t newest_snapshot = 0;
+  for (const auto& e : fs::directory_iterator(b_data / "snapshots")) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind("snap-", 0) == 0 && name.size() > 25) {
+      newest_snapshot = std::max<uint64_t>(newest_snapshot, std::stoull(name.substr(5, 20)));
+    }
+  }
+  EXPECT_GE(newest_snapshot, 10u) << "the copy took no snapshot of its own";
+  EXPECT_TRUE(fs::exists(b_data / "resend_table.bin"));
+  EXPECT_TRUE(fs::is_directory(b_data / "superseded"));
 
   // The same client (same client id) through c again: redirected to b, the new owner, which
   // holds every acknowledged stroke.

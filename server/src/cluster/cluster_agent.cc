@@ -411,6 +411,7 @@ asio::awaitable<void> ClusterAgent::TendStandby() {
       fo.token = standby_->token;
       fo.owner_tcp = st.owner->tcp;
       fo.owner_epoch = st.owner->epoch;
+      fo.snapshot_every_records = standby_->snapshot_every_edits;
       follower_ = std::make_unique<StandbyFollower>(std::move(fo));
     }
     if (follower_ && follower_->ready()) follow_seq_ = follower_->durable_seq();

@@ -43,6 +43,8 @@ struct StandbyOptions {
   std::string token;     // a viewer token the owner accepts
   /// This process's command line, run again (execv of /proc/self/exe) after a promotion.
   std::vector<std::string> restart_argv;
+  /// The copy's snapshot interval in logged records (config.snapshot_every_edits).
+  uint64_t snapshot_every_edits = 5000;
 };
 
 class ClusterAgent : public SceneRouter {

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <map>
 
 #include "sculpt/client/client.h"
 #include "sculpt/codec/log_records.h"
@@ -18,7 +19,9 @@
 #include "sculpt/levelset/region.h"
 #include "sculpt/levelset/sculpture.h"
 #include "store/edit_log.h"
+#include "scene/commit.h"
 #include "store/recovery.h"
+#include "store/resend_table.h"
 #include "store/snapshot_store.h"
 
 namespace sculpt::server::cluster {
@@ -147,6 +150,11 @@ struct StandbyFollower::Impl {
   std::unique_ptr<store::EditLog> log;
   uint64_t seq = 0;  // last sequence applied
   std::atomic<uint64_t> snapshot_seq{0};  // of the newest snapshot written
+  uint64_t previous_snapshot_seq = 0;  // the log is kept from here (two snapshots' worth)
+  uint64_t records_since_snapshot = 0;
+  // Newest client_seq of each author's strokes, saved with each snapshot (the resend table), so
+  // resends are still recognised once the log before it is dropped.
+  std::map<std::pair<uint8_t, uint64_t>, uint64_t> resend;
 };
 
 StandbyFollower::StandbyFollower(FollowerOptions options)
@@ -288,8 +296,26 @@ void StandbyFollower::Run() {
   // The object as held now, durable at `seq`: after a region load, or an edit the log cannot
   // hold. The first one completes the generation: its log starts after it and CURRENT names it.
   auto snapshot = [&](uint64_t seq) -> Status {
+    if (im.log) {
+      // As the owner: the log durable, the resend table at seq, the snapshot, a new segment;
+      // the segments before the previous snapshot go (a damaged newest one leaves the older).
+      SCULPT_RETURN_IF_ERROR(im.log->Sync());
+      store::ResendTable table;
+      table.seq = seq;
+      table.last = im.resend;
+      SCULPT_RETURN_IF_ERROR(
+          store::SaveResendTable((im.gen / store::kResendTableFile).string(), table));
+    }
     SCULPT_RETURN_IF_ERROR(im.snapshots->Write(seq, im.object, *im.sculpture));
     im.snapshot_seq = seq;
+    im.records_since_snapshot = 0;
+    if (im.log) {
+      im.log->Roll();
+      if (im.previous_snapshot_seq > 0) {
+        SCULPT_RETURN_IF_ERROR(im.log->DropSegmentsBefore(im.previous_snapshot_seq));
+      }
+      im.previous_snapshot_seq = seq;
+    }
     if (!im.log) {
       store::FsyncPolicy policy;  // group commit: a standby logs at the owner's rate
       store::RecoveryReport report;
@@ -393,6 +419,14 @@ void StandbyFollower::Run() {
     const uint64_t last = first + reqs.size() - 1;
     if (first <= im.seq) return Status::Ok();  // already in a region load
     SCULPT_RETURN_IF_ERROR(im.log->AppendGroup(first, payloads));
+    {
+      uint64_t& newest = im.resend[{static_cast<uint8_t>(ResendStream::kStrokes),
+                                    b.records_size() > 0 ? b.records(0).client_id()
+                                                         : b.client_id()}];
+      newest = std::max(newest, b.records_size() > 0 ? b.records(0).client_seq()
+                                                     : b.stroke().client_seq());
+    }
+    im.records_since_snapshot += payloads.size();
     const levelset::ReplayState state{b.volume(), b.reference_volume(), b.edits_since_reinit()};
     auto res = levelset::ReplayEdits(*im.sculpture, reqs, im.settings, state);
     im.seq = last;
@@ -411,6 +445,9 @@ void StandbyFollower::Run() {
       d->set_actual_hash(actual);
       (void)im.client->SendMessage(dm);
       resync();
+    } else if (o.snapshot_every_records > 0 &&
+               im.records_since_snapshot >= o.snapshot_every_records) {
+      return snapshot(last);
     }
     return Status::Ok();
   };

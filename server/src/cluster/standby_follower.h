@@ -53,6 +53,10 @@ struct FollowerOptions {
   std::string token;   // a viewer token the owner accepts
   std::string owner_tcp;  // HOST:PORT
   uint64_t owner_epoch = 0;
+  /// The copy snapshots its object after this many logged records and drops the log before the
+  /// previous snapshot (as the owner does with snapshot_every_edits), so a failover replays a
+  /// bounded tail; 0: only at region loads.
+  uint64_t snapshot_every_records = 5000;
 };
 
 /// One follow of one owner: connects as a viewer, joins the scene without its state, subscribes
