@@ -118,13 +118,27 @@ void ClusterAgent::EnableStandby(StandbyOptions options) {
 }
 
 void ClusterAgent::RetireFollower() {
+  std::lock_guard<std::mutex> lock(retired_mu_);
+  // Threads of followers already stopped are joined (a standby retrying a dead owner retires
+  // one per attempt).
+  for (auto it = retired_.begin(); it != retired_.end();) {
+    if (it->done->load()) {
+      it->thread.join();
+      it = retired_.erase(it);
+    } else {
+      ++it;
+    }
+  }
   if (!follower_) return;
   // Its destructor may wait for a connect to time out: not on the agent's thread, whose
   // keep-alives must not stall.
-  std::lock_guard<std::mutex> lock(retired_mu_);
-  retired_.emplace_back([f = std::shared_ptr<StandbyFollower>(std::move(follower_))]() mutable {
-    f.reset();
-  });
+  auto done = std::make_shared<std::atomic<bool>>(false);
+  retired_.push_back({std::thread([f = std::shared_ptr<StandbyFollower>(std::move(follower_)),
+                                   done]() mutable {
+                        f.reset();
+                        done->store(true);
+                      }),
+                      done});
 }
 
 void ClusterAgent::Stop() {
@@ -149,7 +163,7 @@ void ClusterAgent::Stop() {
   fence_->Revoke();  // again: an acquisition may have completed while the lease was revoked
   RetireFollower();
   std::lock_guard<std::mutex> lock(retired_mu_);
-  for (std::thread& t : retired_) t.join();
+  for (Retired& r : retired_) r.thread.join();
   retired_.clear();
 }
 
@@ -285,10 +299,9 @@ asio::awaitable<void> ClusterAgent::MaybeAcquire() {
   if (st.owner) co_return;  // another member serves it; RouteScene redirects there
   // Who may take a scene without an owner: the member that held it last (it has the data; a
   // restart or a lease lost while cut off), or, for a scene never owned, the placement's pick.
-  // A scene whose last owner is another member waits for it: taking it over needs a standby
-  // that followed its edits, which is not built yet (docs/cluster.md).
-  // The standby the last owner named may take it too, once its copy is the data directory
-  // (Promote, then this process restarted on it).
+  // A scene whose last owner is another member waits for it, except for the standby that owner
+  // named, once its copy is this member's data directory (Promote, then this process restarted
+  // on it).
   std::string reason;
   bool promoted = false;
   if (st.epoch) {
@@ -396,13 +409,19 @@ asio::awaitable<void> ClusterAgent::TendStandby() {
   }
   if (st.owner && st.owner->member != config_.member) {
     // Follow the owner; a new follow when the owner changed or the last one ended.
-    const bool current = follower_ && !follower_->finished() &&
-                         follower_->options().owner_tcp == st.owner->tcp &&
-                         follower_->options().owner_epoch == st.owner->epoch;
-    if (follower_ && follower_->finished()) {
+    const bool same_owner = follower_ && follower_->options().owner_tcp == st.owner->tcp &&
+                            follower_->options().owner_epoch == st.owner->epoch;
+    const bool current = same_owner && !follower_->finished();
+    const auto now = Clock::now();
+    if (follower_ && follower_->finished() && ended_at_ == Clock::time_point{}) {
       spdlog::warn("cluster: following scene {} ended: {}", scene_, follower_->failure());
+      ended_at_ = now;
     }
-    if (!current) {
+    // The same owner again only after a pause (a follow that fails at once, e.g. a scene of
+    // several objects, must not reconnect every tick); a new owner at once.
+    const bool wait = same_owner && !current && now - ended_at_ < std::chrono::seconds(2);
+    if (!current && !wait) {
+      ended_at_ = {};
       RetireFollower();
       FollowerOptions fo;
       fo.data_dir = standby_->data_dir;

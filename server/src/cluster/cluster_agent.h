@@ -109,8 +109,13 @@ class ClusterAgent : public SceneRouter {
   bool started_ = false;  // the owning thread's
   std::optional<StandbyOptions> standby_;  // set before Start
   std::unique_ptr<StandbyFollower> follower_;  // the agent's thread
+  OwnershipFence::Clock::time_point ended_at_{};  // when the current follower was seen ended
+  struct Retired {
+    std::thread thread;
+    std::shared_ptr<std::atomic<bool>> done;
+  };
   std::mutex retired_mu_;
-  std::vector<std::thread> retired_;  // followers being stopped (a stop may wait on a connect)
+  std::vector<Retired> retired_;  // followers being stopped (a stop may wait on a connect)
   std::atomic<uint64_t> follow_seq_{0};
 
   // What the last Refresh read; RouteScene's table.
