@@ -365,6 +365,10 @@ int main(int argc, char** argv) {
         [&server] { return static_cast<uint32_t>(server.JoinedSeats().joined); });
     (*scene)->set_ownership_fence(cluster->fence());
     server.set_router(cluster.get());
+    // A standby follows another owner's scene and, on failover, restarts on its copy.
+    cluster->EnableStandby({config.data_dir, config.viewer_token,
+                            std::vector<std::string>(argv, argv + argc),
+                            config.snapshot_every_edits});
   }
   auto port = server.Start();
   if (!port.ok()) {

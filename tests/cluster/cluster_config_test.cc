@@ -57,6 +57,15 @@ TEST_F(ClusterConfigTest, DefaultLeaseTtlIsTwoSeconds) {
   ServerConfig c;
   ASSERT_TRUE(Load("[cluster]\netcd = [\"http://127.0.0.1:2379\"]\nmember = \"a\"\n", &c).ok());
   EXPECT_EQ(c.cluster.lease_ttl_ms, 2000);
+  EXPECT_TRUE(c.cluster.standby);
+}
+
+TEST_F(ClusterConfigTest, StandbyMayBeTurnedOff) {
+  ServerConfig c;
+  ASSERT_TRUE(
+      Load("[cluster]\netcd = [\"http://127.0.0.1:2379\"]\nmember = \"a\"\nstandby = false\n", &c)
+          .ok());
+  EXPECT_FALSE(c.cluster.standby);
 }
 
 TEST_F(ClusterConfigTest, RejectsMemberWithoutEtcd) {

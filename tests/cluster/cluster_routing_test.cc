@@ -1,15 +1,19 @@
-// Two sculptd members and an etcd, all started by the test on loopback (issue 17): the first
-// member takes the scene, a client joining through the second is redirected to it and its
-// stroke is acknowledged there; the owner killed with SIGKILL loses its owner key after the
-// lease TTL, and the other member does not take the scene (no standby yet) but says why.
+// sculptd members and an etcd, all started by the test on loopback (issue 17): the first member
+// takes the scene, a client joining through another is redirected to it and its stroke is
+// acknowledged there; the owner killed with SIGKILL loses its owner key after the lease TTL; a
+// member that may not be a standby does not take the scene but says why; the standby that
+// followed the owner's edit stream takes it over with the next epoch and every stroke it held.
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <iostream>
 
 #include "cluster/etcd_client.h"
 #include "cluster/processes.h"
 #include "cluster/records.h"
 #include "sculpt/client/client.h"
+#include "sculpt/levelset/region.h"
+#include "sculpt/levelset/sculpture.h"
 
 namespace sculpt::server::cluster {
 namespace {
@@ -27,18 +31,21 @@ const Keys kKeys{"t/"};
 // One sculptd member: its configuration file, data directory, log and ports under `base`.
 class Member {
  public:
-  Member(const std::string& name, const std::string& etcd, const fs::path& base)
+  // `extra`: more lines of the [cluster] section.
+  Member(const std::string& name, const std::string& etcd, const fs::path& base,
+         const std::string& extra = "", const std::vector<std::string>& args = {})
       : name_(name), port_file_(base / (name + ".ports")) {
     const fs::path config = base / (name + ".toml");
     std::ofstream(config) << "[cluster]\netcd = [\"" << etcd << "\"]\nmember = \"" << name
-                          << "\"\nlease_ttl_ms = " << kLeaseTtlMs << "\nprefix = \"t/\"\n";
+                          << "\"\nlease_ttl_ms = " << kLeaseTtlMs << "\nprefix = \"t/\"\n"
+                          << extra;
     fs::remove(port_file_);
-    process_ = std::make_unique<ChildProcess>(
-        std::vector<std::string>{std::string(SCULPT_BIN_DIR) + "/sculptd", "serve", "--config",
-                                 config.string(), "--listen", "127.0.0.1:0", "--data",
-                                 (base / (name + "-data")).string(), "--port-file",
-                                 port_file_.string()},
-        base / (name + ".log"));
+    std::vector<std::string> argv{std::string(SCULPT_BIN_DIR) + "/sculptd", "serve", "--config",
+                                  config.string(), "--listen", "127.0.0.1:0", "--data",
+                                  (base / (name + "-data")).string(), "--port-file",
+                                  port_file_.string()};
+    argv.insert(argv.end(), args.begin(), args.end());
+    process_ = std::make_unique<ChildProcess>(argv, base / (name + ".log"));
   }
   // The TCP port once the member is registered in etcd and listening (0 after 10 s).
   uint16_t WaitPort() {
@@ -77,8 +84,10 @@ class ClusterRoutingTest : public ::testing::Test {
     etcd_.reset();
   }
 
-  Member& Start(const std::string& name) {
-    members_.push_back(std::make_unique<Member>(name, etcd_->endpoint(), dir_.path()));
+  Member& Start(const std::string& name, const std::string& extra = "",
+                const std::vector<std::string>& args = {}) {
+    members_.push_back(
+        std::make_unique<Member>(name, etcd_->endpoint(), dir_.path(), extra, args));
     return *members_.back();
   }
   std::optional<OwnerRecord> Owner() {
@@ -86,6 +95,18 @@ class ClusterRoutingTest : public ::testing::Test {
     if (!kv.ok() || !kv->has_value()) return std::nullopt;
     auto o = DecodeOwner((*kv)->value);
     return o.ok() ? std::optional<OwnerRecord>(*o) : std::nullopt;
+  }
+  std::optional<StandbyRecord> Standby() {
+    auto kv = etcd_client_->Sync(etcd_client_->Get(kKeys.Standby("default")));
+    if (!kv.ok() || !kv->has_value()) return std::nullopt;
+    auto s = DecodeStandby((*kv)->value);
+    return s.ok() ? std::optional<StandbyRecord>(*s) : std::nullopt;
+  }
+  std::optional<MemberRecord> MemberOf(const std::string& name) {
+    auto kv = etcd_client_->Sync(etcd_client_->Get(kKeys.Member(name)));
+    if (!kv.ok() || !kv->has_value()) return std::nullopt;
+    auto m = DecodeMember((*kv)->value);
+    return m.ok() ? std::optional<MemberRecord>(*m) : std::nullopt;
   }
   std::optional<EpochRecord> Epoch() {
     auto kv = etcd_client_->Sync(etcd_client_->Get(kKeys.Epoch("default")));
@@ -118,7 +139,8 @@ TEST_F(ClusterRoutingTest, RedirectsToTheOwnerAndTheOwnerKeyExpiresAfterTheTtl) 
   EXPECT_EQ(Owner()->member, "a");
   EXPECT_EQ(Owner()->epoch, 1u);
   EXPECT_EQ(Owner()->tcp, "127.0.0.1:" + std::to_string(a.port()));
-  Member& b = Start("b");
+  // b may not be a standby: it never follows a, so it cannot take the scene over.
+  Member& b = Start("b", "standby = false\n");
   ASSERT_NE(b.WaitPort(), 0) << "member b did not start; see " << dir_.path() / "b.log";
   EXPECT_TRUE(HasKey(kKeys.Member("b")));
   EXPECT_EQ(Owner()->member, "a") << "the scene changed hands when b arrived";
@@ -159,8 +181,8 @@ TEST_F(ClusterRoutingTest, RedirectsToTheOwnerAndTheOwnerKeyExpiresAfterTheTtl) 
   EXPECT_FALSE(HasKey(kKeys.Member("a")));
   RecordProperty("owner_key_expired_ms", std::to_string(expired_ms));
 
-  // b has not the scene's edits, so it does not take it over (failover needs a standby, not
-  // built): a join through b is refused with the reason, and the epoch stays a's.
+  // b has not the scene's edits, so it does not take it over (it is nobody's standby): a join
+  // through b is refused with the reason, and the epoch stays a's.
   Status refused;
   ASSERT_TRUE(WaitFor(
       [&] {
@@ -204,6 +226,213 @@ TEST_F(ClusterRoutingTest, RestartedOwnerTakesItsSceneBackWithTheNextEpoch) {
   auto joined = Join(client, again.port());
   ASSERT_TRUE(joined.ok()) << joined.status();
   EXPECT_EQ(client.stats().redirects, 0u);
+}
+
+// Failover (issue 17): a owns the scene and names b its standby; b follows a's edit stream into a
+// copy of its own; a client sculpts through c (redirected to a); once b's copy holds every acked
+// stroke, a is killed with SIGKILL; b takes the scene over with epoch 2 from its copy, and the
+// client, joining again through c, is redirected to b and finds every stroke (state hash and
+// sequence equal to what a acknowledged), and new strokes are acknowledged there.
+TEST_F(ClusterRoutingTest, StandbyTakesOverWithEveryReplicatedStrokeAfterTheOwnerIsKilled) {
+  // Snapshots every 10 edits: the standby's copy snapshots and drops its log as it goes, so the
+  // takeover recovers from one of its snapshots and a trimmed log.
+  const std::vector<std::string> snap10{"--snapshot-every", "10"};
+  Member& a = Start("a", "", snap10);
+  ASSERT_NE(a.WaitPort(), 0) << "member a did not start; see " << dir_.path() / "a.log";
+  ASSERT_TRUE(WaitFor([&] { return Owner().has_value(); }, milliseconds(5000)));
+  ASSERT_EQ(Owner()->member, "a");
+  Member& b = Start("b", "", snap10);
+  ASSERT_NE(b.WaitPort(), 0) << "member b did not start; see " << dir_.path() / "b.log";
+  ASSERT_TRUE(WaitFor([&] { return Standby().has_value() && Standby()->member == "b"; },
+                      milliseconds(5000)))
+      << "a named no standby; see " << dir_.path() / "a.log";
+  EXPECT_EQ(Standby()->epoch, 1u);
+  // b's copy complete before anyone sculpts: its log then holds every stroke (a stroke made
+  // before the copy's region load is in its first snapshot, not in its log or resend table).
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto m = MemberOf("b");
+        return m && m->follows == "default";
+      },
+      milliseconds(15000)))
+      << "b's copy never completed; see " << dir_.path() / "b.log";
+  // c comes after b was named: a keeps its standby while it lives.
+  Member& c = Start("c", "", snap10);
+  ASSERT_NE(c.WaitPort(), 0) << "member c did not start; see " << dir_.path() / "c.log";
+
+  sculpt::client::ClientOptions options;
+  options.timeout = milliseconds(10000);
+  sculpt::client::Client client(options);
+  auto joined = Join(client, c.port());
+  ASSERT_TRUE(joined.ok()) << joined.status();
+  EXPECT_EQ(client.stats().redirects, 1u);
+  constexpr int kStrokes = 12;
+  for (int i = 0; i < kStrokes; ++i) {
+    sculpt::client::StrokeRequest stroke;
+    const double x = -6.0 + i;
+    stroke.poses = {{{x, 0, 22.5}, 0}, {{x, 0.5, 22.5}, 10}, {{x, 1.0, 22.5}, 20}};
+    ASSERT_TRUE(client.SendStroke(stroke).ok());
+  }
+  ASSERT_TRUE(client.WaitAllAcked(milliseconds(15000)));
+  ASSERT_EQ(client.stats().acks, static_cast<uint64_t>(kStrokes));
+  const uint64_t acked_seq = client.stats().last_global_seq;
+  ASSERT_GT(acked_seq, 0u);
+  // The owner's state after the last ack, as a late joiner sees it.
+  // Compared voxel by voxel (RegionHash): the standby's copy is built from leaf records, whose
+  // interior tiles are leaf-sized, so the tree's shape (and Sculpture::StateHash, which hashes
+  // it) may differ from the owner's while every value is equal.
+  std::optional<levelset::Sculpture> owner_state;
+  {
+    sculpt::client::Client viewer(options);
+    auto v = Join(viewer, a.port());
+    ASSERT_TRUE(v.ok()) << v.status();
+    ASSERT_EQ(v->info.global_seq(), acked_seq);
+    ASSERT_EQ(v->info.objects_size(), 1);
+    auto s = levelset::Sculpture::DeserializeVdb(v->state.at(v->info.objects(0).name()));
+    ASSERT_TRUE(s.ok()) << s.status();
+    owner_state.emplace(std::move(s).value());
+  }
+  const levelset::Aabb bounds = owner_state->WorldBounds();
+  const levelset::VoxelBox box =
+      levelset::WorldToVoxelBox(*owner_state, bounds.min, bounds.max).Dilated(16);
+  const uint64_t owner_hash = levelset::RegionHash(*owner_state, box);
+  // Asynchronous replication: wait until b says its copy holds everything acknowledged.
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto m = MemberOf("b");
+        return m && m->follows == "default" && m->follow_seq >= acked_seq;
+      },
+      milliseconds(15000)))
+      << "b's standby copy did not catch up; see " << dir_.path() / "b.log";
+
+  const auto killed = std::chrono::steady_clock::now();
+  a.process().Kill(SIGKILL);
+  ASSERT_TRUE(WaitFor([&] { return Owner().has_value() && Owner()->member == "b"; },
+                      milliseconds(kLeaseTtlMs + 20000)))
+      << "b did not take the scene over; see " << dir_.path() / "b.log";
+  const auto took_ms =
+      std::chrono::duration_cast<milliseconds>(std::chrono::steady_clock::now() - killed).count();
+  RecordProperty("failover_owner_ms", std::to_string(took_ms));
+  std::cout << "failover: " << took_ms << " ms from kill -9 to the standby owning the scene\n";
+  EXPECT_EQ(Owner()->epoch, 2u);
+  EXPECT_EQ(Epoch()->member, "b");
+  EXPECT_EQ(Epoch()->epoch, 2u);
+  // b's data directory is now its copy: a snapshot past the start, the resend table beside it,
+  // and what b held before moved aside.
+  const fs::path b_data = dir_.path() / "b-data";
+  uint64_t newest_snapshot = 0;
+  for (const auto& e : fs::directory_iterator(b_data / "snapshots")) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind("snap-", 0) == 0 && name.size() > 25) {
+      newest_snapshot = std::max<uint64_t>(newest_snapshot, std::stoull(name.substr(5, 20)));
+    }
+  }
+  EXPECT_GE(newest_snapshot, 10u) << "the copy took no snapshot of its own";
+  EXPECT_TRUE(fs::exists(b_data / "resend_table.bin"));
+  EXPECT_TRUE(fs::is_directory(b_data / "superseded"));
+
+  // The same client (same client id) through c again: redirected to b, the new owner, which
+  // holds every acknowledged stroke.
+  sculpt::client::Client& again = client;
+  StatusOr<sculpt::client::JoinedScene> rejoined = Status(Status::Code::kUnavailable, "not yet");
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        Status s = again.Connect("127.0.0.1", c.port());
+        if (s.ok()) {
+          s = again.Hello("sculpt-dev-sculptor", v1::ROLE_SCULPTOR, "cluster-test",
+                          again.client_id())
+                  .status();
+        }
+        rejoined = s.ok() ? again.Join("") : StatusOr<sculpt::client::JoinedScene>(s);
+        return rejoined.ok();
+      },
+      milliseconds(10000)))
+      << rejoined.status();
+  // At least the second redirect (more if c still named a for a moment: a retried join).
+  EXPECT_GE(again.stats().redirects, 2u);
+  ASSERT_EQ(rejoined->info.objects_size(), 1);
+  EXPECT_EQ(rejoined->info.global_seq(), acked_seq);
+  {
+    auto s = levelset::Sculpture::DeserializeVdb(rejoined->state.at(rejoined->info.objects(0).name()));
+    ASSERT_TRUE(s.ok()) << s.status();
+    EXPECT_EQ(levelset::RegionHash(*s, box), owner_hash)
+        << "the new owner's scene differs from what the old owner acknowledged";
+  }
+  for (int i = 0; i < 3; ++i) {
+    sculpt::client::StrokeRequest stroke;
+    stroke.poses = {{{0, -3.0 + i, 22.5}, 0}, {{0.5, -3.0 + i, 22.5}, 10}};
+    ASSERT_TRUE(again.SendStroke(stroke).ok());
+    if (i == 0) {
+      // The issue's failover figure: kill -9 to the first stroke acknowledged by the new owner
+      // (here it includes the test's own polling for the rejoin, at most 20 ms).
+      ASSERT_TRUE(again.WaitAllAcked(milliseconds(10000)));
+      const auto first_ack_ms = std::chrono::duration_cast<milliseconds>(
+                                    std::chrono::steady_clock::now() - killed)
+                                    .count();
+      RecordProperty("failover_first_ack_ms", std::to_string(first_ack_ms));
+      std::cout << "failover: " << first_ack_ms
+                << " ms from kill -9 to the first stroke acknowledged by the new owner\n";
+    }
+  }
+  ASSERT_TRUE(again.WaitAllAcked(milliseconds(10000)));
+  EXPECT_EQ(again.stats().acks, static_cast<uint64_t>(kStrokes) + 3);
+  EXPECT_EQ(again.stats().refused, 0u);
+  const uint64_t new_seq = again.stats().last_global_seq;
+  EXPECT_GT(new_seq, acked_seq);
+  EXPECT_EQ(Owner()->epoch, 2u) << "the new strokes were acknowledged under epoch 2";
+  // The new owner names a new standby among the members left, and it catches up.
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto m = MemberOf("c");
+        return Standby() && Standby()->member == "c" && m && m->follow_seq >= new_seq;
+      },
+      milliseconds(15000)))
+      << "b named no new standby, or c did not catch up; see " << dir_.path() / "c.log";
+}
+
+// The owner replaces a standby that leaves: a owns, b follows; b stops; a names c, which catches
+// up with everything a acknowledged.
+TEST_F(ClusterRoutingTest, OwnerNamesANewStandbyWhenItsStandbyLeaves) {
+  Member& a = Start("a");
+  ASSERT_NE(a.WaitPort(), 0) << "member a did not start; see " << dir_.path() / "a.log";
+  ASSERT_TRUE(WaitFor([&] { return Owner().has_value(); }, milliseconds(5000)));
+  Member& b = Start("b");
+  ASSERT_NE(b.WaitPort(), 0);
+  ASSERT_TRUE(WaitFor([&] { return Standby() && Standby()->member == "b"; }, milliseconds(5000)));
+  Member& c = Start("c");
+  ASSERT_NE(c.WaitPort(), 0);
+  sculpt::client::ClientOptions options;
+  options.timeout = milliseconds(10000);
+  sculpt::client::Client client(options);
+  auto joined = Join(client, a.port());
+  ASSERT_TRUE(joined.ok()) << joined.status();
+  for (int i = 0; i < 4; ++i) {
+    sculpt::client::StrokeRequest stroke;
+    stroke.poses = {{{-2.0 + i, 0, 22.5}, 0}, {{-2.0 + i, 0.5, 22.5}, 10}};
+    ASSERT_TRUE(client.SendStroke(stroke).ok());
+  }
+  ASSERT_TRUE(client.WaitAllAcked(milliseconds(10000)));
+  const uint64_t acked_seq = client.stats().last_global_seq;
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto m = MemberOf("b");
+        return m && m->follow_seq >= acked_seq;
+      },
+      milliseconds(15000)))
+      << "b did not catch up; see " << dir_.path() / "b.log";
+  ASSERT_TRUE(MemberOf("c").has_value());
+  EXPECT_TRUE(MemberOf("c")->follows.empty()) << "c follows while b is the standby";
+  b.process().Kill(SIGTERM);
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto m = MemberOf("c");
+        return Standby() && Standby()->member == "c" && m && m->follows == "default" &&
+               m->follow_seq >= acked_seq;
+      },
+      milliseconds(15000)))
+      << "a did not name c, or c did not catch up; see " << dir_.path() / "c.log";
+  EXPECT_EQ(Owner()->member, "a");
+  EXPECT_EQ(Owner()->epoch, 1u);
 }
 
 }  // namespace

@@ -31,6 +31,33 @@ TEST(ClusterRecordsTest, OwnerAndEpochRoundTrip) {
   EXPECT_EQ(e->member, "b");
 }
 
+TEST(ClusterRecordsTest, StandbyAndFollowRoundTrip) {
+  auto s = DecodeStandby(EncodeStandby({"c", 4}));
+  ASSERT_TRUE(s.ok()) << s.status();
+  EXPECT_EQ(s->member, "c");
+  EXPECT_EQ(s->epoch, 4u);
+  EXPECT_FALSE(DecodeStandby(R"({"epoch":1})").ok());
+  EXPECT_FALSE(DecodeStandby(R"({"member":"a","epoch":-1})").ok());
+  MemberRecord m{"a", "h:1", "", {"default"}, {}, 0};
+  m.follows = "default";
+  m.follow_seq = 42;
+  auto back = DecodeMember(EncodeMember(m));
+  ASSERT_TRUE(back.ok()) << back.status();
+  EXPECT_TRUE(back->standby);
+  EXPECT_EQ(back->follows, "default");
+  EXPECT_EQ(back->follow_seq, 42u);
+  // A record without the field (an older member) may not follow; a wrong type is refused.
+  auto old = DecodeMember(R"({"name":"a","tcp":"h:1","sessions":0})");
+  ASSERT_TRUE(old.ok()) << old.status();
+  EXPECT_FALSE(old->standby);
+  EXPECT_FALSE(DecodeMember(R"({"name":"a","tcp":"h:1","sessions":0,"standby":1})").ok());
+  const Keys k{"p/"};
+  std::string scene, kind;
+  ASSERT_TRUE(k.ParseSceneKey(k.Standby("vase"), &scene, &kind));
+  EXPECT_EQ(scene, "vase");
+  EXPECT_EQ(kind, "standby");
+}
+
 TEST(ClusterRecordsTest, RejectsMalformedRecords) {
   EXPECT_EQ(DecodeMember("not json").status().code(), Status::Code::kInvalidArgument);
   EXPECT_EQ(DecodeMember("[1]").status().code(), Status::Code::kInvalidArgument);

@@ -1,11 +1,15 @@
 /// @brief ClusterAgent: lease, membership, scene ownership and the routing table.
 #include "cluster/cluster_agent.h"
 
+#include <fcntl.h>
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <filesystem>
 
 #include "cluster/placement.h"
+#include "cluster/standby_follower.h"
 
 // Every call of a coroutine is made in its own statement and its awaitable then awaited
 // (`auto x_call = F(args); auto x = co_await std::move(x_call);`): g++ 12 destroys temporaries
@@ -26,6 +30,29 @@ std::chrono::milliseconds Margin(std::chrono::milliseconds ttl) {
 // templates inside a coroutine.
 void LogEtcdTrouble(const std::string& what, const Status& s) {
   spdlog::warn("cluster: {}: {}", what, s.ToString());
+}
+
+// Runs this program again with `argv`. Every descriptor past stderr is closed on exec (the
+// listening ports, the edit log, the old connections), so the new process binds its ports anew.
+[[noreturn]] void Reexec(const std::vector<std::string>& argv) {
+  std::vector<std::string> args = argv;
+  std::vector<char*> raw;
+  for (std::string& a : args) raw.push_back(a.data());
+  raw.push_back(nullptr);
+  spdlog::warn("cluster: restarting ({}) on the standby copy", args.empty() ? "?" : args[0]);
+  spdlog::default_logger()->flush();
+  if (::close_range(3, ~0U, CLOSE_RANGE_CLOEXEC) != 0) {
+    std::error_code ec;
+    for (const auto& e : std::filesystem::directory_iterator("/proc/self/fd", ec)) {
+      const int fd = std::atoi(e.path().filename().c_str());
+      if (fd > 2) (void)::fcntl(fd, F_SETFD, FD_CLOEXEC);
+    }
+  }
+  ::execv("/proc/self/exe", raw.data());
+  spdlog::critical("cluster: cannot restart after the promotion: execv failed; exiting so a "
+                   "supervisor starts sculptd again");
+  spdlog::default_logger()->flush();
+  std::_Exit(75);
 }
 
 }  // namespace
@@ -51,6 +78,11 @@ MemberRecord ClusterAgent::SelfRecord() const {
   m.offers = {scene_};
   if (owned_) m.owns = {scene_};
   m.sessions = sessions_ ? sessions_() : 0;
+  m.standby = standby_.has_value();
+  if (follower_ && follower_->ready()) {
+    m.follows = follower_->options().scene;
+    m.follow_seq = follow_seq_.load();
+  }
   return m;
 }
 
@@ -81,6 +113,34 @@ Status ClusterAgent::Start(const std::string& tcp, const std::string& http) {
   return Status::Ok();
 }
 
+void ClusterAgent::EnableStandby(StandbyOptions options) {
+  if (!started_ && config_.standby) standby_ = std::move(options);
+}
+
+void ClusterAgent::RetireFollower() {
+  std::lock_guard<std::mutex> lock(retired_mu_);
+  // Threads of followers already stopped are joined (a standby retrying a dead owner retires
+  // one per attempt).
+  for (auto it = retired_.begin(); it != retired_.end();) {
+    if (it->done->load()) {
+      it->thread.join();
+      it = retired_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+  if (!follower_) return;
+  // Its destructor may wait for a connect to time out: not on the agent's thread, whose
+  // keep-alives must not stall.
+  auto done = std::make_shared<std::atomic<bool>>(false);
+  retired_.push_back({std::thread([f = std::shared_ptr<StandbyFollower>(std::move(follower_)),
+                                   done]() mutable {
+                        f.reset();
+                        done->store(true);
+                      }),
+                      done});
+}
+
 void ClusterAgent::Stop() {
   if (stopping_.exchange(true)) return;
   fence_->Revoke();
@@ -101,6 +161,10 @@ void ClusterAgent::Stop() {
     spdlog::warn("cluster: lease not revoked at stop ({}); it expires by itself", s.ToString());
   etcd_.reset();     // joins the agent's thread; the loop's frame goes with its io_context
   fence_->Revoke();  // again: an acquisition may have completed while the lease was revoked
+  RetireFollower();
+  std::lock_guard<std::mutex> lock(retired_mu_);
+  for (Retired& r : retired_) r.thread.join();
+  retired_.clear();
 }
 
 asio::awaitable<Status> ClusterAgent::Register() {
@@ -136,6 +200,8 @@ asio::awaitable<void> ClusterAgent::Tick() {
   }
   if (stopping_) co_return;
   co_await MaybeAcquire();
+  if (stopping_) co_return;
+  co_await TendStandby();
 }
 
 asio::awaitable<void> ClusterAgent::KeepLeaseAlive() {
@@ -184,7 +250,13 @@ asio::awaitable<Status> ClusterAgent::Refresh() {
     std::string scene, kind;
     if (!keys_.ParseSceneKey(kv.key, &scene, &kind)) continue;
     SceneState& st = table[scene];
-    if (kind == "owner") {
+    if (kind == "standby") {
+      auto sb = DecodeStandby(kv.value);
+      if (sb.ok()) {
+        st.standby = std::move(sb).value();
+        st.standby_mod_revision = kv.mod_revision;
+      }
+    } else if (kind == "owner") {
       // An owner key not under a lease would outlive its owner: not honoured.
       auto o = DecodeOwner(kv.value);
       if (o.ok() && kv.lease != 0) st.owner = std::move(o).value();
@@ -227,13 +299,24 @@ asio::awaitable<void> ClusterAgent::MaybeAcquire() {
   if (st.owner) co_return;  // another member serves it; RouteScene redirects there
   // Who may take a scene without an owner: the member that held it last (it has the data; a
   // restart or a lease lost while cut off), or, for a scene never owned, the placement's pick.
-  // A scene whose last owner is another member waits for it: taking it over needs a standby
-  // that followed its edits, which is not built yet (docs/cluster.md).
+  // A scene whose last owner is another member waits for it, except for the standby that owner
+  // named, once its copy is this member's data directory (Promote, then this process restarted
+  // on it).
   std::string reason;
+  bool promoted = false;
   if (st.epoch) {
     if (st.epoch->member != config_.member) {
-      reason = "its last owner " + st.epoch->member + " (epoch " + std::to_string(st.epoch->epoch) +
-               ") is gone; failover to another member is not built yet";
+      const bool named = st.standby && st.standby->member == config_.member;
+      promoted = named && standby_ &&
+                 PromotedFromEpoch(standby_->data_dir, scene_) == st.epoch->epoch;
+      if (!promoted) {
+        reason = "its last owner " + st.epoch->member + " (epoch " +
+                 std::to_string(st.epoch->epoch) + ") is gone" +
+                 (st.standby ? "; its standby " + st.standby->member +
+                                   (named ? " (this member) is taking it over"
+                                          : " may take it over")
+                             : "; it had no standby that followed its edits");
+      }
     }
   } else if (const auto pick = PickMember(members, scene_); pick && *pick != config_.member) {
     reason = "placed on member " + *pick + ", which has not taken it yet";
@@ -250,6 +333,11 @@ asio::awaitable<void> ClusterAgent::MaybeAcquire() {
   // Nobody owns it, and nobody bumped the epoch since we read it.
   txn.compares = {{keys_.Owner(scene_), Compare::Target::kCreateRevision, 0},
                   {keys_.Epoch(scene_), Compare::Target::kModRevision, st.epoch_mod_revision}};
+  // The standby named when we read (a promotion is the named standby's only).
+  if (st.standby) {
+    txn.compares.push_back(
+        {keys_.Standby(scene_), Compare::Target::kModRevision, st.standby_mod_revision});
+  }
   txn.success = {{keys_.Owner(scene_), EncodeOwner(owner), lease_},
                  {keys_.Epoch(scene_), EncodeEpoch({epoch, config_.member}), 0}};
   auto r_call = etcd_->Txn(std::move(txn));
@@ -270,11 +358,120 @@ asio::awaitable<void> ClusterAgent::MaybeAcquire() {
     mine.epoch = EpochRecord{epoch, config_.member};
     waiting_reason_.clear();
   }
-  spdlog::info("cluster: member {} owns scene {} at epoch {}", config_.member, scene_, epoch);
+  spdlog::info("cluster: member {} owns scene {} at epoch {}{}", config_.member, scene_, epoch,
+               promoted ? " (took it over as the standby)" : "");
+  if (standby_) ClearPromotedMarker(standby_->data_dir);
+  RetireFollower();
   // The new load right away, so placement elsewhere sees it before the next tick.
   auto put_call = etcd_->Put({keys_.Member(config_.member), EncodeMember(SelfRecord()), lease_});
   auto put = co_await std::move(put_call);
   if (!put.ok()) LogEtcdTrouble("publishing the load", put.status());
+}
+
+asio::awaitable<void> ClusterAgent::TendStandby() {
+  SceneState st;
+  std::vector<MemberRecord> members;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (auto it = scenes_.find(scene_); it != scenes_.end()) st = it->second;
+    members = members_;
+  }
+  if (owned_) {
+    RetireFollower();
+    // The standby: the one named while it lives and may follow, else the least loaded other
+    // live member that offers the scene and may follow (every owner computes the same).
+    std::vector<MemberRecord> candidates;
+    for (const MemberRecord& m : members) {
+      if (m.name != config_.member && m.standby) candidates.push_back(m);
+    }
+    const bool keep = st.standby && std::any_of(candidates.begin(), candidates.end(),
+                                                [&](const MemberRecord& m) {
+                                                  return m.name == st.standby->member;
+                                                });
+    if (keep) co_return;
+    const auto pick = PickMember(candidates, scene_);
+    if (!pick) co_return;
+    StandbyRecord record{*pick, owned_epoch_.load()};
+    auto put_call = etcd_->Put({keys_.Standby(scene_), EncodeStandby(record), 0});
+    auto put = co_await std::move(put_call);
+    if (!put.ok()) {
+      LogEtcdTrouble("naming a standby", put.status());
+    } else {
+      spdlog::info("cluster: member {} is the standby of scene {} (epoch {})", *pick, scene_,
+                   record.epoch);
+    }
+    co_return;
+  }
+  const bool named = standby_ && st.standby && st.standby->member == config_.member;
+  if (!named) {
+    RetireFollower();
+    co_return;
+  }
+  if (st.owner && st.owner->member != config_.member) {
+    // Follow the owner; a new follow when the owner changed or the last one ended.
+    const bool same_owner = follower_ && follower_->options().owner_tcp == st.owner->tcp &&
+                            follower_->options().owner_epoch == st.owner->epoch;
+    const bool current = same_owner && !follower_->finished();
+    const auto now = Clock::now();
+    if (follower_ && follower_->finished() && ended_at_ == Clock::time_point{}) {
+      spdlog::warn("cluster: following scene {} ended: {}", scene_, follower_->failure());
+      ended_at_ = now;
+    }
+    // The same owner again only after a pause (a follow that fails at once, e.g. a scene of
+    // several objects, must not reconnect every tick); a new owner at once.
+    const bool wait = same_owner && !current && now - ended_at_ < std::chrono::seconds(2);
+    if (!current && !wait) {
+      ended_at_ = {};
+      RetireFollower();
+      FollowerOptions fo;
+      fo.data_dir = standby_->data_dir;
+      fo.scene = scene_;
+      fo.member = config_.member;
+      fo.token = standby_->token;
+      fo.owner_tcp = st.owner->tcp;
+      fo.owner_epoch = st.owner->epoch;
+      fo.snapshot_every_records = standby_->snapshot_every_edits;
+      follower_ = std::make_unique<StandbyFollower>(std::move(fo));
+    }
+    if (follower_ && follower_->ready()) follow_seq_ = follower_->durable_seq();
+    co_return;
+  }
+  if (st.owner || !st.epoch || st.epoch->member == config_.member) co_return;
+  if (PromotedFromEpoch(standby_->data_dir, scene_) == st.epoch->epoch) co_return;  // acquiring
+  // The owner is gone and this member is its standby: take over with the copy of that epoch.
+  uint64_t copy_epoch = 0;
+  if (!CurrentStandbyCopy(standby_->data_dir, scene_, &copy_epoch) ||
+      copy_epoch != st.epoch->epoch) {
+    std::lock_guard<std::mutex> lock(mu_);
+    waiting_reason_ = "its last owner " + st.epoch->member + " (epoch " +
+                      std::to_string(st.epoch->epoch) +
+                      ") is gone and this member, its standby, holds no copy of that epoch";
+    co_return;
+  }
+  co_await Promote(st.epoch->epoch);
+}
+
+asio::awaitable<void> ClusterAgent::Promote(uint64_t dead_epoch) {
+  spdlog::warn("cluster: the owner of scene {} (epoch {}) is gone: member {}, its standby, takes "
+               "it over",
+               scene_, dead_epoch, config_.member);
+  if (follower_) {
+    // Its log made durable and closed before the files move (the connection is gone already).
+    follower_.reset();
+  }
+  if (standby_->restart_argv.empty()) {
+    LogEtcdTrouble("promotion", FailedPrecondition("no command line to restart with"));
+    co_return;
+  }
+  if (const Status s = PromoteStandbyCopy(standby_->data_dir, scene_, dead_epoch); !s.ok()) {
+    LogEtcdTrouble("promotion", s);
+    co_return;
+  }
+  // This member's keys go now; the restarted process registers anew and acquires.
+  auto revoke_call = etcd_->Revoke(lease_);
+  auto revoked = co_await std::move(revoke_call);
+  if (!revoked.ok()) LogEtcdTrouble("revoking the lease before the restart", revoked);
+  Reexec(standby_->restart_argv);
 }
 
 uint64_t ClusterAgent::owned_epoch() const { return fence_->held() ? owned_epoch_.load() : 0; }

@@ -10,13 +10,16 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "cluster/etcd_client.h"
 #include "cluster/ownership_fence.h"
 #include "cluster/records.h"
 #include "cluster/scene_router.h"
+#include "cluster/standby_follower.h"
 #include "config/server_config.h"
 
 namespace sculpt::server::cluster {
@@ -30,6 +33,20 @@ namespace sculpt::server::cluster {
 /// (RouteScene) and the commit pipeline only reads the fence.
 /// Thread safety: Start and Stop from the owning thread; RouteScene, fence() and the accessors
 /// from any thread.
+/// Standby and failover (docs/cluster.md): the owner names a standby among the other live
+/// members (`scenes/<scene>/standby`); that member follows the owner's edit stream into
+/// `<data_dir>/standby/` (StandbyFollower); when the owner's key is gone it makes that copy its
+/// data directory and restarts itself with the same command line, and the restarted process
+/// takes the scene with the next epoch.
+struct StandbyOptions {
+  std::string data_dir;  // config.data_dir
+  std::string token;     // a viewer token the owner accepts
+  /// This process's command line, run again (execv of /proc/self/exe) after a promotion.
+  std::vector<std::string> restart_argv;
+  /// The copy's snapshot interval in logged records (config.snapshot_every_edits).
+  uint64_t snapshot_every_edits = 5000;
+};
+
 class ClusterAgent : public SceneRouter {
  public:
   /// `scene`: the scene this process serves (config.scene.name); `sessions`: its joined sessions
@@ -42,6 +59,9 @@ class ClusterAgent : public SceneRouter {
   /// the background. Unavailable naming the endpoints when etcd does not answer; InvalidArgument
   /// for a malformed endpoint.
   Status Start(const std::string& tcp, const std::string& http);
+  /// Before Start: this member may be a standby (cluster.standby) and take a scene over. Without
+  /// it the member neither follows nor takes over a scene another member owned.
+  void EnableStandby(StandbyOptions options);
   /// Revokes the lease (this member's keys and its scene's owner key go at once), stops the
   /// loop and fences the scene. Idempotent.
   void Stop();
@@ -59,6 +79,13 @@ class ClusterAgent : public SceneRouter {
   asio::awaitable<void> KeepLeaseAlive();
   asio::awaitable<Status> Refresh();
   asio::awaitable<void> MaybeAcquire();
+  // Owner: names a standby when there is none or it left. Standby: follows the owner, or takes
+  // the scene over when the owner is gone.
+  asio::awaitable<void> TendStandby();
+  // The standby copy becomes the data directory and the process starts again (never returns
+  // unless that fails).
+  asio::awaitable<void> Promote(uint64_t dead_epoch);
+  void RetireFollower();
   // Lost the scene (lease gone, owner key no longer ours): fence at once and say why.
   void LoseOwnership(const std::string& why);
   MemberRecord SelfRecord() const;
@@ -80,12 +107,24 @@ class ClusterAgent : public SceneRouter {
   std::unique_ptr<asio::steady_timer> timer_;
   std::atomic<bool> stopping_{false};
   bool started_ = false;  // the owning thread's
+  std::optional<StandbyOptions> standby_;  // set before Start
+  std::unique_ptr<StandbyFollower> follower_;  // the agent's thread
+  OwnershipFence::Clock::time_point ended_at_{};  // when the current follower was seen ended
+  struct Retired {
+    std::thread thread;
+    std::shared_ptr<std::atomic<bool>> done;
+  };
+  std::mutex retired_mu_;
+  std::vector<Retired> retired_;  // followers being stopped (a stop may wait on a connect)
+  std::atomic<uint64_t> follow_seq_{0};
 
   // What the last Refresh read; RouteScene's table.
   struct SceneState {
     std::optional<OwnerRecord> owner;
     std::optional<EpochRecord> epoch;
     int64_t epoch_mod_revision = 0;
+    std::optional<StandbyRecord> standby;
+    int64_t standby_mod_revision = 0;
   };
   mutable std::mutex mu_;
   std::map<std::string, SceneState> scenes_;  // guarded by mu_

@@ -63,8 +63,21 @@ Status List(const Json& j, const std::string& field, std::vector<std::string>* o
 
 std::string EncodeMember(const MemberRecord& m) {
   return Json{{"name", m.name},     {"tcp", m.tcp},   {"http", m.http},
-              {"offers", m.offers}, {"owns", m.owns}, {"sessions", m.sessions}}
+              {"offers", m.offers}, {"owns", m.owns}, {"sessions", m.sessions},
+              {"standby", m.standby}, {"follows", m.follows}, {"follow_seq", m.follow_seq}}
       .dump();
+}
+
+std::string EncodeStandby(const StandbyRecord& s) {
+  return Json{{"member", s.member}, {"epoch", s.epoch}}.dump();
+}
+
+StatusOr<StandbyRecord> DecodeStandby(const std::string& text) {
+  SCULPT_ASSIGN_OR_RETURN(Json j, ParseObject("standby record", text));
+  StandbyRecord s;
+  SCULPT_RETURN_IF_ERROR(Text(j, "member", true, &s.member));
+  SCULPT_RETURN_IF_ERROR(Count(j, "epoch", &s.epoch));
+  return s;
 }
 
 std::string EncodeOwner(const OwnerRecord& o) {
@@ -86,6 +99,15 @@ StatusOr<MemberRecord> DecodeMember(const std::string& text) {
   uint64_t sessions = 0;
   SCULPT_RETURN_IF_ERROR(Count(j, "sessions", &sessions));
   m.sessions = static_cast<uint32_t>(std::min<uint64_t>(sessions, UINT32_MAX));
+  // Written by members that know standbys (absent: an older member, which may not follow).
+  if (const auto it = j.find("standby"); it != j.end()) {
+    if (!it->is_boolean()) return Outside("standby", it->dump().substr(0, 64), "true or false");
+    m.standby = it->get<bool>();
+  } else {
+    m.standby = false;
+  }
+  SCULPT_RETURN_IF_ERROR(Text(j, "follows", false, &m.follows));
+  if (j.contains("follow_seq")) SCULPT_RETURN_IF_ERROR(Count(j, "follow_seq", &m.follow_seq));
   return m;
 }
 
@@ -111,7 +133,7 @@ StatusOr<EpochRecord> DecodeEpoch(const std::string& text) {
 bool Keys::ParseSceneKey(const std::string& key, std::string* scene, std::string* kind) const {
   const std::string scenes = Scenes();
   if (key.compare(0, scenes.size(), scenes) != 0) return false;
-  for (const char* k : {"/owner", "/epoch"}) {
+  for (const char* k : {"/owner", "/epoch", "/standby"}) {
     const std::string suffix = k;
     if (key.size() > scenes.size() + suffix.size() &&
         key.compare(key.size() - suffix.size(), suffix.size(), suffix) == 0) {

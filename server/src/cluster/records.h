@@ -19,6 +19,9 @@ struct MemberRecord {
   std::vector<std::string> offers;  // scenes this member can host (its configured scene)
   std::vector<std::string> owns;    // scenes it owns now
   uint32_t sessions = 0;            // joined sessions
+  bool standby = true;              // may follow another owner's scene (cluster.standby)
+  std::string follows = {};         // the scene it follows as standby now, empty when none
+  uint64_t follow_seq = 0;          // the last sequence of it logged durably in its standby copy
 };
 
 /// `scenes/<scene>/owner`, under the owner's lease.
@@ -36,7 +39,17 @@ struct EpochRecord {
   std::string member;
 };
 
+/// `scenes/<scene>/standby`, without a lease (it must outlive a dead owner): the member the
+/// owner chose to follow its edit stream, and the owner's epoch when it chose. Only the owner
+/// writes it; the member it names may take the scene over once the owner's key is gone.
+struct StandbyRecord {
+  std::string member;
+  uint64_t epoch = 0;
+};
+
 std::string EncodeMember(const MemberRecord& m);
+std::string EncodeStandby(const StandbyRecord& s);
+StatusOr<StandbyRecord> DecodeStandby(const std::string& json);
 std::string EncodeOwner(const OwnerRecord& o);
 std::string EncodeEpoch(const EpochRecord& e);
 /// Values written by other members are checked before use: InvalidArgument naming the field
@@ -53,8 +66,9 @@ struct Keys {
   std::string Scenes() const { return prefix + "scenes/"; }
   std::string Owner(const std::string& scene) const { return Scenes() + scene + "/owner"; }
   std::string Epoch(const std::string& scene) const { return Scenes() + scene + "/epoch"; }
-  /// The scene of an owner or epoch key and which of the two it is ("owner", "epoch"); false for
-  /// another key.
+  std::string Standby(const std::string& scene) const { return Scenes() + scene + "/standby"; }
+  /// The scene of an owner, epoch or standby key and which it is ("owner", "epoch", "standby");
+  /// false for another key.
   bool ParseSceneKey(const std::string& key, std::string* scene, std::string* kind) const;
 };
 

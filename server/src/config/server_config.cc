@@ -178,7 +178,7 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
   if (const toml::table* t = root["cluster"].as_table()) {
     SCULPT_RETURN_IF_ERROR(CheckKeys(path, *t, "cluster",
                                      {"etcd", "member", "advertise", "advertise_http",
-                                      "lease_ttl_ms", "prefix"}));
+                                      "lease_ttl_ms", "prefix", "standby"}));
     if (const toml::node* e = t->get("etcd")) {
       const toml::array* a = e->as_array();
       if (!a) return Outside("cluster.etcd", "not an array", "arrays of \"http://HOST:PORT\"");
@@ -193,6 +193,7 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     Get(*t, "advertise_http", &c->cluster.advertise_http);
     Get(*t, "lease_ttl_ms", &c->cluster.lease_ttl_ms);
     Get(*t, "prefix", &c->cluster.prefix);
+    Get(*t, "standby", &c->cluster.standby);
   }
   if (const toml::table* t = root["tls"].as_table()) {
     SCULPT_RETURN_IF_ERROR(CheckKeys(path, *t, "tls",

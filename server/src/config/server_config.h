@@ -157,6 +157,9 @@ struct ClusterConfig {
   int lease_ttl_ms = 2000;
   /// Prefix of every key this cluster keeps in etcd.
   std::string prefix = "sculpt/";
+  /// This member may be chosen as another owner's standby: it follows that owner's edit stream
+  /// into `<data_dir>/standby/` and takes the scene over when the owner's lease expires.
+  bool standby = true;
   bool enabled() const { return !etcd.empty(); }
 };
 

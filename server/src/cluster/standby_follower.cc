@@ -1,0 +1,488 @@
+/// @brief StandbyFollower: follow an owner's edit stream into a durable copy of its scene.
+#include "cluster/standby_follower.h"
+
+#include <fcntl.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <map>
+
+#include "sculpt/client/client.h"
+#include "sculpt/codec/log_records.h"
+#include "sculpt/codec/settings.h"
+#include "sculpt/codec/stroke.h"
+#include "sculpt/levelset/edit.h"
+#include "sculpt/levelset/materials.h"
+#include "sculpt/levelset/region.h"
+#include "sculpt/levelset/sculpture.h"
+#include "store/edit_log.h"
+#include "scene/commit.h"
+#include "store/recovery.h"
+#include "store/resend_table.h"
+#include "store/snapshot_store.h"
+
+namespace sculpt::server::cluster {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr char kCurrent[] = "CURRENT";
+constexpr char kPromoted[] = "cluster-promoted";
+
+// Writes `text` to `path` through a temporary file, fsynced and renamed: the name holds either
+// the old or the new content.
+Status WriteFileAtomically(const fs::path& path, const std::string& text) {
+  const fs::path tmp = path.string() + ".tmp";
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return Internal("cannot write " + tmp.string());
+  const bool ok = ::write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size()) &&
+                  ::fsync(fd) == 0;
+  ::close(fd);
+  std::error_code ec;
+  if (!ok) return Internal("cannot write " + tmp.string());
+  fs::rename(tmp, path, ec);
+  if (ec) return Internal("cannot rename " + tmp.string() + ": " + ec.message());
+  const int dfd = ::open(path.parent_path().c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dfd >= 0) {
+    (void)::fsync(dfd);
+    ::close(dfd);
+  }
+  return Status::Ok();
+}
+
+std::string ReadSmallFile(const fs::path& path) {
+  std::ifstream in(path);
+  std::string s;
+  std::getline(in, s);
+  return s;
+}
+
+}  // namespace
+
+std::string StandbyDir(const std::string& data_dir, const std::string& scene) {
+  return (fs::path(data_dir) / "standby" / scene).string();
+}
+
+std::optional<std::string> CurrentStandbyCopy(const std::string& data_dir,
+                                              const std::string& scene, uint64_t* epoch) {
+  const fs::path dir = StandbyDir(data_dir, scene);
+  // "gen-<n> <owner epoch>"
+  const std::string line = ReadSmallFile(dir / kCurrent);
+  const size_t space = line.find(' ');
+  const std::string gen = line.substr(0, space);
+  if (epoch) {
+    *epoch = 0;
+    try {
+      if (space != std::string::npos) *epoch = std::stoull(line.substr(space + 1));
+    } catch (...) {
+    }
+  }
+  if (gen.rfind("gen-", 0) != 0 || gen.find('/') != std::string::npos) return std::nullopt;
+  std::error_code ec;
+  if (!fs::is_directory(dir / gen / store::kSnapshotSubdir, ec)) return std::nullopt;
+  return (dir / gen).string();
+}
+
+Status PromoteStandbyCopy(const std::string& data_dir, const std::string& scene,
+                          uint64_t dead_epoch) {
+  const auto copy = CurrentStandbyCopy(data_dir, scene);
+  if (!copy) {
+    return FailedPrecondition("no complete standby copy of scene " + scene + " in " +
+                              StandbyDir(data_dir, scene));
+  }
+  const fs::path root(data_dir);
+  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+                      std::chrono::system_clock::now().time_since_epoch())
+                      .count();
+  const fs::path aside =
+      root / "superseded" / (std::to_string(dead_epoch) + "-" + std::to_string(ms));
+  std::error_code ec;
+  fs::create_directories(aside, ec);
+  if (ec) return Internal("cannot create " + aside.string() + ": " + ec.message());
+  for (const fs::directory_entry& e : fs::directory_iterator(root, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name == "standby" || name == "superseded") continue;
+    fs::rename(e.path(), aside / name, ec);
+    if (ec) return Internal("cannot move " + e.path().string() + " aside: " + ec.message());
+  }
+  if (ec) return Internal("cannot list " + root.string() + ": " + ec.message());
+  for (const fs::directory_entry& e : fs::directory_iterator(*copy, ec)) {
+    fs::rename(e.path(), root / e.path().filename(), ec);
+    if (ec) return Internal("cannot move " + e.path().string() + " in: " + ec.message());
+  }
+  if (ec) return Internal("cannot list " + *copy + ": " + ec.message());
+  SCULPT_RETURN_IF_ERROR(
+      WriteFileAtomically(root / kPromoted, scene + " " + std::to_string(dead_epoch) + "\n"));
+  fs::remove_all(StandbyDir(data_dir, scene), ec);  // its other generations; the copy is in
+  spdlog::warn("cluster: the standby copy of scene {} is now the data directory {} (what was "
+               "there is in {})",
+               scene, data_dir, aside.string());
+  return Status::Ok();
+}
+
+std::optional<uint64_t> PromotedFromEpoch(const std::string& data_dir, const std::string& scene) {
+  const std::string line = ReadSmallFile(fs::path(data_dir) / kPromoted);
+  const size_t space = line.rfind(' ');
+  if (space == std::string::npos || line.substr(0, space) != scene) return std::nullopt;
+  try {
+    return std::stoull(line.substr(space + 1));
+  } catch (...) {
+    return std::nullopt;
+  }
+}
+
+void ClearPromotedMarker(const std::string& data_dir) {
+  std::error_code ec;
+  fs::remove(fs::path(data_dir) / kPromoted, ec);
+}
+
+struct StandbyFollower::Impl {
+  std::unique_ptr<client::Client> client;
+  std::string object;
+  levelset::EditSettings settings;
+  double voxel_size = 1.0;
+  std::optional<levelset::Sculpture> sculpture;
+  fs::path gen;  // this follow's generation
+  std::unique_ptr<store::SnapshotStore> snapshots;
+  std::unique_ptr<store::EditLog> log;
+  uint64_t seq = 0;  // last sequence applied
+  std::atomic<uint64_t> snapshot_seq{0};  // of the newest snapshot written
+  uint64_t previous_snapshot_seq = 0;  // the log is kept from here (two snapshots' worth)
+  uint64_t records_since_snapshot = 0;
+  // Newest client_seq of each author's strokes, saved with each snapshot (the resend table), so
+  // resends are still recognised once the log before it is dropped.
+  std::map<std::pair<uint8_t, uint64_t>, uint64_t> resend;
+};
+
+StandbyFollower::StandbyFollower(FollowerOptions options)
+    : options_(std::move(options)), impl_(std::make_shared<Impl>()) {
+  thread_ = std::thread([this] { Run(); });
+}
+
+StandbyFollower::~StandbyFollower() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  thread_.join();
+  // The client (and its I/O thread, which calls the handler above) goes before the queue and
+  // the mutex it uses.
+  if (impl_->client) impl_->client->SetReplicationHandler(nullptr);
+  impl_->client.reset();
+}
+
+std::string StandbyFollower::failure() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return failure_;
+}
+
+uint64_t StandbyFollower::durable_seq() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (!ready_ || !impl_->log) return 0;
+  // Everything up to the snapshot is durable with it; the log holds what came since.
+  return std::max(impl_->log->durable_seq(), impl_->snapshot_seq.load());
+}
+
+void StandbyFollower::Run() {
+  Impl& im = *impl_;
+  auto fail = [&](const std::string& why) {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      failure_ = why;
+    }
+    finished_ = true;
+  };
+  const FollowerOptions& o = options_;
+  const size_t colon = o.owner_tcp.rfind(':');
+  int port = 0;
+  try {
+    port = colon == std::string::npos ? 0 : std::stoi(o.owner_tcp.substr(colon + 1));
+  } catch (...) {
+  }
+  if (port <= 0 || port > 65535) return fail("owner address " + o.owner_tcp + " has no port");
+  client::ClientOptions co;
+  co.skip_state = true;
+  co.timeout = std::chrono::milliseconds(5000);
+  im.client = std::make_unique<client::Client>(co);
+  Status s = im.client->Connect(o.owner_tcp.substr(0, colon), static_cast<uint16_t>(port));
+  if (s.ok()) {
+    auto hello = im.client->Hello(o.token, v1::ROLE_VIEWER, "standby-" + o.member, 0);
+    s = hello.status();
+  }
+  if (s.ok()) s = im.client->Join(o.scene).status();
+  if (!s.ok()) return fail("cannot join scene " + o.scene + " at " + o.owner_tcp + ": " + s.ToString());
+
+  // The object and its settings, as a replica reads them (client/src/lib/replica.cc).
+  const v1::SceneInfo info = im.client->scene_info();
+  if (info.objects_size() != 1) {
+    return fail("scene " + o.scene + " has " + std::to_string(info.objects_size()) +
+                " objects: a standby follows scenes of one object only (docs/cluster.md)");
+  }
+  const v1::ObjectInfo& obj = info.objects(0);
+  auto settings = codec::SettingsFromProto(info.edit_settings());
+  if (!settings.ok()) return fail(settings.status().ToString());
+  levelset::SculptureOptions so;
+  so.voxel_size = obj.voxel_size();
+  so.half_width = static_cast<int>(obj.half_width());
+  so.name = obj.name();
+  auto empty = levelset::MakeEmptySculpture(so);
+  if (!empty.ok()) return fail(empty.status().ToString());
+  const v1::Effects& fx = info.effects();
+  if (fx.materials_size() > 0) {
+    std::vector<levelset::MaterialDecl> materials;
+    const bool coloured = fx.material_colours_size() == 3 * fx.materials_size();
+    for (int m = 0; m < fx.materials_size(); ++m) {
+      levelset::MaterialDecl d;
+      d.name = fx.materials(m);
+      if (coloured) {
+        for (int c = 0; c < 3; ++c) d.colour[c] = fx.material_colours(3 * m + c);
+      }
+      materials.push_back(std::move(d));
+    }
+    if (Status st = levelset::SetMaterials(*empty, materials); !st.ok()) return fail(st.ToString());
+  }
+  im.object = obj.name();
+  im.settings = *settings;
+  im.voxel_size = obj.voxel_size();
+  im.sculpture.emplace(std::move(empty).value());
+
+  // A new generation beside the current one; older incomplete ones are removed.
+  const fs::path dir = StandbyDir(o.data_dir, o.scene);
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  std::string current = ReadSmallFile(dir / kCurrent);
+  current = current.substr(0, current.find(' '));
+  uint64_t next = 1;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind("gen-", 0) != 0) continue;
+    try {
+      next = std::max<uint64_t>(next, std::stoull(name.substr(4)) + 1);
+    } catch (...) {
+    }
+    if (name != current) fs::remove_all(e.path(), ec);
+  }
+  im.gen = dir / ("gen-" + std::to_string(next));
+  fs::create_directories(im.gen, ec);
+  if (ec) return fail("cannot create " + im.gen.string() + ": " + ec.message());
+  auto snaps = store::SnapshotStore::Open((im.gen / store::kSnapshotSubdir).string());
+  if (!snaps.ok()) return fail(snaps.status().ToString());
+  im.snapshots = std::move(snaps).value();
+
+  im.client->SetReplicationHandler([this](v1::ServerMessage&& m) {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      queue_.push_back(std::make_unique<v1::ServerMessage>(std::move(m)));
+    }
+    cv_.notify_all();
+  });
+  v1::ClientMessage sub;
+  sub.mutable_subscribe()->set_object(im.object);
+  sub.mutable_subscribe()->set_mode(v1::REPLICA_MODE_REPLAY);
+  sub.mutable_subscribe()->set_have_seq(0);
+  if (s = im.client->SendMessage(sub); !s.ok()) return fail("subscribe: " + s.ToString());
+  spdlog::info("cluster: following scene {} at {} (epoch {}) into {}", o.scene, o.owner_tcp,
+               o.owner_epoch, im.gen.string());
+
+  auto resync = [&] {
+    v1::ClientMessage m;
+    m.mutable_set_interest()->set_object(im.object);
+    (void)im.client->SendMessage(m);
+  };
+  // The object as held now, durable at `seq`: after a region load, or an edit the log cannot
+  // hold. The first one completes the generation: its log starts after it and CURRENT names it.
+  auto snapshot = [&](uint64_t seq) -> Status {
+    if (im.log) {
+      // As the owner: the log durable, the resend table at seq, the snapshot, a new segment;
+      // the segments before the previous snapshot go (a damaged newest one leaves the older).
+      SCULPT_RETURN_IF_ERROR(im.log->Sync());
+      store::ResendTable table;
+      table.seq = seq;
+      table.last = im.resend;
+      SCULPT_RETURN_IF_ERROR(
+          store::SaveResendTable((im.gen / store::kResendTableFile).string(), table));
+    }
+    SCULPT_RETURN_IF_ERROR(im.snapshots->Write(seq, im.object, *im.sculpture));
+    im.snapshot_seq = seq;
+    im.records_since_snapshot = 0;
+    if (im.log) {
+      im.log->Roll();
+      if (im.previous_snapshot_seq > 0) {
+        SCULPT_RETURN_IF_ERROR(im.log->DropSegmentsBefore(im.previous_snapshot_seq));
+      }
+      im.previous_snapshot_seq = seq;
+    }
+    if (!im.log) {
+      store::FsyncPolicy policy;  // group commit: a standby logs at the owner's rate
+      store::RecoveryReport report;
+      auto log = store::EditLog::Open((im.gen / store::kLogSubdir).string(), policy, &report);
+      if (!log.ok()) return log.status();
+      SCULPT_RETURN_IF_ERROR((*log)->StartAfter(seq));
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        im.log = std::move(log).value();
+      }
+      SCULPT_RETURN_IF_ERROR(
+          WriteFileAtomically(dir / kCurrent, im.gen.filename().string() + " " +
+                                                  std::to_string(o.owner_epoch) + "\n"));
+      for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
+        const std::string name = e.path().filename().string();
+        if (name.rfind("gen-", 0) == 0 && e.path() != im.gen) fs::remove_all(e.path(), ec);
+      }
+      ready_ = true;
+      spdlog::info("cluster: standby copy of scene {} complete at seq {}", o.scene, seq);
+    }
+    return Status::Ok();
+  };
+
+  auto apply = [&](v1::ServerMessage& m) -> Status {
+    if (m.has_leaf_delta()) {
+      const v1::LeafDelta& d = m.leaf_delta();
+      if (d.object() != im.object) return Status::Ok();
+      levelset::VoxelBox region;
+      if (d.region_min_size() == 3 && d.region_max_size() == 3) {
+        region.min = {d.region_min(0), d.region_min(1), d.region_min(2)};
+        region.max = {d.region_max(0), d.region_max(1), d.region_max(2)};
+      }
+      if (d.replace_region()) levelset::ClearRegion(*im.sculpture, region);
+      auto r = levelset::ApplyLeafRecords(*im.sculpture, d.records());
+      if (!r.ok()) {
+        spdlog::warn("cluster: standby: leaf records at seq {} refused: {}", d.global_seq(),
+                     r.status().ToString());
+        resync();
+        return Status::Ok();
+      }
+      levelset::RestoreReplayState(*im.sculpture,
+                                   {d.volume(), d.reference_volume(), d.edits_since_reinit()});
+      im.seq = std::max(im.seq, d.global_seq());
+      return snapshot(d.global_seq());
+    }
+    if (!m.has_edit()) return Status::Ok();
+    const v1::EditBroadcast& b = m.edit();
+    if (b.object() != im.object) return Status::Ok();
+    if (!im.log) return Status::Ok();  // before the region load: it is in the load
+    std::vector<levelset::EditRequest> reqs;
+    std::vector<std::string> payloads;
+    if (b.records_size() > 0) {
+      for (const v1::EditRecord& r : b.records()) {
+        codec::StrokePoseRecord p;
+        p.global_seq = r.global_seq();
+        p.client_id = r.client_id();
+        p.client_seq = r.client_seq();
+        p.object = r.object().empty() ? b.object() : r.object();
+        p.pose_index = r.pose_index();
+        p.pose_count = r.pose_count();
+        p.commit_ms = r.commit_ms();
+        p.edit = codec::EditFromRecord(r);
+        p.user = r.user();
+        reqs.push_back(p.edit);
+        std::string payload = codec::EncodeLogRecord(p);
+        codec::AppendRecordUser(&payload, p.user);
+        payloads.push_back(std::move(payload));
+      }
+    } else {
+      v1::Stroke stroke = b.stroke();
+      stroke.set_object(b.object());
+      auto decoded = codec::DecodeStroke(stroke, codec::ReplicaLimits(im.voxel_size));
+      if (!decoded.ok()) {
+        spdlog::warn("cluster: standby: broadcast stroke does not decode: {}",
+                     decoded.status().ToString());
+        resync();
+        return Status::Ok();
+      }
+      const uint32_t n = static_cast<uint32_t>(decoded->edits.size());
+      const uint64_t now_ms = static_cast<uint64_t>(
+          std::chrono::duration_cast<std::chrono::milliseconds>(
+              std::chrono::system_clock::now().time_since_epoch())
+              .count());
+      for (uint32_t i = 0; i < n; ++i) {
+        codec::StrokePoseRecord p;
+        p.global_seq = b.global_seq_first() + i;
+        p.client_id = b.client_id();
+        p.client_seq = b.stroke().client_seq();
+        p.object = b.object();
+        p.pose_index = i;
+        p.pose_count = n;
+        // The owner's commit time is not in the broadcast: the time this copy logged it.
+        if (i + 1 == n) p.commit_ms = now_ms;
+        p.edit = decoded->edits[i];
+        reqs.push_back(codec::AsLogged(p.edit));
+        payloads.push_back(codec::EncodeLogRecord(p));
+      }
+    }
+    if (reqs.empty()) return Status::Ok();
+    const uint64_t first = b.global_seq_first();
+    const uint64_t last = first + reqs.size() - 1;
+    if (first <= im.seq) return Status::Ok();  // already in a region load
+    SCULPT_RETURN_IF_ERROR(im.log->AppendGroup(first, payloads));
+    {
+      uint64_t& newest = im.resend[{static_cast<uint8_t>(ResendStream::kStrokes),
+                                    b.records_size() > 0 ? b.records(0).client_id()
+                                                         : b.client_id()}];
+      newest = std::max(newest, b.records_size() > 0 ? b.records(0).client_seq()
+                                                     : b.stroke().client_seq());
+    }
+    im.records_since_snapshot += payloads.size();
+    const levelset::ReplayState state{b.volume(), b.reference_volume(), b.edits_since_reinit()};
+    auto res = levelset::ReplayEdits(*im.sculpture, reqs, im.settings, state);
+    im.seq = last;
+    uint64_t actual = 0;
+    if (res.ok()) actual = levelset::LeavesHash(*im.sculpture, res->dirty_leaves);
+    if (!res.ok() || actual != b.leaves_hash()) {
+      // Diverged: said to the owner (it counts and logs it), and the object is loaded anew,
+      // which snapshots this copy past the bad edit.
+      spdlog::warn("cluster: standby of scene {} diverged at seq {} ({}): loading it anew",
+                   o.scene, last, res.ok() ? "leaves hash" : res.status().ToString());
+      v1::ClientMessage dm;
+      v1::DivergenceReport* d = dm.mutable_divergence();
+      d->set_object(im.object);
+      d->set_global_seq(last);
+      d->set_expected_hash(b.leaves_hash());
+      d->set_actual_hash(actual);
+      (void)im.client->SendMessage(dm);
+      resync();
+    } else if (o.snapshot_every_records > 0 &&
+               im.records_since_snapshot >= o.snapshot_every_records) {
+      return snapshot(last);
+    }
+    return Status::Ok();
+  };
+
+  std::unique_lock<std::mutex> lock(mu_);
+  while (!stop_) {
+    cv_.wait_for(lock, std::chrono::milliseconds(100), [&] { return stop_ || !queue_.empty(); });
+    if (stop_) break;
+    if (queue_.empty()) {
+      if (!im.client->connected()) {
+        lock.unlock();
+        fail("the connection to the owner at " + o.owner_tcp + " ended");
+        lock.lock();
+        break;
+      }
+      continue;
+    }
+    std::unique_ptr<v1::ServerMessage> m = std::move(queue_.front());
+    queue_.pop_front();
+    lock.unlock();
+    const Status st = apply(*m);
+    lock.lock();
+    if (!st.ok()) {
+      lock.unlock();
+      spdlog::error("cluster: standby of scene {}: {}; following stops", o.scene, st.ToString());
+      fail(st.ToString());
+      lock.lock();
+      break;
+    }
+  }
+  lock.unlock();
+  im.client->SetReplicationHandler(nullptr);
+  im.client->DropConnection();
+  if (im.log) (void)im.log->Sync();
+  finished_ = true;
+}
+
+}  // namespace sculpt::server::cluster

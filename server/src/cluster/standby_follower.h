@@ -1,0 +1,109 @@
+/// @brief StandbyFollower: a standby member's copy of another member's scene, kept by following
+/// the owner's edit stream as a replay replica (issue 4's Subscribe) and logging what it applies
+/// into a data directory of its own, so that the copy can be opened as the scene on failover.
+#ifndef SCULPT_SERVER_CLUSTER_STANDBY_FOLLOWER_H_
+#define SCULPT_SERVER_CLUSTER_STANDBY_FOLLOWER_H_
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include "sculpt/core/status.h"
+
+namespace sculpt::v1 {
+class ServerMessage;
+}  // namespace sculpt::v1
+
+namespace sculpt::server::cluster {
+
+/// Where a member keeps its standby copies: `<data_dir>/standby/<scene>/`, holding generations
+/// `gen-<n>/` (each a data directory: `snapshots/`, `log/`) and `CURRENT`, the name of the newest
+/// generation that is complete (its region loaded and snapshotted, its log started after it).
+/// A new connection to the owner starts a new generation; CURRENT moves to it only once it is
+/// complete, so a connection lost at the owner's death never costs the copy already held.
+std::string StandbyDir(const std::string& data_dir, const std::string& scene);
+/// The complete generation's directory, or nullopt when there is none; `epoch` (may be null)
+/// gets the owner's epoch it was following.
+std::optional<std::string> CurrentStandbyCopy(const std::string& data_dir,
+                                              const std::string& scene, uint64_t* epoch = nullptr);
+
+/// Failover: makes the standby copy the member's data directory. Everything else in `data_dir`
+/// (the scene this process opened at start, other side files) is moved, never deleted, into
+/// `<data_dir>/superseded/<epoch>-<ms>/`; the copy's files take its place; `cluster-promoted`
+/// records that the directory is the standby copy of `scene` as owned at `dead_epoch`, so the
+/// restarted process may take the scene with epoch + 1. FailedPrecondition without a complete
+/// copy; Internal for a file-system error (the directory is then left as the error says).
+Status PromoteStandbyCopy(const std::string& data_dir, const std::string& scene,
+                          uint64_t dead_epoch);
+/// The epoch written by PromoteStandbyCopy for `scene`, nullopt when none.
+std::optional<uint64_t> PromotedFromEpoch(const std::string& data_dir, const std::string& scene);
+/// Forgets the promotion marker (once the scene is acquired).
+void ClearPromotedMarker(const std::string& data_dir);
+
+struct FollowerOptions {
+  std::string data_dir;
+  std::string scene;
+  std::string member;  // this member's name (the session name the owner logs)
+  std::string token;   // a viewer token the owner accepts
+  std::string owner_tcp;  // HOST:PORT
+  uint64_t owner_epoch = 0;
+  /// The copy snapshots its object after this many logged records and drops the log before the
+  /// previous snapshot (as the owner does with snapshot_every_edits), so a failover replays a
+  /// bounded tail; 0: only at region loads.
+  uint64_t snapshot_every_records = 5000;
+};
+
+/// One follow of one owner: connects as a viewer, joins the scene without its state, subscribes
+/// to the whole of its object in replay mode, and then, on its own thread, for each message:
+/// an EditBroadcast is logged (the stroke's pose records, as the owner logged them, in one group)
+/// and replayed with the kernel, its leaves hash checked (a mismatch is reported to the owner
+/// and the object loaded anew); a region load or a leaf delta (an edit without a replay form:
+/// paint, sweep, model, undo) is applied and the object snapshotted at its sequence, so the copy
+/// never depends on a record it could not write. The follow ends when the connection does;
+/// the copy stays for promotion.
+/// Limits: a scene of one object (several objects would need one connection each and a merge by
+/// sequence); the owner's authenticated user names and resend table are not carried (see
+/// docs/cluster.md). Thread safety: every method from any thread.
+class StandbyFollower {
+ public:
+  explicit StandbyFollower(FollowerOptions options);
+  /// Stops following and waits for the thread; the copy's log is made durable first.
+  ~StandbyFollower();
+  StandbyFollower(const StandbyFollower&) = delete;
+  StandbyFollower& operator=(const StandbyFollower&) = delete;
+
+  const FollowerOptions& options() const { return options_; }
+  /// The connection ended or never started (the copy, if any, stays).
+  bool finished() const { return finished_.load(); }
+  /// Why the follow ended (empty while it runs).
+  std::string failure() const;
+  /// This follow's generation is complete and current.
+  bool ready() const { return ready_.load(); }
+  /// The last sequence the copy holds durably (0 before ready).
+  uint64_t durable_seq() const;
+
+ private:
+  struct Impl;
+  void Run();
+
+  const FollowerOptions options_;
+  std::shared_ptr<Impl> impl_;
+  std::atomic<bool> stop_{false};
+  std::atomic<bool> finished_{false};
+  std::atomic<bool> ready_{false};
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<std::unique_ptr<v1::ServerMessage>> queue_;  // guarded by mu_
+  std::string failure_;                                    // guarded by mu_
+  std::thread thread_;
+};
+
+}  // namespace sculpt::server::cluster
+
+#endif  // SCULPT_SERVER_CLUSTER_STANDBY_FOLLOWER_H_
