@@ -157,7 +157,8 @@ TEST(RansCoderTest, RawBitsRoundTripAndEndExactly) {
   BitReader shorter(std::string_view(bytes).substr(0, bytes.size() - 1));
   for (const auto& [v, n] : puts) shorter.Get(n);
   EXPECT_FALSE(shorter.ok());
-  BitReader longer(bytes + '\0');
+  const std::string padded = bytes + '\0';  // the reader keeps a view: the bytes must outlive it
+  BitReader longer(padded);
   for (const auto& [v, n] : puts) longer.Get(n);
   EXPECT_FALSE(longer.ok());
 }
