@@ -93,9 +93,17 @@ try {
   }, 10000);
   check('a owns the scene', owner.member === 'a', JSON.stringify(owner));
   b = member('b', bHttp, aHttp);
-  await sculptdPorts(b);
+  const bPorts = await sculptdPorts(b);
   await until('b did not register', async () => !!(await etcdGet(`${kPrefix}members/b`)), 10000);
-  await sleep(1500);  // b's routing table is re-read every lease_ttl_ms / 4
+  // b routes to a once it has read a's owner key (its table is re-read every lease_ttl_ms / 4):
+  // the C++ client (`sculpt history`, which follows one redirect) gets through b then.
+  await until('b did not route to a', async () => {
+    try {
+      execFileSync(join(bin, 'sculpt'), ['history', '--server', `127.0.0.1:${bPorts.tcpPort}`, '--timeout', '5'],
+        { stdio: 'ignore' });
+      return true;
+    } catch { return false; }
+  }, 15000);
 
   browser = await launchChromium();
   const page = await browser.newPage({ viewport: { width: 480, height: 360 } });
