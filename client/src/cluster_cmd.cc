@@ -163,15 +163,18 @@ CLI::App* AddClusterCommand(CLI::App& app, ClusterStatusOptions& o) {
       app.add_subcommand("cluster", "Inspect a sculptd cluster (members and scenes in etcd)");
   cluster_cmd->require_subcommand(1);
   CLI::App* status = cluster_cmd->add_subcommand(
-      "status", "List the members (addresses, sessions, owned scenes) and the scenes (owner, "
-                "epoch, standby) of a cluster, as etcd holds them now");
+      "status",
+      "List the members (addresses, sessions, owned scenes) and the scenes (owner, "
+      "epoch, standby) of a cluster, as etcd holds them now");
   status->footer(
       "Reads every key under the prefix in one etcd range (one revision, so members and owners "
       "agree). A member is listed while its lease lives; a scene whose owner's lease expired "
       "shows 'no owner' with its last owner. The standby column shows the "
       "<prefix>scenes/<scene>/standby key when a member holds one. Exit status: 0 when listed, 1 "
       "when etcd did not answer, 2 for bad options.");
-  status->add_option("--etcd", o.etcd, "etcd endpoint http://HOST:PORT (repeatable, or comma-separated)")
+  status
+      ->add_option("--etcd", o.etcd,
+                   "etcd endpoint http://HOST:PORT (repeatable, or comma-separated)")
       ->required()
       ->delimiter(',');
   status->add_option("--prefix", o.prefix, "The cluster's key prefix (cluster.prefix)")

@@ -13,7 +13,7 @@ class App;
 namespace sculpt::client {
 
 struct ClusterStatusOptions {
-  std::vector<std::string> etcd;  // http://HOST:PORT, tried in turn
+  std::vector<std::string> etcd;   // http://HOST:PORT, tried in turn
   std::string prefix = "sculpt/";  // cluster.prefix of the members
   double timeout_s = 2;            // per etcd endpoint
   bool json = false;

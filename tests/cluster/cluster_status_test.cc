@@ -80,7 +80,8 @@ class ClusterStatusTest : public ::testing::Test {
     members_.push_back(std::make_unique<ChildProcess>(
         std::vector<std::string>{std::string(SCULPT_BIN_DIR) + "/sculptd", "serve", "--config",
                                  config.string(), "--listen", "127.0.0.1:0", "--http",
-                                 "127.0.0.1:0", "--data", (dir_.path() / (name + "-data")).string()},
+                                 "127.0.0.1:0", "--data",
+                                 (dir_.path() / (name + "-data")).string()},
         dir_.path() / (name + ".log")));
   }
   bool HasKey(const std::string& key) {
@@ -108,7 +109,8 @@ TEST_F(ClusterStatusTest, ListsBothMembersAndTheOwnerAndEpochOfTheScene) {
   ASSERT_TRUE(WaitFor([&] { return Member("b").has_value(); }, milliseconds(10000)))
       << "b did not register; see " << dir_.path() / "b.log";
   // a's record lists the scene once its next refresh (every TTL/4) has run.
-  ASSERT_TRUE(WaitFor([&] { return Member("a") && !Member("a")->owns.empty(); }, milliseconds(5000)));
+  ASSERT_TRUE(
+      WaitFor([&] { return Member("a") && !Member("a")->owns.empty(); }, milliseconds(5000)));
   const MemberRecord a = *Member("a");
 
   const RunResult r = Sculpt("cluster status --etcd " + etcd_->endpoint() + " --prefix t/ --json");
@@ -134,8 +136,10 @@ TEST_F(ClusterStatusTest, ListsBothMembersAndTheOwnerAndEpochOfTheScene) {
   EXPECT_EQ(scene["state"], "owned");
 
   // A standby key (as the standby work writes it) is shown by its member.
-  ASSERT_TRUE(etcd_client_->Sync(etcd_client_->Put(
-      {"t/scenes/default/standby", "{\"member\":\"b\",\"epoch\":1}", 0})).ok());
+  ASSERT_TRUE(etcd_client_
+                  ->Sync(etcd_client_->Put(
+                      {"t/scenes/default/standby", "{\"member\":\"b\",\"epoch\":1}", 0}))
+                  .ok());
   const RunResult with_standby =
       Sculpt("cluster status --etcd " + etcd_->endpoint() + " --prefix t/ --json");
   ASSERT_EQ(with_standby.exit_code, 0) << with_standby.output;
@@ -168,7 +172,8 @@ TEST(ClusterStatusNoEtcd, ReportsAnUnreachableEtcdWithAHint) {
   const auto start = std::chrono::steady_clock::now();
   const RunResult r = Sculpt("cluster status --etcd " + url + " --timeout 0.5");
   EXPECT_EQ(r.exit_code, 1) << r.output;
-  EXPECT_NE(r.output.find("cannot read sculpt/ from etcd at " + url), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("cannot read sculpt/ from etcd at " + url), std::string::npos)
+      << r.output;
   EXPECT_NE(r.output.find("endpoint health"), std::string::npos) << r.output;
   EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(10));
 }
