@@ -1,5 +1,5 @@
 /// @brief `sculpt`: the command-line client. Subcommands: demo, info, export, play, thesis, skin,
-/// undo, redo, history.
+/// undo, redo, history, cluster status.
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -12,6 +12,9 @@
 #include <tuple>
 
 #include "demo.h"
+#ifdef SCULPT_CLI_CLUSTER
+#include "cluster_cmd.h"
+#endif
 #include "history_cmd.h"
 #include "play_cmd.h"
 #include "sculpt/client/client.h"
@@ -273,6 +276,11 @@ int main(int argc, char** argv) {
   history_token.fallback = sculpt::client::HistoryFallbackToken("viewer");
   sculpt::client::AddTokenFlags(*history_cmd, &history_token, "Token of the --role");
 
+#ifdef SCULPT_CLI_CLUSTER
+  sculpt::client::ClusterStatusOptions cluster_opts;
+  CLI::App* cluster_status_cmd = sculpt::client::AddClusterCommand(app, cluster_opts);
+#endif
+
   CLI11_PARSE(app, argc, argv);
 
   // Secrets come from a file or the environment; a token flag stops here with directions.
@@ -294,6 +302,9 @@ int main(int argc, char** argv) {
     *token = *t;
   }
 
+#ifdef SCULPT_CLI_CLUSTER
+  if (*cluster_status_cmd) return sculpt::client::RunClusterStatus(cluster_opts);
+#endif
   if (*skin_cmd) return sculpt::client::RunSkin(skin_opts);
   if (*undo_cmd) return sculpt::client::RunUndo(undo_opts);
   if (*redo_cmd) return sculpt::client::RunUndo(redo_opts);

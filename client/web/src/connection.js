@@ -74,19 +74,28 @@ export class Connection extends EventTarget {
 
   /** Resolves with the first `type` message, rejects on an Error message or a close first. */
   next(type, timeoutMs = 10000) {
+    return this.nextOf([type], timeoutMs).then((m) => m.detail);
+  }
+
+  /**
+   * Resolves with { type, detail } of the first message of one of `types` (a JoinScene is
+   * answered by sceneInfo or redirect); rejects on an Error message or a close first.
+   */
+  nextOf(types, timeoutMs = 10000) {
     return new Promise((resolve, reject) => {
+      const handlers = types.map((type) => [type, (ev) => done(resolve, { type, detail: ev.detail })]);
       const done = (fn, arg) => {
         clearTimeout(timer);
-        this.removeEventListener(type, onType);
+        for (const [type, h] of handlers) this.removeEventListener(type, h);
         this.removeEventListener('error', onError);
         this.removeEventListener('close', onClose);
         fn(arg);
       };
-      const onType = (ev) => done(resolve, ev.detail);
       const onError = (ev) => done(reject, Object.assign(new Error(describeError(ev.detail)), { wire: ev.detail }));
       const onClose = (ev) => done(reject, new Error(`connection closed ${ev.detail.reason || ''}`.trim()));
-      const timer = setTimeout(() => done(reject, new Error(`no ${type} within ${timeoutMs} ms`)), timeoutMs);
-      this.addEventListener(type, onType);
+      const timer = setTimeout(() => done(reject, new Error(`no ${types.join(' or ')} within ${timeoutMs} ms`)),
+        timeoutMs);
+      for (const [type, h] of handlers) this.addEventListener(type, h);
       this.addEventListener('error', onError);
       this.addEventListener('close', onClose);
     });

@@ -14,6 +14,9 @@ import { UndoControls } from './undo.js';
 const $ = (id) => document.getElementById(id);
 const kBusyChunks = 16;    // chunks in the decoder above which frames are spaced out
 const kBusyFrameMs = 500;
+// Redirects followed in a row for one join before giving up (members that disagree about a
+// scene's owner, or a forged answer, must not bounce the page around for ever).
+const kMaxRedirects = 3;
 
 /** Reads #token=...&role=...&name=... (the fragment never reaches a server). */
 function fragmentOptions() {
@@ -159,28 +162,92 @@ class App {
     ].join('  |  ');
   }
 
-  async join({ token, role, name, scene }) {
+  /** A short line above the status bar ("scene is on member a, reconnecting"); '' hides it. */
+  showNotice(text) {
+    this.stats.notice = text;
+    $('notice').textContent = text;
+    $('notice').hidden = !text;
+    if (text) console.info(`sculpt: ${text}`);
+  }
+
+  /**
+   * Opens /ws on `host`, says Hello and sends JoinScene: { redirect } when this member does
+   * not own the scene (cluster mode, proto/README.md "Redirects"), else { welcome, info }.
+   */
+  async connectAndJoin(host, { token, role, name, scene }, clientId) {
     const proto = location.protocol === 'https:' ? 'wss:' : 'ws:';
-    this.conn = new Connection(`${proto}//${location.host}/ws`);
+    const conn = new Connection(`${proto}//${host}/ws`);
+    this.conn = conn;
     this.stats.state = 'connecting';
-    this.conn.addEventListener('close', (ev) => {
+    this.stats.server = host;
+    // A connection that answered Redirect closes with a Bye: that is not an error to show.
+    const current = () => this.conn === conn && !conn.redirected;
+    conn.addEventListener('close', (ev) => {
+      if (!current()) return;
       this.stats.state = 'disconnected';
       if (ev.detail.reason) this.showError(`disconnected: ${ev.detail.reason}`);
     });
-    this.conn.addEventListener('error', (ev) => this.showError(describeError(ev.detail)));
-    this.conn.addEventListener('bye', (ev) => { if (ev.detail.reason) this.showError(`server: ${ev.detail.reason}`); });
-    this.conn.addEventListener('protocol-error', (ev) => this.showError(`bad message: ${ev.detail}`));
-    await this.conn.open();
+    conn.addEventListener('error', (ev) => { if (current()) this.showError(describeError(ev.detail)); });
+    conn.addEventListener('bye', (ev) => {
+      if (current() && ev.detail.reason) this.showError(`server: ${ev.detail.reason}`);
+    });
+    conn.addEventListener('protocol-error', (ev) => this.showError(`bad message: ${ev.detail}`));
+    await conn.open();
     const wantRole = role === 'viewer' ? v1.Role.ROLE_VIEWER : v1.Role.ROLE_SCULPTOR;
-    const clientId = Math.floor(Math.random() * 2 ** 48) + 1;
-    this.conn.send('hello', { protocolVersion: 1, token: token || '', role: wantRole,
+    conn.send('hello', { protocolVersion: 1, token: token || '', role: wantRole,
       clientName: (name || 'browser').slice(0, 64), clientId });
-    const welcome = await this.conn.next('welcome');
+    const welcome = await conn.next('welcome');
+    conn.send('join', { scene, skipState: true });
+    const answer = await conn.nextOf(['sceneInfo', 'redirect']);
+    if (answer.type === 'redirect') {
+      conn.redirected = true;
+      conn.close('redirected');
+      return { redirect: answer.detail };
+    }
+    return { welcome, info: answer.detail };
+  }
+
+  async join(opts) {
+    // One client id for the whole join, redirects included: the owner sees the same client.
+    const clientId = Math.floor(Math.random() * 2 ** 48) + 1;
+    let host = location.host;
+    let joined;
+    this.stats.redirects = 0;
+    for (;;) {
+      try {
+        joined = await this.connectAndJoin(host, opts, clientId);
+      } catch (err) {
+        // A socket to another member is cross-origin: refused unless each member lists the
+        // others' page origins (docs/cluster.md, "Browser and operator").
+        if (this.stats.redirects > 0 && !err.wire) {
+          err.message += ` (redirected to member ${this.stats.member}: its --http-allow-origin must list `
+            + `${location.origin}, and this member's must list ${location.protocol}//${host})`;
+        }
+        throw err;
+      }
+      const r = joined.redirect;
+      if (!r) break;
+      const where = `member ${r.member || '?'}${r.httpAddress ? ` at ${r.httpAddress}` : ''}`;
+      const scene = r.scene || opts.scene || 'default';
+      if (this.stats.redirects >= kMaxRedirects) {
+        throw new Error(`scene "${scene}" was redirected ${this.stats.redirects + 1} times in a row `
+          + `(last to ${where}, epoch ${num(r.epoch)}): the members disagree about its owner; try again later`);
+      }
+      if (!r.httpAddress) {
+        throw new Error(`scene "${scene}" is on ${where}, which has no HTTP port for the browser`);
+      }
+      this.stats.redirects += 1;
+      this.stats.member = r.member;
+      this.showNotice(`scene "${scene}" is on ${where}, reconnecting`);
+      host = r.httpAddress;
+    }
+    const { welcome, info } = joined;
+    if (this.stats.redirects > 0) {
+      this.showNotice(`scene "${info.scene}" is on member ${this.stats.member} (${host})`);
+    }
     this.welcome = welcome;
     this.stats.role = welcome.role === v1.Role.ROLE_VIEWER ? 'viewer' : 'sculptor';
     this.presence.ownSession = num(welcome.sessionId);
-    this.conn.send('join', { scene, skipState: true });
-    const info = await this.conn.next('sceneInfo');
     this.info = info;
     this.stats.state = 'joined';
     this.stats.scene = info.scene;
@@ -219,6 +286,7 @@ async function start(opts) {
     await app.join(opts);
   } catch (err) {
     app.stats.state = 'refused';
+    app.showNotice('');
     if (!err.wire) app.showError(err.message);  // a wire Error is already shown
     $('join').hidden = false;
   }

@@ -8,13 +8,13 @@ import { join } from 'node:path';
 
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
-// Starts `sculptd serve` with --data DIR/data, both ports on 127.0.0.1:0, --web-root and `extra`
-// arguments, and returns { server, watchdog, dir } at once (so that a failure while waiting can
-// still stop it). `label` and `limitMs` name and bound the whole test.
-export function startSculptd({ bin, webRoot, dir, extra = [], label, limitMs }) {
+// Starts `sculptd serve` with --data DIR/data, both ports on 127.0.0.1:0 (HTTP on `http` when
+// given), --web-root and `extra` arguments, and returns { server, watchdog, dir } at once (so that
+// a failure while waiting can still stop it). `label` and `limitMs` name and bound the whole test.
+export function startSculptd({ bin, webRoot, dir, extra = [], label, limitMs, http = '127.0.0.1:0' }) {
   const portFile = join(dir, 'ports');
   const server = spawn(join(bin, 'sculptd'), ['serve', '--data', join(dir, 'data'),
-    '--listen', '127.0.0.1:0', '--http', '127.0.0.1:0', '--port-file', portFile,
+    '--listen', '127.0.0.1:0', '--http', http, '--port-file', portFile,
     '--web-root', webRoot, ...extra], { stdio: ['ignore', 'inherit', 'inherit'] });
   const watchdog = setTimeout(() => {
     console.error(`FAIL ${label} exceeded ${limitMs / 1000} s`);

@@ -5,6 +5,8 @@
 #include <sys/statvfs.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
 #include <optional>
 #include <type_traits>
 
@@ -24,6 +26,29 @@ constexpr char kContentSecurityPolicy[] =
     "default-src 'self'; script-src 'self' 'wasm-unsafe-eval'; worker-src 'self' blob:; "
     "connect-src 'self'; img-src 'self' data: blob:; style-src 'self'; object-src 'none'; "
     "base-uri 'none'; form-action 'self'; frame-ancestors 'none'";
+// The policy with each --http-allow-origin also allowed in connect-src (as http(s):// and
+// ws(s)://): in a cluster those are the other members, and a page served here follows a Redirect
+// by opening /ws on the scene's owner. An origin with characters outside a plain
+// scheme://host:port is left out (it could otherwise add directives).
+std::string ContentSecurityPolicy(const std::vector<std::string>& allowed_origins) {
+  std::string extra;
+  for (const std::string& o : allowed_origins) {
+    const bool plain = std::all_of(o.begin(), o.end(), [](char c) {
+      return std::isalnum(static_cast<unsigned char>(c)) || c == ':' || c == '/' || c == '.' ||
+             c == '-' || c == '[' || c == ']';
+    });
+    if (!plain) continue;
+    if (o.rfind("http://", 0) == 0) {
+      extra += " " + o + " ws://" + o.substr(7);
+    } else if (o.rfind("https://", 0) == 0) {
+      extra += " " + o + " wss://" + o.substr(8);
+    }
+  }
+  std::string csp = kContentSecurityPolicy;
+  const std::string self = "connect-src 'self'";
+  csp.insert(csp.find(self) + self.size(), extra);
+  return csp;
+}
 // Requests carry no body here; a small one is read and ignored (then answered 405).
 constexpr uint64_t kMaxRequestBodyBytes = 16 * 1024;
 // After an error response the rest of the request is read and dropped for this long, so the
@@ -227,7 +252,7 @@ class HttpServer::BasicConnection final
     Response res{status, req.version()};
     res.set(http::field::server, "sculptd");
     if (!type.empty()) res.set(http::field::content_type, beast::string_view(type.data(), type.size()));
-    res.set("Content-Security-Policy", kContentSecurityPolicy);
+    res.set("Content-Security-Policy", owner_.csp_);
     res.set("X-Content-Type-Options", "nosniff");
     res.set("Referrer-Policy", "no-referrer");
     if (status != http::status::ok && status != http::status::not_modified) {
@@ -360,7 +385,8 @@ HttpServer::HttpServer(asio::io_context& io, HttpConfig config, Server& server)
       server_(server),
       files_(config_.web_root),
       acceptor_(io),
-      accept_pause_(io, "http accept on " + config_.listen) {}
+      accept_pause_(io, "http accept on " + config_.listen),
+      csp_(ContentSecurityPolicy(config_.allowed_origins)) {}
 
 HttpServer::~HttpServer() { Stop(); }
 

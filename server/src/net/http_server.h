@@ -99,6 +99,7 @@ class HttpServer {
   StaticFiles files_;
   tcp::acceptor acceptor_;
   AcceptPause accept_pause_;
+  std::string csp_;  // Content-Security-Policy of every response (with the allowed origins)
   std::shared_ptr<boost::asio::ssl::context> tls_;  // null: plain HTTP
   std::atomic<bool> stopped_{false};
   // Shared with the connection slots, which may outlive this object in queued handlers.

@@ -1,0 +1,215 @@
+// Browser test of redirects in cluster mode (issue 17): an etcd (Debian's etcd-server) and two
+// sculptd members a and b started here on loopback; a owns the scene, the page is opened on b,
+// follows b's Redirect by opening /ws on a's HTTP address, says so in its notice line, joins
+// there, and its drag is acknowledged by a (and is in a's history). Then, with the page's socket
+// answered by the test (a forged redirect loop, a redirect without an HTTP address): the page
+// stops after three redirects with a clear error. Usage:
+//   node test/redirect_browser_test.mjs --bin BUILD/bin --web-root DIST
+// Exits 0 with "skipped" when /usr/bin/etcd is missing; non-zero with the failing check's name.
+import { execFileSync, spawn } from 'node:child_process';
+import { mkdirSync, mkdtempSync, existsSync, rmSync, writeFileSync } from 'node:fs';
+import { createServer } from 'node:net';
+import { tmpdir } from 'node:os';
+import { join } from 'node:path';
+import { chromiumPath, launchChromium } from './chromium.mjs';
+import { sculptdPorts, startSculptd, stopSculptd } from './sculptd.mjs';
+
+const args = Object.fromEntries(process.argv.slice(2).reduce((acc, a, i, all) =>
+  (a.startsWith('--') ? [...acc, [a.slice(2), all[i + 1]]] : acc), []));
+const { bin } = args;
+const webRoot = args['web-root'];
+const etcdBinary = '/usr/bin/etcd';
+if (!bin || !webRoot) { console.error('usage: --bin DIR --web-root DIR'); process.exit(2); }
+if (!existsSync(chromiumPath)) { console.error(`${chromiumPath} missing`); process.exit(1); }
+if (!existsSync(etcdBinary)) {
+  console.log(`redirect browser test: skipped (${etcdBinary} missing: install Debian's etcd-server)`);
+  process.exit(0);
+}
+
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+let failures = 0;
+function check(name, ok, detail = '') {
+  console.log(`${ok ? 'ok  ' : 'FAIL'} ${name}${detail ? `: ${detail}` : ''}`);
+  if (!ok) failures += 1;
+}
+// A port the kernel just handed out and released (etcd and the HTTP ports must be named up
+// front: each member's --http-allow-origin names the other's page origin).
+const freePort = () => new Promise((resolve, reject) => {
+  const s = createServer();
+  s.once('error', reject);
+  s.listen(0, '127.0.0.1', () => { const { port } = s.address(); s.close(() => resolve(port)); });
+});
+const b64 = (text) => Buffer.from(text).toString('base64');
+
+const dir = mkdtempSync(join(tmpdir(), 'sculpt-redirect-browser-'));
+const kPrefix = 't/';
+const [etcdPort, peerPort, aHttp, bHttp] = [await freePort(), await freePort(), await freePort(), await freePort()];
+const etcdUrl = `http://127.0.0.1:${etcdPort}`;
+const peerUrl = `http://127.0.0.1:${peerPort}`;
+const etcd = spawn(etcdBinary, ['--name', 't', '--data-dir', join(dir, 'etcd'), '--listen-client-urls', etcdUrl,
+  '--advertise-client-urls', etcdUrl, '--listen-peer-urls', peerUrl, '--initial-advertise-peer-urls', peerUrl,
+  '--initial-cluster', `t=${peerUrl}`], { stdio: 'ignore' });
+
+// The value of `key` through etcd's v3 JSON gateway, or null (absent, or etcd not answering yet).
+async function etcdGet(key) {
+  try {
+    const res = await fetch(`${etcdUrl}/v3/kv/range`, { method: 'POST', body: JSON.stringify({ key: b64(key) }),
+      signal: AbortSignal.timeout(1000) });
+    if (!res.ok) return null;
+    const body = await res.json();
+    return body.kvs && body.kvs.length ? Buffer.from(body.kvs[0].value, 'base64').toString() : '';
+  } catch { return null; }
+}
+async function until(what, fn, limitMs) {
+  const end = Date.now() + limitMs;
+  for (;;) {
+    const v = await fn();
+    if (v) return v;
+    if (Date.now() > end) throw new Error(`${what} within ${limitMs / 1000} s`);
+    await sleep(100);
+  }
+}
+
+const member = (name, http, otherHttp) => {
+  const mdir = join(dir, name);
+  mkdirSync(mdir);
+  writeFileSync(join(mdir, 'config.toml'), `[cluster]\netcd = ["${etcdUrl}"]\nmember = "${name}"\n`
+    + `lease_ttl_ms = 2000\nprefix = "${kPrefix}"\n`);
+  // The other member's pages may open /ws here (the Origin check), and this member's pages may
+  // open /ws there (the page's Content-Security-Policy connect-src).
+  return startSculptd({ bin, webRoot, dir: mdir, http: `127.0.0.1:${http}`, label: `redirect browser test (${name})`,
+    limitMs: 150000, extra: ['--config', join(mdir, 'config.toml'), '--http-allow-origin', `http://127.0.0.1:${otherHttp}`] });
+};
+
+let a, b, browser;
+let stage = 'starting';
+try {
+  await until('etcd did not answer', async () => (await etcdGet('ping')) !== null, 20000);
+  a = member('a', aHttp, bHttp);
+  const aPorts = await sculptdPorts(a);
+  const owner = await until('a did not take the scene', async () => {
+    const v = await etcdGet(`${kPrefix}scenes/default/owner`);
+    return v ? JSON.parse(v) : null;
+  }, 10000);
+  check('a owns the scene', owner.member === 'a', JSON.stringify(owner));
+  b = member('b', bHttp, aHttp);
+  const bPorts = await sculptdPorts(b);
+  await until('b did not register', async () => !!(await etcdGet(`${kPrefix}members/b`)), 10000);
+  // b routes to a once it has read a's owner key (its table is re-read every lease_ttl_ms / 4):
+  // the C++ client (`sculpt history`, which follows one redirect) gets through b then.
+  await until('b did not route to a', async () => {
+    try {
+      execFileSync(join(bin, 'sculpt'), ['history', '--server', `127.0.0.1:${bPorts.tcpPort}`, '--timeout', '5'],
+        { stdio: 'ignore' });
+      return true;
+    } catch { return false; }
+  }, 15000);
+
+  browser = await launchChromium();
+  const page = await browser.newPage({ viewport: { width: 480, height: 360 } });
+  page.logs = [];
+  page.sockets = [];
+  page.on('console', (m) => page.logs.push(`${m.type()}: ${m.text()}`));
+  page.on('pageerror', (e) => page.logs.push(`pageerror: ${e.message}`));
+  page.on('websocket', (ws) => page.sockets.push(ws.url()));
+  stage = 'joining through b';
+  await page.goto(`http://127.0.0.1:${bHttp}/#token=sculpt-dev-sculptor&role=sculptor&name=alice`);
+  await page.waitForFunction(() => ['joined', 'refused'].includes(window.sculpt?.stats.state)
+    && (window.sculpt.stats.state === 'refused' || (window.sculpt.meshes.totals().chunks > 0 && window.sculpt.framed
+      && window.sculpt.meshes.decoding === 0)),
+  null, { timeout: 60000, polling: 100 });
+  const joined = await page.evaluate(() => ({ state: window.sculpt.stats.state, server: window.sculpt.stats.server,
+    redirects: window.sculpt.stats.redirects, member: window.sculpt.stats.member, errors: window.sculpt.stats.errors,
+    notice: document.getElementById('notice').textContent, shown: !document.getElementById('notice').hidden }));
+  check('page opened on b joined on a after one redirect', joined.state === 'joined' && joined.redirects === 1
+    && joined.member === 'a' && joined.server === `127.0.0.1:${aHttp}`, JSON.stringify(joined));
+  check('the sockets: b\'s /ws, then a\'s', JSON.stringify(page.sockets)
+    === JSON.stringify([`ws://127.0.0.1:${bHttp}/ws`, `ws://127.0.0.1:${aHttp}/ws`]), JSON.stringify(page.sockets));
+  check('the notice names the member', joined.shown && joined.notice.includes('member a'), joined.notice);
+  check('a redirect is no error', joined.errors.length === 0, JSON.stringify(joined.errors));
+  check('the console said "reconnecting"', page.logs.some((l) => /is on member a at .*, reconnecting/.test(l)),
+    page.logs.filter((l) => l.includes('sculpt:')).join(' | '));
+
+  // A point of the page where the pointer is on the surface (the view settles after framing).
+  stage = 'looking for the surface';
+  const at = await (await page.waitForFunction(() => {
+    for (const [dx, dy] of [[0, 0], [-30, 0], [30, 0], [0, -30], [0, 30], [-60, 20], [60, -20]]) {
+      const x = 240 + dx, y = 180 + dy;
+      if (window.sculpt.sculpting.hit({ clientX: x, clientY: y })
+        && window.sculpt.sculpting.hit({ clientX: x + 18, clientY: y + 6 })) return [x, y];
+    }
+    return null;
+  }, null, { timeout: 30000, polling: 200 })).jsonValue();
+  await page.mouse.move(at[0], at[1]);
+  await page.mouse.down();
+  for (let i = 0; i <= 6; ++i) { await page.mouse.move(at[0] + 3 * i, at[1] + i); await sleep(15); }
+  await page.mouse.up();
+  stage = 'waiting for the drag\'s acks';
+  await page.waitForFunction(() => window.sculpt.stats.acks > 0 && window.sculpt.sculpting.pending.size === 0,
+    null, { timeout: 30000, polling: 100 });
+  stage = 'mocked sockets';
+  const s = await page.evaluate(() => ({ sent: window.sculpt.stats.strokesSent, acks: window.sculpt.stats.acks,
+    errors: window.sculpt.stats.errors }));
+  check('every stroke acked by the owner', s.sent > 0 && s.acks === s.sent && s.errors.length === 0, JSON.stringify(s));
+  const history = JSON.parse(execFileSync(join(bin, 'sculpt'), ['history', '--server', `127.0.0.1:${aPorts.tcpPort}`,
+    '--json', '--limit', '100'], { encoding: 'utf8' }));
+  check('a\'s history holds the page\'s strokes', (history.entries || []).length === s.sent,
+    `${(history.entries || []).length} entries, ${s.sent} sent`);
+  const bad = page.logs.filter((l) => l.startsWith('pageerror') || l.includes('Content Security Policy'));
+  check('no page errors or CSP violations', bad.length === 0, bad.join(' | '));
+
+  // Members that keep redirecting (a forged answer, or owners that disagree): the page's /ws is
+  // answered here (playwright's routeWebSocket) by Welcome and then a Redirect for every
+  // JoinScene, back to the same address; the page gives up after kMaxRedirects with a clear error.
+  const { sculpt: { v1 } } = await import('../gen/sculpt_pb.js');
+  const mocked = async (redirect) => {
+    const p = await browser.newPage({ viewport: { width: 320, height: 240 } });
+    p.logs = [];
+    p.on('console', (m) => p.logs.push(`${m.type()}: ${m.text()}`));
+    p.joins = 0;
+    p.clientIds = new Set();
+    await p.routeWebSocket(/\/ws$/, (ws) => {
+      const send = (body, value) => ws.send(Buffer.from(v1.ServerMessage.encode(
+        v1.ServerMessage.create({ [body]: value })).finish()));
+      ws.onMessage((data) => {
+        const m = v1.ClientMessage.decode(typeof data === 'string' ? Buffer.from(data) : data);
+        if (m.body === 'hello') {
+          p.clientIds.add(String(m.hello.clientId));
+          send('welcome', { protocolVersion: 1, sessionId: 7, role: v1.Role.ROLE_SCULPTOR, clientId: m.hello.clientId });
+        } else if (m.body === 'join') {
+          p.joins += 1;
+          send('redirect', redirect);
+          send('bye', { reason: 'redirected' });
+          ws.close();
+        }
+      });
+    });
+    await p.goto(`http://127.0.0.1:${bHttp}/#token=sculpt-dev-sculptor&role=sculptor&name=bob`);
+    await p.waitForFunction(() => window.sculpt?.stats.state === 'refused', null, { timeout: 30000, polling: 100 });
+    return { page: p, errors: await p.evaluate(() => window.sculpt.stats.errors) };
+  };
+  const loop = await mocked({ scene: 'default', member: 'x', tcpAddress: '127.0.0.1:9', httpAddress: `127.0.0.1:${bHttp}`, epoch: 4 });
+  check('redirect loop: refused after 3 redirects followed, naming the last member', loop.page.joins === 4
+    && loop.errors.length === 1 && /redirected 4 times in a row \(last to member x at 127\.0\.0\.1:\d+, epoch 4\)/.test(loop.errors[0]),
+  `${loop.page.joins} joins: ${JSON.stringify(loop.errors)}`);
+  check('redirect loop: one client id on every member', loop.page.clientIds.size === 1, [...loop.page.clientIds].join());
+  check('redirect loop: the notice is cleared', await loop.page.evaluate(() => document.getElementById('notice').hidden));
+  const noHttp = await mocked({ scene: 'default', member: 'y', tcpAddress: '127.0.0.1:9', httpAddress: '', epoch: 2 });
+  check('redirect to a member without an HTTP port: refused, saying so', noHttp.page.joins === 1
+    && noHttp.errors.length === 1 && noHttp.errors[0].includes('member y, which has no HTTP port'), JSON.stringify(noHttp.errors));
+} catch (err) {
+  check(`redirect run (${stage})`, false, err.stack || String(err));
+  for (const p of browser ? browser.contexts().flatMap((c) => c.pages()) : []) {
+    console.error(`page ${p.url()}:\n  ${(p.logs || []).slice(-10).join('\n  ')}`);
+    console.error(`  stats: ${await p.evaluate(() => JSON.stringify({ ...window.sculpt?.stats, ackLatencies: undefined }))
+      .catch((e) => e.message)}`);
+  }
+} finally {
+  if (browser) await browser.close();
+  if (b) await stopSculptd(b);
+  if (a) await stopSculptd(a);
+  etcd.kill('SIGKILL');
+  rmSync(dir, { recursive: true, force: true });
+}
+console.log(failures === 0 ? 'redirect browser test: all passed' : `redirect browser test: ${failures} failed`);
+process.exit(failures === 0 ? 0 : 1);

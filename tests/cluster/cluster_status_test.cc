@@ -1,0 +1,196 @@
+// `sculpt cluster status` (issue 17) against an etcd and two sculptd members started here on
+// loopback: both members are listed with their addresses, the owner and epoch of the scene, a
+// standby key when one exists; an etcd that does not answer is a clear error, not a hang.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+
+#include "cluster/etcd_client.h"
+#include "cluster/processes.h"
+#include "cluster/records.h"
+
+namespace sculpt::server::cluster {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using sculpt::testing::ChildProcess;
+using sculpt::testing::EtcdProcess;
+using sculpt::testing::TempDir;
+using sculpt::testing::WaitFor;
+using std::chrono::milliseconds;
+
+const Keys kKeys{"t/"};
+
+struct RunResult {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr
+};
+
+// Runs `sculpt ARGS` through the shell (arguments are test-made: no quoting needed).
+RunResult Sculpt(const std::string& args) {
+  RunResult r;
+  const std::string cmd = std::string(SCULPT_BIN_DIR) + "/sculpt " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  if (p == nullptr) return r;
+  std::array<char, 4096> buf;
+  size_t n = 0;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
+  const int status = pclose(p);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+// The JSON document of --json output (from its first line starting with '{').
+json JsonOf(const std::string& out) {
+  size_t at = 0;
+  if (out.compare(0, 1, "{") != 0) {
+    at = out.find("\n{");
+    if (at == std::string::npos) return json();
+    ++at;
+  }
+  return json::parse(out.substr(at), nullptr, /*allow_exceptions=*/false);
+}
+
+class ClusterStatusTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!sculpt::testing::HaveEtcd()) GTEST_SKIP() << sculpt::testing::kNoEtcd;
+    etcd_ = std::make_unique<EtcdProcess>();
+    auto c = sculpt::testing::ConnectWhenReady(*etcd_);
+    ASSERT_TRUE(c.ok()) << c.status();
+    etcd_client_ = std::move(c).value();
+  }
+  void TearDown() override {
+    members_.clear();  // SIGKILL and reap each sculptd before etcd goes
+    etcd_client_.reset();
+    etcd_.reset();
+  }
+
+  // A member `name` with the cluster prefix "t/" and lease TTL 2 s; its log beside its data.
+  void Start(const std::string& name) {
+    const fs::path config = dir_.path() / (name + ".toml");
+    std::ofstream(config) << "[cluster]\netcd = [\"" << etcd_->endpoint() << "\"]\nmember = \""
+                          << name << "\"\nlease_ttl_ms = 2000\nprefix = \"t/\"\n";
+    members_.push_back(std::make_unique<ChildProcess>(
+        std::vector<std::string>{std::string(SCULPT_BIN_DIR) + "/sculptd", "serve", "--config",
+                                 config.string(), "--listen", "127.0.0.1:0", "--http",
+                                 "127.0.0.1:0", "--data",
+                                 (dir_.path() / (name + "-data")).string()},
+        dir_.path() / (name + ".log")));
+  }
+  bool HasKey(const std::string& key) {
+    auto kv = etcd_client_->Sync(etcd_client_->Get(key));
+    return kv.ok() && kv->has_value();
+  }
+  std::optional<MemberRecord> Member(const std::string& name) {
+    auto kv = etcd_client_->Sync(etcd_client_->Get(kKeys.Member(name)));
+    if (!kv.ok() || !kv->has_value()) return std::nullopt;
+    auto m = DecodeMember((*kv)->value);
+    return m.ok() ? std::optional<MemberRecord>(*m) : std::nullopt;
+  }
+
+  TempDir dir_{"sculpt-cluster-status"};
+  std::unique_ptr<EtcdProcess> etcd_;
+  std::unique_ptr<EtcdClient> etcd_client_;
+  std::vector<std::unique_ptr<ChildProcess>> members_;
+};
+
+TEST_F(ClusterStatusTest, ListsBothMembersAndTheOwnerAndEpochOfTheScene) {
+  Start("a");
+  ASSERT_TRUE(WaitFor([&] { return HasKey(kKeys.Owner("default")); }, milliseconds(10000)))
+      << "a did not take the scene; see " << dir_.path() / "a.log";
+  Start("b");
+  ASSERT_TRUE(WaitFor([&] { return Member("b").has_value(); }, milliseconds(10000)))
+      << "b did not register; see " << dir_.path() / "b.log";
+  // a's record lists the scene once its next refresh (every TTL/4) has run.
+  ASSERT_TRUE(
+      WaitFor([&] { return Member("a") && !Member("a")->owns.empty(); }, milliseconds(5000)));
+  const MemberRecord a = *Member("a");
+
+  const RunResult r = Sculpt("cluster status --etcd " + etcd_->endpoint() + " --prefix t/ --json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const json j = JsonOf(r.output);
+  ASSERT_TRUE(j.is_object()) << r.output;
+  std::set<std::string> names;
+  for (const json& m : j["members"]) names.insert(m["name"].get<std::string>());
+  EXPECT_EQ(names, (std::set<std::string>{"a", "b"})) << r.output;
+  for (const json& m : j["members"]) {
+    if (m["name"] != "a") continue;
+    EXPECT_EQ(m["tcp"], a.tcp);
+    EXPECT_FALSE(m["http"].get<std::string>().empty());
+    EXPECT_EQ(m["owns"], json::array({"default"}));
+  }
+  ASSERT_EQ(j["scenes"].size(), 1u) << r.output;
+  const json& scene = j["scenes"][0];
+  EXPECT_EQ(scene["scene"], "default");
+  EXPECT_EQ(scene["owner"], "a");
+  EXPECT_EQ(scene["owner_tcp"], a.tcp);
+  EXPECT_EQ(scene["epoch"], 1);
+  EXPECT_TRUE(scene["standby"].is_null()) << r.output;
+  EXPECT_EQ(scene["state"], "owned");
+
+  // A standby key (as the standby work writes it) is shown by its member.
+  ASSERT_TRUE(etcd_client_
+                  ->Sync(etcd_client_->Put(
+                      {"t/scenes/default/standby", "{\"member\":\"b\",\"epoch\":1}", 0}))
+                  .ok());
+  const RunResult with_standby =
+      Sculpt("cluster status --etcd " + etcd_->endpoint() + " --prefix t/ --json");
+  ASSERT_EQ(with_standby.exit_code, 0) << with_standby.output;
+  EXPECT_EQ(JsonOf(with_standby.output)["scenes"][0]["standby"], "b") << with_standby.output;
+
+  // The table names the same.
+  const RunResult table = Sculpt("cluster status --etcd " + etcd_->endpoint() + " --prefix t/");
+  ASSERT_EQ(table.exit_code, 0) << table.output;
+  EXPECT_NE(table.output.find("2 members, 1 scene"), std::string::npos) << table.output;
+  EXPECT_NE(table.output.find(a.tcp), std::string::npos) << table.output;
+  bool scene_row = false;
+  std::istringstream lines(table.output);
+  for (std::string line; std::getline(lines, line);) {
+    std::istringstream row(line);
+    std::string name, owner, epoch, standby;
+    if (row >> name >> owner >> epoch >> standby && name == "default") {
+      scene_row = owner == "a" && epoch == "1" && standby == "b";
+    }
+  }
+  EXPECT_TRUE(scene_row) << table.output;
+
+  // Another prefix: an empty cluster, listed as such.
+  const RunResult empty = Sculpt("cluster status --etcd " + etcd_->endpoint() + " --prefix none/");
+  EXPECT_EQ(empty.exit_code, 0) << empty.output;
+  EXPECT_NE(empty.output.find("0 members, 0 scenes"), std::string::npos) << empty.output;
+}
+
+TEST(ClusterStatusNoEtcd, ReportsAnUnreachableEtcdWithAHint) {
+  const std::string url = "http://127.0.0.1:" + std::to_string(sculpt::testing::FreePort());
+  const auto start = std::chrono::steady_clock::now();
+  const RunResult r = Sculpt("cluster status --etcd " + url + " --timeout 0.5");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("cannot read sculpt/ from etcd at " + url), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("endpoint health"), std::string::npos) << r.output;
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(10));
+}
+
+TEST(ClusterStatusNoEtcd, RejectsAMalformedEndpoint) {
+  const RunResult r = Sculpt("cluster status --etcd ftp://nowhere");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+}
+
+TEST(ClusterStatusNoEtcd, HelpNamesTheOptions) {
+  const RunResult r = Sculpt("cluster status --help");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  for (const char* flag : {"--etcd", "--prefix", "--json", "--timeout"}) {
+    EXPECT_NE(r.output.find(flag), std::string::npos) << flag << "\n" << r.output;
+  }
+  EXPECT_NE(Sculpt("cluster status").exit_code, 0) << "--etcd is required";
+}
+
+}  // namespace
+}  // namespace sculpt::server::cluster
