@@ -159,7 +159,9 @@ void ClusterAgent::Stop() {
   const Status s = etcd_->Sync(revoke());
   if (!s.ok())
     spdlog::warn("cluster: lease not revoked at stop ({}); it expires by itself", s.ToString());
-  etcd_.reset();     // joins the agent's thread; the loop's frame goes with its io_context
+  etcd_->Halt();     // joins the agent's thread; the io_context (and the loop's frame) stays
+  timer_.reset();    // before its io_context: a timer's service must outlive it
+  etcd_.reset();     // the loop's frame goes with its io_context
   fence_->Revoke();  // again: an acquisition may have completed while the lease was revoked
   RetireFollower();
   std::lock_guard<std::mutex> lock(retired_mu_);

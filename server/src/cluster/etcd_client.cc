@@ -260,7 +260,9 @@ EtcdClient::EtcdClient(Options options, std::vector<Endpoint> endpoints)
   thread_ = std::thread([this] { io_.run(); });
 }
 
-EtcdClient::~EtcdClient() {
+EtcdClient::~EtcdClient() { Halt(); }
+
+void EtcdClient::Halt() {
   work_.reset();
   io_.stop();
   if (thread_.joinable()) thread_.join();

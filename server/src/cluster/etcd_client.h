@@ -93,6 +93,10 @@ class EtcdClient {
   EtcdClient& operator=(const EtcdClient&) = delete;
 
   asio::io_context& io() { return io_; }
+  /// Stops io() and joins its thread, keeping io() itself: I/O objects a caller made on it can
+  /// then be destroyed before the client (their service must outlive them). Idempotent; the
+  /// destructor calls it. Not from io()'s own thread.
+  void Halt();
 
   asio::awaitable<StatusOr<Lease>> Grant(std::chrono::milliseconds ttl);
   /// One keep-alive: the lease's remaining TTL as etcd reset it. NotFound when the lease has
