@@ -26,6 +26,7 @@ double MaxError(const Polyline2& a, const Polyline2& b) {
 
 bool IsSkc2(const std::string& bytes) { return bytes.compare(0, 4, "SKC2") == 0; }
 bool IsSkc3(const std::string& bytes) { return bytes.compare(0, 4, "SKC3") == 0; }
+bool IsSkc4(const std::string& bytes) { return bytes.compare(0, 4, "SKC4") == 0; }
 
 std::vector<OrientedBall> Wavy(int n) {
   std::vector<OrientedBall> balls;
@@ -126,7 +127,9 @@ TEST(ContourCodecTest, SnapshotAndUpdatesReproduceTheSkin) {
   ASSERT_TRUE(change.ok());
   auto upd = EncodeSkinUpdate(*skin, *change);
   ASSERT_TRUE(upd.ok());
-  EXPECT_LT(upd->size() * 3, snap->size());
+  // (SKC4's snapshot is a third smaller than SKC3's; the update's first section has no turtle
+  // to start from, so it codes its along offsets: 2 of 11 sections cost 37 % of the snapshot.)
+  EXPECT_LT(upd->size() * 2, snap->size());
   ASSERT_TRUE(view.Apply(*upd).ok());
   check();
   // Insert and remove splice the view.
@@ -207,7 +210,7 @@ void ExpectMessageWithinBound(const Skin& skin, double step, const std::string& 
 void ExpectSnapshotWithinBound(const Skin& skin, double step, const std::string& what) {
   const auto best = EncodeSkinSnapshot(skin, step);
   ASSERT_TRUE(best.ok()) << what << ": " << best.status();
-  EXPECT_TRUE(IsSkc3(*best) || IsSkc2(*best)) << what;
+  EXPECT_TRUE(IsSkc4(*best) || IsSkc3(*best) || IsSkc2(*best)) << what;
   ExpectMessageWithinBound(skin, step, what, best);
   const auto skc3 = internal::EncodeSkinSnapshotSkc3(skin, step);
   ASSERT_TRUE(skc3.ok());
@@ -380,21 +383,63 @@ TEST(ContourCodecTest, CurveCodingBeatsSkc1OnASkin) {
   for (const Section& s : skin->sections()) points += s.plus.size() + s.minus.size();
   // SKC1 spent 11.9 bits per point on the benchmark's skin.
   EXPECT_LT(static_cast<double>(bytes->size()) * 8 / static_cast<double>(points), 10.0);
-  // The default message is the smaller of SKC3 and SKC2 at this size (SKC3's tables cost a few
-  // hundred bytes).
+  // The default message is the smallest of SKC4, SKC3 and SKC2 at this size (the tables cost a
+  // few hundred bytes).
+  const auto skc4 = internal::EncodeSkinSnapshotSkc4(*skin);
   const auto skc3 = internal::EncodeSkinSnapshotSkc3(*skin);
   const auto skc2 = internal::EncodeSkinSnapshotSkc2(*skin);
-  EXPECT_EQ(bytes->size(), std::min(skc3->size(), skc2->size()));
+  EXPECT_EQ(bytes->size(), std::min({skc4->size(), skc3->size(), skc2->size()}));
 }
 
-// On a longer skin SKC3's hexagonal lattice and trend-continued spacing beat SKC2.
+// On a longer skin SKC3's hexagonal lattice and trend-continued spacing beat SKC2 (on a skin
+// sampled by curvature alone, as before SKC4).
 TEST(ContourCodecTest, Skc3BeatsSkc2OnALongSkin) {
+  SkinOptions o;
+  o.sample_for_codec = false;
+  auto skin = Skin::Build(Wavy(400), o);
+  ASSERT_TRUE(skin.ok());
+  const auto skc3 = internal::EncodeSkinSnapshotSkc3(*skin);
+  const auto skc2 = internal::EncodeSkinSnapshotSkc2(*skin);
+  ASSERT_TRUE(IsSkc3(*skc3));
+  EXPECT_LT(skc3->size(), skc2->size());
+}
+
+// The skin's sides are sampled where SKC4's decoder predicts them: its along integers are almost
+// all 0, and the snapshot is much smaller than SKC3 of the same points, and than SKC3 of the
+// skin sampled by curvature alone.
+TEST(ContourCodecTest, Skc4FollowsTheSamplerOnALongSkin) {
   auto skin = Skin::Build(Wavy(400));
   ASSERT_TRUE(skin.ok());
   const auto best = EncodeSkinSnapshot(*skin);
-  const auto skc2 = internal::EncodeSkinSnapshotSkc2(*skin);
-  ASSERT_TRUE(IsSkc3(*best));
-  EXPECT_LT(best->size(), skc2->size());
+  ASSERT_TRUE(best.ok());
+  ASSERT_TRUE(IsSkc4(*best));
+  const auto skc3 = internal::EncodeSkinSnapshotSkc3(*skin);
+  EXPECT_LT(static_cast<double>(best->size()), 0.8 * static_cast<double>(skc3->size()));
+  SkinOptions o;
+  o.sample_for_codec = false;
+  auto plain = Skin::Build(Wavy(400), o);
+  ASSERT_TRUE(plain.ok());
+  const auto plain_best = EncodeSkinSnapshot(*plain);
+  EXPECT_LT(static_cast<double>(best->size()), 0.8 * static_cast<double>(plain_best->size()));
+  // Along integers: every side after the first starts from its previous section's cursor.
+  const double step = skin->chord_tolerance();
+  size_t along = 0, zero = 0;
+  for (int side = 0; side < 2; ++side) {
+    CodecCursor c;
+    for (const Section& s : skin->sections()) {
+      const Polyline2& line = side == 0 ? s.plus : s.minus;
+      CodecCursor t = c;
+      c = internal::Skc4Trace(c, line, step);
+      if (!t.valid) continue;
+      for (size_t k = 1; k < line.size(); ++k) {
+        int64_t a = 0;
+        ASSERT_TRUE(internal::Skc4Advance(t, line[k], step, &a));
+        ++along;
+        zero += a == 0;
+      }
+    }
+  }
+  EXPECT_GT(static_cast<double>(zero), 0.7 * static_cast<double>(along));
 }
 
 }  // namespace
