@@ -667,7 +667,7 @@ function decodeCurveBody(bytes, pos, p, nentries, nlines) {
 
 const kTurtle = 3;
 const kRuleTurtle = 4;
-const kChordRule = 25549;
+const kChordRule = 20000;
 const kAngleBits = 14;
 const kAngles = 1 << kAngleBits;
 const kAngleMask = kAngles - 1;
