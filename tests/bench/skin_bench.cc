@@ -202,6 +202,30 @@ Json RunSkinBench(bool quick, const std::string& out_dat) {
     doc["contour_skc1_bits_per_point"] = 8.0 * static_cast<double>(skc1->size()) / all.size();
     doc["contour_skc1_ratio_vs_float32"] = static_cast<double>(float32) / skc1->size();
     doc["contour_goal_ratio_vs_float32"] = 12;
+    // SKC3 of the same points, and the same chain sampled by curvature alone (the sampler before
+    // SKC4, SkinOptions::sample_for_codec = false) with its default message: the snapshot's
+    // bytes against what the skin cost before, at that sampler's point count.
+    const auto skc3 = skin::internal::EncodeSkinSnapshotSkc3(*skin);
+    if (!skc3.ok()) return Json{{"error", skc3.status().ToString()}};
+    doc["contour_skc3_bytes"] = skc3->size();
+    doc["contour_skc3_bits_per_point"] = 8.0 * static_cast<double>(skc3->size()) / all.size();
+    {
+      skin::SkinOptions curvature;
+      curvature.sample_for_codec = false;
+      auto plain = Skin::Build(Chain(1000, 20261122 + 1000), curvature);
+      if (!plain.ok()) return Json{{"error", plain.status().ToString()}};
+      const auto plain_bytes = skin::EncodeSkinSnapshot(*plain);
+      if (!plain_bytes.ok()) return Json{{"error", plain_bytes.status().ToString()}};
+      const size_t plain_points = plain->Summary().points;
+      doc["contour_curvature_sampled_points"] = plain_points;
+      doc["contour_curvature_sampled_bytes"] = plain_bytes->size();
+      doc["contour_curvature_sampled_format"] = plain_bytes->substr(0, 4);
+      // This snapshot's bytes over the curvature sampler's point count.
+      doc["contour_bits_per_curvature_sampled_point"] =
+          8.0 * static_cast<double>(bytes->size()) / static_cast<double>(plain_points);
+      doc["contour_ratio_vs_float32_at_curvature_sampled_points"] =
+          static_cast<double>(plain_points * 2 * sizeof(float)) / bytes->size();
+    }
     // The other road (issue 16, optional): the skin as its balls (centre, radius, touching
     // direction as float64), method byte and tolerance; a receiver with this library rebuilds
     // the very same points (the web client cannot). Its size, not a codec of its own here.
@@ -221,13 +245,13 @@ Json RunSkinBench(bool quick, const std::string& out_dat) {
     // Decode (and encode) speed over the whole snapshot, every format alternately, best of the
     // repeats (points per second; the figure the issue's 50 M points/s goal is about).
     {
-      double best[4] = {INFINITY, INFINITY, INFINITY, INFINITY};
-      const std::string* forms[3] = {&*bytes, &*skc2, &*skc1};
+      double best[5] = {INFINITY, INFINITY, INFINITY, INFINITY, INFINITY};
+      const std::string* forms[4] = {&*bytes, &*skc2, &*skc1, &*skc3};
       for (int r = 0; r < (quick ? 5 : 40); ++r) {
         auto t0 = Clock::now();
         (void)skin::EncodeSkinSnapshot(*skin);
         best[0] = std::min(best[0], MsSince(t0));
-        for (int f = 0; f < 3; ++f) {
+        for (int f = 0; f < 4; ++f) {
           skin::ContourView v;
           t0 = Clock::now();
           const Status st = v.Apply(*forms[f]);
@@ -240,6 +264,7 @@ Json RunSkinBench(bool quick, const std::string& out_dat) {
       doc["decode_mpoints_per_s"] = mp / best[1];
       doc["decode_mpoints_per_s_skc2"] = mp / best[2];
       doc["decode_mpoints_per_s_skc1"] = mp / best[3];
+      doc["decode_mpoints_per_s_skc3"] = mp / best[4];
       doc["decode_goal_mpoints_per_s"] = 50;
     }
     // One update after a move: the two sections only.
