@@ -382,7 +382,9 @@ int Main(int argc, char** argv) {
   corrupt.push_back(Corruptions("snapshot_skc3", Must(internal::EncodeSkinSnapshotSkc3(*skin)),
                                 &empty, "", 11, 200));
   // SKC4 (the chord rule) on a skin sampled for it.
-  auto wavy12 = Skin::Build(Wavy(12));
+  SkinOptions follow;
+  follow.sample_for_codec = true;
+  auto wavy12 = Skin::Build(Wavy(12), follow);
   if (!wavy12.ok()) return 1;
   corrupt.push_back(Corruptions("snapshot_skc4", Must(internal::EncodeSkinSnapshotSkc4(*wavy12)),
                                 &empty, "", 12, 200));

@@ -439,8 +439,8 @@ std::optional<std::string> CurveBody(Kind kind, double step, const std::vector<E
 
 /// Which format an encoder writes: the newest that places every point (SKC3, then SKC2, then
 /// SKC1), or one named for the benchmark and the fixtures.
-/// kBest writes SKC4 for skin messages (their sides are sampled where SKC4 predicts) and SKC3 for
-/// polyline sets.
+/// kBest writes SKC4 for messages of a skin sampled for it (SkinOptions::sample_for_codec) and
+/// SKC3 otherwise.
 enum class Format { kBest, kSkc4, kSkc3, kSkc2, kSkc1 };
 
 /// Below this many points a message also tries SKC2 and keeps the smaller: SKC3's tables cost
@@ -452,14 +452,15 @@ constexpr size_t kSkc3TryBoth = 4096;
 /// entries after it as varints, SKC2 and SKC3 code them in their bodies.
 std::string Encode(Kind kind, double step, const std::string& header,
                    const std::vector<Entry>& entries, const std::vector<const Polyline2*>& lines,
-                   const std::vector<QLine>& q, Format format = Format::kBest) {
+                   const std::vector<QLine>& q, Format format = Format::kBest,
+                   bool prefer_skc4 = false) {
   std::optional<std::string> body;
   const char* magic = kMagic2;
   Coding coding = kCurve;
   if (format == Format::kBest || format == Format::kSkc3 || format == Format::kSkc4) {
     size_t points = 0;
     for (const Polyline2* l : lines) points += l->size();
-    const bool skc4 = format == Format::kSkc4 || (format == Format::kBest && kind != kPolylineSet);
+    const bool skc4 = format == Format::kSkc4 || (format == Format::kBest && prefer_skc4);
     body = internal::Skc3Body(kind, step, entries, lines, skc4);
     if (body) {
       magic = skc4 ? kMagic4 : kMagic3;
@@ -844,7 +845,8 @@ StatusOr<std::string> SnapshotMessage(const Skin& skin, double step, Format form
   }
   std::vector<QLine> q;
   SCULPT_RETURN_IF_ERROR(Quantise(ptrs, s, &q));
-  return Encode(kSnapshot, s, header, entries, ptrs, q, format);
+  return Encode(kSnapshot, s, header, entries, ptrs, q, format,
+                skin.options().sample_for_codec);
 }
 
 }  // namespace
@@ -891,7 +893,8 @@ StatusOr<std::string> EncodeSkinUpdate(const Skin& skin, const SkinChange& chang
   }
   std::vector<QLine> q;
   SCULPT_RETURN_IF_ERROR(Quantise(ptrs, s, &q));
-  return Encode(kUpdate, s, header, entries, ptrs, q);
+  return Encode(kUpdate, s, header, entries, ptrs, q, Format::kBest,
+                skin.options().sample_for_codec);
 }
 
 Status ContourView::Apply(std::string_view bytes) {

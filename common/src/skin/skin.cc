@@ -423,12 +423,14 @@ StatusOr<SkinChange> Skin::InsertBall(size_t i, const OrientedBall& ball) {
   } else {
     change = {{i - 1, i}, i - 1, 1, 2};
   }
-  std::vector<Section> fresh;
-  for (size_t k : change.changed) fresh.push_back(MakeSection(k));
+  // Spliced one section at a time, so that the second new section's sampler starts from the
+  // first (MakeSection reads the section before it), not from the section it replaces.
   const auto at = sections_.begin() + static_cast<std::ptrdiff_t>(change.splice_at);
   sections_.erase(at, at + static_cast<std::ptrdiff_t>(change.removed));
-  sections_.insert(sections_.begin() + static_cast<std::ptrdiff_t>(change.splice_at),
-                   fresh.begin(), fresh.end());
+  for (size_t k : change.changed) {
+    Section s = MakeSection(k);
+    sections_.insert(sections_.begin() + static_cast<std::ptrdiff_t>(k), std::move(s));
+  }
   return change;
 }
 

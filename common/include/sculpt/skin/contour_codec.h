@@ -9,7 +9,8 @@
 ///
 /// Four formats (all integers little-endian; "varint" = unsigned LEB128, "zz" = zigzag):
 ///
-/// SKC4 (what EncodeSkinSnapshot and EncodeSkinUpdate write): SKC3 below with magic "SKC4" and
+/// SKC4 (what EncodeSkinSnapshot and EncodeSkinUpdate write for a skin built with
+///   SkinOptions::sample_for_codec, off by default; SKC3 otherwise): SKC3 below with magic "SKC4" and
 ///   coding byte 4, bit for bit, but for the predicted chord: after each point, with h = 2 len +
 ///   (e & 1) and omega the turtle's new turn, lp = floor(h / 2) for h <= 0; else with lo = h -
 ///   floor(h / 4), hi = h + floor(h / 4) + 2, g = hi if omega = 0, else c = sqrt(20000 min(h,
@@ -20,10 +21,9 @@
 ///   curve, from the decoder state the previous section's side ends with, shortening only where
 ///   the chord would leave the tolerance; so most along integers of a snapshot are 0 (86 % on the
 ///   benchmark's skin; the others are those escapes and each side's last point). Polyline sets
-///   stay SKC3 by default; a message under 4096 points also tries SKC3 and SKC2 and keeps the
-///   smallest.
+///   stay SKC3; a message under 4096 points also tries SKC3 and SKC2 and keeps the smallest.
 ///
-/// SKC3 (what EncodeContours writes): the header of SKC2 below with magic "SKC3" and coding byte 3,
+/// SKC3 (what EncodeContours writes, and the skin encoders without sample_for_codec): the header of SKC2 below with magic "SKC3" and coding byte 3,
 ///   then the body: varint length and bytes of the side information, varint length and bytes of
 ///   the symbol stream, then the raw bits to the end of the message.
 ///   - Side information: one range-coded stream (SKC2's coder and integer binarisation, each kind

@@ -36,9 +36,13 @@ struct SkinOptions {
   double delta = 0;
   /// Sample each side where the contour codec's SKC4 decoder will predict its points (each chord
   /// still within the chord tolerance), from the previous section's decoder state, so that a
-  /// snapshot at step = chord tolerance codes almost no along offsets. Off: chords from the
-  /// true curve's curvature alone.
-  bool sample_for_codec = true;
+  /// snapshot at step = chord tolerance codes almost no along offsets (36 % fewer bytes on the
+  /// benchmark's skin, docs/benchmarks.md). Off by default: the points then depend on the edit
+  /// history (a section sampled before its predecessor was edited keeps its points, while a
+  /// fresh Build samples it from the new state), so a skin rebuilt from its balls (server
+  /// recovery, SkinServerTest.BallEditsSurviveRestartsAndResendsApplyOnce) differs from the live
+  /// one. Off: chords from the true curve's curvature alone, a function of the balls.
+  bool sample_for_codec = false;
 };
 
 /// One piece of one side of a section: an offset of the mother on [tau_a, tau_b] or an A-spline.
