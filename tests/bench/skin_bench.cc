@@ -202,6 +202,64 @@ Json RunSkinBench(bool quick, const std::string& out_dat) {
     doc["contour_skc1_bits_per_point"] = 8.0 * static_cast<double>(skc1->size()) / all.size();
     doc["contour_skc1_ratio_vs_float32"] = static_cast<double>(float32) / skc1->size();
     doc["contour_goal_ratio_vs_float32"] = 12;
+    // The same chain sampled for the codec (SkinOptions::sample_for_codec, off by default: its
+    // points depend on the edit history): SKC4's snapshot, its points, its decode speed, and its
+    // bytes over the default skin's point count (the comparison at equal points).
+    {
+      skin::SkinOptions follow;
+      follow.sample_for_codec = true;
+      auto fs = Skin::Build(Chain(1000, 20261122 + 1000), follow);
+      if (!fs.ok()) return Json{{"error", fs.status().ToString()}};
+      const auto fb = skin::EncodeSkinSnapshot(*fs);
+      if (!fb.ok()) return Json{{"error", fb.status().ToString()}};
+      skin::ContourView fv;
+      if (!fv.Apply(*fb).ok()) return Json{{"error", "codec-sampled snapshot not decoded"}};
+      Polyline2 fall;
+      double ferr = 0;
+      for (size_t k = 0; k < fs->sections().size(); ++k) {
+        for (int side = 0; side < 2; ++side) {
+          const Polyline2& a = side == 0 ? fs->section(k).plus : fs->section(k).minus;
+          const Polyline2& b = side == 0 ? fv.sections()[k].plus : fv.sections()[k].minus;
+          for (size_t i = 0; i < a.size(); ++i) ferr = std::max(ferr, (a[i] - b[i]).Length());
+          fall.insert(fall.end(), a.begin(), a.end());
+        }
+      }
+      const DracoResult fdraco = DracoEncode(fall, tol);
+      const auto fskc3 = skin::internal::EncodeSkinSnapshotSkc3(*fs);
+      const double fbytes = static_cast<double>(fb->size());
+      doc["contour_codec_sampled_format"] = fb->substr(0, 4);
+      doc["contour_codec_sampled_points"] = fall.size();
+      doc["contour_codec_sampled_bytes"] = fb->size();
+      doc["contour_codec_sampled_bits_per_point"] = 8 * fbytes / static_cast<double>(fall.size());
+      doc["contour_codec_sampled_ratio_vs_float32"] =
+          static_cast<double>(fall.size() * 2 * sizeof(float)) / fbytes;
+      doc["contour_codec_sampled_draco_bytes"] = fdraco.bytes;
+      doc["contour_codec_sampled_ratio_vs_draco"] = static_cast<double>(fdraco.bytes) / fbytes;
+      doc["contour_codec_sampled_skc3_bytes"] = fskc3.ok() ? fskc3->size() : 0;
+      doc["contour_codec_sampled_max_error_over_tol"] = ferr / tol;
+      doc["contour_codec_sampled_bits_per_default_point"] =
+          8 * fbytes / static_cast<double>(all.size());
+      doc["contour_codec_sampled_ratio_vs_float32_at_default_points"] =
+          static_cast<double>(float32) / fbytes;
+      double best_f = INFINITY, best_d = INFINITY;
+      for (int r = 0; r < (quick ? 5 : 40); ++r) {
+        for (int f = 0; f < 2; ++f) {
+          skin::ContourView v;
+          const auto t0 = Clock::now();
+          const Status st = v.Apply(f == 0 ? *fb : *bytes);
+          (f == 0 ? best_f : best_d) = std::min(f == 0 ? best_f : best_d, MsSince(t0));
+          if (!st.ok()) return Json{{"error", st.ToString()}};
+        }
+      }
+      doc["decode_mpoints_per_s_codec_sampled"] = static_cast<double>(fall.size()) / 1000 / best_f;
+      doc["decode_mpoints_per_s_default_alternating"] =
+          static_cast<double>(all.size()) / 1000 / best_d;
+      Progress("skin: codec-sampled contour %zu points: %zu bytes %s (SKC3 %zu), %.2f bits/point, "
+               "max error %.3f tol, decode %.1f M points/s", fall.size(), fb->size(),
+               fb->substr(0, 4).c_str(), fskc3.ok() ? fskc3->size() : 0,
+               8 * fbytes / static_cast<double>(fall.size()), ferr / tol,
+               doc["decode_mpoints_per_s_codec_sampled"].get<double>());
+    }
     // The other road (issue 16, optional): the skin as its balls (centre, radius, touching
     // direction as float64), method byte and tolerance; a receiver with this library rebuilds
     // the very same points (the web client cannot). Its size, not a codec of its own here.
@@ -294,6 +352,7 @@ Json RunSkinBench(bool quick, const std::string& out_dat) {
              "max_error_over_tol total_sections sections\n";
     }
     bool smaller_than_draco = true;
+    bool codec_sampled_smaller_than_draco = true;
     for (double rel : {1e-1, 1e-2, 1e-3, 1e-4, 1e-5}) {
       skin::SkinOptions o;
       o.chord_tolerance = rel * min_r;
@@ -325,6 +384,32 @@ Json RunSkinBench(bool quick, const std::string& out_dat) {
         }
       }
       const DracoResult draco = DracoEncode(all, o.chord_tolerance);
+      // The same chain sampled for the codec (SKC4): points and bytes, against Draco of its points.
+      skin::SkinOptions of = o;
+      of.sample_for_codec = true;
+      auto fskin = Skin::Build(balls, of);
+      size_t f_points = 0, f_bytes = 0;
+      double f_err = 0;
+      size_t f_draco = 0;
+      if (fskin.ok()) {
+        const auto fb = skin::EncodeSkinSnapshot(*fskin);
+        skin::ContourView fv;
+        if (fb.ok() && fv.Apply(*fb).ok()) {
+          f_bytes = fb->size();
+          Polyline2 fall;
+          for (size_t k = 0; k < fskin->sections().size(); ++k) {
+            for (int side = 0; side < 2; ++side) {
+              const auto& a = side == 0 ? fskin->section(k).plus : fskin->section(k).minus;
+              const auto& b = side == 0 ? fv.sections()[k].plus : fv.sections()[k].minus;
+              for (size_t i = 0; i < a.size(); ++i) f_err = std::max(f_err, (a[i] - b[i]).Length());
+              fall.insert(fall.end(), a.begin(), a.end());
+            }
+          }
+          f_points = fall.size();
+          f_draco = DracoEncode(fall, o.chord_tolerance).bytes;
+        }
+      }
+      if (!(f_bytes > 0 && f_bytes < f_draco)) codec_sampled_smaller_than_draco = false;
       const auto skc1 = skin::internal::EncodeSkinSnapshotSkc1(*skin);
       const auto skc2 = skin::internal::EncodeSkinSnapshotSkc2(*skin);
       const double ours = bytes.ok() ? static_cast<double>(bytes->size()) : NAN;
@@ -343,6 +428,10 @@ Json RunSkinBench(bool quick, const std::string& out_dat) {
                                  {"skc2_bytes", skc2.ok() ? skc2->size() : 0},
                                  {"skc1_bytes", skc1.ok() ? skc1->size() : 0},
                                  {"format", bytes.ok() ? bytes->substr(0, 4) : ""},
+                                 {"codec_sampled_points", f_points},
+                                 {"codec_sampled_bytes", f_bytes},
+                                 {"codec_sampled_draco_bytes", f_draco},
+                                 {"codec_sampled_max_error_over_tol", f_err / o.chord_tolerance},
                                  {"max_error_over_tol", max_err / o.chord_tolerance},
                                  {"total_sections", sum.total},
                                  {"sections", sum.sections}});
@@ -358,6 +447,8 @@ Json RunSkinBench(bool quick, const std::string& out_dat) {
                sum.points, t.P(0.5), ours, draco.bytes);
     }
     doc["contour_smaller_than_draco_at_every_tolerance"] = smaller_than_draco;
+    doc["contour_codec_sampled_smaller_than_draco_at_every_tolerance"] =
+        codec_sampled_smaller_than_draco;
   }
   return doc;
 }

@@ -1,7 +1,7 @@
 /// @brief libFuzzer target for the contour codec: skin::DecodeContours and ContourView::Apply on
-/// arbitrary bytes (every format: SKC3, SKC2, SKC1), and, for inputs starting with 'E', the
-/// encoder on polylines made from the bytes: SKC3 alone and the default message must decode to
-/// every point within step/sqrt(2).
+/// arbitrary bytes (every format: SKC4, SKC3, SKC2, SKC1), and, for inputs starting with 'E', the
+/// encoder on polylines made from the bytes: SKC4 alone, SKC3 alone and the default message must
+/// decode to every point within step/sqrt(2).
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -43,7 +43,8 @@ void RoundTrip(const uint8_t* data, size_t size) {
     lines.back().push_back(at);
   }
   const double bound = step * 0.70710678118654752 * (1 + 1e-9);
-  for (const auto& bytes : {sculpt::skin::internal::EncodeContoursSkc3(lines, step),
+  for (const auto& bytes : {sculpt::skin::internal::EncodeContoursSkc4(lines, step),
+                            sculpt::skin::internal::EncodeContoursSkc3(lines, step),
                             sculpt::skin::EncodeContours(lines, step)}) {
     if (!bytes.ok()) std::abort();  // every coordinate here is within 2^52 steps
     const auto back = sculpt::skin::DecodeContours(*bytes);

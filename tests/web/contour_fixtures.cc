@@ -332,7 +332,8 @@ int Main(int argc, char** argv) {
         {{"name", c.name}, {"bytes", Hex(*bytes)}, {"step", c.step}, {"lines", Lines(*back)}});
     // The same lines in each format alone (the default keeps the smaller of SKC3 and SKC2).
     const std::pair<const char*, StatusOr<std::string> (*)(const std::vector<Polyline2>&, double)>
-        forced[] = {{"_skc3", internal::EncodeContoursSkc3},
+        forced[] = {{"_skc4", internal::EncodeContoursSkc4},
+                    {"_skc3", internal::EncodeContoursSkc3},
                     {"_skc2", internal::EncodeContoursSkc2},
                     {"_skc1", internal::EncodeContoursSkc1}};
     for (const auto& [suffix, encode] : forced) {
@@ -380,6 +381,13 @@ int Main(int argc, char** argv) {
   ContourView empty;
   corrupt.push_back(Corruptions("snapshot_skc3", Must(internal::EncodeSkinSnapshotSkc3(*skin)),
                                 &empty, "", 11, 200));
+  // SKC4 (the chord rule) on a skin sampled for it.
+  SkinOptions follow;
+  follow.sample_for_codec = true;
+  auto wavy12 = Skin::Build(Wavy(12), follow);
+  if (!wavy12.ok()) return 1;
+  corrupt.push_back(Corruptions("snapshot_skc4", Must(internal::EncodeSkinSnapshotSkc4(*wavy12)),
+                                &empty, "", 12, 200));
   const std::string snap = Must(EncodeSkinSnapshot(*skin));
   corrupt.push_back(Corruptions("snapshot", snap, &empty, "", 4, 120));
   ContourView view;

@@ -1,5 +1,6 @@
 // The contour codec's decoder (common/include/sculpt/skin/contour_codec.h): polyline sets, skin
-// snapshots and skin updates, in SKC3's turtle coding (integers as whole symbols from static
+// snapshots and skin updates, in SKC4's and SKC3's turtle coding (SKC4: SKC3 with the chord
+// rule predicting each chord) (integers as whole symbols from static
 // rANS tables, placed by a turtle on a hexagonal lattice), SKC2's curve coding (an adaptive
 // binary range coder over residuals of a circle-continuing prediction; in both, every double
 // operation repeats the C++ one, so both decode the same points to the bit) and SKC1's two
@@ -665,6 +666,8 @@ function decodeCurveBody(bytes, pos, p, nentries, nlines) {
 // an along and an across integer as whole symbols from static per-message rANS tables.
 
 const kTurtle = 3;
+const kRuleTurtle = 4;
+const kChordRule = 20000;
 const kAngleBits = 14;
 const kAngles = 1 << kAngleBits;
 const kAngleMask = kAngles - 1;
@@ -764,7 +767,7 @@ function buildSlots(freq, slots, at) {
  * starts from the range-coded side information, then the points. Throws ContourError where the
  * C++ decoder returns an error.
  */
-function decodeTurtleBody(bytes, pos, p, nentries, nlines) {
+function decodeTurtleBody(bytes, pos, p, nentries, nlines, rule) {
   const end = bytes.length;
   const varint = () => {
     let v = 0;
@@ -1037,8 +1040,25 @@ function decodeTurtleBody(bytes, pos, p, nentries, nlines) {
       omega = clamp(omega + d, -kMaxTurn, kMaxTurn);
       // The chord in half spacings (the row's parity is half a spacing along), continued.
       const half = 2 * len + (e & 1);
-      const mm = half > 0 ? Math.floor((half * 13) / 256) : 0;
-      lp = Math.floor((half + clamp(half - l1, -mm, mm)) / 2);
+      if (rule) {
+        // SKC4: RuleChord in contour_codec_skc3.cc, the same doubles.
+        if (half <= 0) {
+          lp = Math.floor(half / 2);
+        } else {
+          const lo = half - Math.floor(half / 4);
+          const hi = half + Math.floor(half / 4) + 2;
+          const w = omega < 0 ? -omega : omega;
+          let g = hi;
+          if (w > 0) {
+            const c = Math.sqrt((kChordRule * (half < 1048576 ? half : 1048576)) / w);
+            g = c < lo ? lo : c > hi ? hi : Math.floor(c);
+          }
+          lp = Math.floor(g / 2);
+        }
+      } else {
+        const mm = half > 0 ? Math.floor((half * 13) / 256) : 0;
+        lp = Math.floor((half + clamp(half - l1, -mm, mm)) / 2);
+      }
       l1 = half;
       actx = am;
       magE = kSymMag[esym];
@@ -1158,10 +1178,11 @@ function parse(bytes) {
   if (!(bytes instanceof Uint8Array)) throw new ContourError('contour: bytes must be a Uint8Array');
   const r = new Reader(bytes);
   if (bytes.length < 4 || kMagic.some((m, i) => bytes[i] !== m) ||
-      (bytes[3] !== 0x31 && bytes[3] !== 0x32 && bytes[3] !== 0x33)) {
-    throw new ContourError('contour: bad magic (want SKC3, SKC2 or SKC1)');
+      (bytes[3] !== 0x31 && bytes[3] !== 0x32 && bytes[3] !== 0x33 && bytes[3] !== 0x34)) {
+    throw new ContourError('contour: bad magic (want SKC4, SKC3, SKC2 or SKC1)');
   }
-  const skc3 = bytes[3] === 0x33;
+  const skc4 = bytes[3] === 0x34;
+  const skc3 = bytes[3] === 0x33 || skc4;  // the same body but for the chord predictor
   const skc2 = bytes[3] === 0x32 || skc3;  // the same header
   r.pos = 4;
   if (r.pos >= bytes.length) throw truncated('kind');
@@ -1176,9 +1197,10 @@ function parse(bytes) {
   }
   if (r.pos >= bytes.length) throw truncated('coding');
   const coding = bytes[r.pos++];
-  if (skc3 ? coding !== kTurtle : skc2 ? coding !== kCurve : coding > kRans) {
+  if (skc4 ? coding !== kRuleTurtle : skc3 ? coding !== kTurtle : skc2 ? coding !== kCurve
+    : coding > kRans) {
     throw new ContourError(`contour.coding=${coding} outside ` +
-                           (skc3 ? '[3, 3] for SKC3' : skc2 ? '[2, 2] for SKC2'
+                           (skc4 ? '[4, 4] for SKC4' : skc3 ? '[3, 3] for SKC3' : skc2 ? '[2, 2] for SKC2'
                              : '[0, 1] for SKC1'));
   }
 
@@ -1233,8 +1255,9 @@ function parse(bytes) {
     decodeCurveBody(bytes, r.pos, p, kind === kPolylineSet ? 0 : nlines / 2, nlines);
     return p;
   }
-  if (coding === kTurtle) {
-    decodeTurtleBody(bytes, r.pos, p, kind === kPolylineSet ? 0 : nlines / 2, nlines);
+  if (coding === kTurtle || coding === kRuleTurtle) {
+    decodeTurtleBody(bytes, r.pos, p, kind === kPolylineSet ? 0 : nlines / 2, nlines,
+                     coding === kRuleTurtle);
     return p;
   }
 

@@ -26,8 +26,9 @@ namespace {
 constexpr char kMagic1[4] = {'S', 'K', 'C', '1'};
 constexpr char kMagic2[4] = {'S', 'K', 'C', '2'};
 constexpr char kMagic3[4] = {'S', 'K', 'C', '3'};
+constexpr char kMagic4[4] = {'S', 'K', 'C', '4'};
 enum Kind : uint8_t { kPolylineSet = 0, kSnapshot = 1, kUpdate = 2 };
-enum Coding : uint8_t { kVarint = 0, kRans = 1, kCurve = 2, kTurtle = 3 };
+enum Coding : uint8_t { kVarint = 0, kRans = 1, kCurve = 2, kTurtle = 3, kRuleTurtle = 4 };
 constexpr double kMaxQuantised = 4503599627370496.0;  // 2^52
 
 using Q = std::array<int64_t, 2>;
@@ -438,7 +439,9 @@ std::optional<std::string> CurveBody(Kind kind, double step, const std::vector<E
 
 /// Which format an encoder writes: the newest that places every point (SKC3, then SKC2, then
 /// SKC1), or one named for the benchmark and the fixtures.
-enum class Format { kBest, kSkc3, kSkc2, kSkc1 };
+/// kBest writes SKC4 for messages of a skin sampled for it (SkinOptions::sample_for_codec) and
+/// SKC3 otherwise.
+enum class Format { kBest, kSkc4, kSkc3, kSkc2, kSkc1 };
 
 /// Below this many points a message also tries SKC2 and keeps the smaller: SKC3's tables cost
 /// a few hundred bytes, which a short update does not earn back.
@@ -449,17 +452,28 @@ constexpr size_t kSkc3TryBoth = 4096;
 /// entries after it as varints, SKC2 and SKC3 code them in their bodies.
 std::string Encode(Kind kind, double step, const std::string& header,
                    const std::vector<Entry>& entries, const std::vector<const Polyline2*>& lines,
-                   const std::vector<QLine>& q, Format format = Format::kBest) {
+                   const std::vector<QLine>& q, Format format = Format::kBest,
+                   bool prefer_skc4 = false) {
   std::optional<std::string> body;
   const char* magic = kMagic2;
   Coding coding = kCurve;
-  if (format == Format::kBest || format == Format::kSkc3) {
+  if (format == Format::kBest || format == Format::kSkc3 || format == Format::kSkc4) {
     size_t points = 0;
     for (const Polyline2* l : lines) points += l->size();
-    body = internal::Skc3Body(kind, step, entries, lines);
+    const bool skc4 = format == Format::kSkc4 || (format == Format::kBest && prefer_skc4);
+    body = internal::Skc3Body(kind, step, entries, lines, skc4);
     if (body) {
-      magic = kMagic3;
-      coding = kTurtle;
+      magic = skc4 ? kMagic4 : kMagic3;
+      coding = skc4 ? kRuleTurtle : kTurtle;
+    }
+    if (skc4 && format == Format::kBest && (!body || points < kSkc3TryBoth)) {
+      // A short update's sections may not follow SKC4's chords (the first has no turtle).
+      std::optional<std::string> skc3 = internal::Skc3Body(kind, step, entries, lines, false);
+      if (skc3 && (!body || skc3->size() < body->size())) {
+        body = std::move(skc3);
+        magic = kMagic3;
+        coding = kTurtle;
+      }
     }
     if (!body || (points < kSkc3TryBoth && format == Format::kBest)) {
       std::optional<std::string> skc2 = CurveBody(kind, step, entries, lines);
@@ -601,10 +615,11 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
   Parsed p;
   if (!r.Bytes(magic, 4) ||
       (std::memcmp(magic, kMagic1, 4) != 0 && std::memcmp(magic, kMagic2, 4) != 0 &&
-       std::memcmp(magic, kMagic3, 4) != 0)) {
-    return DataLoss("contour: bad magic (want SKC3, SKC2 or SKC1)");
+       std::memcmp(magic, kMagic3, 4) != 0 && std::memcmp(magic, kMagic4, 4) != 0)) {
+    return DataLoss("contour: bad magic (want SKC4, SKC3, SKC2 or SKC1)");
   }
-  const bool skc3 = magic[3] == '3';
+  const bool skc4 = magic[3] == '4';
+  const bool skc3 = magic[3] == '3' || skc4;  // the same body but for the chord predictor
   const bool skc2 = magic[3] == '2' || skc3;  // the same header
   if (!r.Bytes(&kind, 1)) return Truncated("kind");
   if (kind > kUpdate) return Outside("contour.kind", std::to_string(kind), "[0, 2]");
@@ -614,9 +629,13 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
     return Outside("contour.step", FormatNumber(p.step), "(0, inf)");
   }
   if (!r.Bytes(&coding, 1)) return Truncated("coding");
-  if (skc3 ? coding != kTurtle : skc2 ? coding != kCurve : coding > kRans) {
+  if (skc4 ? coding != kRuleTurtle
+           : skc3 ? coding != kTurtle
+           : skc2 ? coding != kCurve
+                  : coding > kRans) {
     return InvalidArgument("contour.coding=" + std::to_string(coding) + " outside " +
-                           (skc3   ? "[3, 3] for SKC3"
+                           (skc4   ? "[4, 4] for SKC4"
+                            : skc3 ? "[3, 3] for SKC3"
                             : skc2 ? "[2, 2] for SKC2"
                                    : "[0, 1] for SKC1"));
   }
@@ -659,14 +678,14 @@ StatusOr<Parsed> Parse(std::string_view bytes) {
     }
     nlines = 2 * entries;
   }
-  if (coding == kCurve || coding == kTurtle) {
+  if (coding == kCurve || coding == kTurtle || coding == kRuleTurtle) {
     // Bounded above by the section count (itself capped): no allocation beyond what the header
     // allows.
     std::vector<Entry> ent(p.kind == kPolylineSet ? 0 : nlines / 2);
-    if (coding == kTurtle) {
+    if (coding == kTurtle || coding == kRuleTurtle) {
       SCULPT_RETURN_IF_ERROR(internal::DecodeSkc3Body(bytes.substr(r.pos), bytes.size(), p.kind,
                                                       p.step, nlines, p.section_count, &ent,
-                                                      &p.lines));
+                                                      &p.lines, coding == kRuleTurtle));
     } else {
       SCULPT_RETURN_IF_ERROR(DecodeCurveBody(bytes.substr(r.pos), bytes.size(), p.kind, p.step,
                                              nlines, p.section_count, &ent, &p.lines));
@@ -788,6 +807,11 @@ StatusOr<std::string> internal::EncodeContoursSkc3(const std::vector<Polyline2>&
   return ContoursMessage(polylines, step, Format::kSkc3);
 }
 
+StatusOr<std::string> internal::EncodeContoursSkc4(const std::vector<Polyline2>& polylines,
+                                                   double step) {
+  return ContoursMessage(polylines, step, Format::kSkc4);
+}
+
 StatusOr<std::string> internal::EncodeContoursSkc1(const std::vector<Polyline2>& polylines,
                                                    double step) {
   std::vector<const Polyline2*> ptrs;
@@ -821,7 +845,8 @@ StatusOr<std::string> SnapshotMessage(const Skin& skin, double step, Format form
   }
   std::vector<QLine> q;
   SCULPT_RETURN_IF_ERROR(Quantise(ptrs, s, &q));
-  return Encode(kSnapshot, s, header, entries, ptrs, q, format);
+  return Encode(kSnapshot, s, header, entries, ptrs, q, format,
+                skin.options().sample_for_codec);
 }
 
 }  // namespace
@@ -836,6 +861,10 @@ StatusOr<std::string> internal::EncodeSkinSnapshotSkc2(const Skin& skin, double 
 
 StatusOr<std::string> internal::EncodeSkinSnapshotSkc3(const Skin& skin, double step) {
   return SnapshotMessage(skin, step, Format::kSkc3);
+}
+
+StatusOr<std::string> internal::EncodeSkinSnapshotSkc4(const Skin& skin, double step) {
+  return SnapshotMessage(skin, step, Format::kSkc4);
 }
 
 StatusOr<std::string> internal::EncodeSkinSnapshotSkc1(const Skin& skin, double step) {
@@ -864,7 +893,8 @@ StatusOr<std::string> EncodeSkinUpdate(const Skin& skin, const SkinChange& chang
   }
   std::vector<QLine> q;
   SCULPT_RETURN_IF_ERROR(Quantise(ptrs, s, &q));
-  return Encode(kUpdate, s, header, entries, ptrs, q);
+  return Encode(kUpdate, s, header, entries, ptrs, q, Format::kBest,
+                skin.options().sample_for_codec);
 }
 
 Status ContourView::Apply(std::string_view bytes) {

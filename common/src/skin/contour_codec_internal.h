@@ -30,6 +30,10 @@ StatusOr<std::string> EncodeContoursSkc2(const std::vector<Polyline2>& polylines
 /// message where it is smaller); the usual fallback where SKC3 cannot place every point.
 StatusOr<std::string> EncodeSkinSnapshotSkc3(const Skin& skin, double step = 0);
 StatusOr<std::string> EncodeContoursSkc3(const std::vector<Polyline2>& polylines, double step);
+/// SKC4 whatever the message (EncodeSkinSnapshot writes it for skins; SKC2 where smaller under
+/// 4096 points); polyline sets stay SKC3 by default.
+StatusOr<std::string> EncodeSkinSnapshotSkc4(const Skin& skin, double step = 0);
+StatusOr<std::string> EncodeContoursSkc4(const std::vector<Polyline2>& polylines, double step);
 
 /// A section entry of a skin message: its index (updates only), id and version.
 struct SectionEntry {
@@ -38,12 +42,26 @@ struct SectionEntry {
 
 /// SKC3's body for `kind` (0 polyline set, 1 snapshot, 2 update; contour_codec.h describes it),
 /// or nullopt where it cannot place every point within step/sqrt(2) (the caller falls back).
+/// `skc4`: SKC4's body (the same but for the chord predictor: the chord rule, contour_codec.h).
 std::optional<std::string> Skc3Body(int kind, double step, const std::vector<SectionEntry>& entries,
-                                    const std::vector<const Polyline2*>& lines);
+                                    const std::vector<const Polyline2*>& lines, bool skc4 = false);
 /// Decodes Skc3Body's output (untrusted) into `entries` (sized by the caller) and `lines`.
 Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, double step,
                       uint64_t nlines, uint64_t section_count, std::vector<SectionEntry>* entries,
-                      std::vector<Polyline2>* lines);
+                      std::vector<Polyline2>* lines, bool skc4 = false);
+
+/// SKC4 as the skin's sampler follows it (sampling.cc): the direction of the decoder's next chord
+/// from `c` and the distances along it of the two points it predicts (2 lp and 2 lp + 1 half
+/// spacings; the row's parity decides which).
+void Skc4Predict(const CodecCursor& c, double step, Vec2* u, double* along_even, double* along_odd);
+/// Codes `target` as SKC4's encoder does from `c` and advances `c` to the decoded point and the
+/// turtle after it; `along` (may be null) = the along integer, 0 where the point is where
+/// predicted. False where no lattice point is within the bound (c unchanged).
+bool Skc4Advance(CodecCursor& c, Vec2 target, double step, int64_t* along);
+/// The cursor after SKC4's encoder codes `line` as the next line of the side whose last line
+/// ended at `start` (joined when its first point is within the bound of start.p, as the encoder
+/// decides). An invalid cursor where the line cannot be coded.
+CodecCursor Skc4Trace(const CodecCursor& start, const Polyline2& line, double step);
 
 }  // namespace sculpt::skin::internal
 

@@ -1,6 +1,8 @@
 /// @brief Adaptive sampling and polyline predicates for the skin (digest §8.5, §7 claims 21-22).
 #include "sampling.h"
 
+#include "contour_codec_internal.h"
+
 #include <algorithm>
 #include <array>
 #include <functional>
@@ -111,6 +113,137 @@ void SampleOffset(const Offset& off, double ta, double tb, double tol, bool skip
 
 void SampleSide(const std::function<Vec2(double)>& f, int pieces, double tol, Polyline2& out) {
   SampleCurve(f, 0.0, static_cast<double>(pieces), tol, false, out);
+}
+
+void SampleSideForCodec(const std::function<Vec2(double)>& f, int pieces, double tol,
+                        const CodecCursor& cursor, Polyline2& out) {
+  if (!cursor.valid || !cursor.has_point) {
+    SampleSide(f, pieces, tol, out);
+    return;
+  }
+  const double tb = static_cast<double>(pieces);
+  const double step = tol;
+  // The chord from the last sample to f(t) is within tol of the curve. The chords here sit at
+  // the tolerance more often than SampleCurve's (an escape takes a long one that holds), so the
+  // test is stricter than Refine's: seven points, 2 % under the tolerance (five let 4 % through
+  // in SkinTest.PolylinesWithinChordToleranceOfExactCurves).
+  const double limit = 0.98 * tol;
+  // The largest deviation (stopping at the first over the limit, which the escape scales by).
+  auto chord_dev = [&](double ta, Vec2 pa, double t, Vec2 pt) {
+    double worst = 0;
+    for (double w : {0.5, 0.25, 0.75, 0.375, 0.625, 0.125, 0.875}) {
+      worst = std::max(worst, SegmentDistance(f(ta + (t - ta) * w), pa, pt));
+      if (worst > limit) break;
+    }
+    return worst;
+  };
+  auto chord_ok = [&](double ta, Vec2 pa, double t, Vec2 pt) {
+    return chord_dev(ta, pa, t, pt) <= limit;
+  };
+  CodecCursor c = cursor;
+  double t_prev = 0;
+  Vec2 prev = f(0);
+  out.push_back(prev);
+  const Vec2 end = f(tb);
+  double dt = tb / 64;  // the parameter span of the last chord, a first guess for the next
+  const size_t cap = out.size() + (size_t{1} << 22);
+  while (out.size() < cap) {
+    Vec2 u;
+    double along[2];
+    internal::Skc4Predict(c, step, &u, &along[0], &along[1]);
+    auto proj = [&](Vec2 q) { return (q - c.p).Dot(u); };
+    // The parameter where the curve crosses the line across u at distance a along, searched
+    // forward from the last sample; tb where the curve ends before it.
+    auto crossing = [&](double a, double* t_out) {
+      if (proj(end) <= a) return false;
+      double lo = t_prev, hi = std::min(tb, t_prev + dt);
+      while (hi < tb && proj(f(hi)) < a) {
+        lo = hi;
+        hi = std::min(tb, hi + dt);
+      }
+      double glo = proj(f(lo)) - a, ghi = proj(f(hi)) - a;
+      for (int i = 0; i < 60 && glo < 0 && ghi > 0; ++i) {
+        // Regula falsi, halving where it stalls; 0.02 of a step along is plenty (a point off
+        // its column by that is still nearest its lattice point but at cell edges, which the
+        // caller's check sends to the other column or an escape).
+        double tm = lo + (hi - lo) * (-glo / (ghi - glo));
+        if (!(tm > lo && tm < hi) || (i & 3) == 3) tm = 0.5 * (lo + hi);
+        const double g = proj(f(tm)) - a;
+        if (std::abs(g) < 0.02 * step) {
+          *t_out = tm;
+          return true;
+        }
+        if (g < 0) {
+          lo = tm;
+          glo = g;
+        } else {
+          hi = tm;
+          ghi = g;
+        }
+      }
+      *t_out = 0.5 * (lo + hi);
+      return true;
+    };
+    double t_next = -1;
+    Vec2 p_next;
+    for (double a : along) {
+      double t = 0;
+      if (a <= 0 || !crossing(a, &t) || !(t > t_prev)) continue;
+      const Vec2 q = f(t);
+      CodecCursor trial = c;
+      int64_t escape = 1;
+      if (!internal::Skc4Advance(trial, q, step, &escape) || escape != 0) continue;
+      if (!chord_ok(t_prev, prev, t, q)) continue;
+      t_next = t;
+      p_next = q;
+      break;
+    }
+    if (t_next < 0 && chord_ok(t_prev, prev, tb, end) && proj(end) <= along[1] + step) {
+      t_next = tb;  // the side ends before the predicted chord: its end point
+      p_next = end;
+    }
+    if (t_next < 0) {
+      // An escape: a chord on the lattice's columns (half spacings) within the tolerance,
+      // shortened from the predicted one by the square root of the deviation's excess (a
+      // sagitta grows as the chord squared), 5 % more each time it still exceeds it.
+      const double hs = along[1] - along[0];
+      double best_t = -1;
+      double a_try = std::min(along[0], proj(end) - 0.5 * hs);
+      for (int i = 0; i < 40 && a_try >= hs; ++i) {
+        const double col = std::floor(a_try / hs) * hs;
+        double t = 0;
+        if (!crossing(col, &t) || !(t > t_prev)) break;
+        const double dev = chord_dev(t_prev, prev, t, f(t));
+        if (dev <= limit) {
+          best_t = t;
+          break;
+        }
+        a_try = col * std::min(0.95, std::sqrt(limit / dev));
+      }
+      if (best_t > t_prev) {
+        t_next = best_t;
+        p_next = f(best_t);
+      } else {
+        // Not even one spacing: halve the parameter until the chord holds (Refine's rule).
+        double t = std::min(tb, t_prev + dt);
+        for (int i = 0; i < kMaxDepth && !chord_ok(t_prev, prev, t, f(t)); ++i) {
+          t = 0.5 * (t_prev + t);
+        }
+        t_next = t;
+        p_next = f(t);
+      }
+    }
+    out.push_back(p_next);
+    if (t_next >= tb) break;
+    if (!internal::Skc4Advance(c, p_next, step, nullptr)) {
+      // Beyond the codec's reach: the rest as SampleCurve samples it.
+      SampleCurve(f, t_next, tb, tol, true, out);
+      break;
+    }
+    dt = std::max(t_next - t_prev, 1e-9 * tb);
+    t_prev = t_next;
+    prev = p_next;
+  }
 }
 
 void SampleASpline(const ASpline& s, double tol, bool skip_first, Polyline2& out) {

@@ -6,6 +6,7 @@
 #include <functional>
 
 #include "sculpt/skin/curves.h"
+#include "sculpt/skin/skin.h"
 #include "sculpt/skin/vec2.h"
 
 namespace sculpt::skin::internal {
@@ -18,6 +19,14 @@ void SampleOffset(const Offset& off, double ta, double tb, double tol, bool skip
 /// Samples a whole side as one curve f(u), u in [0, pieces] (piece j on [j, j+1]), so the spacing
 /// stays smooth across the joints between pieces; the joints themselves need not be samples.
 void SampleSide(const std::function<Vec2(double)>& f, int pieces, double tol, Polyline2& out);
+/// SampleSide for the contour codec: where `cursor` carries SKC4's decoder state from the side's
+/// previous section (the side's first point, f(0), then being that section's last), each next
+/// sample is the point of the curve at the chord the decoder predicts (found on the true curve),
+/// kept where the chord is within `tol` of the curve, else the longest chord on the codec's
+/// lattice that is (an escape). Without a valid cursor, SampleSide. `tol` is also the codec's
+/// step. The caller traces the finished polyline (Skc4Trace) for the next section's cursor.
+void SampleSideForCodec(const std::function<Vec2(double)>& f, int pieces, double tol,
+                        const CodecCursor& cursor, Polyline2& out);
 /// Appends samples of the A-spline from P0 to P2, same rule on the pencil angle.
 void SampleASpline(const ASpline& s, double tol, bool skip_first, Polyline2& out);
 

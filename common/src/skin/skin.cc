@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <numbers>
 
+#include "contour_codec_internal.h"
 #include "sampling.h"
 #include "sculpt/core/check.h"
 
@@ -75,8 +76,9 @@ SkinPiece SplinePiece(const ASpline& s, double ta, double tb) {
 }
 
 /// Builds, samples and validates the section between balls k and k+1.
+/// `cursor`: SKC4's decoder at the end of the previous section's sides (no point: none).
 Section BuildSectionImpl(const OrientedBall& b0, const OrientedBall& b1, size_t k,
-                         const SkinOptions& opt) {
+                         const SkinOptions& opt, const std::array<CodecCursor, 2>& cursor) {
   Section sec;
   SectionReport& rep = sec.report;
   const HermiteMother mother = HermiteMother::FromBalls(b0, b1);
@@ -186,17 +188,21 @@ Section BuildSectionImpl(const OrientedBall& b0, const OrientedBall& b1, size_t 
     const auto& pieces = sec.pieces[s];
     const Offset& off = offs[s];
     const int np = static_cast<int>(pieces.size());
-    internal::SampleSide(
-        [&](double u) {
-          const int j = std::clamp(static_cast<int>(std::floor(u)), 0, np - 1);
-          const double w = u - j;
-          const SkinPiece& p = pieces[j];
-          if (p.kind == SkinPiece::Kind::kOffset) return off.P(p.tau_a + (p.tau_b - p.tau_a) * w);
-          return p.spline.AtPhi(kPi / 2 * (1 - w));
-        },
-        np, tol, out);
+    const auto side_curve = [&](double u) {
+      const int j = std::clamp(static_cast<int>(std::floor(u)), 0, np - 1);
+      const double w = u - j;
+      const SkinPiece& p = pieces[j];
+      if (p.kind == SkinPiece::Kind::kOffset) return off.P(p.tau_a + (p.tau_b - p.tau_a) * w);
+      return p.spline.AtPhi(kPi / 2 * (1 - w));
+    };
+    if (opt.sample_for_codec) {
+      internal::SampleSideForCodec(side_curve, np, tol, cursor[s], out);
+    } else {
+      internal::SampleSide(side_curve, np, tol, out);
+    }
     out.front() = pieces.front().start;
     out.back() = pieces.back().end;
+    if (opt.sample_for_codec) sec.codec_end[s] = internal::Skc4Trace(cursor[s], out, tol);
     for (const SkinPiece& p : pieces) {
       if (p.kind == SkinPiece::Kind::kOffset) {
         ++rep.side[s].offset_pieces;
@@ -334,7 +340,7 @@ Polyline2 SampleCap(const OrientedBall& ball, int from_side, double tol) {
 }
 
 Section BuildSection(const OrientedBall& b0, const OrientedBall& b1, const SkinOptions& options) {
-  Section s = BuildSectionImpl(b0, b1, 0, options);
+  Section s = BuildSectionImpl(b0, b1, 0, options, {});
   FinishValidation(s, b0, b1, 0, options.chord_tolerance);
   return s;
 }
@@ -366,7 +372,11 @@ StatusOr<Skin> Skin::Build(std::vector<OrientedBall> balls, const SkinOptions& o
 }
 
 Section Skin::MakeSection(size_t k) {
-  Section s = BuildSectionImpl(balls_[k], balls_[k + 1], k, options_);
+  // The side's previous section, as the snapshot's decoder will have it.
+  const std::array<CodecCursor, 2> none{};
+  Section s = BuildSectionImpl(balls_[k], balls_[k + 1], k, options_,
+                               k > 0 && k - 1 < sections_.size() ? sections_[k - 1].codec_end
+                                                                  : none);
   FinishValidation(s, balls_[k], balls_[k + 1], k, options_.chord_tolerance);
   s.id = next_id_++;
   s.version = 1;
@@ -413,12 +423,14 @@ StatusOr<SkinChange> Skin::InsertBall(size_t i, const OrientedBall& ball) {
   } else {
     change = {{i - 1, i}, i - 1, 1, 2};
   }
-  std::vector<Section> fresh;
-  for (size_t k : change.changed) fresh.push_back(MakeSection(k));
+  // Spliced one section at a time, so that the second new section's sampler starts from the
+  // first (MakeSection reads the section before it), not from the section it replaces.
   const auto at = sections_.begin() + static_cast<std::ptrdiff_t>(change.splice_at);
   sections_.erase(at, at + static_cast<std::ptrdiff_t>(change.removed));
-  sections_.insert(sections_.begin() + static_cast<std::ptrdiff_t>(change.splice_at),
-                   fresh.begin(), fresh.end());
+  for (size_t k : change.changed) {
+    Section s = MakeSection(k);
+    sections_.insert(sections_.begin() + static_cast<std::ptrdiff_t>(k), std::move(s));
+  }
   return change;
 }
 

@@ -26,6 +26,7 @@ double MaxError(const Polyline2& a, const Polyline2& b) {
 
 bool IsSkc2(const std::string& bytes) { return bytes.compare(0, 4, "SKC2") == 0; }
 bool IsSkc3(const std::string& bytes) { return bytes.compare(0, 4, "SKC3") == 0; }
+bool IsSkc4(const std::string& bytes) { return bytes.compare(0, 4, "SKC4") == 0; }
 
 std::vector<OrientedBall> Wavy(int n) {
   std::vector<OrientedBall> balls;
@@ -207,7 +208,7 @@ void ExpectMessageWithinBound(const Skin& skin, double step, const std::string& 
 void ExpectSnapshotWithinBound(const Skin& skin, double step, const std::string& what) {
   const auto best = EncodeSkinSnapshot(skin, step);
   ASSERT_TRUE(best.ok()) << what << ": " << best.status();
-  EXPECT_TRUE(IsSkc3(*best) || IsSkc2(*best)) << what;
+  EXPECT_TRUE(IsSkc4(*best) || IsSkc3(*best) || IsSkc2(*best)) << what;
   ExpectMessageWithinBound(skin, step, what, best);
   const auto skc3 = internal::EncodeSkinSnapshotSkc3(skin, step);
   ASSERT_TRUE(skc3.ok());
@@ -215,6 +216,10 @@ void ExpectSnapshotWithinBound(const Skin& skin, double step, const std::string&
   ExpectMessageWithinBound(skin, step, what + " (SKC3)", skc3);
   ExpectMessageWithinBound(skin, step, what + " (SKC2)",
                            internal::EncodeSkinSnapshotSkc2(skin, step));
+  const auto skc4 = internal::EncodeSkinSnapshotSkc4(skin, step);
+  ASSERT_TRUE(skc4.ok());
+  EXPECT_TRUE(IsSkc4(*skc4)) << what;
+  ExpectMessageWithinBound(skin, step, what + " (SKC4)", skc4);
 }
 
 // Issue 16: the curve coding keeps every decoded point within the tolerance's bound, on the
@@ -229,9 +234,11 @@ TEST(ContourCodecTest, ErrorBoundHoldsOnHiddenBallFixturesAndRandomChains) {
   int checked = 0;
   for (Method m : {Method::kHybrid, Method::kOffset}) {
     for (double rel : {1e-2, 1e-3, 1e-5}) {
+     for (bool follow : {false, true}) {  // the curvature sampler, and the one following SKC4
       SkinOptions o;
       o.method = m;
       o.chord_tolerance = rel;
+      o.sample_for_codec = follow;
       for (size_t f = 0; f < fixtures.size(); ++f) {
         auto skin = Skin::Build(fixtures[f], o);
         ASSERT_TRUE(skin.ok()) << skin.status();
@@ -245,9 +252,10 @@ TEST(ContourCodecTest, ErrorBoundHoldsOnHiddenBallFixturesAndRandomChains) {
         ExpectSnapshotWithinBound(*skin, 0, "random " + std::to_string(seed));
         ++checked;
       }
+     }
     }
   }
-  EXPECT_GE(checked, 40);
+  EXPECT_GE(checked, 80);
 }
 
 // Random polylines of every kind (smooth, noisy, far from the origin, repeated points) at random
@@ -387,14 +395,100 @@ TEST(ContourCodecTest, CurveCodingBeatsSkc1OnASkin) {
   EXPECT_EQ(bytes->size(), std::min(skc3->size(), skc2->size()));
 }
 
-// On a longer skin SKC3's hexagonal lattice and trend-continued spacing beat SKC2.
+// On a longer skin SKC3's hexagonal lattice and trend-continued spacing beat SKC2 (on a skin
+// sampled by curvature alone, as before SKC4).
 TEST(ContourCodecTest, Skc3BeatsSkc2OnALongSkin) {
-  auto skin = Skin::Build(Wavy(400));
+  SkinOptions o;
+  o.sample_for_codec = false;
+  auto skin = Skin::Build(Wavy(400), o);
+  ASSERT_TRUE(skin.ok());
+  const auto skc3 = internal::EncodeSkinSnapshotSkc3(*skin);
+  const auto skc2 = internal::EncodeSkinSnapshotSkc2(*skin);
+  ASSERT_TRUE(IsSkc3(*skc3));
+  EXPECT_LT(skc3->size(), skc2->size());
+}
+
+// With the sampler following SKC4: snapshots and updates (move, insert, remove) decode within the
+// bound; an update after a move stays well under the snapshot.
+TEST(ContourCodecTest, Skc4SnapshotAndUpdatesReproduceTheSkin) {
+  SkinOptions follow;
+  follow.sample_for_codec = true;
+  auto skin = Skin::Build(Wavy(12), follow);
+  ASSERT_TRUE(skin.ok()) << skin.status();
+  const double step = skin->chord_tolerance();
+  ContourView view;
+  const auto snap = EncodeSkinSnapshot(*skin);
+  ASSERT_TRUE(snap.ok()) << snap.status();
+  EXPECT_TRUE(IsSkc4(*snap) || IsSkc3(*snap) || IsSkc2(*snap));
+  ASSERT_TRUE(view.Apply(*snap).ok());
+  auto check = [&] {
+    ASSERT_EQ(view.sections().size(), skin->sections().size());
+    for (size_t k = 0; k < skin->sections().size(); ++k) {
+      ASSERT_EQ(view.sections()[k].plus.size(), skin->section(k).plus.size());
+      ASSERT_EQ(view.sections()[k].minus.size(), skin->section(k).minus.size());
+      EXPECT_LE(MaxError(view.sections()[k].plus, skin->section(k).plus), step * kBound);
+      EXPECT_LE(MaxError(view.sections()[k].minus, skin->section(k).minus), step * kBound);
+    }
+  };
+  check();
+  OrientedBall b = skin->balls()[5];
+  b.c.y += 0.2;
+  auto change = skin->SetBall(5, b);
+  ASSERT_TRUE(change.ok());
+  auto upd = EncodeSkinUpdate(*skin, *change);
+  ASSERT_TRUE(upd.ok());
+  // 2 of 11 sections; the first has no turtle to start from and codes its along offsets.
+  EXPECT_LT(upd->size() * 2, snap->size());
+  ASSERT_TRUE(view.Apply(*upd).ok());
+  check();
+  auto ins = skin->InsertBall(3, {{6.2, 1.4}, 0.4, 0});
+  ASSERT_TRUE(ins.ok()) << ins.status();
+  ASSERT_TRUE(view.Apply(*EncodeSkinUpdate(*skin, *ins)).ok());
+  check();
+  auto rem = skin->RemoveBall(7);
+  ASSERT_TRUE(rem.ok()) << rem.status();
+  ASSERT_TRUE(view.Apply(*EncodeSkinUpdate(*skin, *rem)).ok());
+  check();
+}
+
+// The skin's sides are sampled where SKC4's decoder predicts them: its along integers are almost
+// all 0, and the snapshot is much smaller than SKC3 of the same points, and than SKC3 of the
+// skin sampled by curvature alone.
+TEST(ContourCodecTest, Skc4FollowsTheSamplerOnALongSkin) {
+  SkinOptions follow;
+  follow.sample_for_codec = true;
+  auto skin = Skin::Build(Wavy(400), follow);
   ASSERT_TRUE(skin.ok());
   const auto best = EncodeSkinSnapshot(*skin);
-  const auto skc2 = internal::EncodeSkinSnapshotSkc2(*skin);
-  ASSERT_TRUE(IsSkc3(*best));
-  EXPECT_LT(best->size(), skc2->size());
+  ASSERT_TRUE(best.ok());
+  ASSERT_TRUE(IsSkc4(*best));
+  const auto skc3 = internal::EncodeSkinSnapshotSkc3(*skin);
+  EXPECT_LT(static_cast<double>(best->size()), 0.8 * static_cast<double>(skc3->size()));
+  SkinOptions o;
+  o.sample_for_codec = false;
+  auto plain = Skin::Build(Wavy(400), o);
+  ASSERT_TRUE(plain.ok());
+  const auto plain_best = EncodeSkinSnapshot(*plain);
+  EXPECT_LT(static_cast<double>(best->size()), 0.8 * static_cast<double>(plain_best->size()));
+  // Along integers: every side after the first starts from its previous section's cursor.
+  const double step = skin->chord_tolerance();
+  size_t along = 0, zero = 0;
+  for (int side = 0; side < 2; ++side) {
+    CodecCursor c;
+    for (const Section& s : skin->sections()) {
+      const Polyline2& line = side == 0 ? s.plus : s.minus;
+      CodecCursor t = c;
+      c = internal::Skc4Trace(c, line, step);
+      if (!t.valid) continue;
+      for (size_t k = 1; k < line.size(); ++k) {
+        int64_t a = 0;
+        ASSERT_TRUE(internal::Skc4Advance(t, line[k], step, &a));
+        ++along;
+        zero += a == 0;
+      }
+    }
+  }
+  EXPECT_GT(static_cast<double>(zero), 0.7 * static_cast<double>(along));
 }
 
 }  // namespace

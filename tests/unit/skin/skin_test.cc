@@ -212,13 +212,17 @@ double DistToPolyline(Vec2 p, const Polyline2& pl) {
 // Digest §7 claim 26: every point of the exact curves lies within the chord tolerance of the
 // polylines (checked on 400 exact samples per piece).
 TEST(SkinTest, PolylinesWithinChordToleranceOfExactCurves) {
+  // Both samplers: by curvature, and following the contour codec (SkinOptions::sample_for_codec).
+  for (bool follow : {false, true}) {
   for (Method m : {Method::kHybrid, Method::kOffset, Method::kNaive}) {
     std::vector<OrientedBall> balls;
     for (int i = 0; i < 8; ++i) {
       balls.push_back({{2.6 * i, 0.9 * std::sin(0.8 * i)}, 0.5 + 0.4 * std::abs(std::cos(1.1 * i)),
                        25 * kDeg * std::cos(0.8 * i)});
     }
-    auto skin = Skin::Build(balls, Opts(m, 2e-3));
+    SkinOptions o = Opts(m, 2e-3);
+    o.sample_for_codec = follow;
+    auto skin = Skin::Build(balls, o);
     ASSERT_TRUE(skin.ok()) << skin.status();
     double worst = 0;
     for (size_t k = 0; k < skin->sections().size(); ++k) {
@@ -238,8 +242,9 @@ TEST(SkinTest, PolylinesWithinChordToleranceOfExactCurves) {
         }
       }
     }
-    EXPECT_LE(worst, 2e-3) << MethodName(m);
+    EXPECT_LE(worst, 2e-3) << MethodName(m) << (follow ? " following the codec" : "");
     EXPECT_GT(worst, 2e-4) << MethodName(m);  // the sampling uses the tolerance, not far less
+  }
   }
 }
 

@@ -34,6 +34,15 @@ struct SkinOptions {
   double chord_tolerance = 0;
   /// A-spline shape parameter; <= 0 picks the circle-reproducing default per section.
   double delta = 0;
+  /// Sample each side where the contour codec's SKC4 decoder will predict its points (each chord
+  /// still within the chord tolerance), from the previous section's decoder state, so that a
+  /// snapshot at step = chord tolerance codes almost no along offsets (36 % fewer bytes on the
+  /// benchmark's skin, docs/benchmarks.md). Off by default: the points then depend on the edit
+  /// history (a section sampled before its predecessor was edited keeps its points, while a
+  /// fresh Build samples it from the new state), so a skin rebuilt from its balls (server
+  /// recovery, SkinServerTest.BallEditsSurviveRestartsAndResendsApplyOnce) differs from the live
+  /// one. Off: chords from the true curve's curvature alone, a function of the balls.
+  bool sample_for_codec = false;
 };
 
 /// One piece of one side of a section: an offset of the mother on [tau_a, tau_b] or an A-spline.
@@ -74,6 +83,18 @@ struct SectionReport {
   std::vector<std::string> notes;    // why the section is not total, fallbacks taken
 };
 
+/// Where the contour codec's SKC4 decoder stands at the end of a side's polyline in a snapshot
+/// (its turtle and last decoded point, contour_codec.h). The sampler places the next section's
+/// side where that decoder predicts its points, so that they cost no along offset. Opaque.
+struct CodecCursor {
+  int32_t theta = 0, omega = 0;
+  int64_t lp = 0, l1 = 0;
+  int actx = 0, mag_e = 0;
+  bool valid = false;      // the decoder carries a turtle
+  bool has_point = false;  // p is the decoded last point
+  Vec2 p;
+};
+
 /// One section (balls k and k+1): its pieces, polylines and report. `id` is stable across edits
 /// of other sections; `version` increases each time the section is rebuilt.
 struct Section {
@@ -82,6 +103,7 @@ struct Section {
   std::array<std::vector<SkinPiece>, 2> pieces;  // [0] = +, [1] = -
   Polyline2 plus, minus;  // from P_k^± to P_{k+1}^±, both ends included
   SectionReport report;
+  std::array<CodecCursor, 2> codec_end;  // [0] = +, [1] = -: SKC4's decoder after this section
 };
 
 /// Totals over the sections.
