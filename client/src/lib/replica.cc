@@ -5,9 +5,9 @@
 
 #include <atomic>
 
+#include "sculpt/codec/replica_sculpture.h"
 #include "sculpt/codec/settings.h"
 #include "sculpt/codec/stroke.h"
-#include "sculpt/levelset/materials.h"
 
 namespace sculpt::client {
 namespace {
@@ -49,30 +49,8 @@ Status Replica::Start() {
   if (!obj) return NotFound("replica object=" + options_.object + " outside the scene's objects");
   auto settings = codec::SettingsFromProto(info.edit_settings());
   if (!settings.ok()) return settings.status();
-  levelset::SculptureOptions so;
-  so.voxel_size = obj->voxel_size();
-  so.half_width = static_cast<int>(obj->half_width());
-  so.name = obj->name();
-  auto empty = levelset::MakeEmptySculpture(so);
+  auto empty = codec::EmptyReplicaSculpture(info, *obj);
   if (!empty.ok()) return empty.status();
-  // A scene with materials sends leaf records with fractions (SLR2), which only a replica that
-  // declared the same materials accepts: declare them before the region arrives.
-  const v1::Effects& fx = info.effects();
-  if (fx.materials_size() > 0) {
-    std::vector<levelset::MaterialDecl> materials;
-    const bool coloured = fx.material_colours_size() == 3 * fx.materials_size();
-    for (int m = 0; m < fx.materials_size(); ++m) {
-      levelset::MaterialDecl d;
-      d.name = fx.materials(m);
-      if (coloured) {
-        for (int c = 0; c < 3; ++c) d.colour[c] = fx.material_colours(3 * m + c);
-      }
-      materials.push_back(std::move(d));
-    }
-    if (const Status st = levelset::SetMaterials(*empty, materials); !st.ok()) {
-      return InvalidArgument("SceneInfo.effects.materials: " + st.message());
-    }
-  }
   {
     std::lock_guard<std::mutex> lock(mu_);
     settings_ = *settings;

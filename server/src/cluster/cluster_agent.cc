@@ -284,14 +284,14 @@ void ClusterAgent::LoseOwnership(const std::string& why) {
                 config_.member, scene_, why);
 }
 
+std::pair<ClusterAgent::SceneState, std::vector<MemberRecord>> ClusterAgent::ReadTable() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  const auto it = scenes_.find(scene_);
+  return {it != scenes_.end() ? it->second : SceneState{}, members_};
+}
+
 asio::awaitable<void> ClusterAgent::MaybeAcquire() {
-  SceneState st;
-  std::vector<MemberRecord> members;
-  {
-    std::lock_guard<std::mutex> lock(mu_);
-    if (auto it = scenes_.find(scene_); it != scenes_.end()) st = it->second;
-    members = members_;
-  }
+  const auto [st, members] = ReadTable();
   if (owned_) {
     const bool ours =
         st.owner && st.owner->member == config_.member && st.owner->epoch == owned_epoch_.load();
@@ -371,13 +371,7 @@ asio::awaitable<void> ClusterAgent::MaybeAcquire() {
 }
 
 asio::awaitable<void> ClusterAgent::TendStandby() {
-  SceneState st;
-  std::vector<MemberRecord> members;
-  {
-    std::lock_guard<std::mutex> lock(mu_);
-    if (auto it = scenes_.find(scene_); it != scenes_.end()) st = it->second;
-    members = members_;
-  }
+  const auto [st, members] = ReadTable();
   if (owned_) {
     RetireFollower();
     // The standby: the one named while it lives and may follow, else the least loaded other

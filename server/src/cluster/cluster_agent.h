@@ -126,6 +126,8 @@ class ClusterAgent : public SceneRouter {
     std::optional<StandbyRecord> standby;
     int64_t standby_mod_revision = 0;
   };
+  // This member's scene as the last Refresh read it, and the live members, copied under mu_.
+  std::pair<SceneState, std::vector<MemberRecord>> ReadTable() const;
   mutable std::mutex mu_;
   std::map<std::string, SceneState> scenes_;  // guarded by mu_
   std::vector<MemberRecord> members_;         // guarded by mu_

@@ -12,10 +12,10 @@
 
 #include "sculpt/client/client.h"
 #include "sculpt/codec/log_records.h"
+#include "sculpt/codec/replica_sculpture.h"
 #include "sculpt/codec/settings.h"
 #include "sculpt/codec/stroke.h"
 #include "sculpt/levelset/edit.h"
-#include "sculpt/levelset/materials.h"
 #include "sculpt/levelset/region.h"
 #include "sculpt/levelset/sculpture.h"
 #include "store/edit_log.h"
@@ -225,26 +225,8 @@ void StandbyFollower::Run() {
   const v1::ObjectInfo& obj = info.objects(0);
   auto settings = codec::SettingsFromProto(info.edit_settings());
   if (!settings.ok()) return fail(settings.status().ToString());
-  levelset::SculptureOptions so;
-  so.voxel_size = obj.voxel_size();
-  so.half_width = static_cast<int>(obj.half_width());
-  so.name = obj.name();
-  auto empty = levelset::MakeEmptySculpture(so);
+  auto empty = codec::EmptyReplicaSculpture(info, obj);
   if (!empty.ok()) return fail(empty.status().ToString());
-  const v1::Effects& fx = info.effects();
-  if (fx.materials_size() > 0) {
-    std::vector<levelset::MaterialDecl> materials;
-    const bool coloured = fx.material_colours_size() == 3 * fx.materials_size();
-    for (int m = 0; m < fx.materials_size(); ++m) {
-      levelset::MaterialDecl d;
-      d.name = fx.materials(m);
-      if (coloured) {
-        for (int c = 0; c < 3; ++c) d.colour[c] = fx.material_colours(3 * m + c);
-      }
-      materials.push_back(std::move(d));
-    }
-    if (Status st = levelset::SetMaterials(*empty, materials); !st.ok()) return fail(st.ToString());
-  }
   im.object = obj.name();
   im.settings = *settings;
   im.voxel_size = obj.voxel_size();
