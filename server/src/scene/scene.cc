@@ -578,16 +578,31 @@ size_t Scene::acks_awaiting_durability() const {
 
 LatencyHistogram::Snapshot Scene::log_sync_seconds() const { return log_->sync_seconds(); }
 
+// Called from the compute thread and from the log's sync; the answers must run in sequence
+// order (a client's acks are in the order of its strokes), so one caller at a time answers,
+// outside the lock, and picks up what a concurrent caller made durable meanwhile.
 void Scene::ReleaseDurable(uint64_t durable_seq) {
-  std::vector<Pending> ready;
   {
     std::lock_guard<std::mutex> lock(pending_mu_);
-    while (!pending_.empty() && pending_.front().seq <= durable_seq) {
-      ready.push_back(std::move(pending_.front()));
-      pending_.pop_front();
-    }
+    released_durable_seq_ = std::max(released_durable_seq_, durable_seq);
+    if (releasing_) return;
+    releasing_ = true;
   }
-  for (Pending& p : ready) p.answer();
+  for (;;) {
+    std::vector<Pending> ready;
+    {
+      std::lock_guard<std::mutex> lock(pending_mu_);
+      while (!pending_.empty() && pending_.front().seq <= released_durable_seq_) {
+        ready.push_back(std::move(pending_.front()));
+        pending_.pop_front();
+      }
+      if (ready.empty()) {
+        releasing_ = false;
+        return;
+      }
+    }
+    for (Pending& p : ready) p.answer();
+  }
 }
 
 void Scene::MaybeSnapshot(bool force) {

@@ -383,7 +383,9 @@ class Scene {
     uint64_t seq;
     std::function<void()> answer;
   };
-  std::deque<Pending> pending_;
+  std::deque<Pending> pending_;        // guarded by pending_mu_
+  uint64_t released_durable_seq_ = 0;  // guarded by pending_mu_: the newest durable seq seen
+  bool releasing_ = false;             // guarded by pending_mu_: one thread answers at a time
 
   // Late joins (RequestJoinState): admitted up to limits.max_pending_joins, serialised in order
   // on one worker joined at shutdown. A queued join runs with `cancelled` = true when the scene
