@@ -69,19 +69,11 @@ class Member {
   std::unique_ptr<ChildProcess> process_;
 };
 
-class ClusterRoutingTest : public ::testing::Test {
+class ClusterRoutingTest : public sculpt::testing::EtcdTest {
  protected:
-  void SetUp() override {
-    if (!sculpt::testing::HaveEtcd()) GTEST_SKIP() << sculpt::testing::kNoEtcd;
-    etcd_ = std::make_unique<EtcdProcess>();
-    auto c = sculpt::testing::ConnectWhenReady(*etcd_);
-    ASSERT_TRUE(c.ok()) << c.status();
-    etcd_client_ = std::move(c).value();
-  }
   void TearDown() override {
     members_.clear();  // SIGKILL and reap each sculptd before etcd goes
-    etcd_client_.reset();
-    etcd_.reset();
+    EtcdTest::TearDown();
   }
 
   Member& Start(const std::string& name, const std::string& extra = "",
@@ -127,8 +119,6 @@ class ClusterRoutingTest : public ::testing::Test {
   }
 
   TempDir dir_{"sculpt-cluster"};
-  std::unique_ptr<EtcdProcess> etcd_;
-  std::unique_ptr<EtcdClient> etcd_client_;
   std::vector<std::unique_ptr<Member>> members_;
 };
 

@@ -57,19 +57,11 @@ json JsonOf(const std::string& out) {
   return json::parse(out.substr(at), nullptr, /*allow_exceptions=*/false);
 }
 
-class ClusterStatusTest : public ::testing::Test {
+class ClusterStatusTest : public sculpt::testing::EtcdTest {
  protected:
-  void SetUp() override {
-    if (!sculpt::testing::HaveEtcd()) GTEST_SKIP() << sculpt::testing::kNoEtcd;
-    etcd_ = std::make_unique<EtcdProcess>();
-    auto c = sculpt::testing::ConnectWhenReady(*etcd_);
-    ASSERT_TRUE(c.ok()) << c.status();
-    etcd_client_ = std::move(c).value();
-  }
   void TearDown() override {
     members_.clear();  // SIGKILL and reap each sculptd before etcd goes
-    etcd_client_.reset();
-    etcd_.reset();
+    EtcdTest::TearDown();
   }
 
   // A member `name` with the cluster prefix "t/" and lease TTL 2 s; its log beside its data.
@@ -96,8 +88,6 @@ class ClusterStatusTest : public ::testing::Test {
   }
 
   TempDir dir_{"sculpt-cluster-status"};
-  std::unique_ptr<EtcdProcess> etcd_;
-  std::unique_ptr<EtcdClient> etcd_client_;
   std::vector<std::unique_ptr<ChildProcess>> members_;
 };
 

@@ -5,6 +5,7 @@
 #define SCULPT_TESTS_CLUSTER_PROCESSES_H_
 
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/prctl.h>
 #include <sys/wait.h>
@@ -151,6 +152,26 @@ inline StatusOr<std::unique_ptr<server::cluster::EtcdClient>> ConnectWhenReady(
   }
   return c;
 }
+
+/// A test with its own etcd and a client of it (skipped without etcd). A fixture that starts
+/// sculptd members stops them in its TearDown before calling this one's: etcd goes last.
+class EtcdTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!HaveEtcd()) GTEST_SKIP() << kNoEtcd;
+    etcd_ = std::make_unique<EtcdProcess>();
+    auto c = ConnectWhenReady(*etcd_);
+    ASSERT_TRUE(c.ok()) << c.status();
+    etcd_client_ = std::move(c).value();
+  }
+  void TearDown() override {
+    etcd_client_.reset();
+    etcd_.reset();
+  }
+
+  std::unique_ptr<EtcdProcess> etcd_;
+  std::unique_ptr<server::cluster::EtcdClient> etcd_client_;
+};
 
 }  // namespace sculpt::testing
 

@@ -1,15 +1,14 @@
 /// @brief StandbyFollower: follow an owner's edit stream into a durable copy of its scene.
 #include "cluster/standby_follower.h"
 
-#include <fcntl.h>
 #include <spdlog/spdlog.h>
-#include <unistd.h>
 
 #include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <map>
 
+#include "scene/commit.h"
 #include "sculpt/client/client.h"
 #include "sculpt/codec/log_records.h"
 #include "sculpt/codec/replica_sculpture.h"
@@ -18,8 +17,8 @@
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/region.h"
 #include "sculpt/levelset/sculpture.h"
+#include "store/durable_file.h"
 #include "store/edit_log.h"
-#include "scene/commit.h"
 #include "store/recovery.h"
 #include "store/resend_table.h"
 #include "store/snapshot_store.h"
@@ -31,27 +30,6 @@ namespace fs = std::filesystem;
 
 constexpr char kCurrent[] = "CURRENT";
 constexpr char kPromoted[] = "cluster-promoted";
-
-// Writes `text` to `path` through a temporary file, fsynced and renamed: the name holds either
-// the old or the new content.
-Status WriteFileAtomically(const fs::path& path, const std::string& text) {
-  const fs::path tmp = path.string() + ".tmp";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) return Internal("cannot write " + tmp.string());
-  const bool ok = ::write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size()) &&
-                  ::fsync(fd) == 0;
-  ::close(fd);
-  std::error_code ec;
-  if (!ok) return Internal("cannot write " + tmp.string());
-  fs::rename(tmp, path, ec);
-  if (ec) return Internal("cannot rename " + tmp.string() + ": " + ec.message());
-  const int dfd = ::open(path.parent_path().c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (dfd >= 0) {
-    (void)::fsync(dfd);
-    ::close(dfd);
-  }
-  return Status::Ok();
-}
 
 std::string ReadSmallFile(const fs::path& path) {
   std::ifstream in(path);
@@ -66,8 +44,8 @@ std::string StandbyDir(const std::string& data_dir, const std::string& scene) {
   return (fs::path(data_dir) / "standby" / scene).string();
 }
 
-std::optional<std::string> CurrentStandbyCopy(const std::string& data_dir,
-                                              const std::string& scene, uint64_t* epoch) {
+std::optional<std::string> CurrentStandbyCopy(const std::string& data_dir, const std::string& scene,
+                                              uint64_t* epoch) {
   const fs::path dir = StandbyDir(data_dir, scene);
   // "gen-<n> <owner epoch>"
   const std::string line = ReadSmallFile(dir / kCurrent);
@@ -114,12 +92,13 @@ Status PromoteStandbyCopy(const std::string& data_dir, const std::string& scene,
     if (ec) return Internal("cannot move " + e.path().string() + " in: " + ec.message());
   }
   if (ec) return Internal("cannot list " + *copy + ": " + ec.message());
-  SCULPT_RETURN_IF_ERROR(
-      WriteFileAtomically(root / kPromoted, scene + " " + std::to_string(dead_epoch) + "\n"));
+  SCULPT_RETURN_IF_ERROR(store::WriteFileDurably((root / kPromoted).string(),
+                                                 scene + " " + std::to_string(dead_epoch) + "\n"));
   fs::remove_all(StandbyDir(data_dir, scene), ec);  // its other generations; the copy is in
-  spdlog::warn("cluster: the standby copy of scene {} is now the data directory {} (what was "
-               "there is in {})",
-               scene, data_dir, aside.string());
+  spdlog::warn(
+      "cluster: the standby copy of scene {} is now the data directory {} (what was "
+      "there is in {})",
+      scene, data_dir, aside.string());
   return Status::Ok();
 }
 
@@ -148,9 +127,9 @@ struct StandbyFollower::Impl {
   fs::path gen;  // this follow's generation
   std::unique_ptr<store::SnapshotStore> snapshots;
   std::unique_ptr<store::EditLog> log;
-  uint64_t seq = 0;  // last sequence applied
+  uint64_t seq = 0;                       // last sequence applied
   std::atomic<uint64_t> snapshot_seq{0};  // of the newest snapshot written
-  uint64_t previous_snapshot_seq = 0;  // the log is kept from here (two snapshots' worth)
+  uint64_t previous_snapshot_seq = 0;     // the log is kept from here (two snapshots' worth)
   uint64_t records_since_snapshot = 0;
   // Newest client_seq of each author's strokes, saved with each snapshot (the resend table), so
   // resends are still recognised once the log before it is dropped.
@@ -214,7 +193,8 @@ void StandbyFollower::Run() {
     s = hello.status();
   }
   if (s.ok()) s = im.client->Join(o.scene).status();
-  if (!s.ok()) return fail("cannot join scene " + o.scene + " at " + o.owner_tcp + ": " + s.ToString());
+  if (!s.ok())
+    return fail("cannot join scene " + o.scene + " at " + o.owner_tcp + ": " + s.ToString());
 
   // The object and its settings, as a replica reads them (client/src/lib/replica.cc).
   const v1::SceneInfo info = im.client->scene_info();
@@ -308,9 +288,9 @@ void StandbyFollower::Run() {
         std::lock_guard<std::mutex> lock(mu_);
         im.log = std::move(log).value();
       }
-      SCULPT_RETURN_IF_ERROR(
-          WriteFileAtomically(dir / kCurrent, im.gen.filename().string() + " " +
-                                                  std::to_string(o.owner_epoch) + "\n"));
+      SCULPT_RETURN_IF_ERROR(store::WriteFileDurably(
+          (dir / kCurrent).string(),
+          im.gen.filename().string() + " " + std::to_string(o.owner_epoch) + "\n"));
       for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
         const std::string name = e.path().filename().string();
         if (name.rfind("gen-", 0) == 0 && e.path() != im.gen) fs::remove_all(e.path(), ec);
@@ -377,10 +357,10 @@ void StandbyFollower::Run() {
         return Status::Ok();
       }
       const uint32_t n = static_cast<uint32_t>(decoded->edits.size());
-      const uint64_t now_ms = static_cast<uint64_t>(
-          std::chrono::duration_cast<std::chrono::milliseconds>(
-              std::chrono::system_clock::now().time_since_epoch())
-              .count());
+      const uint64_t now_ms =
+          static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                    std::chrono::system_clock::now().time_since_epoch())
+                                    .count());
       for (uint32_t i = 0; i < n; ++i) {
         codec::StrokePoseRecord p;
         p.global_seq = b.global_seq_first() + i;
@@ -402,11 +382,11 @@ void StandbyFollower::Run() {
     if (first <= im.seq) return Status::Ok();  // already in a region load
     SCULPT_RETURN_IF_ERROR(im.log->AppendGroup(first, payloads));
     {
-      uint64_t& newest = im.resend[{static_cast<uint8_t>(ResendStream::kStrokes),
-                                    b.records_size() > 0 ? b.records(0).client_id()
-                                                         : b.client_id()}];
-      newest = std::max(newest, b.records_size() > 0 ? b.records(0).client_seq()
-                                                     : b.stroke().client_seq());
+      uint64_t& newest =
+          im.resend[{static_cast<uint8_t>(ResendStream::kStrokes),
+                     b.records_size() > 0 ? b.records(0).client_id() : b.client_id()}];
+      newest = std::max(newest,
+                        b.records_size() > 0 ? b.records(0).client_seq() : b.stroke().client_seq());
     }
     im.records_since_snapshot += payloads.size();
     const levelset::ReplayState state{b.volume(), b.reference_volume(), b.edits_since_reinit()};
@@ -417,8 +397,8 @@ void StandbyFollower::Run() {
     if (!res.ok() || actual != b.leaves_hash()) {
       // Diverged: said to the owner (it counts and logs it), and the object is loaded anew,
       // which snapshots this copy past the bad edit.
-      spdlog::warn("cluster: standby of scene {} diverged at seq {} ({}): loading it anew",
-                   o.scene, last, res.ok() ? "leaves hash" : res.status().ToString());
+      spdlog::warn("cluster: standby of scene {} diverged at seq {} ({}): loading it anew", o.scene,
+                   last, res.ok() ? "leaves hash" : res.status().ToString());
       v1::ClientMessage dm;
       v1::DivergenceReport* d = dm.mutable_divergence();
       d->set_object(im.object);
