@@ -16,6 +16,7 @@ PACKAGES=(
   gnuplot-nox
   chromium
   python3-prometheus-client
+  python3-yaml  # tests/deploy: the Kubernetes manifests are parsed
   etcd-server  # cluster mode (issue 17): the coordination store; its tests start one
 )
 

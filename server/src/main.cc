@@ -242,6 +242,11 @@ int main(int argc, char** argv) {
   serve->add_flag("--allow-plaintext", allow_plaintext,
                   "Listen beyond loopback without TLS (config tls.allow_plaintext; logged as a "
                   "warning)");
+  bool check_only = false;
+  serve->add_flag("--check", check_only,
+                  "Check the configuration (file, flags, environment, TLS files) and exit: 0 "
+                  "when it would start, 2 with the reason; opens no scene, port or etcd "
+                  "connection");
 
   CLI::App* repair = app.add_subcommand(
       "repair", "Make a damaged edit log start again, saying exactly which edits it gives up");
@@ -345,6 +350,15 @@ int main(int argc, char** argv) {
       spdlog::error("configuration: {}", tls.status().ToString());
       return 2;
     }
+  }
+  if (check_only) {
+    std::printf("configuration is valid: listen %s, data %s, scene %s%s%s\n",
+                config.listen.c_str(), config.data_dir.c_str(), config.scene.name.c_str(),
+                config.tls.enabled() ? ", TLS" : "",
+                config.cluster.enabled()
+                    ? (", cluster member " + config.cluster.member).c_str()
+                    : "");
+    return 0;
   }
 
   auto scene = sculpt::server::Scene::Open(config);
