@@ -14,6 +14,7 @@
 #include "cluster/cluster_agent.h"
 #include "config/server_config.h"
 #include "net/http_server.h"
+#include "net/metrics.h"
 #include "net/server.h"
 #include "net/users.h"
 #include "net/tls.h"
@@ -418,6 +419,13 @@ int main(int argc, char** argv) {
       return 1;
     }
     http_port = *hp;
+    if (cluster) {
+      // http goes before cluster (declared after it), so the source never outlives the agent.
+      http->AddMetricsSource([agent = cluster.get(), sc = scene->get()](
+                                 sculpt::server::MetricsWriter& w) {
+        agent->WriteMetrics(w, sc->global_seq());
+      });
+    }
     spdlog::info("http on {} (port {}): open {}://{}:{}/ ; web root {}", hc.listen, http_port,
                  config.tls.enabled() ? "https" : "http",
                  hc.listen.substr(0, hc.listen.rfind(':')), http_port, hc.web_root.string());

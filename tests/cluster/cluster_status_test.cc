@@ -13,6 +13,7 @@
 #include "cluster/etcd_client.h"
 #include "cluster/processes.h"
 #include "cluster/records.h"
+#include "net/beast.h"
 
 namespace sculpt::server::cluster {
 namespace {
@@ -153,6 +154,86 @@ TEST_F(ClusterStatusTest, ListsBothMembersAndTheOwnerAndEpochOfTheScene) {
   const RunResult empty = Sculpt("cluster status --etcd " + etcd_->endpoint() + " --prefix none/");
   EXPECT_EQ(empty.exit_code, 0) << empty.output;
   EXPECT_NE(empty.output.find("0 members, 0 scenes"), std::string::npos) << empty.output;
+}
+
+// GET `path` from HOST:PORT; the body, empty when the request failed.
+std::string HttpGet(const std::string& host_port, const std::string& path) {
+  try {
+    asio::io_context io;
+    tcp::resolver resolver(io);
+    beast::tcp_stream stream(io);
+    const size_t colon = host_port.rfind(':');
+    stream.connect(resolver.resolve(host_port.substr(0, colon), host_port.substr(colon + 1)));
+    http::request<http::empty_body> req{http::verb::get, path, 11};
+    req.set(http::field::host, host_port);
+    http::write(stream, req);
+    beast::flat_buffer buffer;
+    http::response<http::string_body> res;
+    http::read(stream, buffer, res);
+    return res.result() == http::status::ok ? res.body() : std::string();
+  } catch (const std::exception&) {
+    return std::string();
+  }
+}
+
+// The value of the sample whose line starts with `name_and_labels` followed by a space.
+std::optional<double> Sample(const std::string& page, const std::string& name_and_labels) {
+  std::istringstream lines(page);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind(name_and_labels + " ", 0) == 0) {
+      return std::stod(line.substr(name_and_labels.size() + 1));
+    }
+  }
+  return std::nullopt;
+}
+
+// /metrics of each member says who owns the scene at which epoch, how many members live, and
+// (on the owner) how far its standby's copy is durable.
+TEST_F(ClusterStatusTest, MetricsShowOwnershipMembersAndTheStandbysProgress) {
+  Start("a");
+  ASSERT_TRUE(WaitFor([&] { return HasKey(kKeys.Owner("default")); }, milliseconds(10000)))
+      << "a did not take the scene; see " << dir_.path() / "a.log";
+  Start("b");
+  ASSERT_TRUE(WaitFor([&] { return HasKey("t/scenes/default/standby"); }, milliseconds(10000)))
+      << "a named no standby; see " << dir_.path() / "a.log";
+  ASSERT_TRUE(WaitFor([&] { return Member("a").has_value() && Member("b").has_value(); },
+                      milliseconds(5000)));
+  const std::string a_http = Member("a")->http, b_http = Member("b")->http;
+
+  // Both read the table at their next refresh (every TTL / 4): wait for it rather than assume.
+  std::string a_page, b_page;
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        a_page = HttpGet(a_http, "/metrics");
+        return Sample(a_page, "sculpt_cluster_live_members") == 2.0 &&
+               Sample(a_page, R"(sculpt_cluster_standby_lag_edits{scene="default",standby="b"})")
+                   .has_value();
+      },
+      milliseconds(10000)))
+      << a_page;
+  EXPECT_EQ(Sample(a_page, R"(sculpt_cluster_owned_epoch{member="a",scene="default"})"), 1.0)
+      << a_page;
+  EXPECT_EQ(Sample(a_page, R"(sculpt_cluster_scene_epoch{scene="default"})"), 1.0) << a_page;
+  EXPECT_EQ(Sample(a_page, R"(sculpt_cluster_scene_owned{scene="default"})"), 1.0) << a_page;
+  EXPECT_TRUE(
+      Sample(a_page, R"(sculpt_cluster_standby_durable_seq{scene="default",standby="b"})"))
+      << a_page;
+  EXPECT_EQ(Sample(a_page, R"(sculpt_cluster_ownership_losses_total{member="a"})"), 0.0)
+      << a_page;
+
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        b_page = HttpGet(b_http, "/metrics");
+        return Sample(b_page, "sculpt_cluster_live_members") == 2.0;
+      },
+      milliseconds(10000)))
+      << b_page;
+  // b serves the same scene name but does not own it, and reports no standby of its own.
+  EXPECT_EQ(Sample(b_page, R"(sculpt_cluster_owned_epoch{member="b",scene="default"})"), 0.0)
+      << b_page;
+  EXPECT_EQ(Sample(b_page, R"(sculpt_cluster_scene_epoch{scene="default"})"), 1.0) << b_page;
+  EXPECT_EQ(b_page.find("sculpt_cluster_standby_lag_edits{"), std::string::npos) << b_page;
+  EXPECT_TRUE(Sample(b_page, R"(sculpt_cluster_follow_seq{member="b"})")) << b_page;
 }
 
 TEST(ClusterStatusNoEtcd, ReportsAnUnreachableEtcdWithAHint) {

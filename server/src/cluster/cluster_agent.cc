@@ -197,6 +197,7 @@ asio::awaitable<void> ClusterAgent::Tick() {
   if (stopping_) co_return;
   const Status refreshed = co_await Refresh();
   if (!refreshed.ok()) {
+    ++etcd_failures_;
     LogEtcdTrouble("reading the cluster", refreshed);
     co_return;
   }
@@ -218,6 +219,7 @@ asio::awaitable<void> ClusterAgent::KeepLeaseAlive() {
   }
   if (ttl.status().code() != Status::Code::kNotFound) {
     // etcd out of reach: the fence runs out by itself at lease_valid_until_.
+    ++etcd_failures_;
     LogEtcdTrouble("lease keep-alive", ttl.status());
     co_return;
   }
@@ -277,6 +279,7 @@ asio::awaitable<Status> ClusterAgent::Refresh() {
 }
 
 void ClusterAgent::LoseOwnership(const std::string& why) {
+  ++ownership_losses_;
   fence_->Revoke();
   owned_ = false;
   owned_epoch_ = 0;

@@ -22,6 +22,10 @@
 #include "cluster/standby_follower.h"
 #include "config/server_config.h"
 
+namespace sculpt::server {
+class MetricsWriter;
+}  // namespace sculpt::server
+
 namespace sculpt::server::cluster {
 
 /// One sculptd's part in a cluster (docs/cluster.md). Every `lease_ttl_ms / 4` it: keeps its
@@ -71,6 +75,10 @@ class ClusterAgent : public SceneRouter {
   Route RouteScene(const std::string& scene) const override;
   /// The epoch this member holds its scene at, 0 when it does not.
   uint64_t owned_epoch() const;
+  /// The cluster's figures for /metrics (docs/cluster.md, "Metrics"): ownership, live members,
+  /// the standby's progress and lag against `scene_seq` (the scene's global sequence here),
+  /// etcd trouble. From any thread.
+  void WriteMetrics(MetricsWriter& w, uint64_t scene_seq) const;
 
  private:
   asio::awaitable<void> Loop();
@@ -133,6 +141,8 @@ class ClusterAgent : public SceneRouter {
   std::vector<MemberRecord> members_;         // guarded by mu_
   std::string waiting_reason_;  // guarded by mu_: why this member's scene has no owner
   std::atomic<uint64_t> owned_epoch_{0};
+  std::atomic<uint64_t> etcd_failures_{0};     // keep-alives and refreshes etcd did not answer
+  std::atomic<uint64_t> ownership_losses_{0};  // times this member stopped owning its scene
 };
 
 }  // namespace sculpt::server::cluster
