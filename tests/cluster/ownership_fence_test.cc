@@ -132,5 +132,29 @@ TEST_F(FencedSceneTest, DoesNotAcknowledgeWhatItLoggedBeforeLosingTheLease) {
   EXPECT_FALSE(out.duplicate);
 }
 
+TEST_F(FencedSceneTest, AppliesNothingPastARefusedStrokeUntilItIsResent) {
+  fence_->Grant(1, Clock::now() + milliseconds(60000));
+  ASSERT_TRUE(Press(1).status.ok());
+  // Stroke 2 meets a lapsed fence; the fence is back before stroke 3 (pipelined behind it).
+  fence_->Revoke();
+  EXPECT_EQ(Press(2).status.code(), Status::Code::kUnavailable);
+  fence_->Grant(2, Clock::now() + milliseconds(60000));
+  const uint64_t seq = scene_->global_seq();
+  const StrokeOutcome third = Press(3);
+  EXPECT_EQ(third.status.code(), Status::Code::kUnavailable) << third.status;
+  EXPECT_NE(third.status.message().find("follows client_seq 2"), std::string::npos)
+      << third.status;
+  EXPECT_EQ(scene_->global_seq(), seq) << "a stroke past a refused one was applied";
+  // The client resends in order: 2 is applied (not taken for a duplicate of 3), then 3.
+  const StrokeOutcome two = Press(2);
+  ASSERT_TRUE(two.status.ok()) << two.status;
+  EXPECT_FALSE(two.duplicate);
+  EXPECT_GT(two.global_seq_first, seq);
+  const StrokeOutcome three = Press(3);
+  ASSERT_TRUE(three.status.ok()) << three.status;
+  EXPECT_FALSE(three.duplicate);
+  EXPECT_GT(three.global_seq_first, two.global_seq_first);
+}
+
 }  // namespace
 }  // namespace sculpt::server::cluster

@@ -424,8 +424,14 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
     if (error.code() == v1::ERROR_CODE_UNAVAILABLE && error.client_seq() != 0) {
       // Cluster mode: the member may not acknowledge the scene now (it lost its ownership).
       // Nothing was acknowledged, so the request stays pending and Reconnect() resends it with
-      // the same client_seq; the scene's owner recognises one it applied (Ack.duplicate).
-      return EmitLocked(std::move(e));
+      // the same client_seq; the scene's owner recognises one it applied (Ack.duplicate). The
+      // connection is closed now: nothing more goes to a member that may not acknowledge, and
+      // the resends on the next connection go out in order before any newer request.
+      const std::string reason = "the server refused client_seq " +
+                                 std::to_string(error.client_seq()) + ": " + error.message();
+      EmitLocked(std::move(e));
+      if (conn) CloseConnLocked(conn, reason);
+      return;
     }
     auto it = error.client_seq() != 0 ? pending.find(error.client_seq()) : pending.end();
     if (it != pending.end()) {

@@ -14,8 +14,7 @@ namespace sculpt::server {
 namespace {
 
 double NowSeconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 }  // namespace
@@ -120,9 +119,24 @@ void Scene::RunCommit(const std::shared_ptr<EditOp>& op) {
   // Cluster fencing: a member that is not the scene's owner now sequences nothing, and (below)
   // acknowledges nothing, also what it logged while it still was.
   if (fence_) {
+    const std::pair<ResendStream, uint64_t> key{op->stream(), op->client_id()};
     if (Status held = fence_->Check(); !held.ok()) {
+      fenced_from_.try_emplace(key, op->client_seq());
       out.status = std::move(held);
       return op->Answer(out);
+    }
+    if (auto it = fenced_from_.find(key); it != fenced_from_.end()) {
+      if (op->client_seq() > it->second) {
+        out.status = Status(Status::Code::kUnavailable,
+                            std::string(op->operation()) + " client_seq " +
+                                std::to_string(op->client_seq()) + " follows client_seq " +
+                                std::to_string(it->second) +
+                                ", which was refused while this member did not hold the scene: "
+                                "reconnect and resend from " +
+                                std::to_string(it->second));
+        return op->Answer(out);
+      }
+      if (op->client_seq() == it->second) fenced_from_.erase(it);  // resent: in order again
     }
   }
   if (resend_.IsResend(op->stream(), op->client_id(), op->client_seq())) {

@@ -357,6 +357,11 @@ class Scene {
   std::unique_ptr<store::SnapshotStore> snapshots_;
   // The newest client_seq of every (edit kind, client): resends are acknowledged, not applied.
   ResendFilter resend_;  // compute thread only
+  // Cluster fencing: per (edit kind, client), the lowest client_seq refused while this member
+  // did not hold its scene. Later requests of that client are refused too until it resends that
+  // one, so no request is applied past a refused one and a resend is never taken for a
+  // duplicate of a later request (compute thread only; one entry per client so refused).
+  std::map<std::pair<ResendStream, uint64_t>, uint64_t> fenced_from_;
   mutable std::mutex authors_mu_;
   std::map<uint64_t, std::string> author_users_;  // NameAuthor, at most kMaxNamedAuthors
   std::deque<uint64_t> author_order_;             // oldest naming first
