@@ -182,6 +182,7 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
   const double stiffness = settings_.stiffness;
   const double rho = rho_;
   const Vec3 last_normal = last_normal_;
+  const bool budgeted = settings_.tick_budget_samples > 0 || settings_.tick_budget_us > 0;
   size_t visited = 0;
   bool stopped = false;
   for (; visited < n; ++visited) {
@@ -191,9 +192,9 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
     const Vec3 x = centre + local[k];
     if (travelled < skip_until[k]) {
       // The tool has moved less than the anchor's margin allows (implies the test below).
-      term[k] = SampleForce{};
-      known_count += known[k] ? 0 : 1;
-      known[k] = 1;
+      // Only the path's start moves: skip_until is finite only after a read on this snapshot
+      // (or one whose change CarryOverSwap bounded) found phi above the contact range, which
+      // left the term zero and the sample known, and a swap that forgets either resets it.
       from[k] = x;
       ++skipped;
       continue;
@@ -227,7 +228,7 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
       // contact range, the penalty needs the gradient at x whatever the sweep finds.
       sure_to_touch = anchor_exact[k] && anchor_phi[k] + kSkipLipschitz * std::sqrt(dx2) < range;
     }
-    if (evaluated > 0 && OutOfBudget(evaluated, start_us)) {
+    if (budgeted && evaluated > 0 && OutOfBudget(evaluated, start_us)) {
       stopped = true;
       break;
     }
