@@ -113,13 +113,20 @@ bool PinThreadAwayFromCpu(int cpu) {
 SnapshotPublisher::SnapshotPublisher() : latest_(std::make_shared<const Snapshot>()) {}
 
 void SnapshotPublisher::Publish(std::shared_ptr<const SdfSampler> sdf) {
-  std::lock_guard<std::mutex> lock(publish_mu_);
-  const uint64_t version = next_version_++;
-  latest_ = std::make_shared<const Snapshot>(Snapshot{std::move(sdf), version, Clock::now()});
-  retained_.push_back(latest_);
-  latest_version_.store(version, std::memory_order_release);
-  // Dropping the oldest here frees it on this thread unless the loop still holds it.
-  while (retained_.size() > kRetained) retained_.pop_front();
+  std::deque<std::shared_ptr<const Snapshot>> dropped;
+  {
+    std::lock_guard<std::mutex> lock(publish_mu_);
+    const uint64_t version = next_version_++;
+    latest_ = std::make_shared<const Snapshot>(Snapshot{std::move(sdf), version, Clock::now()});
+    retained_.push_back(latest_);
+    latest_version_.store(version, std::memory_order_release);
+    while (retained_.size() > kRetained) {
+      dropped.push_back(std::move(retained_.front()));
+      retained_.pop_front();
+    }
+  }
+  // Dropped after the unlock, so freeing a large grid (on this thread, unless the loop still
+  // holds it) never keeps the loop's TryUpdate from taking the new snapshot.
 }
 
 std::shared_ptr<const Snapshot> SnapshotPublisher::Current() const {

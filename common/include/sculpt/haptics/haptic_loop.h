@@ -33,8 +33,8 @@ struct Snapshot {
 /// preempted SCHED_OTHER publisher spins until the publisher runs again: for its time slice on
 /// another CPU, or on the same CPU until the kernel's real-time throttling lets it.) The
 /// publisher keeps the last kRetained snapshots alive, so the loop dropping a snapshot is almost
-/// never the last reference: a large grid is freed on the publisher's thread, not in the middle
-/// of a tick.
+/// never the last reference: a large grid is freed on the publisher's thread (after it lets go
+/// of the mutex), not in the middle of a tick.
 /// Thread safety: Publish and Current from any thread (they take a mutex); latest_version from
 /// any thread, lock-free; TryUpdate from one thread at a time (the loop's), never blocking.
 class SnapshotPublisher {
@@ -61,6 +61,7 @@ class SnapshotPublisher {
   uint64_t next_version_ = 1;
   std::shared_ptr<const Snapshot> latest_;  // guarded by publish_mu_
   std::deque<std::shared_ptr<const Snapshot>> retained_;
+  friend class SnapshotPublisherTestPeer;  // holds the mutex, as a publisher inside Publish
 };
 
 /// The loop's timing and event counters. Percentiles come from fixed histograms (tick cost to
