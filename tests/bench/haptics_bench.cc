@@ -357,6 +357,34 @@ Json RunHapticsBench(bool quick) {
   doc["loop"] = LoopRun(a, b, loop_seconds, 120.0);
   Progress("haptics: the loop thread for %.1f s with windowed snapshots at 120 Hz", loop_seconds);
   doc["loop_window"] = LoopRun(a, b, loop_seconds, 120.0, shared, copy);
+  // The two questions apart: what a tick costs (timed alone, no budget, 128 and 512
+  // samples, on windowed snapshots as the replica publishes them and on the tree), and how well
+  // the real loop thread holds its period, with the scheduling it obtained.
+  Json tick = Json::object();
+  for (const char* m : {"penalty", "proxy"}) {
+    for (int n : {128, 512}) {
+      const std::string tail = std::string(m) + "_" + std::to_string(n);
+      const std::string w = std::string("window_") + m + "_";
+      tick[tail] = Json{{"p50_us", doc[w + "p50_us_" + std::to_string(n)]},
+                        {"p99_us", doc[w + "p99_us_" + std::to_string(n)]},
+                        {"tree_p50_us", doc[std::string(m) + "_p50_us_" + std::to_string(n)]},
+                        {"tree_p99_us", doc[std::string(m) + "_p99_us_" + std::to_string(n)]}};
+    }
+  }
+  Json period = Json::object();
+  for (const char* l : {"loop", "loop_window"}) {
+    const Json& r = doc[l];
+    period[l] = Json{{"rate_hz", r["haptic_rate_hz"]},
+                     {"period_err_p50_us", r["haptic_period_err_p50_us"]},
+                     {"period_err_p99_us", r["haptic_period_err_p99_us"]},
+                     {"period_err_max_us", r["haptic_period_err_max_us"]},
+                     {"ticks_over_2ms", r["haptic_ticks_over_2ms"]},
+                     {"scheduling", r["scheduling"]},
+                     {"priority", r["priority"]},
+                     {"mlockall", r["mlockall"]},
+                     {"cpu", r["cpu"]}};
+  }
+  doc["tick_and_period"] = Json{{"tick_us", std::move(tick)}, {"period", std::move(period)}};
   return doc;
 }
 

@@ -110,15 +110,40 @@ bool PinThreadAwayFromCpu(int cpu) {
   return pthread_setaffinity_np(pthread_self(), sizeof(set), &set) == 0;
 }
 
-SnapshotPublisher::SnapshotPublisher() : current_(std::make_shared<const Snapshot>()) {}
+SnapshotPublisher::SnapshotPublisher() : latest_(std::make_shared<const Snapshot>()) {}
 
 void SnapshotPublisher::Publish(std::shared_ptr<const SdfSampler> sdf) {
+  std::deque<std::shared_ptr<const Snapshot>> dropped;
+  {
+    std::lock_guard<std::mutex> lock(publish_mu_);
+    const uint64_t version = next_version_++;
+    latest_ = std::make_shared<const Snapshot>(Snapshot{std::move(sdf), version, Clock::now()});
+    retained_.push_back(latest_);
+    latest_version_.store(version, std::memory_order_release);
+    while (retained_.size() > kRetained) {
+      dropped.push_back(std::move(retained_.front()));
+      retained_.pop_front();
+    }
+  }
+  // Dropped after the unlock, so freeing a large grid (on this thread, unless the loop still
+  // holds it) never keeps the loop's TryUpdate from taking the new snapshot.
+}
+
+std::shared_ptr<const Snapshot> SnapshotPublisher::Current() const {
   std::lock_guard<std::mutex> lock(publish_mu_);
-  auto s = std::make_shared<const Snapshot>(Snapshot{std::move(sdf), next_version_++, Clock::now()});
-  current_.store(s);
-  retained_.push_back(std::move(s));
-  // Dropping the oldest here frees it on this thread unless the loop still holds it.
-  while (retained_.size() > kRetained) retained_.pop_front();
+  return latest_;
+}
+
+bool SnapshotPublisher::TryUpdate(std::shared_ptr<const Snapshot>* held) const {
+  if ((*held)->version == latest_version_.load(std::memory_order_acquire)) return false;
+  std::unique_lock<std::mutex> lock(publish_mu_, std::try_to_lock);
+  if (!lock.owns_lock()) return false;  // a publisher is inside Publish: next tick
+  // Copying the pointer only counts a reference; the snapshot the loop held is let go after
+  // the unlock, and the publisher's retained copies keep it from being freed here.
+  std::shared_ptr<const Snapshot> latest = latest_;
+  lock.unlock();
+  held->swap(latest);
+  return true;
 }
 
 struct HapticLoop::Impl {
@@ -225,6 +250,9 @@ void HapticLoop::Impl::Run() {
   Clock::time_point previous_wake{};
   uint64_t version = 0;
   DeviceSample last_good;
+  // Taken once here, before the first tick, waiting for a publisher if need be; each tick then
+  // only tries for a newer one.
+  std::shared_ptr<const Snapshot> snap = publisher->Current();
   while (!stop.load(std::memory_order_relaxed)) {
     std::this_thread::sleep_until(deadline);
     const Clock::time_point wake = Clock::now();
@@ -235,8 +263,9 @@ void HapticLoop::Impl::Run() {
     }
     previous_wake = wake;
 
-    // The only shared state touched: one atomic shared_ptr load.
-    const std::shared_ptr<const Snapshot> snap = publisher->Current();
+    // The only shared state touched: one atomic load, and a try_lock when a newer snapshot
+    // has been published.
+    publisher->TryUpdate(&snap);
     if (snap->version != version) {
       version = snap->version;
       if (version != 0) {

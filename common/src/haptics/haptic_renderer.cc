@@ -86,6 +86,7 @@ HapticRenderer::HapticRenderer(const HapticSettings& s)
   skip_until_.assign(local_.size(), -std::numeric_limits<double>::infinity());
   term_.resize(local_.size());
   known_.assign(local_.size(), 0);
+  pending_.resize(local_.size());
 }
 
 void HapticRenderer::set_clock(TickClock* clock) {
@@ -182,22 +183,39 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
   const double stiffness = settings_.stiffness;
   const double rho = rho_;
   const Vec3 last_normal = last_normal_;
-  size_t visited = 0;
+  const bool budgeted = settings_.tick_budget_samples > 0 || settings_.tick_budget_us > 0;
+  // First the samples the tool's path length alone proves out of range (most of them, every
+  // tick), in a loop of their own that keeps its few values in registers: only the path's start
+  // moves. skip_until is finite only after a read on this snapshot (or one whose change
+  // CarryOverSwap bounded) found phi above the contact range, which left the term zero and the
+  // sample known, and a swap that forgets either resets it. The rest are listed in visiting
+  // order for the budgeted pass below. Moving the start of a sample the budget then leaves
+  // unvisited is sound: its path so far was proved clear.
+  uint32_t* pending = pending_.data();
+  size_t m = 0;
+  for (size_t at = cursor; at < n; ++at) {
+    const uint32_t k = order[at];
+    if (travelled < skip_until[k]) {
+      from[k] = centre + local[k];
+    } else {
+      pending[m++] = static_cast<uint32_t>(at);
+    }
+  }
+  for (size_t at = 0; at < cursor; ++at) {
+    const uint32_t k = order[at];
+    if (travelled < skip_until[k]) {
+      from[k] = centre + local[k];
+    } else {
+      pending[m++] = static_cast<uint32_t>(at);
+    }
+  }
+  skipped = static_cast<int>(n - m);
+  size_t stopped_at = 0;
   bool stopped = false;
-  for (; visited < n; ++visited) {
-    size_t at = cursor + visited;
-    if (at >= n) at -= n;
+  for (size_t visit = 0; visit < m; ++visit) {
+    const size_t at = pending[visit];
     const size_t k = order[at];
     const Vec3 x = centre + local[k];
-    if (travelled < skip_until[k]) {
-      // The tool has moved less than the anchor's margin allows (implies the test below).
-      term[k] = SampleForce{};
-      known_count += known[k] ? 0 : 1;
-      known[k] = 1;
-      from[k] = x;
-      ++skipped;
-      continue;
-    }
     const Vec3 a = have_previous ? from[k] : x;
     double phi_a = kNan;
     bool sure_to_touch = false;
@@ -227,8 +245,9 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
       // contact range, the penalty needs the gradient at x whatever the sweep finds.
       sure_to_touch = anchor_exact[k] && anchor_phi[k] + kSkipLipschitz * std::sqrt(dx2) < range;
     }
-    if (evaluated > 0 && OutOfBudget(evaluated, start_us)) {
+    if (budgeted && evaluated > 0 && OutOfBudget(evaluated, start_us)) {
       stopped = true;
+      stopped_at = at;
       break;
     }
     ++evaluated;
@@ -289,8 +308,8 @@ void HapticRenderer::VisitSamples(const SdfSampler& sdf, const Vec3& centre, dou
                                 : -std::numeric_limits<double>::infinity();
   }
   known_count_ = known_count;
-  // Resume after the last sample visited; a complete tick starts the next at the coarsest.
-  cursor_ = stopped ? (cursor + visited) % n : 0;
+  // Resume at the first sample not visited; a complete tick starts the next at the coarsest.
+  cursor_ = stopped ? stopped_at : 0;
   out->over_budget = stopped;
   out->samples_evaluated = evaluated;
   out->samples_skipped = skipped;

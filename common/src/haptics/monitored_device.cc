@@ -13,7 +13,7 @@ MonitoredDevice::MonitoredDevice(HapticDevice* inner, const SnapshotPublisher* p
 
 DeviceSample MonitoredDevice::Read(double t) {
   last_sample_ = inner_->Read(t);
-  last_version_ = publisher_->Current()->version;
+  last_version_ = publisher_->latest_version();  // lock-free: this runs on the loop's thread
   ++ticks_by_version_[last_version_];
   return last_sample_;
 }

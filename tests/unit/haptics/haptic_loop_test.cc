@@ -6,12 +6,22 @@
 #include <sched.h>
 
 #include <chrono>
+#include <mutex>
 #include <cmath>
 #include <thread>
 
 #include "unit/haptics/field_helpers.h"
 
 namespace sculpt::haptics {
+
+// Reaches SnapshotPublisher's mutex, to stand for a publisher held inside Publish.
+class SnapshotPublisherTestPeer {
+ public:
+  static std::unique_lock<std::mutex> Lock(SnapshotPublisher& p) {
+    return std::unique_lock<std::mutex>(p.publish_mu_);
+  }
+};
+
 namespace {
 
 using namespace std::chrono_literals;
@@ -30,6 +40,46 @@ TEST(SnapshotPublisherTest, VersionsIncreaseAndOldOnesAreReleased) {
   for (size_t i = 0; i < SnapshotPublisher::kRetained; ++i) pub.Publish(testing::Floor(1, 8));
   EXPECT_EQ(pub.Current()->version, 1 + SnapshotPublisher::kRetained);
   EXPECT_TRUE(first.expired());  // freed on the publishing thread once out of the retained set
+}
+
+TEST(SnapshotPublisherTest, TryUpdateTakesOnlyANewerSnapshot) {
+  SnapshotPublisher pub;
+  std::shared_ptr<const Snapshot> held = pub.Current();
+  EXPECT_FALSE(pub.TryUpdate(&held));  // nothing published yet
+  EXPECT_EQ(held->version, 0u);
+  const auto floor = testing::Floor(0, 8);
+  pub.Publish(floor);
+  EXPECT_EQ(pub.latest_version(), 1u);
+  EXPECT_TRUE(pub.TryUpdate(&held));
+  EXPECT_EQ(held->version, 1u);
+  EXPECT_EQ(held->sdf, floor);
+  EXPECT_FALSE(pub.TryUpdate(&held));
+  pub.Publish(nullptr);
+  pub.Publish(floor);
+  EXPECT_TRUE(pub.TryUpdate(&held));  // straight to the latest, skipping version 2
+  EXPECT_EQ(held->version, 3u);
+}
+
+// The loop's side never waits for a publisher: while one holds the publishers' mutex (inside
+// Publish), TryUpdate gives up at once (the loop keeps its snapshot for the tick) and takes the
+// new one after.
+TEST(SnapshotPublisherTest, TryUpdateNeverWaitsForAPublisherInsidePublish) {
+  SnapshotPublisher pub;
+  pub.Publish(testing::Floor(0, 8));
+  std::shared_ptr<const Snapshot> held = pub.Current();
+  pub.Publish(testing::Floor(1, 8));
+  ASSERT_EQ(held->version, 1u);
+  ASSERT_EQ(pub.latest_version(), 2u);
+  {
+    std::unique_lock<std::mutex> inside = SnapshotPublisherTestPeer::Lock(pub);
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int i = 0; i < 1000; ++i) EXPECT_FALSE(pub.TryUpdate(&held));
+    // The calls above would hang, not fail, if TryUpdate waited; the time is only a report.
+    EXPECT_LT(std::chrono::steady_clock::now() - t0, 1s);
+    EXPECT_EQ(held->version, 1u);
+  }
+  EXPECT_TRUE(pub.TryUpdate(&held));
+  EXPECT_EQ(held->version, 2u);
 }
 
 TEST(HapticLoopTest, RejectsNullDeviceAndBadSettings) {

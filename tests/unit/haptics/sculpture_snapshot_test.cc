@@ -37,6 +37,7 @@ TEST(SculptureSnapshotTest, DenseWindowGivesTheTreesBits) {
   EXPECT_GT(window.window_values(), 12u * 12 * 12);
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> u(-5.0, 5.0);  // past the 3-unit window
+  const auto before = SculptureSnapshot::ThreadLookupCounts();
   for (int i = 0; i < 2000; ++i) {
     const Vec3 p = centre + Vec3{u(rng), u(rng), u(rng)};
     ASSERT_EQ(window.Phi(p), tree.Phi(p)) << i;
@@ -47,6 +48,11 @@ TEST(SculptureSnapshotTest, DenseWindowGivesTheTreesBits) {
     ASSERT_EQ(phi, tree.Phi(p)) << i;
     ASSERT_EQ(g, tree.Gradient(p)) << i;
   }
+  // Both of the window's paths were compared: the 8 corners, and the 8 corners with their
+  // stored differences.
+  const auto read = SculptureSnapshot::ThreadLookupCounts() - before;
+  EXPECT_GT(read.window_phi, 100u);
+  EXPECT_GT(read.window_stencil, 100u);
   EXPECT_EQ(SculptureSnapshot(shared, centre, 0).window_values(), 0u);
   EXPECT_EQ(SculptureSnapshot(shared, Vec3{NAN, 0, 0}, 3).window_values(), 0u);
 }

@@ -26,13 +26,17 @@ struct Snapshot {
   std::chrono::steady_clock::time_point published;
 };
 
-/// Hands snapshots from whoever builds them (the replica, a test) to the haptic loop through an
-/// atomically swapped std::shared_ptr. The loop only loads the pointer; it never takes the
-/// mutex that orders publishers. The publisher keeps the last kRetained snapshots alive, so the
-/// loop dropping a snapshot is almost never the last reference: a large grid is freed on the
-/// publisher's thread, not in the middle of a tick.
-/// Thread safety: Publish from any thread; Current from any thread, lock-free with respect to
-/// publishers apart from the atomic's own pointer swap.
+/// Hands snapshots from whoever builds them (the replica, a test) to the haptic loop. The loop
+/// never waits for a publisher: it takes a new snapshot with TryUpdate, which gives up for this
+/// tick when a publisher is in the middle of Publish. (std::atomic<std::shared_ptr> is not that:
+/// libstdc++ 12 guards it with a spin lock, so a SCHED_FIFO loop whose load meets a store by a
+/// preempted SCHED_OTHER publisher spins until the publisher runs again: for its time slice on
+/// another CPU, or on the same CPU until the kernel's real-time throttling lets it.) The
+/// publisher keeps the last kRetained snapshots alive, so the loop dropping a snapshot is almost
+/// never the last reference: a large grid is freed on the publisher's thread (after it lets go
+/// of the mutex), not in the middle of a tick.
+/// Thread safety: Publish and Current from any thread (they take a mutex); latest_version from
+/// any thread, lock-free; TryUpdate from one thread at a time (the loop's), never blocking.
 class SnapshotPublisher {
  public:
   static constexpr size_t kRetained = 3;
@@ -40,14 +44,24 @@ class SnapshotPublisher {
   SnapshotPublisher();
   /// Publishes `sdf` as the next version (starting at 1).
   void Publish(std::shared_ptr<const SdfSampler> sdf);
-  /// The latest snapshot (version 0 with a null sdf before the first Publish).
-  std::shared_ptr<const Snapshot> Current() const { return current_.load(); }
+  /// The latest snapshot (version 0 with a null sdf before the first Publish). Waits for a
+  /// publisher in the middle of Publish: not for the loop's ticks (TryUpdate).
+  std::shared_ptr<const Snapshot> Current() const;
+  /// The latest version published (0 before the first). Lock-free.
+  uint64_t latest_version() const { return latest_version_.load(std::memory_order_acquire); }
+  /// If a version other than `*held`'s has been published since and no publisher is inside
+  /// Publish at this moment, replaces `*held` (which must not be null) with the latest snapshot
+  /// and returns true; otherwise returns false and leaves it. Never waits: a busy publisher
+  /// delays the swap by a tick instead of stalling the loop.
+  bool TryUpdate(std::shared_ptr<const Snapshot>* held) const;
 
  private:
-  std::atomic<std::shared_ptr<const Snapshot>> current_;
-  std::mutex publish_mu_;  // orders publishers; never taken by the loop
+  mutable std::mutex publish_mu_;  // orders publishers; the loop only ever try_locks it
+  std::atomic<uint64_t> latest_version_{0};
   uint64_t next_version_ = 1;
+  std::shared_ptr<const Snapshot> latest_;  // guarded by publish_mu_
   std::deque<std::shared_ptr<const Snapshot>> retained_;
+  friend class SnapshotPublisherTestPeer;  // holds the mutex, as a publisher inside Publish
 };
 
 /// The loop's timing and event counters. Percentiles come from fixed histograms (tick cost to

@@ -114,6 +114,7 @@ class HapticRenderer {
   TickClock* clock_;
   std::vector<uint32_t> order_;  // farthest-point visiting order
   size_t cursor_ = 0;            // where in order_ the next tick starts
+  std::vector<uint32_t> pending_;  // scratch: this tick's positions in order_ left to visit
   // Per sample: where its path was last swept to; the last point phi was read at and that phi
   // (NaN: unknown on this snapshot); its force term and whether that term is for this snapshot.
   std::vector<Vec3> from_, anchor_;

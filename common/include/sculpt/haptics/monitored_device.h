@@ -15,8 +15,8 @@ namespace sculpt::haptics {
 
 /// Forwards Read and ApplyForce to `inner` and keeps: the largest force and the mean force over
 /// ticks with a non-zero force (contact), the ticks spent on each snapshot version (the version
-/// current at Read: the tick's own, or the next one if it was published between the loop's load
-/// and Read), and up to `trace_capacity` ticks of (t, position, force, version).
+/// current at Read: the tick's own, or a newer one the loop has not taken yet), and up to
+/// `trace_capacity` ticks of (t, position, force, version).
 /// Thread safety: Read/ApplyForce on the loop's thread; the accessors only once the loop has
 /// stopped.
 class MonitoredDevice : public HapticDevice {
