@@ -7,6 +7,7 @@
 #include <signal.h>
 
 #include "cluster/processes.h"
+#include "cluster/records.h"
 
 namespace sculpt::server::cluster {
 namespace {
@@ -99,6 +100,39 @@ TEST(ClusterAgentNoEtcd, RejectsStartWhenEtcdDoesNotAnswer) {
   EXPECT_NE(s.message().find("cannot register member a"), std::string::npos) << s;
   EXPECT_FALSE(agent.fence()->held());
   EXPECT_EQ(agent.RouteScene("").kind, Route::Kind::kUnavailable);
+}
+
+// Bad input between members (issue 17): owner keys that no acquisition wrote are never routed to
+// — one without a lease, and one under a lease but without the epoch record an acquisition
+// writes with it.
+TEST_F(ClusterAgentTest, NeverRoutesToAnOwnerClaimWithoutLeaseOrEpochRecord) {
+  agent_ = std::make_unique<ClusterAgent>(Config("a"), "vase", [] { return 0u; });
+  ASSERT_TRUE(agent_->Start("127.0.0.1:1", "").ok());
+  ASSERT_TRUE(WaitFor([&] { return agent_->owned_epoch() == 1; }, milliseconds(3000)));
+  auto c = sculpt::testing::ConnectWhenReady(*etcd_);
+  ASSERT_TRUE(c.ok()) << c.status();
+  EtcdClient& etcd = **c;
+  const Keys keys{"agent/"};
+  const std::string mallory =
+      EncodeOwner(OwnerRecord{"mallory", "127.0.0.1:9", "127.0.0.1:10", 5});
+  ASSERT_TRUE(etcd.Sync(etcd.Put({keys.Owner("pot"), mallory, 0})).ok());
+  auto lease = etcd.Sync(etcd.Grant(milliseconds(10000)));
+  ASSERT_TRUE(lease.ok()) << lease.status();
+  ASSERT_TRUE(etcd.Sync(etcd.Put({keys.Owner("urn"), mallory, lease->id})).ok());
+  // Both scenes are in the agent's table from its next refresh on (unknown before).
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        return agent_->RouteScene("pot").kind != Route::Kind::kUnknown &&
+               agent_->RouteScene("urn").kind != Route::Kind::kUnknown;
+      },
+      milliseconds(3000)));
+  for (const char* scene : {"pot", "urn"}) {
+    const Route r = agent_->RouteScene(scene);
+    EXPECT_EQ(r.kind, Route::Kind::kUnavailable) << scene;
+    EXPECT_NE(r.member, "mallory") << scene;
+  }
+  // Its own scene is untouched.
+  EXPECT_EQ(agent_->RouteScene("vase").kind, Route::Kind::kLocal);
 }
 
 }  // namespace

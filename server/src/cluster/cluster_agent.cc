@@ -272,6 +272,21 @@ asio::awaitable<Status> ClusterAgent::Refresh() {
       }
     }
   }
+  // An acquisition writes the owner key and the epoch record in one txn, so they agree: an owner
+  // key that names another member or epoch than the scene's epoch record was not written by an
+  // acquisition (a forged or stale claim) and is never routed to.
+  for (auto& [scene, st] : table) {
+    if (st.owner && (!st.epoch || st.epoch->member != st.owner->member ||
+                     st.epoch->epoch != st.owner->epoch)) {
+      spdlog::warn("cluster: scene {}: owner key names {} at epoch {} but its epoch record {}: "
+                   "not honoured",
+                   scene, st.owner->member, st.owner->epoch,
+                   st.epoch ? "names " + st.epoch->member + " at epoch " +
+                                  std::to_string(st.epoch->epoch)
+                            : std::string("is missing"));
+      st.owner.reset();
+    }
+  }
   std::lock_guard<std::mutex> lock(mu_);
   members_ = std::move(live);
   scenes_ = std::move(table);
