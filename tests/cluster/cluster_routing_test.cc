@@ -547,5 +547,92 @@ TEST_F(ClusterRoutingTest, EtcdOutageStopsAcksWithinTheTtlLosesNothingAndRecover
   EXPECT_EQ(recovered, initial_seq + 2 * static_cast<uint64_t>(sent)) << timeline();
 }
 
+// Fencing (issue 17): an owner paused past its lease (SIGSTOP) while a client's strokes wait in
+// its socket loses the scene to its standby; resumed (SIGCONT), it acknowledges none of them,
+// sequences none of them, and the client, reconnecting through it, is sent to the new owner,
+// which applies each exactly once.
+TEST_F(ClusterRoutingTest, PausedOwnerAcknowledgesNothingAfterItsLeaseIsGone) {
+  Member& a = Start("a");
+  ASSERT_NE(a.WaitPort(), 0) << "member a did not start; see " << dir_.path() / "a.log";
+  ASSERT_TRUE(WaitFor([&] { return Owner().has_value(); }, milliseconds(5000)));
+  Member& b = Start("b");
+  ASSERT_NE(b.WaitPort(), 0) << "member b did not start; see " << dir_.path() / "b.log";
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto m = MemberOf("b");
+        return Standby().has_value() && Standby()->member == "b" && m && m->follows == "default";
+      },
+      milliseconds(15000)))
+      << "b did not become a's standby; see " << dir_.path() / "b.log";
+
+  sculpt::client::ClientOptions options;
+  options.timeout = milliseconds(5000);
+  sculpt::client::Client client(options);
+  auto joined = Join(client, a.port());
+  ASSERT_TRUE(joined.ok()) << joined.status();
+  const uint64_t initial_seq = joined->info.global_seq();
+  auto stroke_at = [](int i) {
+    sculpt::client::StrokeRequest stroke;
+    const double x = -4.0 + i;
+    stroke.poses = {{{x, 0, 22.5}, 0}, {{x, 0.5, 22.5}, 10}};
+    return stroke;
+  };
+  constexpr int kBefore = 5, kDuring = 3;
+  for (int i = 0; i < kBefore; ++i) ASSERT_TRUE(client.SendStroke(stroke_at(i)).ok());
+  ASSERT_TRUE(client.WaitAllAcked(milliseconds(10000)));
+  const uint64_t acked_seq = client.stats().last_global_seq;
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto m = MemberOf("b");
+        return m && m->follow_seq >= acked_seq;
+      },
+      milliseconds(10000)))
+      << "b's copy did not catch up; see " << dir_.path() / "b.log";
+  (void)client.DrainEvents();
+
+  ASSERT_EQ(kill(a.process().pid(), SIGSTOP), 0);
+  for (int i = kBefore; i < kBefore + kDuring; ++i) {
+    ASSERT_TRUE(client.SendStroke(stroke_at(i)).ok());  // they wait in the paused owner's socket
+  }
+  ASSERT_TRUE(WaitFor([&] { return Owner().has_value() && Owner()->member == "b"; },
+                      milliseconds(15000)))
+      << "b did not take the scene over; see " << dir_.path() / "b.log";
+  EXPECT_EQ(Owner()->epoch, 2u);
+  ASSERT_EQ(kill(a.process().pid(), SIGCONT), 0);
+
+  // a reads the waiting strokes at once and refuses each: its lease ran out while it was paused.
+  int acks_from_a = 0, refusals = 0;
+  bool disconnected = false;
+  const auto until = std::chrono::steady_clock::now() + milliseconds(5000);
+  while (!disconnected && std::chrono::steady_clock::now() < until) {
+    auto e = client.NextEvent(milliseconds(100));
+    if (!e) continue;
+    acks_from_a += e->type == sculpt::client::Event::Type::kAck ? 1 : 0;
+    refusals += e->type == sculpt::client::Event::Type::kError ? 1 : 0;
+    disconnected = e->type == sculpt::client::Event::Type::kDisconnected;
+  }
+  EXPECT_EQ(acks_from_a, 0) << "the paused owner acknowledged after its lease was gone";
+  EXPECT_GT(refusals, 0);
+  ASSERT_TRUE(disconnected) << "the refusal did not close the connection";
+  EXPECT_EQ(client.unacked(), static_cast<size_t>(kDuring));
+
+  // Reconnecting through a (the member it knew) is redirected to b, which applies them.
+  Status again;
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        again = client.Reconnect();
+        return again.ok();
+      },
+      milliseconds(10000)))
+      << again;
+  ASSERT_TRUE(client.WaitAllAcked(milliseconds(10000)));
+  EXPECT_EQ(client.stats().acks, static_cast<uint64_t>(kBefore + kDuring));
+  sculpt::client::Client viewer(options);
+  auto v = Join(viewer, a.port());  // redirected to b
+  ASSERT_TRUE(v.ok()) << v.status();
+  EXPECT_EQ(v->info.global_seq(), initial_seq + 2 * (kBefore + kDuring))
+      << "a stroke the paused owner held was applied twice or not at all";
+}
+
 }  // namespace
 }  // namespace sculpt::server::cluster
