@@ -773,8 +773,8 @@ void Session::OnSetInterest(const v1::SetInterest& si) {
   server_.scene().SetInterest(id_, std::move(request).value(), std::move(done));
 }
 
-// Not charged: the named standby sends one per sync of its copy's log (a few hundred a second
-// at most), and anyone else is refused as a violation before any work is done.
+// Not charged when accepted: the named standby sends one per sync of its copy's log (a few
+// hundred a second at most); refusals are charged or counted as violations.
 void Session::OnReplicaProgress(const v1::ReplicaProgress& p) {
   const cluster::SceneRouter* router = server_.router();
   if (!router) {
@@ -793,11 +793,15 @@ void Session::OnReplicaProgress(const v1::ReplicaProgress& p) {
   const cluster::Route route = router->RouteScene("");
   if (route.kind != cluster::Route::Kind::kLocal || route.standby.empty() ||
       user_ != "standby-" + route.standby) {
+    // Charged rather than counted as a violation: a member just named standby may report before
+    // this owner's routing table (up to one tick old) names it, and must not be disconnected
+    // for that; anyone else sending these runs out of request tokens.
+    if (!Charge("ReplicaProgress", kDivergenceCost, Clock::now())) return;
     SendError(ProtocolError(v1::ERROR_CODE_PERMISSION_DENIED, "Hello.client_name", user_,
                             route.standby.empty() ? std::string("the scene's named standby (none)")
                                                   : "standby-" + route.standby,
                             "ReplicaProgress is accepted only from the scene's standby"));
-    return Violation();
+    return;
   }
   auto progress = codec::DecodeReplicaProgress(p);
   if (progress.ok() && !server_.scene().LimitsFor(progress->object).ok()) {
