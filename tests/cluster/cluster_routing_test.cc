@@ -540,6 +540,70 @@ TEST_F(ClusterRoutingTest, SyncStandbyHasEveryAcknowledgedStrokeWhenTheOwnerIsKi
             << " ms after the start\n";
 }
 
+// Synchronous replication with real processes: while the standby is stopped (SIGSTOP) the owner
+// acknowledges nothing until cluster.sync_fallback_ms has passed, then falls back to async and
+// says so; once the standby runs again and catches up, acks wait for it again.
+TEST_F(ClusterRoutingTest, SyncOwnerHoldsAcksWhileItsStandbyIsStoppedThenFallsBack) {
+  constexpr int kFallbackMs = 1500;
+  Member& a = Start("a", "replication = \"sync\"\nsync_fallback_ms = " +
+                             std::to_string(kFallbackMs) + "\n");
+  ASSERT_NE(a.WaitPort(), 0) << "member a did not start; see " << dir_.path() / "a.log";
+  ASSERT_TRUE(WaitFor([&] { return Owner().has_value(); }, milliseconds(5000)));
+  Member& b = Start("b", "replication = \"sync\"\n");
+  ASSERT_NE(b.WaitPort(), 0) << "member b did not start; see " << dir_.path() / "b.log";
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto m = MemberOf("b");
+        return Standby() && Standby()->member == "b" && m && m->follows == "default";
+      },
+      milliseconds(15000)))
+      << "b's copy never completed; see " << dir_.path() / "b.log";
+  auto a_log = [&] {
+    std::ifstream in(dir_.path() / "a.log");
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+
+  sculpt::client::ClientOptions options;
+  options.timeout = milliseconds(10000);
+  sculpt::client::Client client(options);
+  auto joined = Join(client, a.port());
+  ASSERT_TRUE(joined.ok()) << joined.status();
+  auto stroke_at = [](double x) {
+    sculpt::client::StrokeRequest s;
+    s.poses = {{{x, 0, 22.5}, 0}, {{x, 0.5, 22.5}, 10}};
+    return s;
+  };
+  auto timed_ack_ms = [&](double x) -> int64_t {
+    const auto t = std::chrono::steady_clock::now();
+    if (!client.SendStroke(stroke_at(x)).ok() || !client.WaitAllAcked(milliseconds(20000))) {
+      return -1;
+    }
+    return std::chrono::duration_cast<milliseconds>(std::chrono::steady_clock::now() - t).count();
+  };
+  const int64_t running = timed_ack_ms(-3);
+  ASSERT_GE(running, 0);
+  EXPECT_LT(running, kFallbackMs / 2) << "with its standby running, a stroke waited for the fallback";
+
+  ASSERT_EQ(::kill(b.process().pid(), SIGSTOP), 0);
+  const int64_t stopped = timed_ack_ms(-2);
+  ASSERT_GE(stopped, 0) << "no ack even after the fall-back; see " << dir_.path() / "a.log";
+  EXPECT_GE(stopped, kFallbackMs - 100) << "acknowledged although the standby could not have it";
+  EXPECT_NE(a_log().find("acknowledging asynchronously"), std::string::npos);
+  // Fallen back: no waiting for the stopped standby.
+  const int64_t fallen = timed_ack_ms(-1);
+  ASSERT_GE(fallen, 0);
+  EXPECT_LT(fallen, kFallbackMs / 2);
+  std::cout << "sync: ack " << running << " ms with the standby running, " << stopped
+            << " ms once it was stopped (fallback " << kFallbackMs << " ms), then " << fallen
+            << " ms fallen back\n";
+
+  ASSERT_EQ(::kill(b.process().pid(), SIGCONT), 0);
+  EXPECT_TRUE(WaitFor(
+      [&] { return a_log().find("acknowledgements wait for it (sync)") != std::string::npos; },
+      milliseconds(15000)))
+      << "a never returned to sync after b caught up; see " << dir_.path() / "a.log";
+}
+
 // The owner replaces a standby that leaves: a owns, b follows; b stops; a names c, which catches
 // up with everything a acknowledged.
 TEST_F(ClusterRoutingTest, OwnerNamesANewStandbyWhenItsStandbyLeaves) {
