@@ -350,7 +350,8 @@ Scene::~Scene() {
     log_->OnDurable(nullptr);
   }
   if (snapshots_) (void)snapshots_->WaitIdle();
-  // Its timer thread may answer (fall back) until it is gone: before the members answers read.
+  // Its timer thread may answer (a fall-back) until it is gone: it goes before the members its
+  // answers read.
   acks_.reset();
 }
 
