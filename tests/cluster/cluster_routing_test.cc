@@ -604,6 +604,30 @@ TEST_F(ClusterRoutingTest, SyncOwnerHoldsAcksWhileItsStandbyIsStoppedThenFallsBa
       << "a never returned to sync after b caught up; see " << dir_.path() / "a.log";
 }
 
+// replication = "none": the owner names no standby, so nobody follows its scene, and a standby
+// key left from an earlier setting is removed.
+TEST_F(ClusterRoutingTest, ReplicationNoneNamesNoStandby) {
+  // A standby record from before (as an async owner would have left it).
+  ASSERT_TRUE(etcd_client_
+                  ->Sync(etcd_client_->Put(
+                      {kKeys.Standby("default"), EncodeStandby(StandbyRecord{"b", 1}), 0}))
+                  .ok());
+  Member& a = Start("a", "replication = \"none\"\n");
+  ASSERT_NE(a.WaitPort(), 0) << "member a did not start; see " << dir_.path() / "a.log";
+  Member& b = Start("b", "replication = \"none\"\n");
+  ASSERT_NE(b.WaitPort(), 0) << "member b did not start; see " << dir_.path() / "b.log";
+  ASSERT_TRUE(WaitFor([&] { return Owner().has_value(); }, milliseconds(5000)));
+  EXPECT_EQ(Owner()->member, "a");
+  EXPECT_TRUE(WaitFor([&] { return !Standby().has_value(); }, milliseconds(5000)))
+      << "a kept the standby key under replication = none";
+  // Several ticks later a still names nobody and b follows nothing.
+  std::this_thread::sleep_for(milliseconds(2 * kLeaseTtlMs));
+  EXPECT_FALSE(Standby().has_value());
+  auto m = MemberOf("b");
+  ASSERT_TRUE(m.has_value());
+  EXPECT_TRUE(m->follows.empty()) << "b follows " << m->follows;
+}
+
 // The owner replaces a standby that leaves: a owns, b follows; b stops; a names c, which catches
 // up with everything a acknowledged.
 TEST_F(ClusterRoutingTest, OwnerNamesANewStandbyWhenItsStandbyLeaves) {
