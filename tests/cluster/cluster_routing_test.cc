@@ -479,8 +479,8 @@ TEST_F(ClusterRoutingTest, SyncStandbyHasEveryAcknowledgedStrokeWhenTheOwnerIsKi
   uint64_t highest_seq = 0;
   for (const auto& [cs, gs] : seen) highest_seq = std::max(highest_seq, gs);
   std::cout << "sync failover: " << seen.size() << " strokes acknowledged before the kill ("
-            << since() << " ms after the first was sent), the last at seq " << highest_seq
-            << ", " << client.unacked() << " unacknowledged\n";
+            << since() << " ms after the first was sent), the last at seq " << highest_seq << ", "
+            << client.unacked() << " unacknowledged\n";
 
   ASSERT_TRUE(WaitFor([&] { return Owner().has_value() && Owner()->member == "b"; },
                       milliseconds(kLeaseTtlMs + 20000)))
@@ -545,8 +545,8 @@ TEST_F(ClusterRoutingTest, SyncStandbyHasEveryAcknowledgedStrokeWhenTheOwnerIsKi
 // says so; once the standby runs again and catches up, acks wait for it again.
 TEST_F(ClusterRoutingTest, SyncOwnerHoldsAcksWhileItsStandbyIsStoppedThenFallsBack) {
   constexpr int kFallbackMs = 1500;
-  Member& a = Start("a", "replication = \"sync\"\nsync_fallback_ms = " +
-                             std::to_string(kFallbackMs) + "\n");
+  Member& a = Start(
+      "a", "replication = \"sync\"\nsync_fallback_ms = " + std::to_string(kFallbackMs) + "\n");
   ASSERT_NE(a.WaitPort(), 0) << "member a did not start; see " << dir_.path() / "a.log";
   ASSERT_TRUE(WaitFor([&] { return Owner().has_value(); }, milliseconds(5000)));
   Member& b = Start("b", "replication = \"sync\"\n");
@@ -582,7 +582,8 @@ TEST_F(ClusterRoutingTest, SyncOwnerHoldsAcksWhileItsStandbyIsStoppedThenFallsBa
   };
   const int64_t running = timed_ack_ms(-3);
   ASSERT_GE(running, 0);
-  EXPECT_LT(running, kFallbackMs / 2) << "with its standby running, a stroke waited for the fallback";
+  EXPECT_LT(running, kFallbackMs / 2)
+      << "with its standby running, a stroke waited for the fallback";
 
   ASSERT_EQ(::kill(b.process().pid(), SIGSTOP), 0);
   const int64_t stopped = timed_ack_ms(-2);

@@ -102,8 +102,8 @@ TEST_F(SyncSceneTest, FallsBackToAsyncWhenNoStandbyConfirms) {
   std::future<StrokeOutcome> h = Press(3);
   EXPECT_EQ(h.wait_for(milliseconds(150)), std::future_status::timeout)
       << "acknowledged without the standby after it caught up";
-  ASSERT_TRUE(sculpt::testing::WaitFor([&] { return scene_->global_seq() > before; },
-                                       milliseconds(5000)));
+  ASSERT_TRUE(
+      sculpt::testing::WaitFor([&] { return scene_->global_seq() > before; }, milliseconds(5000)));
   scene_->StandbyDurable(scene_->global_seq());
   ASSERT_EQ(h.wait_for(milliseconds(5000)), std::future_status::ready);
   EXPECT_EQ(scene_->acks().fallbacks(), 1u);

@@ -178,10 +178,10 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
   SCULPT_RETURN_IF_ERROR(
       CheckKeys(path, root, "", {"server", "limits", "scene", "tls", "cluster"}));
   if (const toml::table* t = root["cluster"].as_table()) {
-    SCULPT_RETURN_IF_ERROR(CheckKeys(path, *t, "cluster",
-                                     {"etcd", "member", "advertise", "advertise_http",
-                                      "lease_ttl_ms", "prefix", "standby", "replication",
-                                      "sync_fallback_ms"}));
+    SCULPT_RETURN_IF_ERROR(
+        CheckKeys(path, *t, "cluster",
+                  {"etcd", "member", "advertise", "advertise_http", "lease_ttl_ms", "prefix",
+                   "standby", "replication", "sync_fallback_ms"}));
     if (const toml::node* e = t->get("etcd")) {
       const toml::array* a = e->as_array();
       if (!a) return Outside("cluster.etcd", "not an array", "arrays of \"http://HOST:PORT\"");

@@ -453,7 +453,8 @@ void Session::Handle(const std::string& payload) {
     case v1::ClientMessage::kModelIntent: return OnModelIntent(msg.model_intent());
     case v1::ClientMessage::kUndo: return OnUndo(msg.undo());
     case v1::ClientMessage::kHistory: return OnHistory(msg.history());
-    case v1::ClientMessage::kReplicaProgress: return OnReplicaProgress(msg.replica_progress());
+    case v1::ClientMessage::kReplicaProgress:
+      return OnReplicaProgress(msg.replica_progress());
     case v1::ClientMessage::BODY_NOT_SET: break;
   }
   SendError(ProtocolError(
@@ -805,8 +806,8 @@ void Session::OnReplicaProgress(const v1::ReplicaProgress& p) {
   }
   auto progress = codec::DecodeReplicaProgress(p);
   if (progress.ok() && !server_.scene().LimitsFor(progress->object).ok()) {
-    progress = Outside("ReplicaProgress.object", Printable(progress->object),
-                       "an object of this scene");
+    progress =
+        Outside("ReplicaProgress.object", Printable(progress->object), "an object of this scene");
   }
   if (progress.ok() && progress->durable_seq > server_.scene().global_seq()) {
     progress = Outside("ReplicaProgress.durable_seq", std::to_string(progress->durable_seq),
