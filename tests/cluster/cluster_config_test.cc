@@ -68,6 +68,37 @@ TEST_F(ClusterConfigTest, StandbyMayBeTurnedOff) {
   EXPECT_FALSE(c.cluster.standby);
 }
 
+TEST_F(ClusterConfigTest, ReplicationDefaultsToAsyncAndReadsSync) {
+  ServerConfig c;
+  ASSERT_TRUE(Load("[cluster]\netcd = [\"http://127.0.0.1:2379\"]\nmember = \"a\"\n", &c).ok());
+  EXPECT_EQ(c.cluster.replication, "async");
+  EXPECT_EQ(c.cluster.sync_fallback_ms, 1000);
+  ServerConfig d;
+  const Status s = Load(
+      "[cluster]\netcd = [\"http://127.0.0.1:2379\"]\nmember = \"a\"\nreplication = \"sync\"\n"
+      "sync_fallback_ms = 0\n",
+      &d);
+  ASSERT_TRUE(s.ok()) << s;
+  EXPECT_EQ(d.cluster.replication, "sync");
+  EXPECT_EQ(d.cluster.sync_fallback_ms, 0);
+}
+
+TEST_F(ClusterConfigTest, RejectsUnknownReplication) {
+  const Status s = Load(
+      "[cluster]\netcd = [\"http://127.0.0.1:2379\"]\nmember = \"a\"\nreplication = \"semi\"\n");
+  EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);
+  EXPECT_NE(s.message().find("cluster.replication"), std::string::npos) << s;
+  EXPECT_NE(s.message().find("semi"), std::string::npos) << s;
+  EXPECT_NE(s.message().find("sync, async, none"), std::string::npos) << s;
+}
+
+TEST_F(ClusterConfigTest, RejectsNegativeSyncFallback) {
+  const Status s = Load(
+      "[cluster]\netcd = [\"http://127.0.0.1:2379\"]\nmember = \"a\"\nsync_fallback_ms = -5\n");
+  EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);
+  EXPECT_NE(s.message().find("cluster.sync_fallback_ms"), std::string::npos) << s;
+}
+
 TEST_F(ClusterConfigTest, RejectsMemberWithoutEtcd) {
   const Status s = Load("[cluster]\nmember = \"a\"\n");
   EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);

@@ -5,12 +5,18 @@
 // followed the owner's edit stream takes it over with the next epoch and every stroke it held.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <fstream>
 #include <iostream>
+#include <iterator>
+#include <map>
+#include <mutex>
+#include <thread>
 
 #include "cluster/etcd_client.h"
 #include "cluster/processes.h"
 #include "cluster/records.h"
+#include "integration/raw_client.h"
 #include "sculpt/client/client.h"
 #include "sculpt/levelset/region.h"
 #include "sculpt/levelset/sculpture.h"
@@ -378,6 +384,249 @@ TEST_F(ClusterRoutingTest, StandbyTakesOverWithEveryReplicatedStrokeAfterTheOwne
       },
       milliseconds(15000)))
       << "b named no new standby, or c did not catch up; see " << dir_.path() / "c.log";
+}
+
+// Synchronous replication (issue 17): a owns the scene with replication = "sync", b is its
+// standby. A client sculpts continuously; a is killed with SIGKILL right after acks arrive,
+// without waiting for b to catch up. Every stroke the client saw acknowledged is on b after the
+// takeover: b's scene is at least at the highest acknowledged sequence, and each acknowledged
+// stroke sent again with its client_seq is answered as a duplicate (b's log has it), never
+// applied anew. (With async, the strokes acked in the last few ms before the kill may be lost.)
+TEST_F(ClusterRoutingTest, SyncStandbyHasEveryAcknowledgedStrokeWhenTheOwnerIsKilled) {
+  // A long fallback on a: the standby never gets excused, so every ack waited for it (checked
+  // in a's log below). b, once owner, has no standby left: a short one, so the resends below are
+  // answered after it.
+  Member& a = Start("a", "replication = \"sync\"\nsync_fallback_ms = 60000\n");
+  ASSERT_NE(a.WaitPort(), 0) << "member a did not start; see " << dir_.path() / "a.log";
+  ASSERT_TRUE(WaitFor([&] { return Owner().has_value(); }, milliseconds(5000)));
+  ASSERT_EQ(Owner()->member, "a");
+  Member& b = Start("b", "replication = \"sync\"\nsync_fallback_ms = 300\n");
+  ASSERT_NE(b.WaitPort(), 0) << "member b did not start; see " << dir_.path() / "b.log";
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto m = MemberOf("b");
+        return Standby() && Standby()->member == "b" && m && m->follows == "default";
+      },
+      milliseconds(15000)))
+      << "b's copy never completed; see " << dir_.path() / "b.log";
+  {
+    // Only the named standby's session may say how far a copy is durable: a subscribed viewer
+    // that is not b is refused (else it could release acks nobody holds).
+    sculpt::testing::RawClient forger(a.port());
+    ASSERT_TRUE(forger.Enter("sculpt-dev-viewer", v1::ROLE_VIEWER));
+    v1::ClientMessage sub;
+    sub.mutable_subscribe()->set_object(forger.info().objects(0).name());
+    sub.mutable_subscribe()->set_mode(v1::REPLICA_MODE_REPLAY);
+    ASSERT_TRUE(forger.Send(sub));
+    v1::ClientMessage progress;
+    progress.mutable_replica_progress()->set_object(forger.info().objects(0).name());
+    progress.mutable_replica_progress()->set_durable_seq(1);
+    ASSERT_TRUE(forger.Send(progress));
+    auto err = forger.ReadUntil(v1::ServerMessage::kError);
+    ASSERT_TRUE(err.has_value()) << "a forged ReplicaProgress was not refused";
+    EXPECT_EQ(err->error().code(), v1::ERROR_CODE_PERMISSION_DENIED);
+    EXPECT_EQ(err->error().field(), "Hello.client_name");
+    EXPECT_EQ(err->error().allowed_range(), "standby-b");
+  }
+
+  sculpt::client::ClientOptions options;
+  options.timeout = milliseconds(10000);
+  options.max_unacked = 1000;
+  sculpt::client::Client client(options);
+  std::mutex mu;
+  std::map<uint64_t, uint64_t> acked;  // client_seq -> last global seq of the stroke
+  client.SetEventHandler([&](const sculpt::client::Event& e) {
+    if (e.type != sculpt::client::Event::Type::kAck) return;
+    std::lock_guard<std::mutex> lock(mu);
+    acked[e.ack.client_seq()] = e.ack.global_seq_first() + e.ack.edits() - 1;
+  });
+  auto joined = Join(client, a.port());
+  ASSERT_TRUE(joined.ok()) << joined.status();
+  const uint64_t client_id = client.client_id();
+  const auto t0 = std::chrono::steady_clock::now();
+  auto since = [&] {
+    return std::chrono::duration_cast<milliseconds>(std::chrono::steady_clock::now() - t0).count();
+  };
+  std::atomic<bool> stop{false};
+  std::thread sender([&] {
+    for (int i = 0; !stop.load() && i < 2000; ++i) {
+      sculpt::client::StrokeRequest stroke;
+      const double x = -6.0 + (i % 24) * 0.5;
+      stroke.poses = {{{x, 0, 22.5}, 0}, {{x, 0.5, 22.5}, 10}, {{x, 1.0, 22.5}, 20}};
+      if (!client.SendStroke(stroke).ok()) break;
+      std::this_thread::sleep_for(milliseconds(8));  // about 120 strokes a second
+    }
+  });
+  // Right after acks arrive: the moment the 40th is in, a dies (strokes still in flight).
+  const bool enough = WaitFor(
+      [&] {
+        std::lock_guard<std::mutex> lock(mu);
+        return acked.size() >= 40;
+      },
+      milliseconds(20000));
+  a.process().Kill(SIGKILL);
+  stop = true;
+  sender.join();
+  ASSERT_TRUE(enough) << "a acknowledged too little; see " << dir_.path() / "a.log";
+  // Acks already on the wire at the kill are acks too: read them before counting.
+  std::this_thread::sleep_for(milliseconds(200));
+  client.SetEventHandler(nullptr);
+  std::map<uint64_t, uint64_t> seen;
+  {
+    std::lock_guard<std::mutex> lock(mu);
+    seen = acked;
+  }
+  uint64_t highest_seq = 0;
+  for (const auto& [cs, gs] : seen) highest_seq = std::max(highest_seq, gs);
+  std::cout << "sync failover: " << seen.size() << " strokes acknowledged before the kill ("
+            << since() << " ms after the first was sent), the last at seq " << highest_seq << ", "
+            << client.unacked() << " unacknowledged\n";
+
+  ASSERT_TRUE(WaitFor([&] { return Owner().has_value() && Owner()->member == "b"; },
+                      milliseconds(kLeaseTtlMs + 20000)))
+      << "b did not take the scene over; see " << dir_.path() / "b.log";
+  EXPECT_EQ(Owner()->epoch, 2u);
+  // b's port after its restart (the same port file, rewritten).
+  uint16_t b_port = 0;
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        std::ifstream in(dir_.path() / "b.ports");
+        unsigned p = 0;
+        if (!(in >> p) || p == 0) return false;
+        b_port = static_cast<uint16_t>(p);
+        try {
+          sculpt::testing::RawClient probe(b_port);  // throws while nothing listens there
+          probe.SetTimeoutMs(2000);
+          return probe.Enter("sculpt-dev-sculptor", v1::ROLE_SCULPTOR);
+        } catch (const std::exception&) {
+          return false;
+        }
+      },
+      milliseconds(15000)))
+      << "b does not serve the scene; see " << dir_.path() / "b.log";
+  std::cout << "sync failover: b serves the scene " << since() << " ms after the start\n";
+
+  // The same client id on b: every acknowledged stroke, sent again, is a duplicate.
+  sculpt::testing::RawClient raw(b_port);
+  raw.SetTimeoutMs(5000);
+  ASSERT_TRUE(raw.Enter("sculpt-dev-sculptor", v1::ROLE_SCULPTOR, client_id));
+  EXPECT_GE(raw.info().global_seq(), highest_seq)
+      << "b's scene is behind what a acknowledged: acknowledged strokes were lost";
+  ASSERT_EQ(raw.info().objects_size(), 1);
+  const std::string object = raw.info().objects(0).name();
+  int lost = 0;
+  for (const auto& [cs, gs] : seen) {
+    v1::ClientMessage m = sculpt::testing::RawClient::PressStroke(cs, {0, 0, 22.5}, 3);
+    m.mutable_stroke()->set_object(object);
+    ASSERT_TRUE(raw.Send(m));
+    auto ack = raw.ReadUntil(v1::ServerMessage::kAck);
+    ASSERT_TRUE(ack.has_value()) << "no ack for the resend of client_seq " << cs;
+    EXPECT_EQ(ack->ack().client_seq(), cs);
+    if (!ack->ack().duplicate()) {
+      ++lost;
+      ADD_FAILURE() << "stroke client_seq " << cs << " (acknowledged at seq " << gs
+                    << ") is not on the new owner: it was applied anew";
+    }
+  }
+  EXPECT_EQ(lost, 0);
+  {
+    std::ifstream in(dir_.path() / "a.log");
+    const std::string log((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_EQ(log.find("acknowledging asynchronously"), std::string::npos)
+        << "a fell back to async before the kill: the test proves nothing";
+    EXPECT_NE(log.find("is the standby of scene default"), std::string::npos);
+  }
+  std::cout << "sync failover: " << seen.size() << " resends checked " << since()
+            << " ms after the start\n";
+}
+
+// Synchronous replication with real processes: while the standby is stopped (SIGSTOP) the owner
+// acknowledges nothing until cluster.sync_fallback_ms has passed, then falls back to async and
+// says so; once the standby runs again and catches up, acks wait for it again.
+TEST_F(ClusterRoutingTest, SyncOwnerHoldsAcksWhileItsStandbyIsStoppedThenFallsBack) {
+  constexpr int kFallbackMs = 1500;
+  Member& a = Start(
+      "a", "replication = \"sync\"\nsync_fallback_ms = " + std::to_string(kFallbackMs) + "\n");
+  ASSERT_NE(a.WaitPort(), 0) << "member a did not start; see " << dir_.path() / "a.log";
+  ASSERT_TRUE(WaitFor([&] { return Owner().has_value(); }, milliseconds(5000)));
+  Member& b = Start("b", "replication = \"sync\"\n");
+  ASSERT_NE(b.WaitPort(), 0) << "member b did not start; see " << dir_.path() / "b.log";
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto m = MemberOf("b");
+        return Standby() && Standby()->member == "b" && m && m->follows == "default";
+      },
+      milliseconds(15000)))
+      << "b's copy never completed; see " << dir_.path() / "b.log";
+  auto a_log = [&] {
+    std::ifstream in(dir_.path() / "a.log");
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+
+  sculpt::client::ClientOptions options;
+  options.timeout = milliseconds(10000);
+  sculpt::client::Client client(options);
+  auto joined = Join(client, a.port());
+  ASSERT_TRUE(joined.ok()) << joined.status();
+  auto stroke_at = [](double x) {
+    sculpt::client::StrokeRequest s;
+    s.poses = {{{x, 0, 22.5}, 0}, {{x, 0.5, 22.5}, 10}};
+    return s;
+  };
+  auto timed_ack_ms = [&](double x) -> int64_t {
+    const auto t = std::chrono::steady_clock::now();
+    if (!client.SendStroke(stroke_at(x)).ok() || !client.WaitAllAcked(milliseconds(20000))) {
+      return -1;
+    }
+    return std::chrono::duration_cast<milliseconds>(std::chrono::steady_clock::now() - t).count();
+  };
+  const int64_t running = timed_ack_ms(-3);
+  ASSERT_GE(running, 0);
+  EXPECT_LT(running, kFallbackMs / 2)
+      << "with its standby running, a stroke waited for the fallback";
+
+  ASSERT_EQ(::kill(b.process().pid(), SIGSTOP), 0);
+  const int64_t stopped = timed_ack_ms(-2);
+  ASSERT_GE(stopped, 0) << "no ack even after the fall-back; see " << dir_.path() / "a.log";
+  EXPECT_GE(stopped, kFallbackMs - 100) << "acknowledged although the standby could not have it";
+  EXPECT_NE(a_log().find("acknowledging asynchronously"), std::string::npos);
+  // Fallen back: no waiting for the stopped standby.
+  const int64_t fallen = timed_ack_ms(-1);
+  ASSERT_GE(fallen, 0);
+  EXPECT_LT(fallen, kFallbackMs / 2);
+  std::cout << "sync: ack " << running << " ms with the standby running, " << stopped
+            << " ms once it was stopped (fallback " << kFallbackMs << " ms), then " << fallen
+            << " ms fallen back\n";
+
+  ASSERT_EQ(::kill(b.process().pid(), SIGCONT), 0);
+  EXPECT_TRUE(WaitFor(
+      [&] { return a_log().find("acknowledgements wait for it (sync)") != std::string::npos; },
+      milliseconds(15000)))
+      << "a never returned to sync after b caught up; see " << dir_.path() / "a.log";
+}
+
+// replication = "none": the owner names no standby, so nobody follows its scene, and a standby
+// key left from an earlier setting is removed.
+TEST_F(ClusterRoutingTest, ReplicationNoneNamesNoStandby) {
+  // A standby record from before (as an async owner would have left it).
+  ASSERT_TRUE(etcd_client_
+                  ->Sync(etcd_client_->Put(
+                      {kKeys.Standby("default"), EncodeStandby(StandbyRecord{"b", 1}), 0}))
+                  .ok());
+  Member& a = Start("a", "replication = \"none\"\n");
+  ASSERT_NE(a.WaitPort(), 0) << "member a did not start; see " << dir_.path() / "a.log";
+  Member& b = Start("b", "replication = \"none\"\n");
+  ASSERT_NE(b.WaitPort(), 0) << "member b did not start; see " << dir_.path() / "b.log";
+  ASSERT_TRUE(WaitFor([&] { return Owner().has_value(); }, milliseconds(5000)));
+  EXPECT_EQ(Owner()->member, "a");
+  EXPECT_TRUE(WaitFor([&] { return !Standby().has_value(); }, milliseconds(5000)))
+      << "a kept the standby key under replication = none";
+  // Several ticks later a still names nobody and b follows nothing.
+  std::this_thread::sleep_for(milliseconds(2 * kLeaseTtlMs));
+  EXPECT_FALSE(Standby().has_value());
+  auto m = MemberOf("b");
+  ASSERT_TRUE(m.has_value());
+  EXPECT_TRUE(m->follows.empty()) << "b follows " << m->follows;
 }
 
 // The owner replaces a standby that leaves: a owns, b follows; b stops; a names c, which catches

@@ -60,4 +60,15 @@ Divergence DecodeDivergenceReport(const v1::DivergenceReport& r) {
   return {r.object(), r.global_seq(), r.expected_hash(), r.actual_hash()};
 }
 
+StatusOr<ReplicaProgress> DecodeReplicaProgress(const v1::ReplicaProgress& p) {
+  if (p.object().empty() || p.object().size() > 256) {
+    return Outside("ReplicaProgress.object", std::to_string(p.object().size()) + " bytes",
+                   "1 to 256 bytes");
+  }
+  if (p.durable_seq() == 0) {
+    return Outside("ReplicaProgress.durable_seq", "0", "[1, 2^64 - 1]");
+  }
+  return ReplicaProgress{p.object(), p.durable_seq()};
+}
+
 }  // namespace sculpt::codec

@@ -392,6 +392,16 @@ asio::awaitable<void> ClusterAgent::TendStandby() {
   const auto [st, members] = ReadTable();
   if (owned_) {
     RetireFollower();
+    if (config_.replication == "none") {
+      // No standby: nobody follows, and a standby named under an earlier setting is dropped, so
+      // no member takes the scene over from a copy this owner no longer feeds.
+      if (st.standby) {
+        auto del_call = etcd_->Delete(keys_.Standby(scene_));
+        auto del = co_await std::move(del_call);
+        if (!del.ok()) LogEtcdTrouble("removing the standby (replication = none)", del.status());
+      }
+      co_return;
+    }
     // The standby: the one named while it lives and may follow, else the least loaded other
     // live member that offers the scene and may follow (every owner computes the same).
     std::vector<MemberRecord> candidates;
@@ -497,6 +507,9 @@ Route ClusterAgent::RouteScene(const std::string& requested) const {
     r.kind = Route::Kind::kLocal;
     r.member = config_.member;
     r.epoch = fence_->epoch();
+    std::lock_guard<std::mutex> lock(mu_);
+    const auto it = scenes_.find(scene_);
+    if (it != scenes_.end() && it->second.standby) r.standby = it->second.standby->member;
     return r;
   }
   std::lock_guard<std::mutex> lock(mu_);

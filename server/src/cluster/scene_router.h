@@ -23,6 +23,9 @@ struct Route {
   std::string http;  // HOST:PORT; empty when the owner has no HTTP port
   uint64_t epoch = 0;
   std::string reason;
+  /// kLocal: the member this owner named the scene's standby (empty: none named yet); only its
+  /// session may report the copy's durability (ReplicaProgress).
+  std::string standby;
 };
 
 /// Answers from what the member last read from etcd, without waiting on the network: sessions

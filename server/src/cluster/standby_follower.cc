@@ -250,6 +250,18 @@ void StandbyFollower::Run() {
   spdlog::info("cluster: following scene {} at {} (epoch {}) into {}", o.scene, o.owner_tcp,
                o.owner_epoch, im.gen.string());
 
+  // Synchronous replication: the owner acknowledges an edit only once this says the copy holds
+  // it durably. Sent from the log's sync thread (one per group sync) and after each snapshot;
+  // the client queues it for its I/O thread.
+  auto report_progress = [this](uint64_t durable) {
+    Impl& m = *impl_;
+    const uint64_t seq = std::max(durable, m.snapshot_seq.load());
+    if (seq == 0 || !m.client) return;
+    v1::ClientMessage pm;
+    pm.mutable_replica_progress()->set_object(m.object);
+    pm.mutable_replica_progress()->set_durable_seq(seq);
+    (void)m.client->SendMessage(pm);
+  };
   auto resync = [&] {
     v1::ClientMessage m;
     m.mutable_set_interest()->set_object(im.object);
@@ -284,6 +296,7 @@ void StandbyFollower::Run() {
       auto log = store::EditLog::Open((im.gen / store::kLogSubdir).string(), policy, &report);
       if (!log.ok()) return log.status();
       SCULPT_RETURN_IF_ERROR((*log)->StartAfter(seq));
+      (*log)->OnDurable(report_progress);
       {
         std::lock_guard<std::mutex> lock(mu_);
         im.log = std::move(log).value();
@@ -298,6 +311,7 @@ void StandbyFollower::Run() {
       ready_ = true;
       spdlog::info("cluster: standby copy of scene {} complete at seq {}", o.scene, seq);
     }
+    report_progress(seq);  // the snapshot holds everything up to seq durably
     return Status::Ok();
   };
 
@@ -443,7 +457,10 @@ void StandbyFollower::Run() {
   lock.unlock();
   im.client->SetReplicationHandler(nullptr);
   im.client->DropConnection();
-  if (im.log) (void)im.log->Sync();
+  if (im.log) {
+    (void)im.log->Sync();
+    im.log->OnDurable(nullptr);  // the client goes before the log (the destructor syncs again)
+  }
   finished_ = true;
 }
 

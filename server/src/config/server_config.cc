@@ -95,6 +95,8 @@ bool IsWildcardHost(const std::string& host) {
 
 Status ValidateClusterConfig(const ServerConfig& c) {
   const ClusterConfig& k = c.cluster;
+  SCULPT_RETURN_IF_ERROR(OneOf("cluster.replication", k.replication, {"sync", "async", "none"}));
+  SCULPT_RETURN_IF_ERROR(Range("cluster.sync_fallback_ms", k.sync_fallback_ms, 0, 600000));
   if (!k.enabled()) {
     if (!k.member.empty() || !k.advertise.empty() || !k.advertise_http.empty()) {
       return InvalidArgument(
@@ -176,9 +178,10 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
   SCULPT_RETURN_IF_ERROR(
       CheckKeys(path, root, "", {"server", "limits", "scene", "tls", "cluster"}));
   if (const toml::table* t = root["cluster"].as_table()) {
-    SCULPT_RETURN_IF_ERROR(CheckKeys(path, *t, "cluster",
-                                     {"etcd", "member", "advertise", "advertise_http",
-                                      "lease_ttl_ms", "prefix", "standby"}));
+    SCULPT_RETURN_IF_ERROR(
+        CheckKeys(path, *t, "cluster",
+                  {"etcd", "member", "advertise", "advertise_http", "lease_ttl_ms", "prefix",
+                   "standby", "replication", "sync_fallback_ms"}));
     if (const toml::node* e = t->get("etcd")) {
       const toml::array* a = e->as_array();
       if (!a) return Outside("cluster.etcd", "not an array", "arrays of \"http://HOST:PORT\"");
@@ -194,6 +197,8 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     Get(*t, "lease_ttl_ms", &c->cluster.lease_ttl_ms);
     Get(*t, "prefix", &c->cluster.prefix);
     Get(*t, "standby", &c->cluster.standby);
+    Get(*t, "replication", &c->cluster.replication);
+    Get(*t, "sync_fallback_ms", &c->cluster.sync_fallback_ms);
   }
   if (const toml::table* t = root["tls"].as_table()) {
     SCULPT_RETURN_IF_ERROR(CheckKeys(path, *t, "tls",

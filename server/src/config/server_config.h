@@ -160,6 +160,17 @@ struct ClusterConfig {
   /// This member may be chosen as another owner's standby: it follows that owner's edit stream
   /// into `<data_dir>/standby/` and takes the scene over when the owner's lease expires.
   bool standby = true;
+  /// How this member's scene is replicated while it owns it (a member hosts one scene, so this is
+  /// that scene's setting; give every member of the scene the same one):
+  /// - "async" (default): a standby follows; an edit is acknowledged once the owner's log has it.
+  /// - "sync": an edit is acknowledged only once the owner's log and the standby's copy have it;
+  ///   an ack held longer than `sync_fallback_ms` for the standby (none connected, or stuck)
+  ///   falls back to async until the standby catches up, said in the log and in /metrics.
+  /// - "none": the owner names no standby (a failover has no copy to take over).
+  std::string replication = "async";
+  /// "sync": how long an acknowledgement waits for the standby before the scene falls back to
+  /// async; 0: never (strict, PostgreSQL's synchronous_commit with no standby: acks wait).
+  int sync_fallback_ms = 1000;
   bool enabled() const { return !etcd.empty(); }
 };
 

@@ -601,6 +601,19 @@ std::string HttpServer::MetricsText() {
   w.Gauge("sculpt_acks_awaiting_durability",
           "Edits applied whose acknowledgement waits for the edit log's next fdatasync",
           static_cast<double>(scene.acks_awaiting_durability()));
+  if (scene.acks().sync()) {
+    // Cluster mode with replication = "sync" (docs/cluster.md).
+    w.Gauge("sculpt_replication_sync_fallen_back",
+            "1 while acknowledgements do not wait for the standby (it did not confirm an edit "
+            "within cluster.sync_fallback_ms), 0 while they do",
+            scene.acks().fallen_back() ? 1.0 : 0.0);
+    w.Counter("sculpt_replication_sync_fallbacks_total",
+              "Times synchronous replication fell back to asynchronous",
+              static_cast<double>(scene.acks().fallbacks()));
+    w.Gauge("sculpt_replication_standby_durable_seq",
+            "The last sequence the standby said its copy holds durably",
+            static_cast<double>(scene.acks().standby_durable_seq()));
+  }
   w.Counter("sculpt_compute_task_failures_total",
             "Scene tasks that threw (compute thread and join worker: the requester got INTERNAL; "
             "mesher: the chunk was skipped)",

@@ -453,12 +453,15 @@ void Session::Handle(const std::string& payload) {
     case v1::ClientMessage::kModelIntent: return OnModelIntent(msg.model_intent());
     case v1::ClientMessage::kUndo: return OnUndo(msg.undo());
     case v1::ClientMessage::kHistory: return OnHistory(msg.history());
+    case v1::ClientMessage::kReplicaProgress:
+      return OnReplicaProgress(msg.replica_progress());
     case v1::ClientMessage::BODY_NOT_SET: break;
   }
   SendError(ProtocolError(
       v1::ERROR_CODE_MALFORMED, "ClientMessage.body", "unknown or empty",
       "{hello, join, stroke, hover, bye, subscribe, set_interest, divergence, viewer_subscribe, "
-      "skin_ball_edit, contour_subscribe, skin_sweep, paint, model_intent, undo, history}",
+      "skin_ball_edit, contour_subscribe, skin_sweep, paint, model_intent, undo, history, "
+      "replica_progress}",
       "unknown message"));
   Violation();
 }
@@ -769,6 +772,53 @@ void Session::OnSetInterest(const v1::SetInterest& si) {
   auto request = codec::DecodeSetInterest(si);
   if (!request.ok()) return done(request.status());
   server_.scene().SetInterest(id_, std::move(request).value(), std::move(done));
+}
+
+// Not charged when accepted: the named standby sends one per sync of its copy's log (a few
+// hundred a second at most); refusals are charged or counted as violations.
+void Session::OnReplicaProgress(const v1::ReplicaProgress& p) {
+  const cluster::SceneRouter* router = server_.router();
+  if (!router) {
+    SendError(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, "ReplicaProgress", "sent",
+                            "cluster mode only", "this server is not a cluster member"));
+    return Violation();
+  }
+  if (!subscribed_) {
+    SendError(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, "ReplicaProgress",
+                            "before Subscribe", "after a Subscribe",
+                            "only a standby following the scene reports progress"));
+    return Violation();
+  }
+  // The follower says who it is in its Hello (client_name "standby-<member>"); only the member
+  // this owner named in etcd counts. As strong as the viewer token it connected with.
+  const cluster::Route route = router->RouteScene("");
+  if (route.kind != cluster::Route::Kind::kLocal || route.standby.empty() ||
+      user_ != "standby-" + route.standby) {
+    // Charged rather than counted as a violation: a member just named standby may report before
+    // this owner's routing table (up to one tick old) names it, and must not be disconnected
+    // for that; anyone else sending these runs out of request tokens.
+    if (!Charge("ReplicaProgress", kDivergenceCost, Clock::now())) return;
+    SendError(ProtocolError(v1::ERROR_CODE_PERMISSION_DENIED, "Hello.client_name", user_,
+                            route.standby.empty() ? std::string("the scene's named standby (none)")
+                                                  : "standby-" + route.standby,
+                            "ReplicaProgress is accepted only from the scene's standby"));
+    return;
+  }
+  auto progress = codec::DecodeReplicaProgress(p);
+  if (progress.ok() && !server_.scene().LimitsFor(progress->object).ok()) {
+    progress =
+        Outside("ReplicaProgress.object", Printable(progress->object), "an object of this scene");
+  }
+  if (progress.ok() && progress->durable_seq > server_.scene().global_seq()) {
+    progress = Outside("ReplicaProgress.durable_seq", std::to_string(progress->durable_seq),
+                       "[1, " + std::to_string(server_.scene().global_seq()) +
+                           "] (the scene's last applied sequence)");
+  }
+  if (!progress.ok()) {
+    SendStatus(progress.status());
+    return Violation();
+  }
+  server_.scene().StandbyDurable(progress->durable_seq);
 }
 
 void Session::OnViewerSubscribe(const v1::ViewerSubscribe& vs) {

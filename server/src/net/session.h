@@ -121,6 +121,8 @@ class Session : public std::enable_shared_from_this<Session> {
   void OnModelIntent(const v1::ModelIntent& mi);
   void OnUndo(const v1::UndoRequest& u);
   void OnHistory(const v1::HistoryRequest& h);
+  // Cluster mode: the scene's standby says how far its copy is durable (sync replication).
+  void OnReplicaProgress(const v1::ReplicaProgress& p);
 
   // Checks shared by the edits that are not strokes: joined, sculptor, the stroke bucket.
   bool MayEdit(const char* what, uint64_t client_seq);

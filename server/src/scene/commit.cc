@@ -95,10 +95,7 @@ void Scene::Observe(const char* step, const char* operation, uint64_t seq) {
 }
 
 void Scene::AnswerWhenDurable(uint64_t seq, std::function<void()> answer) {
-  {
-    std::lock_guard<std::mutex> lock(pending_mu_);
-    pending_.push_back({seq, std::move(answer)});
-  }
+  acks_->Hold(seq, std::move(answer));
   ReleaseDurable(log_->durable_seq());
 }
 

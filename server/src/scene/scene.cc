@@ -302,6 +302,12 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
     std::lock_guard<std::mutex> lock(scene->info_mu_);
     scene->RefreshInfoLocked();
   }
+  {
+    AckGate::Options gate;
+    gate.sync = config.cluster.enabled() && config.cluster.replication == "sync";
+    gate.fallback = std::chrono::milliseconds(config.cluster.sync_fallback_ms);
+    scene->acks_ = std::make_unique<AckGate>(std::move(gate));
+  }
   Scene* raw = scene.get();
   scene->log_->OnDurable([raw](uint64_t d) { raw->ReleaseDurable(d); });
   // Replayed edits count towards the next snapshot, and a long replay snapshots right away (the
@@ -344,6 +350,9 @@ Scene::~Scene() {
     log_->OnDurable(nullptr);
   }
   if (snapshots_) (void)snapshots_->WaitIdle();
+  // Its timer thread may answer (a fall-back) until it is gone: it goes before the members its
+  // answers read.
+  acks_.reset();
 }
 
 namespace {
@@ -571,39 +580,11 @@ void Scene::Submit(uint64_t client_id, codec::DecodedStroke stroke, StrokeDone d
   Commit(std::make_shared<StrokeOp>(client_id, std::move(stroke), AnswerOnce(std::move(done))));
 }
 
-size_t Scene::acks_awaiting_durability() const {
-  std::lock_guard<std::mutex> lock(pending_mu_);
-  return pending_.size();
-}
+size_t Scene::acks_awaiting_durability() const { return acks_->held(); }
 
 LatencyHistogram::Snapshot Scene::log_sync_seconds() const { return log_->sync_seconds(); }
 
-// Called from the compute thread and from the log's sync; the answers must run in sequence
-// order (a client's acks are in the order of its strokes), so one caller at a time answers,
-// outside the lock, and picks up what a concurrent caller made durable meanwhile.
-void Scene::ReleaseDurable(uint64_t durable_seq) {
-  {
-    std::lock_guard<std::mutex> lock(pending_mu_);
-    released_durable_seq_ = std::max(released_durable_seq_, durable_seq);
-    if (releasing_) return;
-    releasing_ = true;
-  }
-  for (;;) {
-    std::vector<Pending> ready;
-    {
-      std::lock_guard<std::mutex> lock(pending_mu_);
-      while (!pending_.empty() && pending_.front().seq <= released_durable_seq_) {
-        ready.push_back(std::move(pending_.front()));
-        pending_.pop_front();
-      }
-      if (ready.empty()) {
-        releasing_ = false;
-        return;
-      }
-    }
-    for (Pending& p : ready) p.answer();
-  }
-}
+void Scene::ReleaseDurable(uint64_t durable_seq) { acks_->LocalDurable(durable_seq); }
 
 void Scene::MaybeSnapshot(bool force) {
   const bool by_count = (force && edits_since_snapshot_ > 0) ||

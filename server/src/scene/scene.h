@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "config/server_config.h"
+#include "scene/ack_gate.h"
 #include "scene/commit.h"
 #include "scene/scene_summary.h"
 #include "scene/fair_queue.h"
@@ -109,6 +110,13 @@ class Scene {
   void set_ownership_fence(std::shared_ptr<const cluster::OwnershipFence> fence) {
     fence_ = std::move(fence);
   }
+
+  /// Cluster mode, `replication = "sync"` (docs/cluster.md): the scene's standby says its copy
+  /// is durable up to `seq` (a validated ReplicaProgress from the named standby's session).
+  /// Acknowledgements wait for it; ignored under async and none.
+  void StandbyDurable(uint64_t seq) { acks_->StandbyDurable(seq); }
+  /// The acknowledgements' gate: its mode and state for /metrics and tests.
+  const AckGate& acks() const { return *acks_; }
 
   /// Waits until every queued stroke is applied and durable (tests, shutdown).
   void Flush();
@@ -334,7 +342,8 @@ class Scene {
   // `out`, or, when the ownership fence no longer holds, a refusal carrying its error.
   CommitOutcome Fenced(const CommitOutcome& out) const;
   std::shared_ptr<const cluster::OwnershipFence> fence_;  // set before serving; null: always owner
-  // Queues `answer` until the log is durable up to `seq` (in sequence order with every other).
+  // Queues `answer` until the log (and under sync the standby's copy) is durable up to `seq`
+  // (in sequence order with every other).
   void AnswerWhenDurable(uint64_t seq, std::function<void()> answer);
   void MaybeSnapshot(bool force = false);
   void ReleaseDurable(uint64_t durable_seq);
@@ -383,14 +392,9 @@ class Scene {
   SceneSummary info_;
   std::map<std::string, levelset::Aabb> bounds_;
 
-  mutable std::mutex pending_mu_;
-  struct Pending {
-    uint64_t seq;
-    std::function<void()> answer;
-  };
-  std::deque<Pending> pending_;        // guarded by pending_mu_
-  uint64_t released_durable_seq_ = 0;  // guarded by pending_mu_: the newest durable seq seen
-  bool releasing_ = false;             // guarded by pending_mu_: one thread answers at a time
+  // Answers waiting for durability (the local log's, and the standby's under sync), answered in
+  // sequence order. Made in Open, before the log reports durability to it.
+  std::unique_ptr<AckGate> acks_;
 
   // Late joins (RequestJoinState): admitted up to limits.max_pending_joins, serialised in order
   // on one worker joined at shutdown. A queued join runs with `cancelled` = true when the scene

@@ -16,6 +16,7 @@ class Subscribe;
 class SetInterest;
 class ViewerSubscribe;
 class DivergenceReport;
+class ReplicaProgress;
 }  // namespace sculpt::v1
 
 namespace sculpt::codec {
@@ -61,6 +62,12 @@ struct Divergence {
   uint64_t actual_hash = 0;
 };
 
+/// Cluster mode: a standby's word on how far its copy of `object` is durable.
+struct ReplicaProgress {
+  std::string object;
+  uint64_t durable_seq = 0;
+};
+
 /// Checks a Subscribe: mode REPLAY or LEAF_DELTA, a set interest box's corners finite.
 /// InvalidArgument "Subscribe.<field>=<value> outside <range>" (or "... is not finite").
 StatusOr<ReplicaSubscription> DecodeSubscribe(const v1::Subscribe& request);
@@ -71,6 +78,10 @@ StatusOr<InterestChange> DecodeSetInterest(const v1::SetInterest& request);
 StatusOr<ViewerSubscription> DecodeViewerSubscribe(const v1::ViewerSubscribe& request);
 /// A DivergenceReport's fields (every value is acceptable: it is only counted and logged).
 Divergence DecodeDivergenceReport(const v1::DivergenceReport& report);
+/// Checks a ReplicaProgress's form: InvalidArgument "ReplicaProgress.object= outside 1 to 256
+/// bytes" or "ReplicaProgress.durable_seq=0 outside [1, 2^64 - 1]". Whether the object exists,
+/// the sequence was reached and the sender is the standby is the server's check.
+StatusOr<ReplicaProgress> DecodeReplicaProgress(const v1::ReplicaProgress& progress);
 
 }  // namespace sculpt::codec
 
