@@ -27,53 +27,13 @@ namespace {
 namespace fs = std::filesystem;
 using sculpt::testing::ChildProcess;
 using sculpt::testing::EtcdProcess;
+using sculpt::testing::Member;
 using sculpt::testing::TempDir;
 using sculpt::testing::WaitFor;
 using std::chrono::milliseconds;
 
 constexpr int kLeaseTtlMs = 2000;
 const Keys kKeys{"t/"};
-
-// One sculptd member: its configuration file, data directory, log and ports under `base`.
-class Member {
- public:
-  // `extra`: more lines of the [cluster] section.
-  Member(const std::string& name, const std::string& etcd, const fs::path& base,
-         const std::string& extra = "", const std::vector<std::string>& args = {})
-      : name_(name), port_file_(base / (name + ".ports")) {
-    const fs::path config = base / (name + ".toml");
-    std::ofstream(config) << "[cluster]\netcd = [\"" << etcd << "\"]\nmember = \"" << name
-                          << "\"\nlease_ttl_ms = " << kLeaseTtlMs << "\nprefix = \"t/\"\n"
-                          << extra;
-    fs::remove(port_file_);
-    std::vector<std::string> argv{std::string(SCULPT_BIN_DIR) + "/sculptd", "serve", "--config",
-                                  config.string(), "--listen", "127.0.0.1:0", "--data",
-                                  (base / (name + "-data")).string(), "--port-file",
-                                  port_file_.string()};
-    argv.insert(argv.end(), args.begin(), args.end());
-    process_ = std::make_unique<ChildProcess>(argv, base / (name + ".log"));
-  }
-  // The TCP port once the member is registered in etcd and listening (0 after 10 s).
-  uint16_t WaitPort() {
-    WaitFor(
-        [&] {
-          std::ifstream in(port_file_);
-          unsigned p = 0;
-          if (in >> p && p > 0) port_ = static_cast<uint16_t>(p);
-          return port_ != 0;
-        },
-        milliseconds(10000));
-    return port_;
-  }
-  uint16_t port() const { return port_; }
-  ChildProcess& process() { return *process_; }
-
- private:
-  std::string name_;
-  fs::path port_file_;
-  uint16_t port_ = 0;
-  std::unique_ptr<ChildProcess> process_;
-};
 
 class ClusterRoutingTest : public sculpt::testing::EtcdTest {
  protected:

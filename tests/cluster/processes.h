@@ -153,6 +153,50 @@ inline StatusOr<std::unique_ptr<server::cluster::EtcdClient>> ConnectWhenReady(
   return c;
 }
 
+/// One sculptd cluster member (key prefix "t/"): its configuration file, data directory, log and
+/// ports under `base`. Needs SCULPT_BIN_DIR (the directory of sculptd).
+class Member {
+ public:
+  // `extra`: more lines of the [cluster] section; `listen`: a fixed port keeps the member's
+  // address across restarts (a failover re-executes it with the same arguments).
+  Member(const std::string& name, const std::string& etcd, const fs::path& base,
+         const std::string& extra = "", const std::vector<std::string>& args = {},
+         int lease_ttl_ms = 2000, const std::string& listen = "127.0.0.1:0")
+      : name_(name), port_file_(base / (name + ".ports")) {
+    const fs::path config = base / (name + ".toml");
+    std::ofstream(config) << "[cluster]\netcd = [\"" << etcd << "\"]\nmember = \"" << name
+                          << "\"\nlease_ttl_ms = " << lease_ttl_ms << "\nprefix = \"t/\"\n"
+                          << extra;
+    fs::remove(port_file_);
+    std::vector<std::string> argv{std::string(SCULPT_BIN_DIR) + "/sculptd", "serve", "--config",
+                                  config.string(), "--listen", listen, "--data",
+                                  (base / (name + "-data")).string(), "--port-file",
+                                  port_file_.string()};
+    argv.insert(argv.end(), args.begin(), args.end());
+    process_ = std::make_unique<ChildProcess>(argv, base / (name + ".log"));
+  }
+  // The TCP port once the member is registered in etcd and listening (0 after 10 s).
+  uint16_t WaitPort() {
+    WaitFor(
+        [&] {
+          std::ifstream in(port_file_);
+          unsigned p = 0;
+          if (in >> p && p > 0) port_ = static_cast<uint16_t>(p);
+          return port_ != 0;
+        },
+        std::chrono::milliseconds(10000));
+    return port_;
+  }
+  uint16_t port() const { return port_; }
+  ChildProcess& process() { return *process_; }
+
+ private:
+  std::string name_;
+  fs::path port_file_;
+  uint16_t port_ = 0;
+  std::unique_ptr<ChildProcess> process_;
+};
+
 /// A test with its own etcd and a client of it (skipped without etcd). A fixture that starts
 /// sculptd members stops them in its TearDown before calling this one's: etcd goes last.
 class EtcdTest : public ::testing::Test {

@@ -938,12 +938,26 @@ Status Client::Reconnect() {
     scene = impl_->scene;
     ++impl_->stats.reconnects;
   }
-  SCULPT_RETURN_IF_ERROR(Connect(host, port));
-  auto welcome = Hello(token, role, name, id);
-  if (!welcome.ok()) return welcome.status();
-  auto joined = Join(scene);
-  if (!joined.ok()) return joined.status();
-  return Status::Ok();
+  auto rejoin = [&](const std::string& h, uint16_t p) -> Status {
+    SCULPT_RETURN_IF_ERROR(Connect(h, p));
+    auto welcome = Hello(token, role, name, id);
+    if (!welcome.ok()) return welcome.status();
+    auto joined = Join(scene);
+    return joined.ok() ? Status::Ok() : joined.status();
+  };
+  Status s = rejoin(host, port);
+  // Cluster mode: through any other member (it redirects to the owner) when the last server is
+  // gone or cannot serve the scene now. Only for errors of reach, not for a refused token.
+  for (const std::string& member : impl_->options.cluster_members) {
+    if (s.ok() || s.code() != Status::Code::kUnavailable) break;
+    const size_t colon = member.rfind(':');
+    if (colon == std::string::npos) continue;
+    const std::string h = member.substr(0, colon);
+    const int p = std::atoi(member.c_str() + colon + 1);
+    if (p <= 0 || p > 65535 || (h == host && p == port)) continue;
+    s = rejoin(h, static_cast<uint16_t>(p));
+  }
+  return s;
 }
 
 StatusOr<uint64_t> Client::SendStroke(const StrokeRequest& stroke) {

@@ -71,6 +71,10 @@ struct ClientOptions {
   uint64_t first_client_seq = 1;
   /// TLS on the connection (off: plain TCP).
   ClientTlsOptions tls;
+  /// Cluster mode: other members (HOST:PORT). Reconnect() tries them in turn when the server
+  /// it knew does not answer or cannot serve the scene (its machine died, it lost the scene);
+  /// any member redirects to the scene's owner.
+  std::vector<std::string> cluster_members;
 };
 
 /// A stroke as the caller describes it; SendStroke packs the poses (proto/README.md, "Packed
