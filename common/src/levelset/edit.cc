@@ -691,8 +691,40 @@ struct IslandReport {
   int found = 0;    // pieces of at least one voxel (smaller ones are below the grid's resolution)
   int removed = 0;  // pieces removed (material) or pockets filled (air)
   double inside_change = 0;  // change of the block's inside-voxel sum by the removals
-  VoxelList zone;   // voxels reset by a removal or a fill (to be reinitialised)
+  VoxelList zone;     // voxels reset by a removal or a fill (to be reinitialised)
+  VoxelList flipped;  // voxels of the pieces removed (now of the other phase)
 };
+
+// The voxels of the block's interior whose phase (material, phi < 0, or air) differs from the
+// extracted field's, in index order. Only the changed box is scanned, with the coordinates
+// from the loops (no division per voxel).
+VoxelList PhaseChanges(const Block& b) {
+  VoxelList out;
+  const Int3 d = b.phi.dims();
+  const float* now = b.phi.data().data();
+  const float* was = b.before.data().data();
+  const NearBox changed = b.Changed();
+  const int lo[3] = {std::max(kStencilMargin, changed.lo[0]),
+                     std::max(kStencilMargin, changed.lo[1]),
+                     std::max(kStencilMargin, changed.lo[2])};
+  const int hi[3] = {std::min(d.x - kStencilMargin, changed.hi[0]),
+                     std::min(d.y - kStencilMargin, changed.hi[1]),
+                     std::min(d.z - kStencilMargin, changed.hi[2])};
+  const size_t row_bytes = static_cast<size_t>(d.x) * sizeof(float);
+  for (int k = lo[2]; k < hi[2]; ++k) {
+    for (int j = lo[1]; j < hi[1]; ++j) {
+      const size_t row = b.phi.Index(0, j, k);
+      // Most rows of the box did not change at all (a press changes one voxel in ten).
+      if (std::memcmp(now + row, was + row, row_bytes) == 0) continue;
+      for (int i = lo[0]; i < hi[0]; ++i) {
+        if ((now[row + i] < 0.f) != (was[row + i] < 0.f)) {
+          out.push_back(static_cast<uint32_t>(row + i));
+        }
+      }
+    }
+  }
+  return out;
+}
 
 // Pieces of one phase that this edit cut off inside the block: pieces of material
 // (`kAir` false), which are removed, or pockets of air sealed inside the material (`kAir`
@@ -705,7 +737,7 @@ struct IslandReport {
 // and air joined only diagonally may be sealed there just as well. Searching 6-pieces finds
 // every piece the mesh can show, each whole or as the 6-pieces it is made of.
 template <bool kAir>
-IslandReport FindPieces(Block& b, const EditSettings& s) {
+IslandReport FindPieces(Block& b, const EditSettings& s, const VoxelList& flipped) {
   IslandReport rep;
   const Int3 d = b.phi.dims();
   const size_t n = b.phi.size();
@@ -752,33 +784,15 @@ IslandReport FindPieces(Block& b, const EditSettings& s) {
     }
   }
   std::vector<uint32_t> seeds;
-  // In index order, with the coordinates from the loops (no division per voxel). A voxel that
-  // changed phase changed, so only the changed box is scanned.
-  const float* was = b.before.data().data();
-  const NearBox changed = b.Changed();
-  const int lo[3] = {std::max(kStencilMargin, changed.lo[0]),
-                     std::max(kStencilMargin, changed.lo[1]),
-                     std::max(kStencilMargin, changed.lo[2])};
-  const int hi[3] = {std::min(d.x - kStencilMargin, changed.hi[0]),
-                     std::min(d.y - kStencilMargin, changed.hi[1]),
-                     std::min(d.z - kStencilMargin, changed.hi[2])};
-  for (int k = lo[2]; k < hi[2]; ++k) {
-    for (int j = lo[1]; j < hi[1]; ++j) {
-      const size_t row = b.phi.Index(0, j, k);
-      for (int i = lo[0]; i < hi[0]; ++i) {
-        const size_t idx = row + i;
-        const bool now_in = in(data[idx]);
-        if (now_in == in(was[idx])) continue;
-        if (now_in) {
-          seeds.push_back(static_cast<uint32_t>(idx));  // brought into the phase
-          continue;
-        }
-        // Taken out of the phase: its neighbours in the phase are seeds.
-        for (int o = 0; o < no; ++o) {
-          const size_t nidx = static_cast<size_t>(static_cast<int64_t>(idx) + offsets[o]);
-          if (in(data[nidx])) seeds.push_back(static_cast<uint32_t>(nidx));
-        }
-      }
+  for (uint32_t idx : flipped) {
+    if (in(data[idx])) {
+      seeds.push_back(idx);  // brought into the phase
+      continue;
+    }
+    // Taken out of the phase: its neighbours in the phase are seeds.
+    for (int o = 0; o < no; ++o) {
+      const size_t nidx = static_cast<size_t>(static_cast<int64_t>(idx) + offsets[o]);
+      if (in(data[nidx])) seeds.push_back(static_cast<uint32_t>(nidx));
     }
   }
   if (seeds.empty()) return rep;
@@ -798,6 +812,17 @@ IslandReport FindPieces(Block& b, const EditSettings& s) {
   auto cmp = [](const Entry& a, const Entry& c) { return a > c; };
   for (uint32_t seed : seeds) {
     if (state[seed] != kUnknown) continue;
+    // Most seeds lie beside one an earlier search found connected (the voxels of one dent):
+    // they are settled without a search.
+    bool beside_connected = false;
+    for (int o = 0; o < no && !beside_connected; ++o) {
+      const size_t nidx = static_cast<size_t>(static_cast<int64_t>(seed) + offsets[o]);
+      beside_connected = state[nidx] == kConnected;
+    }
+    if (beside_connected) {
+      state[seed] = kConnected;
+      continue;
+    }
     visited.clear();
     heap.clear();
     state[seed] = kQueued;
@@ -908,6 +933,7 @@ IslandReport FindPieces(Block& b, const EditSettings& s) {
   const float sign = kAir ? -1.f : 1.f;
   for (size_t i = 0; i < pieces.size(); ++i) {
     if (!remove[i]) continue;
+    rep.flipped.insert(rep.flipped.end(), pieces[i].voxels.begin(), pieces[i].voxels.end());
     for (uint32_t idx : pieces[i].voxels) {
       // Near what stays, start from the (over-estimated) step distance and let the
       // reinitialisation settle it.
@@ -1534,9 +1560,12 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
       return change + b.InsideChange() - inside_before;
     };
     // Islands first: removing one opens air, which the voids' search then sees connected.
-    IslandReport islands = FindPieces<false>(b, s);
+    VoxelList flipped = PhaseChanges(b);
+    IslandReport islands = FindPieces<false>(b, s, flipped);
     const double removed = -settle(islands);
-    IslandReport voids = FindPieces<true>(b, s);
+    // The islands' voxels are air now: seeds of the voids' search like any opened voxel.
+    flipped.insert(flipped.end(), islands.flipped.begin(), islands.flipped.end());
+    IslandReport voids = FindPieces<true>(b, s, flipped);
     const double filled = settle(voids);
     res.islands_found = islands.found;
     res.islands_removed = islands.removed;
