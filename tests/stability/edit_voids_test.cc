@@ -184,5 +184,90 @@ TEST(EditVoids, DemoPressesLeaveNoVoidsOrSpecks) {
   EXPECT_EQ(p.components, 1u) << p.ToString();
 }
 
+// A dimple (subtract, 1.2 units deep) and then a box added over it seal a pocket of air about
+// 4 units^3 in the clay. Under kRemoveSmall below 8 units^3 it is filled, its volume added to
+// the reference (the add's own clay is re-baselined with it); under kKeep it is reported and
+// stays: an inner shell of the mesh.
+TEST(EditVoids, LidOverADimpleSealsAPocketThatRemoveSmallFills) {
+  for (const IslandPolicy policy : {IslandPolicy::kRemoveSmall, IslandPolicy::kKeep}) {
+    SCOPED_TRACE(policy == IslandPolicy::kKeep ? "keep" : "remove_small");
+    auto s = Sculpture::MakeSphere(ServerOpts(), {0, 0, 0}, kSphereRadius);
+    ASSERT_TRUE(s.ok());
+    EditSettings set = ServerSettings();
+    set.islands = policy;
+    EditRequest dimple;
+    dimple.kind = EditKind::kSubtract;
+    dimple.tool = ToolShape::Sphere({0, 0, kSphereRadius + 0.3}, 1.5);
+    ASSERT_TRUE(ApplyEdit(*s, dimple, set).ok());
+    const Vec3 pocket{0, 0, kSphereRadius - 0.6};
+    ASSERT_GT(s->SampleWorld(pocket), 0.0);
+    ASSERT_EQ(CountPieces(*s, set.min_island_volume).components, 1u);
+    EditRequest lid;
+    lid.kind = EditKind::kAdd;
+    lid.tool = ToolShape::Box({0, 0, kSphereRadius + 0.5}, {4.0, 4.0, 0.6});
+    const double ref_before = s->reference_volume();
+    const double vol_before = s->volume();
+    auto r = ApplyEdit(*s, lid, set);
+    ASSERT_TRUE(r.ok()) << r.status();
+    EXPECT_EQ(r->voids_found, 1);
+    EXPECT_EQ(r->islands_removed, 0);
+    const Pieces p = CountPieces(*s, set.min_island_volume);
+    if (policy == IslandPolicy::kRemoveSmall) {
+      EXPECT_EQ(r->voids_filled, 1);
+      EXPECT_GT(r->void_volume_filled, 2.0);
+      EXPECT_LT(r->void_volume_filled, 8.0);
+      EXPECT_LT(s->SampleWorld(pocket), 0.0);
+      EXPECT_EQ(p.voids, 0) << p.ToString();
+      EXPECT_EQ(p.components, 1u) << p.ToString();
+    } else {
+      EXPECT_EQ(r->voids_filled, 0);
+      EXPECT_EQ(r->void_volume_filled, 0.0);
+      EXPECT_GT(s->SampleWorld(pocket), 0.0);
+      EXPECT_EQ(p.voids, 1) << p.ToString();
+      EXPECT_EQ(p.components, 2u) << p.ToString();
+    }
+    // Material added on purpose, the pocket's fill included: the new volume is the reference.
+    EXPECT_NEAR(s->reference_volume() - ref_before, s->volume() - vol_before, 1e-9 * vol_before);
+    EXPECT_NEAR(s->volume(), s->ComputeVolume(), 1e-6 * vol_before);
+  }
+}
+
+// The filled pockets and removed specks change the field in the same way on a replica replaying
+// the server's batches (ReplayEdits from the captured state) as live: bit-identical state.
+TEST(EditVoids, ReplayOfDemoPressesIsBitIdentical) {
+  auto server = Sculpture::MakeSphere(ServerOpts(), {0, 0, 0}, kSphereRadius);
+  ASSERT_TRUE(server.ok());
+  Sculpture replica = server->Clone();
+  const EditSettings set = ServerSettings();
+  std::vector<Walk> walks;
+  for (int i = 0; i < 4; ++i) walks.emplace_back(7 * 4 + i, kSphereRadius - 1.0);
+  int filled = 0, removed = 0;
+  for (int n = 0; n < 200; ++n) {
+    std::vector<EditRequest> reqs;
+    for (int p = 0; p < 4; ++p) {
+      EditRequest e;
+      e.kind = EditKind::kPress;
+      e.tool = ToolShape::Sphere(walks[n % 4].Next(1.0, 2.0 * std::sqrt(1 / 60.0)), 2.5);
+      e.speed = 60;
+      e.dt = p == 0 ? 1.0 / 120 : 1.0 / 60;
+      reqs.push_back(e);
+    }
+    const ReplayState state = CaptureReplayState(*server);
+    auto a = ApplyEdits(*server, reqs, set);
+    ASSERT_TRUE(a.ok()) << a.status();
+    auto b = ReplayEdits(replica, reqs, set, state);
+    ASSERT_TRUE(b.ok()) << b.status();
+    ASSERT_EQ(a->voids_filled, b->voids_filled) << "stroke " << n;
+    ASSERT_EQ(a->islands_removed, b->islands_removed) << "stroke " << n;
+    ASSERT_EQ(a->volume_after, b->volume_after) << "stroke " << n;
+    ASSERT_EQ(a->reference_volume, b->reference_volume) << "stroke " << n;
+    filled += a->voids_filled;
+    removed += a->islands_removed;
+  }
+  EXPECT_GT(filled, 0);  // the path under test ran
+  EXPECT_GT(removed, 0);
+  EXPECT_EQ(server->StateHash(), replica.StateHash());
+}
+
 }  // namespace
 }  // namespace sculpt::levelset
