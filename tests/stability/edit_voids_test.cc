@@ -46,10 +46,10 @@ EditSettings ServerSettings() {
 // The mesh's face-connected pieces, each with its signed volume: the outer surface encloses a
 // positive volume, a sealed air pocket is an inward-wound shell (negative), a speck positive.
 struct Pieces {
-  int outer = 0;          // positive pieces of at least `large` volume
-  int specks = 0;         // positive pieces below it
-  int voids = 0;          // negative pieces
-  double void_volume = 0; // their total |volume|
+  int outer = 0;           // positive pieces of at least `large` volume
+  int specks = 0;          // positive pieces below it
+  int voids = 0;           // negative pieces
+  double void_volume = 0;  // their total |volume|
   double speck_volume = 0;
   int64_t genus = -1;
   size_t components = 0;
@@ -83,9 +83,12 @@ Pieces CountPieces(const Sculpture& s, double large) {
   for (size_t f = 0; f < m.face_count(); ++f) {
     const float* p[3];
     for (int c = 0; c < 3; ++c) p[c] = &m.positions[3 * m.indices[3 * f + c]];
-    const double cx = static_cast<double>(p[1][1]) * p[2][2] - static_cast<double>(p[1][2]) * p[2][1];
-    const double cy = static_cast<double>(p[1][2]) * p[2][0] - static_cast<double>(p[1][0]) * p[2][2];
-    const double cz = static_cast<double>(p[1][0]) * p[2][1] - static_cast<double>(p[1][1]) * p[2][0];
+    const double cx =
+        static_cast<double>(p[1][1]) * p[2][2] - static_cast<double>(p[1][2]) * p[2][1];
+    const double cy =
+        static_cast<double>(p[1][2]) * p[2][0] - static_cast<double>(p[1][0]) * p[2][2];
+    const double cz =
+        static_cast<double>(p[1][0]) * p[2][1] - static_cast<double>(p[1][1]) * p[2][0];
     const uint32_t r = find(m.indices[3 * f]);
     vol[r] += (p[0][0] * cx + p[0][1] * cy + p[0][2] * cz) / 6.0;
     used[r] = 1;

@@ -691,8 +691,8 @@ struct IslandReport {
   int found = 0;    // pieces of at least one voxel (smaller ones are below the grid's resolution)
   int removed = 0;  // pieces removed (material) or pockets filled (air)
   double inside_change = 0;  // change of the block's inside-voxel sum by the removals
-  VoxelList zone;     // voxels reset by a removal or a fill (to be reinitialised)
-  VoxelList flipped;  // voxels of the pieces removed (now of the other phase)
+  VoxelList zone;            // voxels reset by a removal or a fill (to be reinitialised)
+  VoxelList flipped;         // voxels of the pieces removed (now of the other phase)
 };
 
 // The voxels of the block's interior whose phase (material, phi < 0, or air) differs from the
@@ -720,7 +720,8 @@ VoxelList PhaseChanges(const Block& b) {
       // of a voxel): a branch-free test, which vectorises, skips them.
       unsigned flips = 0;
       for (int i = lo[0]; i < hi[0]; ++i) {
-        flips |= static_cast<unsigned>(now[row + i] < 0.f) ^ static_cast<unsigned>(was[row + i] < 0.f);
+        flips |=
+            static_cast<unsigned>(now[row + i] < 0.f) ^ static_cast<unsigned>(was[row + i] < 0.f);
       }
       if (flips == 0) continue;
       for (int i = lo[0]; i < hi[0]; ++i) {
@@ -928,12 +929,10 @@ IslandReport FindPieces(Block& b, const EditSettings& s, const VoxelList& flippe
     }
     return dist;
   };
-  const std::vector<int16_t> dist = distance_from([&](size_t idx) {
-    return in(data[idx]) && (label[idx] < 0 || !remove[label[idx]]);
-  });
-  const std::vector<int16_t> dist_removed = distance_from([&](size_t idx) {
-    return in(data[idx]) && label[idx] >= 0 && remove[label[idx]];
-  });
+  const std::vector<int16_t> dist = distance_from(
+      [&](size_t idx) { return in(data[idx]) && (label[idx] < 0 || !remove[label[idx]]); });
+  const std::vector<int16_t> dist_removed = distance_from(
+      [&](size_t idx) { return in(data[idx]) && label[idx] >= 0 && remove[label[idx]]; });
   const double inside_before = b.InsideChange();
   // A removed piece takes the other phase's sign: positive distances where material goes,
   // negative where a pocket is filled.
