@@ -38,8 +38,9 @@ enum class CompensationMethod : uint8_t {
   kGradientDescentGrad = 2,  // phi += dt (Vol - c) |grad phi| chi (seed 000 eq. 5.8, corrected)
 };
 enum class IslandPolicy : uint8_t {
-  kKeep = 0,         // report pieces split off, keep them
-  kRemoveSmall = 1,  // remove pieces below min_island_volume and re-baseline the reference
+  kKeep = 0,         // report pieces split off and pockets of air sealed, keep them
+  kRemoveSmall = 1,  // remove pieces and fill pockets below min_island_volume, re-baseline the
+                     // reference by what that removed and added
 };
 
 /// Scene-level choices for edits (the effects the scene calls for).
@@ -74,7 +75,8 @@ struct EditSettings {
   /// overshoot at the kinks a press leaves (WENO5 there made sub-voxel specks of material).
   SpatialScheme reinit_spatial = SpatialScheme::kUpwind;
   IslandPolicy islands = IslandPolicy::kKeep;
-  /// Pieces below this volume (world units^3) are removed under kRemoveSmall.
+  /// Pieces of material below this volume (world units^3) are removed under kRemoveSmall, and
+  /// pockets of air sealed inside the material below it are filled.
   double min_island_volume = 0;
   /// Accepted tool sizes, in voxels.
   double min_tool_voxels = 0.5;
