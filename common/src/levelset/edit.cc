@@ -688,29 +688,73 @@ bool Resolve(Block& b, std::vector<uint8_t>& repair, bool always_repair) {
 }
 
 struct IslandReport {
-  int found = 0;
-  int removed = 0;
-  double removed_inside_voxels = 0;
-  bool removed_any = false;
-  VoxelList zone;  // voxels reset by a removal (to be reinitialised)
+  int found = 0;    // pieces of at least one voxel (smaller ones are below the grid's resolution)
+  int removed = 0;  // pieces removed (material) or pockets filled (air)
+  double inside_change = 0;  // change of the block's inside-voxel sum by the removals
+  VoxelList zone;            // voxels reset by a removal or a fill (to be reinitialised)
+  VoxelList flipped;         // voxels of the pieces removed (now of the other phase)
 };
 
-// Connected pieces of material (26-connectivity) that lie wholly inside the block's interior
-// are split off from anything reaching outside it: any path to the rest of the object would
-// cross the border. A ridge thinner than a voxel is still one piece of clay when its samples
-// touch only diagonally, hence 26 and not 6 neighbours.
-IslandReport FindIslands(Block& b, const EditSettings& s) {
+// The voxels of the block's interior whose phase (material, phi < 0, or air) differs from the
+// extracted field's, in index order. Only the changed box is scanned, with the coordinates
+// from the loops (no division per voxel).
+VoxelList PhaseChanges(const Block& b) {
+  VoxelList out;
+  const Int3 d = b.phi.dims();
+  const float* now = b.phi.data().data();
+  const float* was = b.before.data().data();
+  const NearBox changed = b.Changed();
+  const int lo[3] = {std::max(kStencilMargin, changed.lo[0]),
+                     std::max(kStencilMargin, changed.lo[1]),
+                     std::max(kStencilMargin, changed.lo[2])};
+  const int hi[3] = {std::min(d.x - kStencilMargin, changed.hi[0]),
+                     std::min(d.y - kStencilMargin, changed.hi[1]),
+                     std::min(d.z - kStencilMargin, changed.hi[2])};
+  const size_t row_bytes = static_cast<size_t>(d.x) * sizeof(float);
+  for (int k = lo[2]; k < hi[2]; ++k) {
+    for (int j = lo[1]; j < hi[1]; ++j) {
+      const size_t row = b.phi.Index(0, j, k);
+      // Most rows of the box did not change at all (a press changes one voxel in ten).
+      if (std::memcmp(now + row, was + row, row_bytes) == 0) continue;
+      // Most changed rows keep every sign (the compensation shell moves values by a fraction
+      // of a voxel): a branch-free test, which vectorises, skips them.
+      unsigned flips = 0;
+      for (int i = lo[0]; i < hi[0]; ++i) {
+        flips |=
+            static_cast<unsigned>(now[row + i] < 0.f) ^ static_cast<unsigned>(was[row + i] < 0.f);
+      }
+      if (flips == 0) continue;
+      for (int i = lo[0]; i < hi[0]; ++i) {
+        if ((now[row + i] < 0.f) != (was[row + i] < 0.f)) {
+          out.push_back(static_cast<uint32_t>(row + i));
+        }
+      }
+    }
+  }
+  return out;
+}
+
+// Pieces of one phase that this edit cut off inside the block: pieces of material
+// (`kAir` false), which are removed, or pockets of air sealed inside the material (`kAir`
+// true), which are filled. A piece that lies wholly inside the block's interior is cut off
+// from anything reaching outside it: any path to the rest of its phase would cross the border.
+// Both phases are connected through the 6 face neighbours only. The mesh (volumeToMesh) puts
+// two samples of material that touch across an edge or a corner of their cell, with air on the
+// other diagonal, on separate sheets, so a speck joined to the clay only diagonally is a piece
+// of its own to a viewer (the demo kept such specks when the search followed 26 neighbours);
+// and air joined only diagonally may be sealed there just as well. Searching 6-pieces finds
+// every piece the mesh can show, each whole or as the 6-pieces it is made of.
+template <bool kAir>
+IslandReport FindPieces(Block& b, const EditSettings& s, const VoxelList& flipped) {
   IslandReport rep;
   const Int3 d = b.phi.dims();
   const size_t n = b.phi.size();
   auto& data = b.phi.data();
+  // The phase searched: material is phi < 0, air everything else (a zero sample is air).
+  auto in = [](float v) { return kAir ? !(v < 0.f) : v < 0.f; };
   const int64_t sx = 1, sy = d.x, sz = static_cast<int64_t>(d.x) * d.y;
-  int64_t offsets[26];
-  int no = 0;
-  for (int dk = -1; dk <= 1; ++dk)
-    for (int dj = -1; dj <= 1; ++dj)
-      for (int di = -1; di <= 1; ++di)
-        if (di || dj || dk) offsets[no++] = di * sx + dj * sy + dk * sz;
+  const int64_t offsets[6] = {-sx, sx, -sy, sy, -sz, sz};
+  constexpr int no = 6;
   // Block indices fit 32 bits (VoxelList): 32-bit divisions cost a fraction of 64-bit ones.
   const uint32_t ux = static_cast<uint32_t>(d.x), uy = static_cast<uint32_t>(d.y);
   auto coords = [&](size_t idx, int& i, int& j, int& k) {
@@ -720,16 +764,19 @@ IslandReport FindIslands(Block& b, const EditSettings& s) {
     j = static_cast<int>(row % uy);
     k = static_cast<int>(row / uy);
   };
-  // A piece can only have been cut off by this edit if it touches a voxel the edit emptied, so
-  // the search starts from the material next to those voxels, and each search walks best-first
-  // towards the nearest border: on the main body it reaches the stencil margin in a few dozen
-  // steps, and only a piece that is really cut off is explored whole. A piece reaching the
-  // margin is not known to be cut off (and its margin voxels are not written back).
+  // A piece of the phase can only be new if it holds a voxel the edit brought into the phase
+  // (material the compensation shell grew into the air, air a press opened) or touches one the
+  // edit took out of it (material a press emptied, air a bulge filled): the search starts from
+  // those, and each search walks best-first towards the nearest border. On the main body or
+  // the open air it reaches the stencil margin in a few dozen steps, and only a piece that is
+  // really cut off is explored whole. A piece reaching the margin is not known to be cut off
+  // (and its margin voxels are not written back).
   enum : uint8_t { kUnknown = 0, kConnected = 1, kQueued = 2, kIsland = 3 };
   std::vector<uint8_t> state(n, kUnknown);
-  // Material on the border: the block does not hold the whole object. The first such voxel
-  // decides, usually within the first rows.
-  bool any_border = false;
+  // Material on the border: the block does not hold the whole object (for air, which always
+  // reaches beyond the object, there is no such case). The first such voxel decides, usually
+  // within the first rows.
+  bool any_border = kAir;
   for (int k = 0; k < d.z && !any_border; ++k) {
     for (int j = 0; j < d.y && !any_border; ++j) {
       const bool row_interior = j >= kStencilMargin && k >= kStencilMargin &&
@@ -745,36 +792,25 @@ IslandReport FindIslands(Block& b, const EditSettings& s) {
     }
   }
   std::vector<uint32_t> seeds;
-  // In index order, with the coordinates from the loops (no division per voxel). An emptied
-  // voxel changed, so only the changed box is scanned.
-  const float* was = b.before.data().data();
-  const NearBox changed = b.Changed();
-  const int lo[3] = {std::max(kStencilMargin, changed.lo[0]),
-                     std::max(kStencilMargin, changed.lo[1]),
-                     std::max(kStencilMargin, changed.lo[2])};
-  const int hi[3] = {std::min(d.x - kStencilMargin, changed.hi[0]),
-                     std::min(d.y - kStencilMargin, changed.hi[1]),
-                     std::min(d.z - kStencilMargin, changed.hi[2])};
-  for (int k = lo[2]; k < hi[2]; ++k) {
-    for (int j = lo[1]; j < hi[1]; ++j) {
-      for (int i = lo[0]; i < hi[0]; ++i) {
-        const size_t idx = b.phi.Index(i, j, k);
-        if (!(was[idx] < 0.f) || data[idx] < 0.f) continue;
-        // This voxel was emptied: its material neighbours are seeds.
-        for (int o = 0; o < 26; ++o) {
-          const size_t nidx = static_cast<size_t>(static_cast<int64_t>(idx) + offsets[o]);
-          if (data[nidx] < 0.f) seeds.push_back(static_cast<uint32_t>(nidx));
-        }
-      }
+  for (uint32_t idx : flipped) {
+    if (in(data[idx])) {
+      seeds.push_back(idx);  // brought into the phase
+      continue;
+    }
+    // Taken out of the phase: its neighbours in the phase are seeds.
+    for (int o = 0; o < no; ++o) {
+      const size_t nidx = static_cast<size_t>(static_cast<int64_t>(idx) + offsets[o]);
+      if (in(data[nidx])) seeds.push_back(static_cast<uint32_t>(nidx));
     }
   }
+  if (seeds.empty()) return rep;
   auto border_distance = [&](size_t idx) {
     int i, j, k;
     coords(idx, i, j, k);
     return std::min({i, j, k, d.x - 1 - i, d.y - 1 - j, d.z - 1 - k});
   };
   struct Piece {
-    double inside = 0;
+    double volume = 0;  // voxels of the phase (inside fractions for material, outside for air)
     std::vector<uint32_t> voxels;
   };
   std::vector<Piece> pieces;
@@ -784,6 +820,17 @@ IslandReport FindIslands(Block& b, const EditSettings& s) {
   auto cmp = [](const Entry& a, const Entry& c) { return a > c; };
   for (uint32_t seed : seeds) {
     if (state[seed] != kUnknown) continue;
+    // Most seeds lie beside one an earlier search found connected (the voxels of one dent):
+    // they are settled without a search.
+    bool beside_connected = false;
+    for (int o = 0; o < no && !beside_connected; ++o) {
+      const size_t nidx = static_cast<size_t>(static_cast<int64_t>(seed) + offsets[o]);
+      beside_connected = state[nidx] == kConnected;
+    }
+    if (beside_connected) {
+      state[seed] = kConnected;
+      continue;
+    }
     visited.clear();
     heap.clear();
     state[seed] = kQueued;
@@ -800,9 +847,9 @@ IslandReport FindIslands(Block& b, const EditSettings& s) {
         connected = true;
         break;
       }
-      for (int o = 0; o < 26; ++o) {
+      for (int o = 0; o < no; ++o) {
         const size_t nidx = static_cast<size_t>(static_cast<int64_t>(idx) + offsets[o]);
-        if (data[nidx] >= 0.f) continue;
+        if (!in(data[nidx])) continue;
         if (state[nidx] == kConnected) {
           connected = true;
           break;
@@ -823,7 +870,8 @@ IslandReport FindIslands(Block& b, const EditSettings& s) {
     Piece p;
     for (uint32_t v : visited) {
       state[v] = kIsland;
-      p.inside += InsideFraction(data[v], b.eps);
+      const double f = InsideFraction(data[v], b.eps);
+      p.volume += kAir ? 1.0 - f : f;
     }
     p.voxels = visited;
     pieces.push_back(std::move(p));
@@ -835,23 +883,24 @@ IslandReport FindIslands(Block& b, const EditSettings& s) {
   }
   size_t largest = 0;
   for (size_t i = 0; i < pieces.size(); ++i) {
-    if (pieces[i].inside > pieces[largest].inside) largest = i;
+    if (pieces[i].volume > pieces[largest].volume) largest = i;
   }
   std::vector<uint8_t> remove(pieces.size(), 0);
   for (size_t i = 0; i < pieces.size(); ++i) {
     if (!any_border && i == largest) continue;  // the whole object is in the block
-    // Specks below one voxel of material are below the grid's resolution (sub-voxel debris a
-    // press leaves on a ridge): removed under kRemoveSmall like any small piece, not reported.
-    if (pieces[i].inside >= 1.0) ++rep.found;
-    const double vol = pieces[i].inside * b.dx * b.dx * b.dx;
+    // Specks and pockets below one voxel are below the grid's resolution (sub-voxel debris a
+    // press leaves on a ridge, a sample the bulge of the compensation shell sealed): handled
+    // under kRemoveSmall like any small piece, not reported.
+    if (pieces[i].volume >= 1.0) ++rep.found;
+    const double vol = pieces[i].volume * b.dx * b.dx * b.dx;
     if (s.islands == IslandPolicy::kRemoveSmall && vol < s.min_island_volume) {
       remove[i] = 1;
       ++rep.removed;
     }
   }
   if (rep.removed == 0) return rep;
-  // Distances (in 6-steps, capped) to the material that stays and to the removed pieces: the
-  // band of a removed piece is cleared only where it is nearer to it than to what stays.
+  // Distances (in 6-steps, capped) to the phase that stays and to the removed pieces: the band
+  // of a removed piece is reset only where it is nearer to it than to what stays.
   const int hw = static_cast<int>(std::ceil(b.bg / b.dx)) + 1;
   auto distance_from = [&](auto is_source) {
     std::vector<int16_t> dist(n, static_cast<int16_t>(hw + 1));
@@ -880,44 +929,45 @@ IslandReport FindIslands(Block& b, const EditSettings& s) {
     }
     return dist;
   };
-  const std::vector<int16_t> dist = distance_from([&](size_t idx) {
-    return data[idx] < 0.f && (label[idx] < 0 || !remove[label[idx]]);
-  });
-  const std::vector<int16_t> dist_removed = distance_from([&](size_t idx) {
-    return data[idx] < 0.f && label[idx] >= 0 && remove[label[idx]];
-  });
-  const double before = b.InsideChange();
+  const std::vector<int16_t> dist = distance_from(
+      [&](size_t idx) { return in(data[idx]) && (label[idx] < 0 || !remove[label[idx]]); });
+  const std::vector<int16_t> dist_removed = distance_from(
+      [&](size_t idx) { return in(data[idx]) && label[idx] >= 0 && remove[label[idx]]; });
+  const double inside_before = b.InsideChange();
+  // A removed piece takes the other phase's sign: positive distances where material goes,
+  // negative where a pocket is filled.
+  const float sign = kAir ? -1.f : 1.f;
   for (size_t i = 0; i < pieces.size(); ++i) {
     if (!remove[i]) continue;
+    rep.flipped.insert(rep.flipped.end(), pieces[i].voxels.begin(), pieces[i].voxels.end());
     for (uint32_t idx : pieces[i].voxels) {
       // Near what stays, start from the (over-estimated) step distance and let the
-      // reinitialisation below settle it.
+      // reinitialisation settle it.
       if (dist[idx] <= hw) {
-        data[idx] = std::min(b.bg, static_cast<float>(dist[idx] * b.dx));
+        data[idx] = sign * std::min(b.bg, static_cast<float>(dist[idx] * b.dx));
         int i, j, k;
         coords(idx, i, j, k);
         if (b.Interior(i, j, k)) rep.zone.push_back(idx);
       } else {
-        data[idx] = b.bg;
+        data[idx] = sign * b.bg;
       }
     }
   }
-  // Clear the positive side of the removed surfaces, and collect what needs reinitialising.
-  for (size_t idx = 0; idx < n; ++idx) {
-    const int i = static_cast<int>(idx % d.x);
-    const int j = static_cast<int>((idx / d.x) % d.y);
-    const int k = static_cast<int>(idx / (static_cast<size_t>(d.x) * d.y));
-    if (!b.Interior(i, j, k) || dist_removed[idx] > hw) continue;
-    if (data[idx] >= 0.f && data[idx] < b.bg) {
-      if (dist[idx] > hw) {
-        data[idx] = b.bg;
-      } else {
-        rep.zone.push_back(static_cast<uint32_t>(idx));
+  // Reset the other side of the removed surfaces, and collect what needs reinitialising.
+  for (int k = kStencilMargin; k < d.z - kStencilMargin; ++k) {
+    for (int j = kStencilMargin; j < d.y - kStencilMargin; ++j) {
+      for (int i = kStencilMargin; i < d.x - kStencilMargin; ++i) {
+        const size_t idx = b.phi.Index(i, j, k);
+        if (dist_removed[idx] > hw || in(data[idx]) || !(std::abs(data[idx]) < b.bg)) continue;
+        if (dist[idx] > hw) {
+          data[idx] = sign * b.bg;
+        } else {
+          rep.zone.push_back(static_cast<uint32_t>(idx));
+        }
       }
     }
   }
-  rep.removed_inside_voxels = before - b.InsideChange();
-  rep.removed_any = true;
+  rep.inside_change = b.InsideChange() - inside_before;
   return rep;
 }
 
@@ -1411,21 +1461,11 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   double reference = impl.reference_volume;
   ShellCache shell_cache;
   VoxelList reinit_extra;
-  if (touched && (kind == EditKind::kPress || kind == EditKind::kSubtract)) {
-    IslandReport islands = FindIslands(b, s);
-    res.islands_found = islands.found;
-    res.islands_removed = islands.removed;
-    res.island_volume_removed = islands.removed_inside_voxels * dx3;
-    reference -= res.island_volume_removed;  // re-baseline: that clay is gone on purpose
-    reinit_extra = std::move(islands.zone);
-  }
-  const size_t island_zone = reinit_extra.size();  // rebuilt by the band repair too
   if (!offset_kind) {
     for (size_t idx = 0; idx < emptied.size(); ++idx) {
       if (emptied[idx]) reinit_extra.push_back(static_cast<uint32_t>(idx));
     }
   }
-
   lap(res.stage_ms.islands);
 
   // Shell compensation first: its weighted offset bends |grad phi| in the shell, which the
@@ -1473,10 +1513,7 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   // Slivers emptied and the band rebuilt where the operators, the islands policy, the
   // compensation or the reinitialisation left it broken, before the last compensation restores
   // the volume that took.
-  if (resolve_slivers) {
-    for (size_t n = 0; n < island_zone; ++n) repair[reinit_extra[n]] = 1;
-    Resolve(b, repair, offset_kind);
-  }
+  if (resolve_slivers) Resolve(b, repair, offset_kind);
   lap(res.stage_ms.resolve);
 
   // Compensation once more: the reinitialisation moved the interface slightly (by far less
@@ -1505,6 +1542,46 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
     if (RemoveThinMaterial(b, repair) > 0) reference += (b.InsideChange() - inside_before) * dx3;
   }
   lap(res.stage_ms.resolve);
+
+  // Pieces of material cut off and pockets of air sealed inside the block, after every pass
+  // that moves the surface: the press and the sliver pass empty voxels and can cut pieces off,
+  // and the compensation shell's bulge and the reinitialisation move samples either way, which
+  // can leave a speck beside the surface or close a groove over a pocket of air. Under
+  // kRemoveSmall the small ones are removed or filled and their band reinitialised; like the
+  // slivers, that clay is removed or added on purpose, so the reference is re-baselined by it.
+  if (touched) {
+    // The band around what was removed or filled is reinitialised; returns the change of the
+    // block's inside sum by the removal and that reinitialisation together.
+    auto settle = [&](IslandReport& rep) {
+      double change = rep.inside_change;
+      if (rep.zone.empty() || s.reinit_iterations <= 0) return change;
+      std::sort(rep.zone.begin(), rep.zone.end());
+      rep.zone.erase(std::unique(rep.zone.begin(), rep.zone.end()), rep.zone.end());
+      const double inside_before = b.InsideChange();
+      MotionSettings m = s.motion;
+      m.spatial = s.reinit_spatial;
+      m.temporal = TemporalScheme::kRk1;  // pseudo-time: only the steady state matters
+      res.reinit_passes += Reinitialize(b.phi, rep.zone, s.reinit_iterations, dx, m, 0.5);
+      b.ClampToBand();
+      return change + b.InsideChange() - inside_before;
+    };
+    // Islands first: removing one opens air, which the voids' search then sees connected.
+    VoxelList flipped = PhaseChanges(b);
+    IslandReport islands = FindPieces<false>(b, s, flipped);
+    const double removed = -settle(islands);
+    // The islands' voxels are air now: seeds of the voids' search like any opened voxel.
+    flipped.insert(flipped.end(), islands.flipped.begin(), islands.flipped.end());
+    IslandReport voids = FindPieces<true>(b, s, flipped);
+    const double filled = settle(voids);
+    res.islands_found = islands.found;
+    res.islands_removed = islands.removed;
+    res.island_volume_removed = removed * dx3;
+    res.voids_found = voids.found;
+    res.voids_filled = voids.removed;
+    res.void_volume_filled = filled * dx3;
+    reference += res.void_volume_filled - res.island_volume_removed;
+  }
+  lap(res.stage_ms.islands);
 
   SpliceBack(impl, b, base_volume, &res);
   lap(res.stage_ms.write_back);

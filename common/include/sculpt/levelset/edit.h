@@ -38,8 +38,9 @@ enum class CompensationMethod : uint8_t {
   kGradientDescentGrad = 2,  // phi += dt (Vol - c) |grad phi| chi (seed 000 eq. 5.8, corrected)
 };
 enum class IslandPolicy : uint8_t {
-  kKeep = 0,         // report pieces split off, keep them
-  kRemoveSmall = 1,  // remove pieces below min_island_volume and re-baseline the reference
+  kKeep = 0,         // report pieces split off and pockets of air sealed, keep them
+  kRemoveSmall = 1,  // remove pieces and fill pockets below min_island_volume, re-baseline the
+                     // reference by what that removed and added
 };
 
 /// Scene-level choices for edits (the effects the scene calls for).
@@ -74,7 +75,8 @@ struct EditSettings {
   /// overshoot at the kinks a press leaves (WENO5 there made sub-voxel specks of material).
   SpatialScheme reinit_spatial = SpatialScheme::kUpwind;
   IslandPolicy islands = IslandPolicy::kKeep;
-  /// Pieces below this volume (world units^3) are removed under kRemoveSmall.
+  /// Pieces of material below this volume (world units^3) are removed under kRemoveSmall, and
+  /// pockets of air sealed inside the material below it are filled.
   double min_island_volume = 0;
   /// Accepted tool sizes, in voxels.
   double min_tool_voxels = 0.5;
@@ -101,19 +103,20 @@ struct EditRequest {
   double amount = 1.0;
 };
 
-/// What an edit did.
 /// Wall time (ms) of each stage of one edit, for profiling (sculpt-bench edit reports them). The
-/// stages run in this order and together make up about `EditResult::elapsed_ms`.
+/// stages run in this order (the islands and voids search last, before the write-back) and
+/// together make up about `EditResult::elapsed_ms`.
 struct EditStageTimes {
   double block = 0;         // copy-in of the block and the tools' distance field
   double operators = 0;     // the kind's operator (a press's motion substeps)
-  double islands = 0;       // sliver scan and islands search
+  double islands = 0;       // sliver scan, islands and voids search and their repair
   double compensation = 0;  // every shell compensation pass
   double reinit = 0;        // Eikonal measure and reinitialisation
   double resolve = 0;       // sliver and band-repair rounds (inflate, deflate, box tools)
   double write_back = 0;    // material fractions, write-back and volume tracking
 };
 
+/// What an edit did.
 struct EditResult {
   bool changed = false;
   std::vector<Int3> dirty_leaves;
@@ -136,6 +139,13 @@ struct EditResult {
   int islands_found = 0;
   int islands_removed = 0;
   double island_volume_removed = 0;
+  /// Pockets of air the edit sealed inside the material (at least one voxel of air; a smaller
+  /// pocket is below the grid's resolution and filled under kRemoveSmall without being counted),
+  /// and how many it filled under kRemoveSmall (pockets below min_island_volume).
+  int voids_found = 0;
+  int voids_filled = 0;
+  /// Material added by filling them (world units^3; the reference volume grows by it).
+  double void_volume_filled = 0;
   bool press_fallback_csg = false;  // the flow stalled (no interface reached) and CSG finished it
   double elapsed_ms = 0;
   EditStageTimes stage_ms;
