@@ -32,8 +32,8 @@ constexpr int kRounds = 20;
 constexpr int kSculptors = 4;
 constexpr int kRateHz = 60;
 
-// One simulated sculptor: a 2-pose stroke every 1/60 s; a closed connection is reconnected
-// through the members it was given, as the client library does it (Reconnect).
+// One simulated sculptor: a 2-pose stroke every 1/60 s while joined; a closed connection is
+// reconnected through the members it was given (Reconnect), with a back-off.
 class Sculptor {
  public:
   Sculptor(int index, uint16_t port, std::vector<std::string> members)
@@ -73,26 +73,37 @@ class Sculptor {
   void Run() {
     auto next = Clock::now();
     bool reconnect = false;
+    Clock::time_point retry_at{};
+    milliseconds backoff(50);
     while (!stop_) {
       next += std::chrono::microseconds(1000000 / kRateHz);
       std::this_thread::sleep_until(next);
       sculpt::client::StrokeRequest stroke;
       const double x = -6.0 + 3.0 * index_, y = (sent_ % 24) * 0.25;
       stroke.poses = {{{x, y, 22.5}, 0}, {{x, y + 0.2, 22.5}, 8}};
-      if (client_.SendStroke(stroke).ok()) ++sent_;
+      // A sculptor's hand waits while the client says it is reconnecting: what was in flight at
+      // the failure is resent on the new connection, nothing piles up behind it (a backlog of
+      // seconds would run into the stroke rate limit and be refused).
+      if (client_.joined() && client_.SendStroke(stroke).ok()) ++sent_;
       for (const sculpt::client::Event& e : client_.DrainEvents()) {
         if (e.type == sculpt::client::Event::Type::kAck) {
           last_ack_ns_ = Clock::now().time_since_epoch().count();
         }
         if (e.type == sculpt::client::Event::Type::kDisconnected) reconnect = true;
       }
-      if (reconnect) {
+      // A failed reconnect waits before the next, doubling from 50 ms to 800 ms: the members
+      // limit connections per second from one address, and 4 sculptors retrying at 60 Hz
+      // through 3 members each exceed it.
+      if (reconnect && Clock::now() >= retry_at) {
         const Status r = client_.Reconnect();
         if (r.ok()) {
           reconnect = false;
+          backoff = milliseconds(50);
         } else {
           std::lock_guard<std::mutex> lock(mu_);
           last_error_ = r.ToString();
+          retry_at = Clock::now() + backoff;
+          backoff = std::min(backoff * 2, milliseconds(800));
         }
       }
       if (reconnect) next = Clock::now();  // a failed reconnect took its time; no burst after
