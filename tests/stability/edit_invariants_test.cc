@@ -13,33 +13,14 @@
 #include "sculpt/levelset/invariants.h"
 #include "sculpt/mesh/chunk_mesher.h"
 #include "sculpt/mesh/mesh_stats.h"
+#include "stability/server_scene.h"
 
 namespace sculpt::levelset {
 namespace {
 
-constexpr double kSphereRadius = 24.0;  // the default scene's clay
-
-SculptureOptions ServerOpts() {
-  SculptureOptions o;
-  o.voxel_size = 0.5;
-  o.half_width = 6;
-  o.name = "clay";
-  return o;
-}
-
-// What server::EditSettingsFor makes of deploy/scene.toml (the stability tests do not link the
-// server).
-EditSettings ServerSettings() {
-  EditSettings e;
-  e.compensation = CompensationRegion::kShell;
-  e.islands = IslandPolicy::kRemoveSmall;
-  e.min_island_volume = 8.0;
-  e.min_tool_voxels = 0.5 / 0.5;
-  e.max_tool_voxels = 16.0 / 0.5;
-  e.max_speed_voxels = 2000.0 / 0.5;
-  e.max_amount_voxels = 8.0 / 0.5;
-  return e;
-}
+using testing::kSphereRadius;
+using testing::ServerOpts;
+using testing::ServerSettings;
 
 // The invariants of issue 11 after one edit: the whole mesh (MeshWhole: what the GLB export
 // writes and the chunks assemble to) is one closed, outward piece enclosing the tracked volume,

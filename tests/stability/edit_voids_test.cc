@@ -16,32 +16,14 @@
 #include "sculpt/levelset/edit.h"
 #include "sculpt/mesh/chunk_mesher.h"
 #include "sculpt/mesh/mesh_stats.h"
+#include "stability/server_scene.h"
 
 namespace sculpt::levelset {
 namespace {
 
-constexpr double kSphereRadius = 24.0;  // the default scene's clay
-
-SculptureOptions ServerOpts() {
-  SculptureOptions o;
-  o.voxel_size = 0.5;
-  o.half_width = 6;
-  o.name = "clay";
-  return o;
-}
-
-// What server::EditSettingsFor makes of deploy/scene.toml (as edit_invariants_test.cc).
-EditSettings ServerSettings() {
-  EditSettings e;
-  e.compensation = CompensationRegion::kShell;
-  e.islands = IslandPolicy::kRemoveSmall;
-  e.min_island_volume = 8.0;
-  e.min_tool_voxels = 0.5 / 0.5;
-  e.max_tool_voxels = 16.0 / 0.5;
-  e.max_speed_voxels = 2000.0 / 0.5;
-  e.max_amount_voxels = 8.0 / 0.5;
-  return e;
-}
+using testing::kSphereRadius;
+using testing::ServerOpts;
+using testing::ServerSettings;
 
 // The mesh's face-connected pieces, each with its signed volume: the outer surface encloses a
 // positive volume, a sealed air pocket is an inward-wound shell (negative), a speck positive.
