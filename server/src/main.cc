@@ -275,6 +275,9 @@ int main(int argc, char** argv) {
   user_list->add_option("--users", user_file, "Users file")->required();
 
   CLI11_PARSE(app, argc, argv);
+  // Each line reaches the log as it is written: stdout redirected to a file is block-buffered,
+  // and a process killed with SIGKILL (a failover, a crash) would lose the lines that explain it.
+  spdlog::flush_on(spdlog::level::info);
 
   if (user->parsed()) return UserCommand(user_add->parsed() ? "add" : user_remove->parsed() ? "remove" : "list",
                                          user_file, user_name, user_role);
