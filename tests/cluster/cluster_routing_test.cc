@@ -72,6 +72,15 @@ class ClusterRoutingTest : public sculpt::testing::EtcdTest {
     auto e = DecodeEpoch((*kv)->value);
     return e.ok() ? std::optional<EpochRecord>(*e) : std::nullopt;
   }
+  // Waits (15 s at most) until `member` is the named standby and its copy follows the scene.
+  bool StandbyFollows(const std::string& member) {
+    return WaitFor(
+        [&] {
+          auto m = MemberOf(member);
+          return Standby() && Standby()->member == member && m && m->follows == "default";
+        },
+        milliseconds(15000));
+  }
   bool HasKey(const std::string& key) {
     auto kv = etcd_client_->Sync(etcd_client_->Get(key));
     return kv.ok() && kv->has_value();
@@ -362,12 +371,7 @@ TEST_F(ClusterRoutingTest, SyncStandbyHasEveryAcknowledgedStrokeWhenTheOwnerIsKi
   ASSERT_EQ(Owner()->member, "a");
   Member& b = Start("b", "replication = \"sync\"\nsync_fallback_ms = 300\n");
   ASSERT_NE(b.WaitPort(), 0) << "member b did not start; see " << dir_.path() / "b.log";
-  ASSERT_TRUE(WaitFor(
-      [&] {
-        auto m = MemberOf("b");
-        return Standby() && Standby()->member == "b" && m && m->follows == "default";
-      },
-      milliseconds(15000)))
+  ASSERT_TRUE(StandbyFollows("b"))
       << "b's copy never completed; see " << dir_.path() / "b.log";
   {
     // Only the named standby's session may say how far a copy is durable: a subscribed viewer
@@ -511,12 +515,7 @@ TEST_F(ClusterRoutingTest, SyncOwnerHoldsAcksWhileItsStandbyIsStoppedThenFallsBa
   ASSERT_TRUE(WaitFor([&] { return Owner().has_value(); }, milliseconds(5000)));
   Member& b = Start("b", "replication = \"sync\"\n");
   ASSERT_NE(b.WaitPort(), 0) << "member b did not start; see " << dir_.path() / "b.log";
-  ASSERT_TRUE(WaitFor(
-      [&] {
-        auto m = MemberOf("b");
-        return Standby() && Standby()->member == "b" && m && m->follows == "default";
-      },
-      milliseconds(15000)))
+  ASSERT_TRUE(StandbyFollows("b"))
       << "b's copy never completed; see " << dir_.path() / "b.log";
   auto a_log = [&] {
     std::ifstream in(dir_.path() / "a.log");
@@ -766,12 +765,7 @@ TEST_F(ClusterRoutingTest, PausedOwnerAcknowledgesNothingAfterItsLeaseIsGone) {
   ASSERT_TRUE(WaitFor([&] { return Owner().has_value(); }, milliseconds(5000)));
   Member& b = Start("b");
   ASSERT_NE(b.WaitPort(), 0) << "member b did not start; see " << dir_.path() / "b.log";
-  ASSERT_TRUE(WaitFor(
-      [&] {
-        auto m = MemberOf("b");
-        return Standby().has_value() && Standby()->member == "b" && m && m->follows == "default";
-      },
-      milliseconds(15000)))
+  ASSERT_TRUE(StandbyFollows("b"))
       << "b did not become a's standby; see " << dir_.path() / "b.log";
 
   sculpt::client::ClientOptions options;
