@@ -283,6 +283,45 @@ TEST_F(LimitsTest, ReconnectingDoesNotEvadeTheStrokeLimit) {
   EXPECT_NE(range.find("per source address"), std::string::npos) << range;
 }
 
+// A client that reconnects resends what it has not seen acknowledged, at once (after a failover,
+// seconds of strokes). What the scene had already committed is answered as a duplicate without
+// tokens, so the burst is not refused; replaying those sequences again is charged as usual.
+TEST_F(LimitsTest, ResendsOfCommittedStrokesAfterAReconnectTakeNoTokensButReplaysDo) {
+  config_.limits.strokes_per_second = 1;
+  config_.limits.stroke_burst = 6;
+  config_.limits.source_rate_factor = 1;
+  Start();
+  const uint64_t id = 0x5eed0000u + static_cast<uint64_t>(::getpid());
+  {
+    RawClient a(port_);
+    ASSERT_TRUE(a.Enter(kSculptor, v1::ROLE_SCULPTOR, id));
+    for (int i = 1; i <= 6; ++i) a.Send(RawClient::PressStroke(i, {0, 0, 13.3}));
+    ASSERT_EQ(CountAcks(a, 6, "strokes_per_second").first, 6);
+  }
+  // Same client, new connection, same address: the address's bucket is empty.
+  RawClient b(port_);
+  ASSERT_TRUE(b.Enter(kSculptor, v1::ROLE_SCULPTOR, id));
+  for (int i = 1; i <= 6; ++i) b.Send(RawClient::PressStroke(i, {0, 0, 13.3}));
+  int duplicates = 0, refused = 0;
+  for (int answers = 0; answers < 6;) {
+    auto m = b.Read();
+    ASSERT_TRUE(m.has_value()) << "after " << answers << " answers";
+    if (m->has_ack()) duplicates += m->ack().duplicate() ? 1 : 0;
+    if (m->has_error()) {
+      ++refused;
+      ADD_FAILURE() << m->error().ShortDebugString();
+    }
+    answers += (m->has_ack() || m->has_error()) ? 1 : 0;
+  }
+  EXPECT_EQ(duplicates, 6);
+  EXPECT_EQ(refused, 0);
+  // The same sequences once more on this connection are no longer resends of a reconnect.
+  for (int i = 1; i <= 6; ++i) b.Send(RawClient::PressStroke(i, {0, 0, 13.3}));
+  const auto [acks, replays_refused] = CountAcks(b, 6, "strokes_per_second");
+  EXPECT_LE(acks, 1);  // at most the token refilled meanwhile
+  EXPECT_GE(replays_refused, 5);
+}
+
 // A job on the compute thread is never interrupted, so a stroke's kernel work is bounded: a
 // long stroke is refused naming the limit and how many of its poses fit, those poses are
 // accepted, one more is not, and a single pose of any allowed tool is always accepted.

@@ -36,6 +36,9 @@ constexpr size_t kStateAllowanceBytes = 64u << 20;
 constexpr auto kByeGrace = std::chrono::milliseconds(500);
 // How long a client being disconnected for violations waits for its accepted strokes' acks.
 constexpr auto kDrainLimit = std::chrono::seconds(5);
+// Resends of committed requests a connection may send without tokens: a stroke burst and this
+// many seconds of strokes at limits.strokes_per_second (Session::FreeResend).
+constexpr double kFreeResendSeconds = 5.0;
 
 // Whose share of the scene's compute thread a session's requests take (Scene::RequesterScope):
 // a named user's, wherever it connects from, else its source address's, like the rate budgets.
@@ -343,6 +346,10 @@ void Session::OnJoinState(StatusOr<JoinState> js) {
     joined_flag_ = false;
     return SendStatus(js.status());
   }
+  committed_at_join_ = js->committed_up_to;
+  const LimitsConfig& limits = server_.config().limits;
+  free_resends_left_ = static_cast<uint64_t>(
+      std::max(0.0, limits.stroke_burst + limits.strokes_per_second * kFreeResendSeconds));
   v1::ServerMessage info;
   *info.mutable_scene_info() = ToWireSceneInfo(js->info);
   Send(info);
@@ -663,7 +670,8 @@ void Session::OnJoin(const v1::JoinScene& j) {
     return Send(info);
   }
   server_.scene().RequestJoinState(
-      [self = shared_from_this()](StatusOr<JoinState> js) { self->OnJoinState(std::move(js)); });
+      [self = shared_from_this()](StatusOr<JoinState> js) { self->OnJoinState(std::move(js)); },
+      client_id_);
 }
 
 void Session::OnStroke(const v1::Stroke& s, Clock::time_point received) {
@@ -678,7 +686,10 @@ void Session::OnStroke(const v1::Stroke& s, Clock::time_point received) {
                             "{ROLE_SCULPTOR}", "viewers may not edit", s.client_seq()));
     return Violation();
   }
-  if (!TakeEditTokens(static_cast<double>(s.pose_count()), received, s.client_seq())) return;
+  if (!TakeEditTokens(static_cast<double>(s.pose_count()), received, ResendStream::kStrokes,
+                      s.client_seq())) {
+    return;
+  }
   auto limits = server_.scene().LimitsFor(s.object());
   if (!limits.ok()) {
     server_.stats().strokes_refused++;
@@ -852,7 +863,7 @@ void Session::OnContourSubscribe(const v1::ContourSubscribe& c) {
 
 // Ball edits, sweeps, paints and model intents are strokes too: joined sculptors only, the
 // stroke token bucket, every field checked here before the scene sees it.
-bool Session::MayEdit(const char* what, uint64_t seq) {
+bool Session::MayEdit(const char* what, ResendStream stream, uint64_t seq) {
   if (!joined_) {
     SendError(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, what, "before JoinScene",
                             "after JoinScene", "join a scene first", seq));
@@ -866,14 +877,31 @@ bool Session::MayEdit(const char* what, uint64_t seq) {
     Violation();
     return false;
   }
-  return TakeEditTokens(0, Clock::now(), seq);
+  return TakeEditTokens(0, Clock::now(), stream, seq);
+}
+
+// A client that reconnects (to a restarted server, or to a new owner after a failover) resends
+// everything it has not seen acknowledged, at once. Those the scene had committed are answered as
+// duplicates and cost it next to nothing, so they take no tokens: charged, the burst ran into the
+// stroke bucket, and a refused resend reads to the client as a refused stroke although it was
+// applied. Free only in increasing order and up to an allowance per connection (a burst and
+// kFreeResendSeconds of strokes), so replaying old sequences is no way around the limits.
+bool Session::FreeResend(ResendStream stream, uint64_t seq) {
+  const size_t i = static_cast<size_t>(stream);
+  if (i >= kResendStreams || free_resends_left_ == 0) return false;
+  if (seq > committed_at_join_[i] || seq <= last_free_resend_[i]) return false;
+  last_free_resend_[i] = seq;
+  --free_resends_left_;
+  return true;
 }
 
 // The connection's own bucket first, then the ones it shares: a refusal names the one that
 // ran out. Tokens taken from an earlier bucket of a refused edit are not given back (the
 // refusal itself was work).
-bool Session::TakeEditTokens(double poses, Clock::time_point now, uint64_t seq) {
+bool Session::TakeEditTokens(double poses, Clock::time_point now, ResendStream stream,
+                             uint64_t seq) {
   using Kind = SharedBudget::Kind;
+  if (FreeResend(stream, seq)) return true;
   struct Shared {
     SharedBudget* budget;
     const char* scope;
@@ -993,7 +1021,7 @@ void Session::OnPartialFrame(bool partial) {
 }
 
 void Session::OnSkinBallEdit(const v1::SkinBallEdit& e) {
-  if (!MayEdit("SkinBallEdit", e.client_seq())) return;
+  if (!MayEdit("SkinBallEdit", ResendStream::kBallEdits, e.client_seq())) return;
   auto edit = codec::DecodeSkinBallEdit(e);
   if (!edit.ok()) {
     OnSkinAck(ToWireAck(SkinOutcome{edit.status(), e.client_seq()}));
@@ -1006,7 +1034,7 @@ void Session::OnSkinBallEdit(const v1::SkinBallEdit& e) {
 }
 
 void Session::OnSkinSweep(const v1::SkinSweep& s) {
-  if (!MayEdit("SkinSweep", s.client_seq())) return;
+  if (!MayEdit("SkinSweep", ResendStream::kSweeps, s.client_seq())) return;
   auto sweep = codec::DecodeSkinSweep(s);
   if (!sweep.ok()) {
     OnSkinAck(ToWireAck(SkinOutcome{sweep.status(), s.client_seq()}));
@@ -1019,7 +1047,7 @@ void Session::OnSkinSweep(const v1::SkinSweep& s) {
 }
 
 void Session::OnPaint(const v1::PaintEdit& p) {
-  if (!MayEdit("PaintEdit", p.client_seq())) return;
+  if (!MayEdit("PaintEdit", ResendStream::kPaints, p.client_seq())) return;
   auto refuse = [&](const Status& st) {
     OnPaintAck(ToWireAck(PaintOutcome{st, p.client_seq()}));
     Violation();
@@ -1038,7 +1066,7 @@ void Session::OnPaint(const v1::PaintEdit& p) {
 }
 
 void Session::OnModelIntent(const v1::ModelIntent& mi) {
-  if (!MayEdit("ModelIntent", mi.client_seq())) return;
+  if (!MayEdit("ModelIntent", ResendStream::kModels, mi.client_seq())) return;
   auto edit = codec::DecodeModelIntent(mi);
   if (!edit.ok()) {
     ModelOutcome refused;
@@ -1054,7 +1082,7 @@ void Session::OnModelIntent(const v1::ModelIntent& mi) {
 }
 
 void Session::OnUndo(const v1::UndoRequest& u) {
-  if (!MayEdit("UndoRequest", u.client_seq())) return;
+  if (!MayEdit("UndoRequest", ResendStream::kUndos, u.client_seq())) return;
   auto command = codec::DecodeUndo(u);
   if (!command.ok()) {
     // Answered in the UndoAck like any refused undo (as the scene's refusals are), not counted

@@ -4,6 +4,7 @@
 #ifndef SCULPT_SERVER_NET_SESSION_H_
 #define SCULPT_SERVER_NET_SESSION_H_
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -125,10 +126,17 @@ class Session : public std::enable_shared_from_this<Session> {
   void OnReplicaProgress(const v1::ReplicaProgress& p);
 
   // Checks shared by the edits that are not strokes: joined, sculptor, the stroke bucket.
-  bool MayEdit(const char* what, uint64_t client_seq);
+  bool MayEdit(const char* what, ResendStream stream, uint64_t client_seq);
   // Takes one stroke and `poses` poses from this connection's, the source's and the user's
   // buckets; false, with the refusal sent and counted as a violation, when one has too few.
-  bool TakeEditTokens(double poses, Clock::time_point now, uint64_t client_seq);
+  // A resend of a request the scene had committed when this client joined takes nothing (see
+  // FreeResend).
+  bool TakeEditTokens(double poses, Clock::time_point now, ResendStream stream,
+                      uint64_t client_seq);
+  // True for a request the scene will answer as a duplicate without applying: at or below the
+  // client's committed sequence at join, above the last such request of its stream, and within
+  // the connection's allowance of free resends.
+  bool FreeResend(ResendStream stream, uint64_t client_seq);
   // Takes `cost` from the request buckets; false, refused as above, when one has too few.
   bool Charge(const char* what, double cost, Clock::time_point now);
   // Timeouts after authentication: join (armed at Welcome), idle (armed at join), an
@@ -191,6 +199,11 @@ class Session : public std::enable_shared_from_this<Session> {
   RateLimiter strokes_;  // strokes and every other edit message
   RateLimiter poses_;    // each pose is an edit: bounds the work one client queues
   RateLimiter requests_;  // every request that is not an edit, by its cost
+  // Resends after a reconnect (FreeResend): what the scene had committed of this client's
+  // streams when it joined, the last free resend per stream, and how many may still go free.
+  std::array<uint64_t, kResendStreams> committed_at_join_{};
+  std::array<uint64_t, kResendStreams> last_free_resend_{};
+  uint64_t free_resends_left_ = 0;
   int violations_ = 0;
   // Strokes handed to the scene and not yet answered. A client disconnected for its violations
   // first gets the acks of these (draining_), so no applied stroke is reported as lost.

@@ -40,6 +40,7 @@ enum class ResendStream : uint8_t {
   kSweeps = 4,
   kUndos = 5,  // undo and redo requests share one sequence
 };
+inline constexpr size_t kResendStreams = 6;
 
 /// The name an author's strokes are filed under in the undo history: its client id (bound to the
 /// authenticated user on a server with named users).
@@ -59,6 +60,11 @@ class ResendFilter {
   void Record(ResendStream stream, uint64_t client_id, uint64_t client_seq) {
     uint64_t& last = last_[{static_cast<uint8_t>(stream), client_id}];
     if (client_seq > last) last = client_seq;
+  }
+  /// The client's newest committed sequence in `stream`; 0 when it has none.
+  uint64_t CommittedUpTo(ResendStream stream, uint64_t client_id) const {
+    auto it = last_.find({static_cast<uint8_t>(stream), client_id});
+    return it != last_.end() ? it->second : 0;
   }
   /// The table as saved beside snapshots (store::ResendTable::last).
   const std::map<Key, uint64_t>& entries() const { return last_; }

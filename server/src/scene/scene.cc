@@ -723,7 +723,7 @@ size_t Scene::pending_joins() const {
   return joins_pending_;
 }
 
-void Scene::RequestJoinState(std::function<void(StatusOr<JoinState>)> done) {
+void Scene::RequestJoinState(std::function<void(StatusOr<JoinState>)> done, uint64_t client_id) {
   const size_t limit = config_.limits.max_pending_joins;
   {
     std::unique_lock<std::mutex> lock(join_mu_);
@@ -753,7 +753,7 @@ void Scene::RequestJoinState(std::function<void(StatusOr<JoinState>)> done) {
         done(std::move(result));
       }));
   auto fail = [answer](const Status& st) { answer(st); };
-  Post(CurrentRequester(), "join state copy", fail, [this, answer, fail] {
+  Post(CurrentRequester(), "join state copy", fail, [this, answer, fail, client_id] {
     // Only the deep copies happen on the compute thread (milliseconds); serialising them waits
     // for the join worker, so a late joiner never stalls the others' edits.
     auto info = std::make_shared<SceneSummary>();
@@ -763,12 +763,17 @@ void Scene::RequestJoinState(std::function<void(StatusOr<JoinState>)> done) {
     }
     auto copies = std::make_shared<std::vector<std::pair<std::string, levelset::Sculpture>>>();
     for (auto& [name, s] : sculptures_) copies->emplace_back(name, s.Clone());
+    std::array<uint64_t, kResendStreams> committed{};
+    for (size_t i = 0; i < kResendStreams; ++i) {
+      committed[i] = resend_.CommittedUpTo(static_cast<ResendStream>(i), client_id);
+    }
     JoinWork work;
     work.fail = fail;
-    work.run = [answer, info, copies](bool cancelled) {
+    work.run = [answer, info, copies, committed](bool cancelled) {
       if (cancelled) return answer(Status(Status::Code::kUnavailable, "scene is shutting down"));
       JoinState js;
       js.info = *info;
+      js.committed_up_to = committed;
       for (size_t i = 0; i < copies->size(); ++i) {
         auto& [name, copy] = (*copies)[i];
         auto bytes = copy.SerializeVdb();

@@ -3,6 +3,7 @@
 #ifndef SCULPT_SERVER_SCENE_SCENE_H_
 #define SCULPT_SERVER_SCENE_SCENE_H_
 
+#include <array>
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
@@ -68,6 +69,10 @@ struct StrokeOutcome {
 struct JoinState {
   SceneSummary info;  // each object's state_hash set
   std::vector<std::pair<std::string, std::string>> objects;  // name, .vdb bytes
+  /// The joining client's newest committed client_seq per ResendStream (indexed by its value)
+  /// when the copy was taken: its requests up to there are resends the scene answers as
+  /// duplicates without applying them again.
+  std::array<uint64_t, kResendStreams> committed_up_to{};
 };
 
 /// The scene actor. Edits are applied in global-sequence order on one compute thread (one
@@ -93,7 +98,8 @@ class Scene {
   /// stalls the others' edits. At most limits.max_pending_joins joins are in progress at once;
   /// past it `done` gets ResourceExhausted naming that limit at once (nothing is copied).
   /// Unavailable when the scene is shutting down; Internal naming the step when one threw.
-  void RequestJoinState(std::function<void(StatusOr<JoinState>)> done);
+  /// `client_id` names the joiner whose resend position goes into JoinState::committed_up_to.
+  void RequestJoinState(std::function<void(StatusOr<JoinState>)> done, uint64_t client_id = 0);
   /// Late joins admitted and not yet answered (waiting for a copy, for the worker, or being
   /// serialised).
   size_t pending_joins() const;
