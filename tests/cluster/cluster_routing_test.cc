@@ -206,14 +206,35 @@ TEST_F(ClusterRoutingTest, StandbyTakesOverWithEveryReplicatedStrokeAfterTheOwne
   ASSERT_NE(a.WaitPort(), 0) << "member a did not start; see " << dir_.path() / "a.log";
   ASSERT_TRUE(WaitFor([&] { return Owner().has_value(); }, milliseconds(5000)));
   ASSERT_EQ(Owner()->member, "a");
+  // Strokes acknowledged before b follows reach b in its region load, not in its log: the load
+  // carries a's resend table, so after the takeover resends of these are duplicates too.
+  const uint64_t early_id = 0xea1700000000u + static_cast<uint64_t>(::getpid());
+  constexpr int kEarly = 3;
+  auto send_early = [&](uint16_t port, bool resend) {
+    sculpt::testing::RawClient early(port);
+    early.SetTimeoutMs(5000);
+    ASSERT_TRUE(early.Enter("sculpt-dev-sculptor", v1::ROLE_SCULPTOR, early_id));
+    for (int i = 1; i <= kEarly; ++i) {
+      v1::ClientMessage m = sculpt::testing::RawClient::PressStroke(i, {0, 0, 22.5}, 3);
+      m.mutable_stroke()->set_object(early.info().objects(0).name());
+      ASSERT_TRUE(early.Send(m));
+      auto ack = early.ReadUntil(v1::ServerMessage::kAck);
+      ASSERT_TRUE(ack.has_value()) << "no ack for early stroke " << i;
+      EXPECT_EQ(ack->ack().duplicate(), resend)
+          << "early stroke " << i
+          << (resend ? " (acknowledged before b followed) was applied again on the new owner"
+                     : " was taken for a resend");
+    }
+  };
+  send_early(a.port(), /*resend=*/false);
   Member& b = Start("b", "", snap10);
   ASSERT_NE(b.WaitPort(), 0) << "member b did not start; see " << dir_.path() / "b.log";
   ASSERT_TRUE(WaitFor([&] { return Standby().has_value() && Standby()->member == "b"; },
                       milliseconds(5000)))
       << "a named no standby; see " << dir_.path() / "a.log";
   EXPECT_EQ(Standby()->epoch, 1u);
-  // b's copy complete before anyone sculpts: its log then holds every stroke (a stroke made
-  // before the copy's region load is in its first snapshot, not in its log or resend table).
+  // b's copy complete before the client sculpts: its log then holds every stroke of the client
+  // (the early strokes are in the copy's first snapshot and the resend table that came with it).
   ASSERT_TRUE(WaitFor(
       [&] {
         auto m = MemberOf("b");
@@ -317,6 +338,10 @@ TEST_F(ClusterRoutingTest, StandbyTakesOverWithEveryReplicatedStrokeAfterTheOwne
   EXPECT_GE(again.stats().redirects, 2u);
   ASSERT_EQ(rejoined->info.objects_size(), 1);
   EXPECT_EQ(rejoined->info.global_seq(), acked_seq);
+  {
+    const std::string& tcp = Owner()->tcp;
+    send_early(static_cast<uint16_t>(std::stoi(tcp.substr(tcp.rfind(':') + 1))), /*resend=*/true);
+  }
   {
     auto s = levelset::Sculpture::DeserializeVdb(rejoined->state.at(rejoined->info.objects(0).name()));
     ASSERT_TRUE(s.ok()) << s.status();

@@ -24,6 +24,12 @@ SharedFrame EncodeLeafDelta(LeafDeltaFrame delta) {
   d->set_edits_since_reinit(delta.state.edits_since_reinit);
   d->set_client_id(delta.client_id);
   d->set_client_seq(delta.client_seq);
+  for (const auto& [key, client_seq] : delta.resend_table) {
+    v1::ResendEntry* e = d->add_resend_table();
+    e->set_stream(key.first);
+    e->set_client_id(key.second);
+    e->set_client_seq(client_seq);
+  }
   return EncodeSharedFrame(m);
 }
 

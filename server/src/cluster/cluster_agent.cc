@@ -423,6 +423,11 @@ asio::awaitable<void> ClusterAgent::TendStandby() {
     } else {
       spdlog::info("cluster: member {} is the standby of scene {} (epoch {})", *pick, scene_,
                    record.epoch);
+      // Routing knows at once, not at the next Refresh: the standby may subscribe before it, and
+      // its session is told apart by this name (its progress reports and the resend table that
+      // comes with its region load).
+      std::lock_guard<std::mutex> lock(mu_);
+      scenes_[scene_].standby = record;
     }
     co_return;
   }

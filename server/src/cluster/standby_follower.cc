@@ -270,10 +270,11 @@ void StandbyFollower::Run() {
   // The object as held now, durable at `seq`: after a region load, or an edit the log cannot
   // hold. The first one completes the generation: its log starts after it and CURRENT names it.
   auto snapshot = [&](uint64_t seq) -> Status {
-    if (im.log) {
-      // As the owner: the log durable, the resend table at seq, the snapshot, a new segment;
-      // the segments before the previous snapshot go (a damaged newest one leaves the older).
-      SCULPT_RETURN_IF_ERROR(im.log->Sync());
+    // As the owner: the log durable, the resend table at seq, the snapshot, a new segment;
+    // the segments before the previous snapshot go (a damaged newest one leaves the older).
+    // The first snapshot (the region load) has no log before it but its table all the same.
+    if (im.log) SCULPT_RETURN_IF_ERROR(im.log->Sync());
+    {
       store::ResendTable table;
       table.seq = seq;
       table.last = im.resend;
@@ -334,6 +335,26 @@ void StandbyFollower::Run() {
       }
       levelset::RestoreReplayState(*im.sculpture,
                                    {d.volume(), d.reference_volume(), d.edits_since_reinit()});
+      if (d.replace_region()) {
+        // The owner's resend table at the load's sequence: without it, a client resending an
+        // edit inside the load after a failover would have it applied twice.
+        if (d.resend_table_size() == 0 && d.global_seq() > 0) {
+          spdlog::warn("cluster: standby: the region load at seq {} came without the owner's "
+                       "resend table (not yet named standby there?): resends of edits before it "
+                       "may be applied again after a failover",
+                       d.global_seq());
+        }
+        if (d.resend_table_size() > 0) im.resend.clear();  // else what the log gave stays
+        for (const v1::ResendEntry& e : d.resend_table()) {
+          if (e.stream() > static_cast<uint32_t>(ResendStream::kUndos)) {
+            spdlog::warn("cluster: standby: resend entry of stream {} outside [0, {}] ignored",
+                         e.stream(), static_cast<int>(ResendStream::kUndos));
+            continue;
+          }
+          uint64_t& newest = im.resend[{static_cast<uint8_t>(e.stream()), e.client_id()}];
+          newest = std::max(newest, e.client_seq());
+        }
+      }
       im.seq = std::max(im.seq, d.global_seq());
       return snapshot(d.global_seq());
     }

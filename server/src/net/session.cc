@@ -731,6 +731,13 @@ ReplicaSink Session::Sink() {
   ReplicaSink sink;
   sink.session_id = id_;
   sink.client_id = client_id_;
+  // Cluster mode: the scene's named standby (as its Hello names it, like ReplicaProgress) gets
+  // the resend table with its region loads.
+  if (const cluster::SceneRouter* router = server_.router()) {
+    const cluster::Route route = router->RouteScene("");
+    sink.standby = route.kind == cluster::Route::Kind::kLocal && !route.standby.empty() &&
+                   user_ == "standby-" + route.standby;
+  }
   // Weak: a subscription the scene still holds must not keep a closed session alive.
   std::weak_ptr<Session> weak = shared_from_this();
   sink.send = [weak](std::shared_ptr<const std::string> frame) {

@@ -15,6 +15,7 @@ namespace sculpt::server {
 struct ReplicaSink {
   uint64_t session_id = 0;
   uint64_t client_id = 0;
+  bool standby = false;  // cluster mode: the session of the scene's named standby
   std::function<void(std::shared_ptr<const std::string>)> send;
 };
 

@@ -63,12 +63,14 @@ void ReplicationHub::SendRegion(Sub& sub, const levelset::Sculpture& sculpture, 
   d.replace_region = replace;
   d.region = box;
   d.state = levelset::CaptureReplayState(sculpture);
+  if (replace && sub.sink.standby && resend_table_) d.resend_table = *resend_table_;
   codec::SharedFrame frame = codec::EncodeLeafDelta(std::move(d));
   stats_.resyncs++;
   stats_.leaf_delta_bytes += frame->size();
-  spdlog::info("replica {}: region of {} leaf cells ({} leaves) to seq {}, {} bytes{}",
+  spdlog::info("replica {}: region of {} leaf cells ({} leaves) to seq {}, {} bytes{}{}",
                sub.sink.session_id, cells.size(), st.leaves, seq, frame->size(),
-               replace ? " (replace)" : "");
+               replace ? " (replace)" : "",
+               replace && sub.sink.standby ? " with the resend table, to the standby" : "");
   sub.sink.send(std::move(frame));
 }
 

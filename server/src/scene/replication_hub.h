@@ -9,6 +9,7 @@
 #include <functional>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "scene/replica_sink.h"
@@ -58,6 +59,11 @@ class ReplicationHub {
   /// Leaf versions are known only for edits after `seq` (the sequence recovery ended at): a
   /// replica holding an older state loads its region anew instead of the leaves since.
   void set_versions_floor(uint64_t seq) { versions_floor_ = seq; }
+  /// The scene's resend table ((stream, client id) -> newest client_seq, read on the compute
+  /// thread only): a region load to the scene's standby carries it, so a resend of an edit
+  /// inside the load is recognised after a failover.
+  using ResendEntries = std::map<std::pair<uint8_t, uint64_t>, uint64_t>;
+  void set_resend_table(const ResendEntries* table) { resend_table_ = table; }
 
   /// Registers `sink`'s replica of `object` (`sculpture`, null when the scene has no such
   /// object) at the scene's sequence `seq`, replacing the session's earlier subscription, and
@@ -111,6 +117,7 @@ class ReplicationHub {
   std::map<uint64_t, Sub> subs_;  // by session
   std::map<std::string, levelset::LeafVersions> versions_;
   uint64_t versions_floor_ = 0;
+  const ResendEntries* resend_table_ = nullptr;
   ReplicationStats stats_;
 };
 

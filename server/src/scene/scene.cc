@@ -220,6 +220,7 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   scene->next_seq_ = rec.last_seq + 1;
   scene->applied_seq_ = rec.last_seq;
   scene->replication_.set_versions_floor(rec.last_seq);
+  scene->replication_.set_resend_table(&scene->resend_.entries());
   // Snapshots carry the fraction grids; a data directory written under other materials would
   // give replicas and viewers a declaration the objects do not hold.
   for (auto& [name, sculpture] : scene->sculptures_) {

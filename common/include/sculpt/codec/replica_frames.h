@@ -5,7 +5,9 @@
 #define SCULPT_CODEC_REPLICA_FRAMES_H_
 
 #include <cstdint>
+#include <map>
 #include <memory>
+#include <utility>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -29,6 +31,8 @@ struct LeafDeltaFrame {
   levelset::ReplayState state;  // the server's tracked volumes after global_seq
   uint64_t client_id = 0;
   uint64_t client_seq = 0;
+  /// To the scene's standby with a region load: (stream, client id) -> newest client_seq.
+  std::map<std::pair<uint8_t, uint64_t>, uint64_t> resend_table;
 };
 
 /// An EditBroadcast: an edit replay replicas apply with the same kernel. `stroke` is the
