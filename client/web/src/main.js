@@ -376,13 +376,13 @@ class App {
     this.stats.reconnects += 1;
     this.stats.lastLoss = why;
     const started = performance.now();
-    console.info(`sculpt: ${why}`);
     const hosts = [...new Set([this.joinedHost, location.host, ...(this.opts.members || [])])];
     let last = why;
     for (let attempt = 1; attempt <= kReconnectTries; ++attempt) {
+      // Short: the line sits over the view. Why is said in the console (and if all tries fail).
       const waiting = this.outbox.size;
-      this.showNotice(`reconnecting… (try ${attempt} of ${kReconnectTries}; ${waiting} unacknowledged `
-        + `edit${waiting === 1 ? '' : 's'} kept): ${last}`);
+      this.showNotice(`reconnecting… (try ${attempt} of ${kReconnectTries}, ${waiting} edit${waiting === 1 ? '' : 's'} kept)`);
+      console.info(`sculpt: ${last}`);
       await sleep(Math.min(kReconnectMaxMs, kReconnectFirstMs * 2 ** (attempt - 1)) * (0.75 + 0.5 * Math.random()));
       for (const host of hosts) {
         let joined;

@@ -179,6 +179,7 @@ export class Sculpting {
       poses: packed.bytes,
     };
     // Kept until acknowledged: sent now, or after a reconnection, and resent after one.
+    if (!this.app.outbox.open) this.app.stats.strokesQueued = (this.app.stats.strokesQueued || 0) + 1;
     this.app.outbox.add('stroke', stroke, poses.length);
     this.pending.set(stroke.clientSeq, performance.now());
     this.gestureOf.set(stroke.clientSeq, this.gesture);
