@@ -7,7 +7,9 @@
 // members it knows, following redirects to b), resend every unacknowledged stroke in order with
 // the same client id and client_seq, send the strokes made while it reconnected after them, and
 // end with every stroke acknowledged, none refused, and each applied exactly once: the scene's
-// sequence on b is the initial one plus one edit per pose the page sent. Usage:
+// sequence on b is the initial one plus one edit per pose the page sent. Then a page whose socket
+// (answered by the test) closes with strokes unanswered: it rejoins with the same client id and
+// writes the unanswered strokes again in order, before the ones made meanwhile. Usage:
 //   node test/failover_browser_test.mjs --bin BUILD/bin --web-root DIST
 // Exits 0 with "skipped" when /usr/bin/etcd is missing; non-zero with the failing check's name.
 import { execFileSync, spawn } from 'node:child_process';
@@ -211,6 +213,58 @@ try {
     seq === initialSeq + after.poses, `scene at seq ${seq}, initial ${initialSeq} + ${after.poses} poses`);
   const bad = page.logs.filter((l) => l.startsWith('pageerror') || l.includes('Content Security Policy'));
   check('no page errors or CSP violations', bad.length === 0, bad.join(' | '));
+
+  // The other way a member goes: its connection closes (kill -9, a restart) with strokes
+  // unanswered. The page's /ws is answered here (playwright's routeWebSocket): the first socket
+  // acknowledges strokes 1-3 and closes after the 6th; the page must rejoin with the same client
+  // id and write 4, 5, 6 again, in order, before the strokes made after the close.
+  stage = 'a socket that closes with strokes unanswered';
+  const { sculpt: { v1 } } = await import('../gen/sculpt_pb.js');
+  const mock = await browser.newPage({ viewport: { width: 320, height: 240 } });
+  mock.logs = [];
+  mock.on('console', (m) => mock.logs.push(`${m.type()}: ${m.text()}`));
+  const sockets = [];  // per socket: { clientId, strokes: [client_seq] }
+  await mock.routeWebSocket(/\/ws$/, (ws) => {
+    const me = { clientId: '', strokes: [] };
+    sockets.push(me);
+    const first = sockets.length === 1;
+    const send = (body, value) => ws.send(Buffer.from(v1.ServerMessage.encode(v1.ServerMessage.create({ [body]: value })).finish()));
+    ws.onMessage((data) => {
+      const m = v1.ClientMessage.decode(typeof data === 'string' ? Buffer.from(data) : data);
+      if (m.body === 'hello') {
+        me.clientId = String(m.hello.clientId);
+        send('welcome', { protocolVersion: 1, sessionId: sockets.length, role: v1.Role.ROLE_SCULPTOR,
+          clientId: m.hello.clientId, maxPosesPerStroke: 32, maxStrokesPerSecond: 240 });
+      } else if (m.body === 'join') {
+        send('sceneInfo', { scene: 'default', globalSeq: 0, minToolSize: 0.5, maxToolSize: 16, maxSpeed: 10,
+          objects: [{ name: 'clay', voxelSize: 0.25, halfWidth: 3 }] });
+      } else if (m.body === 'stroke') {
+        const seq = Number(m.stroke.clientSeq);
+        me.strokes.push(seq);
+        if (!first || seq <= 3) send('ack', { clientSeq: seq, globalSeqFirst: seq, edits: 1 });
+        if (first && me.strokes.length === 6) ws.close();
+      }
+    });
+  });
+  await mock.goto(`http://127.0.0.1:${bHttp}/#token=sculpt-dev-sculptor&role=sculptor&name=carol`);
+  await mock.waitForFunction(() => window.sculpt?.stats.state === 'joined' && window.sculpt.sculpting, null,
+    { timeout: 30000, polling: 50 });
+  const strokeFrom = (n) => mock.evaluate((k) => {
+    for (let i = 0; i < k; ++i) window.sculpt.sculpting.sendStroke([{ x: i, y: 0, z: 20, t: 0 }], 1);
+  }, n);
+  await strokeFrom(6);
+  await mock.waitForFunction(() => window.sculpt.stats.reconnects > 0, null, { timeout: 10000, polling: 5 });
+  await strokeFrom(2);  // made while reconnecting
+  await mock.waitForFunction(() => window.sculpt.stats.state === 'joined' && window.sculpt.outbox.size === 0,
+    null, { timeout: 30000, polling: 50 }).catch(() => {});
+  const m = await mock.evaluate(() => ({ sent: window.sculpt.stats.strokesSent, acks: window.sculpt.stats.acks,
+    resent: window.sculpt.stats.resent, notice: window.sculpt.stats.notice, errors: window.sculpt.stats.errors }));
+  check('closed socket: one client id on both sockets', sockets.length === 2 && sockets[0].clientId === sockets[1].clientId,
+    JSON.stringify(sockets));
+  check('closed socket: the unanswered strokes resent in order, then the new ones',
+    JSON.stringify(sockets[1]?.strokes) === JSON.stringify([4, 5, 6, 7, 8]), JSON.stringify(sockets.map((x) => x.strokes)));
+  check('closed socket: every stroke acknowledged, 3 resent, said so', m.sent === 8 && m.acks === 8 && m.resent === 3
+    && /resent 3 strokes \(all acknowledged\)$/.test(m.notice), JSON.stringify(m));
 } catch (err) {
   check(`failover run (${stage})`, false, err.stack || String(err));
   if (page) {
