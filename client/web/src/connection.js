@@ -43,7 +43,9 @@ export class Connection extends EventTarget {
    */
   open(url = this.url) {
     this.url = url;
-    this.detach();
+    // A socket left from a join that failed half-way (a refusal, a timeout) is closed.
+    const old = this.detach();
+    if (old && old.readyState <= WebSocket.OPEN) old.close(1000, 'superseded');
     return new Promise((resolve, reject) => {
       const ws = new WebSocket(this.url);
       ws.binaryType = 'arraybuffer';
