@@ -27,7 +27,7 @@ export function describeError(e) {
 }
 
 export class Connection extends EventTarget {
-  constructor(url) {
+  constructor(url = '') {
     super();
     this.url = url;
     this.ws = null;
@@ -36,20 +36,34 @@ export class Connection extends EventTarget {
     this.state = 'closed';
   }
 
-  open() {
+  /**
+   * Opens the socket on `url` (or the last one). One Connection serves the page for its life:
+   * a redirect or a reconnection opens a new socket on it, so the listeners stay. Events of an
+   * earlier socket (one this page closed, or replaced) are dropped.
+   */
+  open(url = this.url) {
+    this.url = url;
+    // A socket left from a join that failed half-way (a refusal, a timeout) is closed.
+    const old = this.detach();
+    if (old && old.readyState <= WebSocket.OPEN) old.close(1000, 'superseded');
     return new Promise((resolve, reject) => {
       const ws = new WebSocket(this.url);
       ws.binaryType = 'arraybuffer';
       this.ws = ws;
       this.state = 'connecting';
-      ws.onopen = () => { this.state = 'open'; resolve(); };
-      ws.onerror = () => { if (this.state === 'connecting') reject(new Error(`cannot connect to ${this.url}`)); };
+      const live = () => this.ws === ws;
+      ws.onopen = () => { if (live()) { this.state = 'open'; resolve(); } };
+      ws.onerror = () => { if (live() && this.state === 'connecting') reject(new Error(`cannot connect to ${this.url}`)); };
       ws.onclose = (ev) => {
+        if (!live()) return;
+        const wasConnecting = this.state === 'connecting';
         this.state = 'closed';
+        this.ws = null;
+        if (wasConnecting) reject(new Error(`cannot connect to ${this.url}`));
         this.dispatchEvent(new CustomEvent('close', { detail: { code: ev.code, reason: ev.reason } }));
       };
       ws.onmessage = (ev) => {
-        if (!(ev.data instanceof ArrayBuffer)) return;
+        if (!live() || !(ev.data instanceof ArrayBuffer)) return;
         this.bytesIn += ev.data.byteLength;
         let msg;
         try {
@@ -61,6 +75,15 @@ export class Connection extends EventTarget {
         if (msg.body) this.dispatchEvent(new CustomEvent(msg.body, { detail: msg[msg.body] }));
       };
     });
+  }
+
+  /** Forgets the current socket: nothing it still delivers reaches the listeners. */
+  detach() {
+    const ws = this.ws;
+    this.ws = null;
+    this.state = 'closed';
+    if (ws) { ws.onopen = ws.onerror = ws.onclose = ws.onmessage = null; }
+    return ws;
   }
 
   /** Sends one ClientMessage: `body` is the oneof field name, `value` its plain object. */
@@ -101,10 +124,131 @@ export class Connection extends EventTarget {
     });
   }
 
+  /** Says Bye and closes the socket; no 'close' event follows (the page chose it). */
   close(reason = 'page closed') {
-    if (this.ws && this.ws.readyState === WebSocket.OPEN) {
-      this.send('bye', { reason });
-      this.ws.close(1000, reason);
+    const ws = this.ws;
+    if (ws && ws.readyState === WebSocket.OPEN) this.send('bye', { reason });
+    this.detach();
+    if (ws && (ws.readyState === WebSocket.OPEN || ws.readyState === WebSocket.CONNECTING)) ws.close(1000, reason.slice(0, 100));
+  }
+
+  get isOpen() { return !!this.ws && this.ws.readyState === WebSocket.OPEN; }
+}
+
+/**
+ * The edits this page sent that the server has not answered yet (strokes, paints, undos: each
+ * kept with its message until its ack or a final refusal), in the order they were made, and
+ * the ones waiting to go out. A cluster member that loses a scene refuses an edit with
+ * UNAVAILABLE and every later one of this client until it is resent in order (the server's
+ * ResendStream fence); the scene's owner acknowledges a resend of an edit it already applied as
+ * a duplicate. So after a reconnection every unanswered edit goes again, oldest first, with its
+ * own client_seq, before any newer one, and at a pace under the server's per-client rate limits
+ * (a refused resend cannot be sent again once a later edit is applied: it would be taken for a
+ * duplicate). While the page is reconnecting, new edits wait here.
+ */
+export class Outbox {
+  /**
+   * `send(body, value)` puts one message on the wire (false: not connected); `rate` bounds the
+   * sending of a backlog: { strokesPerSecond, strokeBurst, posesPerSecond, poseBurst }, each
+   * request taking one stroke token (the server charges paints and undos one too) and a stroke
+   * also one pose token per pose; `now()` in ms.
+   */
+  constructor(send, rate, now = () => performance.now()) {
+    this.sendMessage = send;
+    this.rate = rate;
+    this.now = now;
+    this.entries = new Map();  // client_seq -> { body, value, poses, sentAt, resends }
+    this.waiting = [];  // client_seqs to write on the current connection, in order
+    this.open = false;
+    this.strokeTokens = rate.strokeBurst;
+    this.poseTokens = rate.poseBurst;
+    this.refilledAt = now();
+    this.timer = null;
+    this.resent = 0;  // requests written again after a reconnection, in all
+    this.onEmpty = null;  // called when the last unanswered request is answered
+  }
+
+  get size() { return this.entries.size; }
+
+  /** Keeps `value` (its clientSeq unique among this page's requests) and sends it when it may. */
+  add(body, value, poses = 0) {
+    const seq = num(value.clientSeq);
+    this.entries.set(seq, { body, value, poses, written: false, sentAt: 0, resends: 0 });
+    this.waiting.push(seq);
+    this.drain();
+    return seq;
+  }
+
+  /** The request's answer came (an ack, a duplicate ack or a final refusal): forgets it. */
+  settle(seq) {
+    const e = this.entries.get(seq);
+    this.entries.delete(seq);
+    if (e && this.entries.size === 0 && this.onEmpty) this.onEmpty();
+    return e;
+  }
+
+  /** The connection is gone or refused: nothing goes out until `resume`, which resends all. */
+  hold() {
+    this.open = false;
+    clearTimeout(this.timer);
+    this.timer = null;
+  }
+
+  /**
+   * A new connection is joined: every unanswered request is written again in order (the ones
+   * never written included), paced. Returns how many are resent (written before).
+   */
+  resume() {
+    const seqs = [...this.entries.keys()].sort((a, b) => a - b);
+    let resent = 0;
+    for (const seq of seqs) {
+      const e = this.entries.get(seq);
+      if (e.written) { e.resends += 1; resent += 1; }
     }
+    this.waiting = seqs;
+    this.resent += resent;
+    this.open = true;
+    this.drain();
+    return resent;
+  }
+
+  /** Writes waiting requests while the connection is open and the pace allows. */
+  drain() {
+    if (!this.open) return;
+    clearTimeout(this.timer);
+    this.timer = null;
+    this.refill();
+    while (this.waiting.length > 0) {
+      const e = this.entries.get(this.waiting[0]);
+      if (!e) { this.waiting.shift(); continue; }
+      const poses = Math.min(e.poses, this.rate.poseBurst);
+      if (this.strokeTokens < 1 || this.poseTokens < poses) {
+        const ms = 1000 * Math.max((1 - this.strokeTokens) / this.rate.strokesPerSecond,
+          (poses - this.poseTokens) / this.rate.posesPerSecond);
+        this.timer = setTimeout(() => this.drain(), Math.max(1, Math.ceil(ms)));
+        return;
+      }
+      if (!this.sendMessage(e.body, e.value)) { this.open = false; return; }
+      this.strokeTokens -= 1;
+      this.poseTokens -= poses;
+      e.written = true;
+      e.sentAt = this.now();
+      this.waiting.shift();
+    }
+  }
+
+  refill() {
+    const t = this.now();
+    const dt = Math.max(0, t - this.refilledAt) / 1000;
+    this.refilledAt = t;
+    this.strokeTokens = Math.min(this.rate.strokeBurst, this.strokeTokens + dt * this.rate.strokesPerSecond);
+    this.poseTokens = Math.min(this.rate.poseBurst, this.poseTokens + dt * this.rate.posesPerSecond);
+  }
+
+  /** The requests not yet answered, by kind: { stroke: 3, undo: 1 }. */
+  counts() {
+    const c = {};
+    for (const e of this.entries.values()) c[e.body] = (c[e.body] || 0) + 1;
+    return c;
   }
 }

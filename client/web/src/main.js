@@ -5,9 +5,9 @@
 // contour_codec.js), undo.js (undo and redo); this file is the page and its state.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
-import { Connection, describeError, num, v1 } from './connection.js';
+import { Connection, Outbox, describeError, num, v1 } from './connection.js';
 import { ChunkMeshes } from './meshes.js';
-import { Sculpting, Presence } from './tools.js';
+import { Sculpting, Presence, isUnavailable } from './tools.js';
 import { Contours } from './contours.js';
 import { UndoControls } from './undo.js';
 
@@ -17,12 +17,32 @@ const kBusyFrameMs = 500;
 // Redirects followed in a row for one join before giving up (members that disagree about a
 // scene's owner, or a forged answer, must not bounce the page around for ever).
 const kMaxRedirects = 3;
+// Reconnection after the connection is lost or a cluster member refuses an edit because it does
+// not hold the scene now (a failover: the owner's lease lapsed, the standby takes over in about
+// the lease TTL plus its restart): tries, each through every known member, after a growing pause.
+const kReconnectTries = 12;
+const kReconnectFirstMs = 250;
+const kReconnectMaxMs = 4000;
+// The pace of the edits the page sends, resends after a reconnection included, as a share of
+// the server's per-client token buckets (its defaults: 240 strokes/s with a burst of 60, 960
+// poses/s with a burst of 480; Welcome names the stroke rate, server_config.h the others).
+const kRateShare = 0.75;
+const kServerPosesPerSecond = 960;
+const kServerPoseBurst = 480;
+const kServerStrokeBurst = 60;
 
-/** Reads #token=...&role=...&name=... (the fragment never reaches a server). */
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
+/**
+ * Reads #token=...&role=...&name=...&scene=...&members=HOST:PORT,... (the fragment never reaches
+ * a server); `members`: other cluster members' HTTP addresses to rejoin through when the one that
+ * served the page is gone too.
+ */
 function fragmentOptions() {
   const params = new URLSearchParams(location.hash.replace(/^#/, ''));
   return { token: params.get('token'), role: params.get('role'), name: params.get('name'),
-    scene: params.get('scene') || '' };
+    scene: params.get('scene') || '',
+    members: (params.get('members') || '').split(',').map((m) => m.trim()).filter(Boolean) };
 }
 
 function percentile(sorted, q) {
@@ -176,23 +196,10 @@ class App {
    */
   async connectAndJoin(host, { token, role, name, scene }, clientId) {
     const proto = location.protocol === 'https:' ? 'wss:' : 'ws:';
-    const conn = new Connection(`${proto}//${host}/ws`);
-    this.conn = conn;
-    this.stats.state = 'connecting';
+    const conn = this.conn;
+    if (!this.reconnecting) this.stats.state = 'connecting';
     this.stats.server = host;
-    // A connection that answered Redirect closes with a Bye: that is not an error to show.
-    const current = () => this.conn === conn && !conn.redirected;
-    conn.addEventListener('close', (ev) => {
-      if (!current()) return;
-      this.stats.state = 'disconnected';
-      if (ev.detail.reason) this.showError(`disconnected: ${ev.detail.reason}`);
-    });
-    conn.addEventListener('error', (ev) => { if (current()) this.showError(describeError(ev.detail)); });
-    conn.addEventListener('bye', (ev) => {
-      if (current() && ev.detail.reason) this.showError(`server: ${ev.detail.reason}`);
-    });
-    conn.addEventListener('protocol-error', (ev) => this.showError(`bad message: ${ev.detail}`));
-    await conn.open();
+    await conn.open(`${proto}//${host}/ws`);
     const wantRole = role === 'viewer' ? v1.Role.ROLE_VIEWER : v1.Role.ROLE_SCULPTOR;
     conn.send('hello', { protocolVersion: 1, token: token || '', role: wantRole,
       clientName: (name || 'browser').slice(0, 64), clientId });
@@ -200,26 +207,78 @@ class App {
     conn.send('join', { scene, skipState: true });
     const answer = await conn.nextOf(['sceneInfo', 'redirect']);
     if (answer.type === 'redirect') {
-      conn.redirected = true;
+      // The Bye that follows is not an error to show: this socket is closed and forgotten.
       conn.close('redirected');
       return { redirect: answer.detail };
     }
     return { welcome, info: answer.detail };
   }
 
-  async join(opts) {
-    // One client id for the whole join, redirects included: the owner sees the same client.
-    const clientId = Math.floor(Math.random() * 2 ** 48) + 1;
-    let host = location.host;
+  /** The page's one Connection and the listeners that outlive its sockets. */
+  makeConnection() {
+    const conn = new Connection();
+    this.conn = conn;
+    const joined = () => ['joined', 'resending'].includes(this.stats.state);
+    conn.addEventListener('close', (ev) => {
+      if (!joined()) return;
+      const reason = this.lastBye || ev.detail.reason;
+      this.reconnect(`connection to ${this.stats.server} closed${reason ? ` (${reason})` : ''}`);
+    });
+    conn.addEventListener('error', (ev) => {
+      const e = ev.detail;
+      // A member that does not hold the scene now (its lease lapsed, a failover): the edit and
+      // every later one are resent through a new connection (proto/README.md, cluster mode).
+      if (isUnavailable(e) && num(e.clientSeq) !== 0 && joined()) {
+        this.reconnect(describeError(e));
+        return;
+      }
+      // While reconnecting, a member's refusal of a join is said in the notice (the next member
+      // or try may do); paint and undo refusals are also said as an Error with client_seq 0.
+      if (this.reconnecting || (isUnavailable(e) && joined())) {
+        console.info(`sculpt: ${describeError(e)}`);
+        return;
+      }
+      this.showError(describeError(e));
+    });
+    conn.addEventListener('bye', (ev) => {
+      // Said in the reconnection notice when the socket then closes.
+      if (joined() && ev.detail.reason) this.lastBye = ev.detail.reason;
+    });
+    conn.addEventListener('protocol-error', (ev) => this.showError(`bad message: ${ev.detail}`));
+    for (const type of ['paintAck', 'undoAck']) {
+      conn.addEventListener(type, (ev) => {
+        if (!ev.detail.accepted && isUnavailable(ev.detail.error) && joined()) {
+          this.reconnect(describeError(ev.detail.error));
+        }
+      });
+    }
+    conn.addEventListener('meshChunk', (ev) => {
+      this.stats.globalSeq = Math.max(this.stats.globalSeq, num(ev.detail.version));
+      this.meshes.add(ev.detail);
+    });
+    conn.addEventListener('presence', (ev) => {
+      this.presence.update(ev.detail);
+      this.stats.presence = this.presence.others();
+      this.invalidate();
+    });
+    return conn;
+  }
+
+  /**
+   * Joins the scene through `host`, following redirects (at most kMaxRedirects in a row), with
+   * `clientId`: { welcome, info, host } of the member that serves it.
+   */
+  async joinFollowingRedirects(host, opts, clientId) {
     let joined;
     this.stats.redirects = 0;
+    this.stats.member = '';  // the owner's member name, when a redirect said it
     for (;;) {
       try {
         joined = await this.connectAndJoin(host, opts, clientId);
       } catch (err) {
         // A socket to another member is cross-origin: refused unless each member lists the
         // others' page origins (docs/cluster.md, "Browser and operator").
-        if (this.stats.redirects > 0 && !err.wire) {
+        if (this.stats.redirects > 0 && !err.wire && host !== location.host) {
           err.message += ` (redirected to member ${this.stats.member}: its --http-allow-origin must list `
             + `${location.origin}, and this member's must list ${location.protocol}//${host})`;
         }
@@ -238,30 +297,38 @@ class App {
       }
       this.stats.redirects += 1;
       this.stats.member = r.member;
-      this.showNotice(`scene "${scene}" is on ${where}, reconnecting`);
+      if (this.stats.state !== 'reconnecting') this.showNotice(`scene "${scene}" is on ${where}, reconnecting`);
+      else console.info(`sculpt: scene "${scene}" is on ${where}, reconnecting`);
       host = r.httpAddress;
     }
-    const { welcome, info } = joined;
+    return { ...joined, host };
+  }
+
+  async join(opts) {
+    // One client id for the page, redirects and reconnections included: the owner sees the same
+    // client, so it recognises a resent edit it already applied.
+    const clientId = Math.floor(Math.random() * 2 ** 48) + 1;
+    this.clientId = clientId;
+    this.opts = opts;
+    if (!this.conn) this.makeConnection();
+    const { welcome, info, host } = await this.joinFollowingRedirects(location.host, opts, clientId);
     if (this.stats.redirects > 0) {
       this.showNotice(`scene "${info.scene}" is on member ${this.stats.member} (${host})`);
     }
+    this.joinedHost = host;
     this.welcome = welcome;
     this.stats.role = welcome.role === v1.Role.ROLE_VIEWER ? 'viewer' : 'sculptor';
-    this.presence.ownSession = num(welcome.sessionId);
     this.info = info;
-    this.stats.state = 'joined';
     this.stats.scene = info.scene;
-    this.stats.globalSeq = num(info.globalSeq);
-    this.conn.addEventListener('meshChunk', (ev) => {
-      this.stats.globalSeq = Math.max(this.stats.globalSeq, num(ev.detail.version));
-      this.meshes.add(ev.detail);
-    });
-    this.conn.addEventListener('presence', (ev) => {
-      this.presence.update(ev.detail);
-      this.stats.presence = this.presence.others();
-      this.invalidate();
-    });
-    for (const o of info.objects) this.conn.send('viewerSubscribe', { object: o.name, maxRateHz: 10 });
+    const strokesPerSecond = kRateShare * (welcome.maxStrokesPerSecond || 240);
+    this.outbox = new Outbox((body, value) => this.conn.send(body, value), {
+      strokesPerSecond, strokeBurst: Math.max(1, Math.floor(kRateShare * kServerStrokeBurst)),
+      posesPerSecond: kRateShare * kServerPosesPerSecond, poseBurst: Math.floor(kRateShare * kServerPoseBurst) });
+    // The resend after a reconnection is done when no request is left unanswered.
+    this.outbox.onEmpty = () => this.checkResendDone();
+    this.stats.reconnects = 0;
+    this.stats.resent = 0;
+    this.joined(welcome, info);
     // Skin contours and slices, when the scene computes them.
     if (info.effects && info.effects.contours) this.contours = new Contours(this, info, this.stats.role === 'sculptor');
     if (this.stats.role === 'sculptor') {
@@ -272,7 +339,111 @@ class App {
       this.controls.mouseButtons = { LEFT: -1, MIDDLE: THREE.MOUSE.PAN, RIGHT: THREE.MOUSE.ROTATE };
       this.controls.touches = { ONE: -1, TWO: THREE.TOUCH.DOLLY_ROTATE };
     }
+    this.outbox.resume();
     document.title = `Sculpt: ${info.scene} (${this.stats.role})`;
+  }
+
+  /** What every join, first or again, sets up on its new connection. */
+  joined(welcome, info) {
+    this.presence.ownSession = num(welcome.sessionId);
+    this.stats.state = 'joined';
+    this.stats.globalSeq = Math.max(this.stats.globalSeq, num(info.globalSeq));
+    for (const o of info.objects) this.conn.send('viewerSubscribe', { object: o.name, maxRateHz: 10 });
+  }
+
+  /**
+   * The connection is lost, or its member refused an edit because it does not hold the scene
+   * now: rejoins through the members the page knows (the last one it joined, the one that served
+   * the page, the fragment's `members`), each join following redirects to the scene's owner, with
+   * a growing pause between tries, then resends every unacknowledged edit in order (Outbox). New
+   * edits made meanwhile wait in the outbox and follow the resent ones.
+   */
+  async reconnect(why) {
+    if (this.reconnecting) return;
+    this.reconnecting = true;
+    try {
+      return await this.rejoin(why);
+    } finally {
+      this.reconnecting = false;
+      this.lastBye = '';
+    }
+  }
+
+  async rejoin(why) {
+    this.outbox.hold();
+    this.conn.close('reconnecting');  // nothing more to a member that may not acknowledge
+    this.stats.state = 'reconnecting';
+    this.stats.reconnects += 1;
+    this.stats.lastLoss = why;
+    const started = performance.now();
+    const hosts = [...new Set([this.joinedHost, location.host, ...(this.opts.members || [])])];
+    let last = why;
+    for (let attempt = 1; attempt <= kReconnectTries; ++attempt) {
+      // Short: the line sits over the view. Why is said in the console (and if all tries fail).
+      const waiting = this.outbox.size;
+      this.showNotice(`reconnecting… (try ${attempt} of ${kReconnectTries}, ${waiting} edit${waiting === 1 ? '' : 's'} kept)`);
+      console.info(`sculpt: ${last}`);
+      await sleep(Math.min(kReconnectMaxMs, kReconnectFirstMs * 2 ** (attempt - 1)) * (0.75 + 0.5 * Math.random()));
+      for (const host of hosts) {
+        let joined;
+        try {
+          joined = await this.joinFollowingRedirects(host, this.opts, this.clientId);
+        } catch (err) {
+          last = `${host}: ${err.message}`;
+          // A refused token or role will be refused on every member: no point trying on.
+          const code = err.wire && err.wire.code;
+          if (code === v1.ErrorCode.ERROR_CODE_UNAUTHENTICATED || code === v1.ErrorCode.ERROR_CODE_PERMISSION_DENIED) {
+            return this.giveUp(last);
+          }
+          continue;
+        }
+        this.joinedHost = joined.host;
+        this.welcome = joined.welcome;
+        this.info = joined.info;
+        this.joined(joined.welcome, joined.info);
+        this.resubscribeContours();
+        const resent = this.outbox.resume();
+        this.stats.resent += resent;
+        this.stats.lastReconnectMs = performance.now() - started;
+        this.resend = { resent, member: this.stats.member || '', host: joined.host };
+        this.stats.state = 'resending';
+        this.showNotice(`reconnected to ${this.where(joined.host)}; resending ${resent} unacknowledged `
+          + `edit${resent === 1 ? '' : 's'}`);
+        this.checkResendDone();
+        return undefined;
+      }
+    }
+    return this.giveUp(last);
+  }
+
+  /** "member b (127.0.0.1:8081)", or the address alone outside a cluster. */
+  where(host) {
+    return this.stats.member ? `member ${this.stats.member} (${host})` : host;
+  }
+
+  /** After a reconnection: once the resent edits are all answered, says so. */
+  checkResendDone() {
+    if (this.stats.state !== 'resending' || !this.resend || this.outbox.size > 0) return;
+    this.stats.state = 'joined';
+    const n = this.resend.resent;
+    this.showNotice(`reconnected to ${this.where(this.resend.host)}, resent ${n} stroke${n === 1 ? '' : 's'}`
+      + ' (all acknowledged)');
+  }
+
+  giveUp(last) {
+    this.stats.state = 'disconnected';
+    this.showNotice('');
+    const n = this.outbox.size;
+    this.showError(`could not reconnect to scene "${this.stats.scene}" after ${kReconnectTries} tries (last: ${last}); `
+      + `${n} edit${n === 1 ? ' was' : 's were'} not acknowledged: reload the page to join again`);
+  }
+
+  /** A new connection has no contour subscriptions: the panels' are made again. */
+  resubscribeContours() {
+    if (!this.contours) return;
+    for (const name of this.contours.skins.keys()) this.conn.send('contourSubscribe', { skin: name });
+    const slice = this.contours.slice;
+    if (slice && slice.current) this.conn.send('contourSubscribe', { slice: slice.current });
   }
 }
 
@@ -295,7 +466,7 @@ async function start(opts) {
 $('join').addEventListener('submit', (ev) => {
   ev.preventDefault();
   start({ token: $('join-token').value, role: $('join-role').value, name: $('join-name').value,
-    scene: fragmentOptions().scene });
+    scene: fragmentOptions().scene, members: fragmentOptions().members });
 });
 
 const frag = fragmentOptions();
@@ -303,5 +474,6 @@ if (frag.token) {
   $('join-token').value = frag.token;
   if (frag.role) $('join-role').value = frag.role;
   if (frag.name) $('join-name').value = frag.name;
-  start({ token: frag.token, role: frag.role || 'sculptor', name: frag.name || 'browser', scene: frag.scene });
+  start({ token: frag.token, role: frag.role || 'sculptor', name: frag.name || 'browser', scene: frag.scene,
+    members: frag.members });
 }

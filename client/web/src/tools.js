@@ -8,6 +8,11 @@ import { packPoses, posesThatFit } from './packing.js';
 
 const $ = (id) => document.getElementById(id);
 const kStrokeHz = 60;
+
+/** An Error (or an ack's error) that says the member does not hold the scene now. */
+export function isUnavailable(e) {
+  return !!e && e.code === v1.ErrorCode.ERROR_CODE_UNAVAILABLE;
+}
 const kHoverHz = 10;
 
 export class Sculpting {
@@ -25,8 +30,10 @@ export class Sculpting {
       maxWork: num(welcome.maxStrokeWork || 0),
     };
     this.clientId = clientId;
+    // One numbering for strokes, paints and undos: the server keeps a sequence per kind, so the
+    // gaps are harmless, and an Error's client_seq names exactly one request of this page.
     this.seq = 0;
-    this.pending = new Map();  // client_seq -> send time
+    this.pending = new Map();  // stroke client_seq -> send time
     // One drag is sent as several strokes (kStrokeHz); undo.js takes a drag back as a whole.
     this.gesture = 0;
     this.gestureOf = new Map();  // client_seq of a stroke not yet acked -> its drag
@@ -49,7 +56,7 @@ export class Sculpting {
     el.addEventListener('contextmenu', (e) => e.preventDefault());
     app.conn.addEventListener('ack', (ev) => this.onAck(ev.detail));
     app.conn.addEventListener('paintAck', (ev) => this.onPaintAck(ev.detail));
-    this.paintSeq = 0;
+    app.conn.addEventListener('error', (ev) => this.onError(ev.detail));
     this.pendingPaints = new Map();  // paint client_seq -> send time
     this.offerPaint(info.effects);
     this.timer = setInterval(() => this.flush(), 1000 / kStrokeHz);
@@ -171,11 +178,13 @@ export class Sculpting {
       poseCount: poses.length,
       poses: packed.bytes,
     };
-    if (this.app.conn.send('stroke', stroke)) {
-      this.pending.set(stroke.clientSeq, performance.now());
-      this.gestureOf.set(stroke.clientSeq, this.gesture);
-      this.app.stats.strokesSent += 1;
-    }
+    // Kept until acknowledged: sent now, or after a reconnection, and resent after one.
+    if (!this.app.outbox.open) this.app.stats.strokesQueued = (this.app.stats.strokesQueued || 0) + 1;
+    this.app.outbox.add('stroke', stroke, poses.length);
+    this.pending.set(stroke.clientSeq, performance.now());
+    this.gestureOf.set(stroke.clientSeq, this.gesture);
+    this.app.stats.strokesSent += 1;
+    this.app.stats.posesSent = (this.app.stats.posesSent || 0) + poses.length;
   }
 
   /** A paint at the newest sample: the material under the tool, weighted by strength and pressure. */
@@ -184,7 +193,7 @@ export class Sculpting {
     this.samples = [];
     const r = this.radius();
     const paint = {
-      clientSeq: ++this.paintSeq,
+      clientSeq: ++this.seq,
       object: this.object.name,
       tool: v1.ToolKind.TOOL_KIND_SPHERE,
       toolSize: { x: r, y: 0, z: 0 },
@@ -192,20 +201,27 @@ export class Sculpting {
       material: Number($('tool-material').value),
       weight: Math.min(1, Number($('tool-strength').value) * Math.min(1, 2 * this.pressure)),
     };
-    if (this.app.conn.send('paint', paint)) {
-      this.pendingPaints.set(paint.clientSeq, performance.now());
-      this.app.stats.paintsSent += 1;
-    }
+    this.app.outbox.add('paint', paint);
+    this.pendingPaints.set(paint.clientSeq, performance.now());
+    this.app.stats.paintsSent += 1;
+  }
+
+  /** A latency worth recording: not one that includes a reconnection (the request was resent). */
+  recordLatency(seq, sent) {
+    const e = this.app.outbox.entries.get(seq);
+    if (sent === undefined || (e && e.resends > 0)) return;
+    this.app.stats.ackLatencies.push(performance.now() - sent);
+    if (this.app.stats.ackLatencies.length > 2000) this.app.stats.ackLatencies.shift();
   }
 
   onPaintAck(ack) {
     const seq = num(ack.clientSeq);
+    // Refused by a member that lost the scene: the paint is resent after the reconnection.
+    if (!ack.accepted && isUnavailable(ack.error)) return;
     const sent = this.pendingPaints.get(seq);
     this.pendingPaints.delete(seq);
-    if (sent !== undefined && ack.accepted) {
-      this.app.stats.ackLatencies.push(performance.now() - sent);
-      if (this.app.stats.ackLatencies.length > 2000) this.app.stats.ackLatencies.shift();
-    }
+    if (ack.accepted) this.recordLatency(seq, sent);
+    this.app.outbox.settle(seq);
     if (ack.accepted) {
       this.app.stats.paintsAcked += 1;
       this.app.stats.globalSeq = Math.max(this.app.stats.globalSeq, num(ack.globalSeq));
@@ -215,16 +231,35 @@ export class Sculpting {
   onAck(ack) {
     const seq = num(ack.clientSeq);
     const sent = this.pending.get(seq);
-    if (sent !== undefined) {
-      this.app.stats.ackLatencies.push(performance.now() - sent);
-      if (this.app.stats.ackLatencies.length > 2000) this.app.stats.ackLatencies.shift();
-      this.pending.delete(seq);
-    }
+    if (sent === undefined) return;  // not this page's, or answered already
+    this.recordLatency(seq, sent);
+    this.pending.delete(seq);
+    this.app.outbox.settle(seq);
     this.app.stats.acks += 1;
+    if (ack.duplicate) this.app.stats.duplicateAcks = (this.app.stats.duplicateAcks || 0) + 1;
     const edits = ack.edits || 0;
     if (edits > 0) {
       this.app.stats.globalSeq = Math.max(this.app.stats.globalSeq, num(ack.globalSeqFirst) + edits - 1);
     }
+    this.clearTrailWhenDone();
+  }
+
+  /**
+   * A stroke refused for good (a limit, a bad value): it is not kept. An UNAVAILABLE refusal
+   * (a cluster member that does not hold the scene now) is not final: main.js reconnects and
+   * the stroke is resent.
+   */
+  onError(e) {
+    const seq = num(e.clientSeq);
+    if (seq === 0 || isUnavailable(e) || !this.pending.has(seq)) return;
+    this.pending.delete(seq);
+    this.gestureOf.delete(seq);
+    this.app.outbox.settle(seq);
+    this.app.stats.strokesRefused = (this.app.stats.strokesRefused || 0) + 1;
+    this.clearTrailWhenDone();
+  }
+
+  clearTrailWhenDone() {
     if (this.pending.size === 0 && !this.dragging) {
       // The server's chunks now show what the trail stood in for.
       setTimeout(() => { if (!this.dragging) { this.trailPoints = []; this.trail.geometry.setFromPoints([]); this.app.invalidate(); } }, 300);

@@ -133,17 +133,13 @@ export class UndoControls {
     const seqs = [];
     for (let i = 0; i < count; ++i) {
       // Numbered with the strokes, so an Error's client_seq names one request (the server
-      // de-duplicates undos on their own sequence: the gaps are harmless).
+      // de-duplicates undos on their own sequence: the gaps are harmless). Kept until answered,
+      // and resent after a reconnection (main.js) like the strokes before it.
       const clientSeq = ++this.sculpting.seq;
-      if (!this.app.conn.send('undo', { clientSeq, object: this.sculpting.object.name, redo })) break;
+      this.app.outbox.add('undo', { clientSeq, object: this.sculpting.object.name, redo });
       seqs.push(clientSeq);
     }
     this.app.stats.undosSent += seqs.length;
-    if (seqs.length === 0) {
-      if (entry) (redo ? this.undone : this.done).push(entry);
-      this.say(`not connected: ${redo ? 'redo' : 'undo'} not sent`);
-      return;
-    }
     this.batch = { redo, entry, seqs, acks: [] };
   }
 
@@ -165,6 +161,9 @@ export class UndoControls {
     const b = this.batch;
     const seq = num(ack.clientSeq);
     if (!b || !b.seqs.includes(seq) || b.acks.some((a) => num(a.clientSeq) === seq)) return;
+    // Refused by a member that lost the scene: resent after the reconnection, answered then.
+    if (!ack.accepted && ack.error && ack.error.code === v1.ErrorCode.ERROR_CODE_UNAVAILABLE) return;
+    this.app.outbox.settle(seq);
     b.acks.push(ack);
     this.app.stats.undoAcks += 1;
     if (ack.accepted && !ack.duplicate) {
@@ -189,7 +188,7 @@ export class UndoControls {
   /** An Error for a request in flight (the rate limit; a server that does not know undo). */
   onError(e) {
     const b = this.batch;
-    if (!b) return;
+    if (!b || e.code === v1.ErrorCode.ERROR_CODE_UNAVAILABLE) return;
     const unknownBody = e.code === v1.ErrorCode.ERROR_CODE_MALFORMED && e.field === 'ClientMessage.body';
     const seq = num(e.clientSeq);
     if (!unknownBody && !b.seqs.includes(seq)) return;
