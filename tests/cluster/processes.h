@@ -13,6 +13,8 @@
 
 #include <chrono>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -39,7 +41,8 @@ inline uint16_t FreePort() {
   return a.local_endpoint().port();
 }
 
-/// A fresh directory under the system's temporary folder, removed by the destructor.
+/// A fresh directory under the system's temporary folder, removed by the destructor unless
+/// SCULPT_KEEP_TEST_DIRS is set (the members' logs explain a failure).
 class TempDir {
  public:
   explicit TempDir(const std::string& stem) {
@@ -48,7 +51,11 @@ class TempDir {
   }
   ~TempDir() {
     std::error_code ec;
-    if (!path_.empty()) fs::remove_all(path_, ec);
+    if (std::getenv("SCULPT_KEEP_TEST_DIRS") != nullptr) {
+      std::fprintf(stderr, "kept %s (SCULPT_KEEP_TEST_DIRS)\n", path_.c_str());
+    } else if (!path_.empty()) {
+      fs::remove_all(path_, ec);
+    }
   }
   const fs::path& path() const { return path_; }
 

@@ -97,7 +97,9 @@ struct Event {
     kError,         // `error`; `refused` when it dropped a pending stroke (`client_seq`)
     kPresence,      // `presence`
     kBye,           // the server ends the session: `reason`
-    kDisconnected,  // the connection is gone (`reason`); un-acked strokes wait for Reconnect()
+    kDisconnected,  // the connection is gone (`reason`); un-acked strokes wait for Reconnect().
+                    // Connections a Join or Reconnect closes on its way (a redirect, a member
+                    // that refused) say so too: reconnect only when joined() is false.
     kUndoAck,       // `undo_ack` (accepted or not); `latency_ms` from its request's write
   };
   Type type = Type::kAck;
