@@ -339,7 +339,7 @@ TEST_F(ClusterRoutingTest, StandbyTakesOverWithEveryReplicatedStrokeAfterTheOwne
   ASSERT_EQ(rejoined->info.objects_size(), 1);
   EXPECT_EQ(rejoined->info.global_seq(), acked_seq);
   {
-    const std::string& tcp = Owner()->tcp;
+    const std::string tcp = Owner()->tcp;
     send_early(static_cast<uint16_t>(std::stoi(tcp.substr(tcp.rfind(':') + 1))), /*resend=*/true);
   }
   {
