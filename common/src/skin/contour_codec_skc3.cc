@@ -114,19 +114,55 @@ constexpr int kMaxTurn = kAngles / 8;
 /// either way (plus 2 half spacings, so that a short chord can grow); in lattice spacings.
 /// + - * / and sqrt in doubles, all exactly rounded, so the JS decoder computes the same.
 constexpr double kChordRule = 20000.0;  // kRuleTarget = 0.587
-[[gnu::always_inline]] inline int64_t RuleChord(int64_t h, int32_t omega) {
+constexpr int64_t kRuleMaxHalf = int64_t{1} << 20;  // h above this counts as this in the rule
+
+/// RuleChord as the format defines it (and the JS decoder computes it): the doubles above, then
+/// the limits. The decoder's loop takes RuleChord's shorter road and comes here only where the
+/// two could differ.
+[[gnu::noinline]] int64_t RuleChordDefinition(int64_t h, int32_t omega) {
   if (h <= 0) return h >> 1;  // floor(h / 2)
   const int64_t lo = h - (h >> 2), hi = h + (h >> 2) + 2;
   const int64_t w = omega < 0 ? -static_cast<int64_t>(omega) : omega;
   int64_t g = hi;
   if (w > 0) {
-    const double c =
-        std::sqrt(kChordRule * static_cast<double>(std::min<int64_t>(h, 1 << 20)) /
-                  static_cast<double>(w));
+    const double c = std::sqrt(kChordRule * static_cast<double>(std::min(h, kRuleMaxHalf)) /
+                               static_cast<double>(w));
     g = c < static_cast<double>(lo) ? lo : c > static_cast<double>(hi) ? hi
                                                                         : static_cast<int64_t>(c);
   }
   return g >> 1;
+}
+
+/// sqrt(kChordRule / w) for |omega| = w in [1, kMaxTurn]; 0 for w = 0 (RuleChord sets that aside).
+const double* RuleRootTable() {
+  static const std::unique_ptr<double[]> table = [] {
+    auto t = std::make_unique<double[]>(kMaxTurn + 1);
+    t[0] = 0;
+    for (int w = 1; w <= kMaxTurn; ++w) t[w] = std::sqrt(kChordRule / w);
+    return t;
+  }();
+  return table.get();
+}
+
+/// RuleChordDefinition, bit for bit, with a shorter dependency chain: sqrt(h) times a table entry
+/// in place of a division and a square root after it (the chord rule is the loop-carried chain of
+/// SKC4's decoder, h and omega come from the point just decoded). The definition's
+/// c = sqrt(kChordRule h / w) and this one differ by a few ulps: both within 2^-33 of the exact
+/// value, since c < 2^18 (h <= 2^20, w >= 1). So where this c is more than 2^-20 from an integer,
+/// both floor to the same integer, and the limits (integers) act on the floors alike. Where it is
+/// that close (about one chord in 500 000, or a crafted stream), the definition decides.
+[[gnu::always_inline]] inline int64_t RuleChord(int64_t h, int32_t omega, const double* root) {
+  if (h <= 0) [[unlikely]]
+    return h >> 1;
+  const int64_t lo = h - (h >> 2), hi = h + (h >> 2) + 2;
+  const int32_t w = omega < 0 ? -omega : omega;
+  const double c = std::sqrt(static_cast<double>(std::min(h, kRuleMaxHalf))) * root[w];
+  const int64_t n = static_cast<int64_t>(c);  // c >= 0: the floor
+  const double f = c - static_cast<double>(n);
+  constexpr double kNearInteger = 0x1p-20;
+  if ((f < kNearInteger || f > 1 - kNearInteger) && w != 0) [[unlikely]]
+    return RuleChordDefinition(h, omega);
+  return (w == 0 ? hi : std::clamp(n, lo, hi)) >> 1;
 }
 
 /// The turn a point makes off the predicted direction, in angle units, and the turtle after it;
@@ -139,7 +175,7 @@ constexpr double kChordRule = 20000.0;  // kRuleTarget = 0.587
   t.theta = (th + d) & (kAngles - 1);
   t.omega = std::clamp<int32_t>(t.omega + d, -kMaxTurn, kMaxTurn);
   const int64_t h = 2 * len + (e & 1);
-  t.lp = rule ? RuleChord(h, t.omega) : NextChord(h, t.l1) >> 1;
+  t.lp = rule ? RuleChord(h, t.omega, RuleRootTable()) : NextChord(h, t.l1) >> 1;
   t.l1 = h;
 }
 
@@ -534,6 +570,7 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
 
   const double* cos_table = CosTable();
   const int32_t* turn = TurnTable();
+  const double* root = RuleRootTable();
   const SymbolInfo* info = SymbolInfos();
   RansDecoder rans(rans_bytes);
   BitReader raw(raw_bytes);
@@ -602,7 +639,7 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
       theta = (th + d) & (kAngles - 1);
       omega = std::clamp<int32_t>(omega + d, -kMaxTurn, kMaxTurn);
       const int64_t h = 2 * len + (e & 1);
-      lp = skc4 ? RuleChord(h, omega) : NextChord(h, l1) >> 1;
+      lp = skc4 ? RuleChord(h, omega, root) : NextChord(h, l1) >> 1;
       l1 = h;
       actx = ai.mag;
       mag_e = ei.mag;
@@ -655,6 +692,10 @@ void ToCursor(const Turtle& t, Vec2 p, CodecCursor* c) {
 }
 
 }  // namespace
+
+int64_t Skc4ChordRule(int64_t h, int32_t omega) { return RuleChord(h, omega, RuleRootTable()); }
+
+int64_t Skc4ChordRuleDefinition(int64_t h, int32_t omega) { return RuleChordDefinition(h, omega); }
 
 void Skc4Predict(const CodecCursor& c, double step, Vec2* u, double* along_even,
                  double* along_odd) {
