@@ -261,6 +261,77 @@ inline int64_t Unzig(uint64_t zz) {
   return static_cast<int64_t>(zz >> 1) ^ -static_cast<int64_t>(zz & 1);
 }
 
+/// SKC3's point loop: the next `n` points of a line after `p` into `out`, each from an along and
+/// an across integer, advancing the turtle `t` (direction, turn, chords and the contexts of the
+/// next symbols; `kRule`: SKC4's chord rule, else SKC3's trend). `bad` is set where a symbol comes
+/// from an empty table, a chord leaves [-kMaxChord, kMaxChord] or a point the plane (|x|, |y| <=
+/// `lim`). `kChecked` false only where the stream holds a word for every symbol still to decode.
+/// Returns the number of points placed: checked, the loop stops at the next multiple of 64 points
+/// once the stream has run out or a point is bad (a claimed count may be far beyond the bytes;
+/// past the end the stream reads zeros).
+template <bool kChecked, bool kRule>
+size_t DecodePoints(RansDecoder* rans_at, BitReader* raw_at, const RansSlot* tables, size_t n,
+                    Vec2 p, double hs, double vs, double lim, Turtle* t, bool* bad, Vec2* out) {
+  // Copies whose address does not escape, so that their state lives in registers (the stores to
+  // `out` would otherwise have them written back every point).
+  RansDecoder rans = *rans_at;
+  BitReader raw = *raw_at;
+  const SymbolInfo* info = SymbolInfos();
+  const double* cos_table = CosTable();
+  const int32_t* turn = TurnTable();
+  const double* root = RuleRootTable();
+  int32_t theta = t->theta, omega = t->omega;
+  int64_t lp = t->lp, l1 = t->l1;
+  int actx = t->actx, mag_e = t->mag_e;
+  bool fail = false;
+  size_t k = 0;
+  while (k < n) {
+    // Branch-free: the symbols are what the data makes them. kRansNoSymbol (a slot of an empty
+    // table) reads as 0 and fails the line.
+    const RansSlot* atable = tables + static_cast<size_t>(actx) * kRansScale;
+    const uint32_t asym = kChecked ? rans.Decode(atable, 0) : rans.DecodeUnchecked(atable, 0);
+    const SymbolInfo& ai = info[asym];
+    const int64_t a = Unzig(ai.base + raw.Get(ai.bits));
+    const RansSlot* etable =
+        tables + static_cast<size_t>(kAlongTables + 3 * mag_e + ai.mag) * kRansScale;
+    const uint32_t esym = kChecked ? rans.Decode(etable, 1) : rans.DecodeUnchecked(etable, 1);
+    const SymbolInfo& ei = info[esym];
+    const int64_t e = Unzig(ei.base + raw.Get(ei.bits));
+    const int32_t th = (theta + omega) & (kAngles - 1);
+    const int64_t len = lp + a;
+    p = Place(p, cos_table, th, len, e, hs, vs);
+    fail |= (asym == kRansNoSymbol) | (esym == kRansNoSymbol) | (len > kMaxChord) |
+            (len < -kMaxChord) | !(std::abs(p.x) <= lim) | !(std::abs(p.y) <= lim);
+    const int64_t lc = std::clamp<int64_t>(len, 1, kRecipMax);
+    const int64_t ec = std::clamp<int64_t>(e, -lc, lc);
+    const int32_t d = static_cast<int32_t>((ec * turn[lc]) >> 16);
+    theta = (th + d) & (kAngles - 1);
+    omega = std::clamp<int32_t>(omega + d, -kMaxTurn, kMaxTurn);
+    const int64_t h = 2 * len + (e & 1);
+    if constexpr (kRule) {
+      lp = RuleChord(h, omega, root);
+    } else {
+      lp = NextChord(h, l1) >> 1;
+    }
+    l1 = h;
+    actx = ai.mag;
+    mag_e = ei.mag;
+    out[k++] = p;
+    // k is the index of the point just placed in its line (out starts at the line's second).
+    if (kChecked && (k & 63) == 0 && (fail || rans.overrun())) break;
+  }
+  t->theta = theta;
+  t->omega = omega;
+  t->lp = lp;
+  t->l1 = l1;
+  t->actx = actx;
+  t->mag_e = mag_e;
+  *bad |= fail;
+  *rans_at = rans;
+  *raw_at = raw;
+  return k;
+}
+
 bool StepIndex(double v, double step, int64_t* out) {
   const double x = v / step;
   if (!(std::abs(x) <= kMaxQuantised)) return false;
@@ -568,10 +639,6 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
                     " trailing bytes in the SKC3 side information");
   }
 
-  const double* cos_table = CosTable();
-  const int32_t* turn = TurnTable();
-  const double* root = RuleRootTable();
-  const SymbolInfo* info = SymbolInfos();
   RansDecoder rans(rans_bytes);
   BitReader raw(raw_bytes);
   const RansSlot* tables = slots.data();
@@ -614,50 +681,24 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
     }
     out[0] = p;
     const size_t coded = ls.closed ? out.size() - 1 : out.size();
-    bool bad = false;
-    int32_t theta = t.theta, omega = t.omega;
-    int64_t lp = t.lp, l1 = t.l1;
-    int actx = t.actx, mag_e = t.mag_e;
-    for (size_t k = 1; k < coded; ++k) {
-      // Branch-free: the symbols are what the data makes them. kRansNoSymbol (a slot of an empty
-      // table) reads as 0 and fails the line below.
-      const uint32_t asym = rans.Decode(tables + static_cast<size_t>(actx) * kRansScale, 0);
-      const SymbolInfo& ai = info[asym];
-      const int64_t a = Unzig(ai.base + raw.Get(ai.bits));
-      const uint32_t esym = rans.Decode(
-          tables + static_cast<size_t>(kAlongTables + 3 * mag_e + ai.mag) * kRansScale, 1);
-      const SymbolInfo& ei = info[esym];
-      const int64_t e = Unzig(ei.base + raw.Get(ei.bits));
-      const int32_t th = (theta + omega) & (kAngles - 1);
-      const int64_t len = lp + a;
-      p = Place(p, cos_table, th, len, e, hs, vs);
-      bad |= (asym == kRansNoSymbol) | (esym == kRansNoSymbol) | (len > kMaxChord) |
-             (len < -kMaxChord) | !(std::abs(p.x) <= lim) | !(std::abs(p.y) <= lim);
-      const int64_t lc = std::clamp<int64_t>(len, 1, kRecipMax);
-      const int64_t ec = std::clamp<int64_t>(e, -lc, lc);
-      const int32_t d = static_cast<int32_t>((ec * turn[lc]) >> 16);
-      theta = (th + d) & (kAngles - 1);
-      omega = std::clamp<int32_t>(omega + d, -kMaxTurn, kMaxTurn);
-      const int64_t h = 2 * len + (e & 1);
-      lp = skc4 ? RuleChord(h, omega, root) : NextChord(h, l1) >> 1;
-      l1 = h;
-      actx = ai.mag;
-      mag_e = ei.mag;
-      out[k] = p;
-      // Past the end the stream reads zeros: stop at once rather than run out a claimed count.
-      if ((k & 63) == 0 && (bad || rans.overrun())) break;
+    if (coded >= 2) {
+      const size_t n = coded - 1;
+      bool bad = false;
+      // Two symbols a point, at most a word each: unchecked where the words are there.
+      if (rans.words_left() / 2 >= n) {
+        (skc4 ? DecodePoints<false, true> : DecodePoints<false, false>)(
+            &rans, &raw, tables, n, p, hs, vs, lim, &t, &bad, &out[1]);
+      } else {
+        (skc4 ? DecodePoints<true, true> : DecodePoints<true, false>)(
+            &rans, &raw, tables, n, p, hs, vs, lim, &t, &bad, &out[1]);
+      }
+      if (bad) {
+        return InvalidArgument(
+            "contour: decoded point outside [-2^52, 2^52] steps, or a "
+            "symbol from an empty table");
+      }
+      if (rans.overrun()) return truncated("points");
     }
-    if (bad)
-      return InvalidArgument(
-          "contour: decoded point outside [-2^52, 2^52] steps, or a "
-          "symbol from an empty table");
-    if (rans.overrun()) return truncated("points");
-    t.theta = theta;
-    t.omega = omega;
-    t.lp = lp;
-    t.l1 = l1;
-    t.actx = actx;
-    t.mag_e = mag_e;
     if (ls.closed) out.back() = out.front();
   }
   if (!rans.ok()) return DataLoss("contour: the SKC3 symbol stream does not end where it began");

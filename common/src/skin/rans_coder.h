@@ -13,8 +13,10 @@
 #define SCULPT_SKIN_RANS_CODER_H_
 
 #include <array>
+#include <bit>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -111,8 +113,15 @@ class RansDecoder {
   /// The next symbol of `lane` (0 or 1) from `table` (kRansScale slots).
   [[gnu::always_inline]] uint32_t Decode(const RansSlot* table, int lane) {
     // Two named states rather than an array, so both stay in registers.
-    return lane == 0 ? Step(table, x0_) : Step(table, x1_);
+    return lane == 0 ? Step<true>(table, x0_) : Step<true>(table, x1_);
   }
+  /// Decode without the end-of-stream guard: only while words_left() is at least the number of
+  /// symbols still to decode (a symbol takes at most one word).
+  [[gnu::always_inline]] uint32_t DecodeUnchecked(const RansSlot* table, int lane) {
+    return lane == 0 ? Step<false>(table, x0_) : Step<false>(table, x1_);
+  }
+  /// The 16-bit words not yet read.
+  size_t words_left() const { return static_cast<size_t>(end_ - p_) / 2; }
   /// True when the stream was read exactly and ended where the encoder began.
   bool ok() const {
     return !overrun_ && !odd_ && p_ == end_ && x0_ == kRansLow && x1_ == kRansLow;
@@ -120,20 +129,29 @@ class RansDecoder {
   bool overrun() const { return overrun_; }
 
  private:
+  template <bool kChecked>
   [[gnu::always_inline]] uint32_t Step(const RansSlot* table, uint32_t& state) {
     uint32_t x = state;
     const RansSlot s = table[x & (kRansScale - 1)];
     x = (s >> kSlotFreqShift) * (x >> kRansScaleBits) + ((s >> kSlotBiasShift) & (kRansScale - 1));
     // Branch-free renormalisation: whether a word is due is what the data makes it, so a branch
-    // would be mispredicted about once in three symbols. The load is guarded by a branch that
-    // only the stream's end takes.
+    // would be mispredicted about once in three symbols. Checked, the load is guarded by a branch
+    // that only the stream's end takes.
     const bool need = x < kRansLow;
-    const bool have = p_ != end_;
-    const uint32_t w =
-        have ? static_cast<uint32_t>(p_[0]) | (static_cast<uint32_t>(p_[1]) << 8) : 0;
-    overrun_ |= need & !have;
-    x = need ? (x << 16) | w : x;
-    p_ += (need & have) ? 2 : 0;
+    uint32_t w;
+    if constexpr (kChecked) {
+      const bool have = p_ != end_;
+      w = have ? static_cast<uint32_t>(p_[0]) | (static_cast<uint32_t>(p_[1]) << 8) : 0;
+      overrun_ |= need & !have;
+      p_ += (need & have) ? 2 : 0;
+      x = need ? (x << 16) | w : x;
+    } else {
+      // Masks and shifts rather than a select, which GCC turns into a branch here.
+      const uint32_t n = need;
+      w = static_cast<uint32_t>(p_[0]) | (static_cast<uint32_t>(p_[1]) << 8);
+      p_ += 2 * n;
+      x = (x << (16 * n)) | (w & (0u - n));
+    }
     state = x;
     return s & 127;
   }
@@ -185,6 +203,18 @@ class BitReader {
 
  private:
   [[gnu::always_inline]] void Refill(int count) {
+    if (end_ - p_ >= 8) {
+      // Eight bytes at once, as many whole ones counted as fit. The bits above n_ then hold the
+      // bytes not yet counted, which the next refill ORs in again at the same place.
+      uint64_t v;
+      std::memcpy(&v, p_, 8);
+      if constexpr (std::endian::native == std::endian::big) v = __builtin_bswap64(v);
+      acc_ |= v << n_;
+      const int take = (63 - n_) >> 3;
+      p_ += take;
+      n_ += 8 * take;
+      return;
+    }
     while (n_ <= 56 && p_ < end_) {
       acc_ |= static_cast<uint64_t>(*p_++) << n_;
       n_ += 8;
