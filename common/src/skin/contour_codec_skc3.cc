@@ -99,8 +99,10 @@ constexpr int kMaxTurn = kAngles / 8;
 /// about 5 % of the chord (13/256; spacing follows curvature, which changes slowly, but jumps
 /// where the sampler's pieces meet).
 [[gnu::always_inline]] inline int64_t NextChord(int64_t len, int64_t l1) {
-  const int64_t m = len > 0 ? (len * 13) >> 8 : 0;
-  return len + std::clamp<int64_t>(len - l1, -m, m);
+  // min / max rather than a conditional and std::clamp, which GCC made branches of: the limit
+  // binds where the data says, a misprediction a few points apart.
+  const int64_t m = (std::max<int64_t>(len, 0) * 13) >> 8;
+  return len + std::min(std::max(len - l1, -m), m);
 }
 
 /// SKC4's next chord, from the chord rule: a chord of h half spacings that turned by omega angle
@@ -257,6 +259,16 @@ const SymbolInfo* SymbolInfos() {
   return table.data();
 }
 
+/// Mag3 of every symbol, the tag of its rANS slots.
+const uint8_t* MagnitudeTags() {
+  static const std::array<uint8_t, kRansAlphabet> table = [] {
+    std::array<uint8_t, kRansAlphabet> t{};
+    for (int s = 0; s < kRansAlphabet; ++s) t[s] = static_cast<uint8_t>(Mag3(s));
+    return t;
+  }();
+  return table.data();
+}
+
 inline int64_t Unzig(uint64_t zz) {
   return static_cast<int64_t>(zz >> 1) ^ -static_cast<int64_t>(zz & 1);
 }
@@ -288,13 +300,19 @@ size_t DecodePoints(RansDecoder* rans_at, BitReader* raw_at, const RansSlot* tab
   while (k < n) {
     // Branch-free: the symbols are what the data makes them. kRansNoSymbol (a slot of an empty
     // table) reads as 0 and fails the line.
+    // The slots carry each symbol's magnitude class as their tag: the next table is picked
+    // without waiting for a second lookup.
     const RansSlot* atable = tables + static_cast<size_t>(actx) * kRansScale;
-    const uint32_t asym = kChecked ? rans.Decode(atable, 0) : rans.DecodeUnchecked(atable, 0);
+    const RansSlot as =
+        kChecked ? rans.DecodeSlot(atable, 0) : rans.DecodeSlotUnchecked(atable, 0);
+    const uint32_t asym = SlotSymbol(as);
     const SymbolInfo& ai = info[asym];
     const int64_t a = Unzig(ai.base + raw.Get(ai.bits));
     const RansSlot* etable =
-        tables + static_cast<size_t>(kAlongTables + 3 * mag_e + ai.mag) * kRansScale;
-    const uint32_t esym = kChecked ? rans.Decode(etable, 1) : rans.DecodeUnchecked(etable, 1);
+        tables + static_cast<size_t>(kAlongTables + 3 * mag_e + SlotTag(as)) * kRansScale;
+    const RansSlot es =
+        kChecked ? rans.DecodeSlot(etable, 1) : rans.DecodeSlotUnchecked(etable, 1);
+    const uint32_t esym = SlotSymbol(es);
     const SymbolInfo& ei = info[esym];
     const int64_t e = Unzig(ei.base + raw.Get(ei.bits));
     const int32_t th = (theta + omega) & (kAngles - 1);
@@ -314,8 +332,8 @@ size_t DecodePoints(RansDecoder* rans_at, BitReader* raw_at, const RansSlot* tab
       lp = NextChord(h, l1) >> 1;
     }
     l1 = h;
-    actx = ai.mag;
-    mag_e = ei.mag;
+    actx = static_cast<int>(SlotTag(as));
+    mag_e = static_cast<int>(SlotTag(es));
     out[k++] = p;
     // k is the index of the point just placed in its line (out starts at the line's second).
     if (kChecked && (k & 63) == 0 && (fail || rans.overrun())) break;
@@ -599,7 +617,7 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
       v = static_cast<uint32_t>(x);
     }
     if (!rc.ok()) return truncated("symbol tables");
-    if (!BuildRansSlots(f, &slots[static_cast<size_t>(t) * kRansScale])) {
+    if (!BuildRansSlots(f, &slots[static_cast<size_t>(t) * kRansScale], MagnitudeTags())) {
       return InvalidArgument("contour: symbol table " + std::to_string(t) +
                              " frequencies do not sum to " + std::to_string(kRansScale));
     }

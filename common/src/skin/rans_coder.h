@@ -62,21 +62,28 @@ inline int64_t TokenValue(int symbol, uint64_t extra) {
 /// Empty (all zero) counts give an empty table (all zero).
 std::vector<uint32_t> NormaliseCounts(const std::vector<uint64_t>& counts);
 
-/// The decoder's view of one table: per slot, the symbol (7 bits), slot - start of the symbol
-/// (kRansScaleBits) and its frequency (above), in one word so a table stays small in cache.
+/// The decoder's view of one table: per slot, the symbol (7 bits), a 2-bit tag the caller gives
+/// each symbol, slot - start of the symbol (kRansScaleBits) and its frequency (above), in one word
+/// so a table stays small in cache.
 using RansSlot = uint32_t;
-inline constexpr int kSlotBiasShift = 7;
+inline constexpr int kSlotTagShift = 7;
+inline constexpr int kSlotBiasShift = kSlotTagShift + 2;
 inline constexpr int kSlotFreqShift = kSlotBiasShift + kRansScaleBits;
-inline constexpr RansSlot MakeSlot(uint32_t freq, uint32_t bias, uint32_t symbol) {
-  return (freq << kSlotFreqShift) | (bias << kSlotBiasShift) | symbol;
+inline constexpr RansSlot MakeSlot(uint32_t freq, uint32_t bias, uint32_t symbol, uint32_t tag = 0) {
+  return (freq << kSlotFreqShift) | (bias << kSlotBiasShift) | (tag << kSlotTagShift) | symbol;
 }
+inline constexpr uint32_t SlotSymbol(RansSlot s) { return s & 127; }
+/// The tag of the symbol a slot decodes (0 for a slot of an empty table).
+inline constexpr uint32_t SlotTag(RansSlot s) { return (s >> kSlotTagShift) & 3; }
 /// A symbol value that marks a slot of an empty table (its use is a decode error).
 inline constexpr uint16_t kRansNoSymbol = kRansAlphabet;
 
 /// Fills `slots` (kRansScale entries) from frequencies that sum to kRansScale (or are all zero:
-/// every slot then decodes kRansNoSymbol and leaves the state as it was). False if they sum to
-/// anything else or there are more than kRansAlphabet.
-bool BuildRansSlots(const std::vector<uint32_t>& freq, RansSlot* slots);
+/// every slot then decodes kRansNoSymbol and leaves the state as it was), each symbol s's slots
+/// tagged tags[s] (0-3; none if `tags` is null). False if they sum to anything else or there are
+/// more than kRansAlphabet.
+bool BuildRansSlots(const std::vector<uint32_t>& freq, RansSlot* slots,
+                    const uint8_t* tags = nullptr);
 
 /// Collects symbols with their frequency tables and state (0 or 1), then writes them in reverse.
 /// Not thread-safe.
@@ -112,12 +119,16 @@ class RansDecoder {
   }
   /// The next symbol of `lane` (0 or 1) from `table` (kRansScale slots).
   [[gnu::always_inline]] uint32_t Decode(const RansSlot* table, int lane) {
+    return SlotSymbol(DecodeSlot(table, lane));
+  }
+  /// The slot of the next symbol (its symbol and tag).
+  [[gnu::always_inline]] RansSlot DecodeSlot(const RansSlot* table, int lane) {
     // Two named states rather than an array, so both stay in registers.
     return lane == 0 ? Step<true>(table, x0_) : Step<true>(table, x1_);
   }
-  /// Decode without the end-of-stream guard: only while words_left() is at least the number of
-  /// symbols still to decode (a symbol takes at most one word).
-  [[gnu::always_inline]] uint32_t DecodeUnchecked(const RansSlot* table, int lane) {
+  /// DecodeSlot without the end-of-stream guard: only while words_left() is at least the number
+  /// of symbols still to decode (a symbol takes at most one word).
+  [[gnu::always_inline]] RansSlot DecodeSlotUnchecked(const RansSlot* table, int lane) {
     return lane == 0 ? Step<false>(table, x0_) : Step<false>(table, x1_);
   }
   /// The 16-bit words not yet read.
@@ -130,7 +141,7 @@ class RansDecoder {
 
  private:
   template <bool kChecked>
-  [[gnu::always_inline]] uint32_t Step(const RansSlot* table, uint32_t& state) {
+  [[gnu::always_inline]] RansSlot Step(const RansSlot* table, uint32_t& state) {
     uint32_t x = state;
     const RansSlot s = table[x & (kRansScale - 1)];
     x = (s >> kSlotFreqShift) * (x >> kRansScaleBits) + ((s >> kSlotBiasShift) & (kRansScale - 1));
@@ -153,7 +164,7 @@ class RansDecoder {
       x = (x << (16 * n)) | (w & (0u - n));
     }
     state = x;
-    return s & 127;
+    return s;
   }
   [[gnu::always_inline]] uint32_t Word() {
     if (p_ == end_) {
