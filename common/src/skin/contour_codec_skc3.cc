@@ -237,11 +237,10 @@ bool PlaceNearest(Vec2 p, const double* cos_table, int32_t th, Vec2 target, doub
 }
 
 /// What the decoder needs of a symbol: its zigzag value without the extra bits, how many extra
-/// bits follow, and its magnitude class (0, 1, 2+) for the next contexts. One more entry for
-/// kRansNoSymbol (all zero).
+/// bits follow and their mask. One more entry for kRansNoSymbol (all zero).
 struct SymbolInfo {
-  uint64_t base;
-  int bits, mag;
+  uint64_t base, mask;
+  int bits;
 };
 const SymbolInfo* SymbolInfos() {
   static const std::array<SymbolInfo, kRansAlphabet + 1> table = [] {
@@ -251,7 +250,7 @@ const SymbolInfo* SymbolInfos() {
       t[s] = {s < kTokenDirect
                   ? static_cast<uint64_t>(s)
                   : (uint64_t{2} | static_cast<uint64_t>((s - kTokenDirect) & 1)) << bits,
-              bits, Mag3(s)};
+              (uint64_t{1} << bits) - 1, bits};
     }
     t[kRansAlphabet] = {0, 0, 0};
     return t;
@@ -307,14 +306,14 @@ size_t DecodePoints(RansDecoder* rans_at, BitReader* raw_at, const RansSlot* tab
         kChecked ? rans.DecodeSlot(atable, 0) : rans.DecodeSlotUnchecked(atable, 0);
     const uint32_t asym = SlotSymbol(as);
     const SymbolInfo& ai = info[asym];
-    const int64_t a = Unzig(ai.base + raw.Get(ai.bits));
+    const int64_t a = Unzig(ai.base + raw.Get(ai.bits, ai.mask));
     const RansSlot* etable =
         tables + static_cast<size_t>(kAlongTables + 3 * mag_e + SlotTag(as)) * kRansScale;
     const RansSlot es =
         kChecked ? rans.DecodeSlot(etable, 1) : rans.DecodeSlotUnchecked(etable, 1);
     const uint32_t esym = SlotSymbol(es);
     const SymbolInfo& ei = info[esym];
-    const int64_t e = Unzig(ei.base + raw.Get(ei.bits));
+    const int64_t e = Unzig(ei.base + raw.Get(ei.bits, ei.mask));
     const int32_t th = (theta + omega) & (kAngles - 1);
     const int64_t len = lp + a;
     p = Place(p, cos_table, th, len, e, hs, vs);

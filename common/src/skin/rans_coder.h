@@ -200,10 +200,12 @@ class BitReader {
   explicit BitReader(std::string_view bytes)
       : p_(reinterpret_cast<const uint8_t*>(bytes.data())), end_(p_ + bytes.size()) {}
   /// `count` <= 48 bits (0 reads nothing).
-  [[gnu::always_inline]] uint64_t Get(int count) {
+  [[gnu::always_inline]] uint64_t Get(int count) { return Get(count, (uint64_t{1} << count) - 1); }
+  /// Get(count) with its mask, 2^count - 1, from the caller's table.
+  [[gnu::always_inline]] uint64_t Get(int count, uint64_t mask) {
     if (n_ < count) [[unlikely]]
       Refill(count);
-    const uint64_t v = acc_ & ((uint64_t{1} << count) - 1);
+    const uint64_t v = acc_ & mask;
     acc_ >>= count;
     n_ -= count;
     return v;
