@@ -272,25 +272,39 @@ inline int64_t Unzig(uint64_t zz) {
   return static_cast<int64_t>(zz >> 1) ^ -static_cast<int64_t>(zz & 1);
 }
 
-/// SKC3's point loop: the next `n` points of a line after `p` into `out`, each from an along and
-/// an across integer, advancing the turtle `t` (direction, turn, chords and the contexts of the
-/// next symbols; `kRule`: SKC4's chord rule, else SKC3's trend). `bad` is set where a symbol comes
-/// from an empty table, a chord leaves [-kMaxChord, kMaxChord] or a point the plane (|x|, |y| <=
-/// `lim`). `kChecked` false only where the stream holds a word for every symbol still to decode.
-/// Returns the number of points placed: checked, the loop stops at the next multiple of 64 points
-/// once the stream has run out or a point is bad (a claimed count may be far beyond the bytes;
-/// past the end the stream reads zeros).
-template <bool kChecked, bool kRule>
-size_t DecodePoints(RansDecoder* rans_at, BitReader* raw_at, const RansSlot* tables, size_t n,
-                    Vec2 p, double hs, double vs, double lim, Turtle* t, bool* bad, Vec2* out) {
-  // Copies whose address does not escape, so that their state lives in registers (the stores to
-  // `out` would otherwise have them written back every point).
-  RansDecoder rans = *rans_at;
-  BitReader raw = *raw_at;
+/// What SKC3's point loop reads and does not change within a message (gathered once: a line is
+/// about 20 points, and the tables' accessors each check their guard).
+struct PointContext {
+  const RansSlot* tables;  // the message's kTables symbol tables
+  double hs, vs;           // step * kHalfAlong, step * kAcross
+  double lim;              // the plane: |x|, |y| <= lim
   const SymbolInfo* info = SymbolInfos();
   const double* cos_table = CosTable();
   const int32_t* turn = TurnTable();
   const double* root = RuleRootTable();
+};
+
+/// SKC3's point loop: the next `n` points of a line after `p` into `out`, each from an along and
+/// an across integer, advancing the turtle `t` (direction, turn, chords and the contexts of the
+/// next symbols; `kRule`: SKC4's chord rule, else SKC3's trend). `bad` is set where a symbol comes
+/// from an empty table, a chord leaves [-kMaxChord, kMaxChord] or a point the plane. `kChecked`
+/// false only where the stream holds a word for every symbol still to decode.
+/// Returns the number of points placed: checked, the loop stops at the next multiple of 64 points
+/// once the stream has run out or a point is bad (a claimed count may be far beyond the bytes;
+/// past the end the stream reads zeros).
+template <bool kChecked, bool kRule>
+size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_at, size_t n,
+                    Vec2 p, Turtle* t, bool* bad, Vec2* out) {
+  // Copies whose address does not escape, so that their state lives in registers (the stores to
+  // `out` would otherwise have them written back every point).
+  RansDecoder rans = *rans_at;
+  BitReader raw = *raw_at;
+  const RansSlot* tables = c.tables;
+  const SymbolInfo* info = c.info;
+  const double* cos_table = c.cos_table;
+  const int32_t* turn = c.turn;
+  const double* root = c.root;
+  const double hs = c.hs, vs = c.vs, lim = c.lim;
   int32_t theta = t->theta, omega = t->omega;
   int64_t lp = t->lp, l1 = t->l1;
   int actx = t->actx, mag_e = t->mag_e;
@@ -658,9 +672,8 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
 
   RansDecoder rans(rans_bytes);
   BitReader raw(raw_bytes);
-  const RansSlot* tables = slots.data();
-  const double lim = kMaxQuantised * step;
-  const double hs = step * kHalfAlong, vs = step * kAcross;
+  const PointContext context{slots.data(), step * kHalfAlong, step * kAcross,
+                             kMaxQuantised * step};
   lines->assign(nlines, {});
   Turtle carried[2];  // the end turtle of the last line of each side (index j % stride)
   for (uint64_t j = 0; j < nlines; ++j) {
@@ -703,11 +716,11 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
       bool bad = false;
       // Two symbols a point, at most a word each: unchecked where the words are there.
       if (rans.words_left() / 2 >= n) {
-        (skc4 ? DecodePoints<false, true> : DecodePoints<false, false>)(
-            &rans, &raw, tables, n, p, hs, vs, lim, &t, &bad, &out[1]);
+        (skc4 ? DecodePoints<false, true> : DecodePoints<false, false>)(context, &rans, &raw, n,
+                                                                        p, &t, &bad, &out[1]);
       } else {
-        (skc4 ? DecodePoints<true, true> : DecodePoints<true, false>)(
-            &rans, &raw, tables, n, p, hs, vs, lim, &t, &bad, &out[1]);
+        (skc4 ? DecodePoints<true, true> : DecodePoints<true, false>)(context, &rans, &raw, n, p,
+                                                                      &t, &bad, &out[1]);
       }
       if (bad) {
         return InvalidArgument(
