@@ -309,6 +309,9 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
   int64_t lp = t->lp, l1 = t->l1;
   int actx = t->actx, mag_e = t->mag_e;
   bool fail = false;
+  // The largest |x| and |y| placed: two maxima a point rather than two compares. A NaN point
+  // makes every point after it NaN (each is the last plus a step), so the last point shows it.
+  Vec2 reach{0, 0};
   size_t k = 0;
   while (k < n) {
     // Branch-free: the symbols are what the data makes them. kRansNoSymbol (a slot of an empty
@@ -332,7 +335,8 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
     const int64_t len = lp + a;
     p = Place(p, cos_table, th, len, e, hs, vs);
     fail |= (asym == kRansNoSymbol) | (esym == kRansNoSymbol) | (len > kMaxChord) |
-            (len < -kMaxChord) | !(std::abs(p.x) <= lim) | !(std::abs(p.y) <= lim);
+            (len < -kMaxChord);
+    reach = {std::max(reach.x, std::abs(p.x)), std::max(reach.y, std::abs(p.y))};
     const int64_t lc = std::clamp<int64_t>(len, 1, kRecipMax);
     const int64_t ec = std::clamp<int64_t>(e, -lc, lc);
     const int32_t d = static_cast<int32_t>((ec * turn[lc]) >> 16);
@@ -350,6 +354,10 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
     out[k++] = p;
     // k is the index of the point just placed in its line (out starts at the line's second).
     if (kChecked && (k & 63) == 0 && (fail || rans.overrun())) break;
+  }
+  if (k > 0) {
+    fail |= !(reach.x <= lim) | !(reach.y <= lim) | !(std::abs(p.x) <= lim) |
+            !(std::abs(p.y) <= lim);
   }
   t->theta = theta;
   t->omega = omega;

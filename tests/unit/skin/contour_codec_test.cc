@@ -651,3 +651,55 @@ TEST(ContourCodecTest, Skc4ChordRuleEqualsItsDefinition) {
 
 }  // namespace
 }  // namespace sculpt::skin
+
+namespace sculpt::skin {
+namespace {
+
+// A line that ends 2^18 steps inside the plane's edge (2^52 steps), then each single-bit change of
+// its raw bits (the along integers' low bits, which no rANS state checks): a change that pushes
+// the chord out pushes the points after it past the edge, and the decoder refuses them as outside
+// the plane (the chords stay far below their own limit, 2^40 steps).
+TEST(ContourCodecTest, RejectsPointsOutsideThePlane) {
+  const double edge = 4503599627370496.0;  // 2^52 steps, step 1
+  Polyline2 line;
+  for (int k = 0; k < 8; ++k) line.push_back({edge - 8 * 262144.0 + k * 262144.0, 0});
+  const auto bytes = internal::EncodeContoursSkc3({line}, 1);
+  ASSERT_TRUE(bytes.ok()) << bytes.status();
+  ASSERT_TRUE(IsSkc3(*bytes));
+  ASSERT_TRUE(DecodeContours(*bytes).ok());
+  // The raw bits close the message: header (magic, kind, step, coding, one varint), then the
+  // body's side information and symbols, each after its varint length.
+  size_t pos = 4 + 1 + 8 + 1 + 1;
+  auto varint = [&] {
+    uint64_t v = 0;
+    for (int shift = 0;; shift += 7) {
+      const uint8_t b = static_cast<uint8_t>((*bytes)[pos++]);
+      v |= static_cast<uint64_t>(b & 0x7f) << shift;
+      if (!(b & 0x80)) return v;
+    }
+  };
+  pos += varint();
+  pos += varint();
+  ASSERT_LT(pos, bytes->size());
+  int outside = 0, accepted = 0;
+  for (size_t i = pos; i < bytes->size(); ++i) {
+    for (int bit = 0; bit < 8; ++bit) {
+      std::string b = *bytes;
+      b[i] ^= static_cast<char>(1 << bit);
+      const auto back = DecodeContours(b);
+      if (back.ok()) {
+        ++accepted;
+        for (const Vec2& p : (*back)[0]) EXPECT_LE(std::abs(p.x), edge) << i << " " << bit;
+      } else if (back.status().code() == Status::Code::kInvalidArgument) {
+        EXPECT_NE(back.status().message().find("outside [-2^52, 2^52] steps"), std::string::npos)
+            << back.status();
+        ++outside;
+      }
+    }
+  }
+  EXPECT_GT(outside, 0);
+  EXPECT_GT(accepted, 0);
+}
+
+}  // namespace
+}  // namespace sculpt::skin
