@@ -115,7 +115,7 @@ constexpr int kMaxTurn = kAngles / 8;
 /// 2 % of the bytes, 12-23 % more points; 0.75: 6 % more bytes, 0.88: 19 %). Limited to a quarter of the last chord
 /// either way (plus 2 half spacings, so that a short chord can grow); in lattice spacings.
 /// + - * / and sqrt in doubles, all exactly rounded, so the JS decoder computes the same.
-constexpr double kChordRule = 20000.0;  // kRuleTarget = 0.587
+constexpr double kChordRule = 20000.0;              // kRuleTarget = 0.587
 constexpr int64_t kRuleMaxHalf = int64_t{1} << 20;  // h above this counts as this in the rule
 
 /// RuleChord as the format defines it (and the JS decoder computes it): the doubles above, then
@@ -129,8 +129,9 @@ constexpr int64_t kRuleMaxHalf = int64_t{1} << 20;  // h above this counts as th
   if (w > 0) {
     const double c = std::sqrt(kChordRule * static_cast<double>(std::min(h, kRuleMaxHalf)) /
                                static_cast<double>(w));
-    g = c < static_cast<double>(lo) ? lo : c > static_cast<double>(hi) ? hi
-                                                                        : static_cast<int64_t>(c);
+    g = c < static_cast<double>(lo)   ? lo
+        : c > static_cast<double>(hi) ? hi
+                                      : static_cast<int64_t>(c);
   }
   return g >> 1;
 }
@@ -319,23 +320,21 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
     // The slots carry each symbol's magnitude class as their tag: the next table is picked
     // without waiting for a second lookup.
     const RansSlot* atable = tables + static_cast<size_t>(actx) * kRansScale;
-    const RansSlot as =
-        kChecked ? rans.DecodeSlot(atable, 0) : rans.DecodeSlotUnchecked(atable, 0);
+    const RansSlot as = kChecked ? rans.DecodeSlot(atable, 0) : rans.DecodeSlotUnchecked(atable, 0);
     const uint32_t asym = SlotSymbol(as);
     const SymbolInfo& ai = info[asym];
     const int64_t a = Unzig(ai.base + raw.Get(ai.bits, ai.mask));
     const RansSlot* etable =
         tables + static_cast<size_t>(kAlongTables + 3 * mag_e + SlotTag(as)) * kRansScale;
-    const RansSlot es =
-        kChecked ? rans.DecodeSlot(etable, 1) : rans.DecodeSlotUnchecked(etable, 1);
+    const RansSlot es = kChecked ? rans.DecodeSlot(etable, 1) : rans.DecodeSlotUnchecked(etable, 1);
     const uint32_t esym = SlotSymbol(es);
     const SymbolInfo& ei = info[esym];
     const int64_t e = Unzig(ei.base + raw.Get(ei.bits, ei.mask));
     const int32_t th = (theta + omega) & (kAngles - 1);
     const int64_t len = lp + a;
     p = Place(p, cos_table, th, len, e, hs, vs);
-    fail |= (asym == kRansNoSymbol) | (esym == kRansNoSymbol) | (len > kMaxChord) |
-            (len < -kMaxChord);
+    fail |=
+        (asym == kRansNoSymbol) | (esym == kRansNoSymbol) | (len > kMaxChord) | (len < -kMaxChord);
     reach = {std::max(reach.x, std::abs(p.x)), std::max(reach.y, std::abs(p.y))};
     const int64_t lc = std::clamp<int64_t>(len, 1, kRecipMax);
     const int64_t ec = std::clamp<int64_t>(e, -lc, lc);
@@ -356,8 +355,8 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
     if (kChecked && (k & 63) == 0 && (fail || rans.overrun())) break;
   }
   if (k > 0) {
-    fail |= !(reach.x <= lim) | !(reach.y <= lim) | !(std::abs(p.x) <= lim) |
-            !(std::abs(p.y) <= lim);
+    fail |=
+        !(reach.x <= lim) | !(reach.y <= lim) | !(std::abs(p.x) <= lim) | !(std::abs(p.y) <= lim);
   }
   t->theta = theta;
   t->omega = omega;
@@ -680,8 +679,7 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
 
   RansDecoder rans(rans_bytes);
   BitReader raw(raw_bytes);
-  const PointContext context{slots.data(), step * kHalfAlong, step * kAcross,
-                             kMaxQuantised * step};
+  const PointContext context{slots.data(), step * kHalfAlong, step * kAcross, kMaxQuantised * step};
   lines->assign(nlines, {});
   Turtle carried[2];  // the end turtle of the last line of each side (index j % stride)
   for (uint64_t j = 0; j < nlines; ++j) {
@@ -724,8 +722,8 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
       bool bad = false;
       // Two symbols a point, at most a word each: unchecked where the words are there.
       if (rans.words_left() / 2 >= n) {
-        (skc4 ? DecodePoints<false, true> : DecodePoints<false, false>)(context, &rans, &raw, n,
-                                                                        p, &t, &bad, &out[1]);
+        (skc4 ? DecodePoints<false, true> : DecodePoints<false, false>)(context, &rans, &raw, n, p,
+                                                                        &t, &bad, &out[1]);
       } else {
         (skc4 ? DecodePoints<true, true> : DecodePoints<true, false>)(context, &rans, &raw, n, p,
                                                                       &t, &bad, &out[1]);

@@ -69,7 +69,8 @@ using RansSlot = uint32_t;
 inline constexpr int kSlotTagShift = 7;
 inline constexpr int kSlotBiasShift = kSlotTagShift + 2;
 inline constexpr int kSlotFreqShift = kSlotBiasShift + kRansScaleBits;
-inline constexpr RansSlot MakeSlot(uint32_t freq, uint32_t bias, uint32_t symbol, uint32_t tag = 0) {
+inline constexpr RansSlot MakeSlot(uint32_t freq, uint32_t bias, uint32_t symbol,
+                                   uint32_t tag = 0) {
   return (freq << kSlotFreqShift) | (bias << kSlotBiasShift) | (tag << kSlotTagShift) | symbol;
 }
 inline constexpr uint32_t SlotSymbol(RansSlot s) { return s & 127; }
@@ -134,9 +135,7 @@ class RansDecoder {
   /// The 16-bit words not yet read.
   size_t words_left() const { return static_cast<size_t>(end_ - p_) / 2; }
   /// True when the stream was read exactly and ended where the encoder began.
-  bool ok() const {
-    return !overrun_ && !odd_ && p_ == end_ && x0_ == kRansLow && x1_ == kRansLow;
-  }
+  bool ok() const { return !overrun_ && !odd_ && p_ == end_ && x0_ == kRansLow && x1_ == kRansLow; }
   bool overrun() const { return overrun_; }
 
  private:
