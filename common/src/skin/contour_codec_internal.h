@@ -63,6 +63,13 @@ bool Skc4Advance(CodecCursor& c, Vec2 target, double step, int64_t* along);
 /// decides). An invalid cursor where the line cannot be coded.
 CodecCursor Skc4Trace(const CodecCursor& start, const Polyline2& line, double step);
 
+/// SKC4's chord rule (contour_codec.h): the next chord in lattice spacings after a chord of `h`
+/// half spacings that turned by `omega` angle units (|omega| <= 2^11), as the coder computes it,
+/// and as the format defines it in doubles (which the JS decoder repeats). Equal for every
+/// argument (the tests sweep them); the first is the one on the decoder's critical path.
+int64_t Skc4ChordRule(int64_t h, int32_t omega);
+int64_t Skc4ChordRuleDefinition(int64_t h, int32_t omega);
+
 }  // namespace sculpt::skin::internal
 
 #endif  // SCULPT_SKIN_CONTOUR_CODEC_INTERNAL_H_

@@ -99,8 +99,10 @@ constexpr int kMaxTurn = kAngles / 8;
 /// about 5 % of the chord (13/256; spacing follows curvature, which changes slowly, but jumps
 /// where the sampler's pieces meet).
 [[gnu::always_inline]] inline int64_t NextChord(int64_t len, int64_t l1) {
-  const int64_t m = len > 0 ? (len * 13) >> 8 : 0;
-  return len + std::clamp<int64_t>(len - l1, -m, m);
+  // min / max rather than a conditional and std::clamp, which GCC made branches of: the limit
+  // binds where the data says, a misprediction a few points apart.
+  const int64_t m = (std::max<int64_t>(len, 0) * 13) >> 8;
+  return len + std::min(std::max(len - l1, -m), m);
 }
 
 /// SKC4's next chord, from the chord rule: a chord of h half spacings that turned by omega angle
@@ -113,20 +115,57 @@ constexpr int kMaxTurn = kAngles / 8;
 /// 2 % of the bytes, 12-23 % more points; 0.75: 6 % more bytes, 0.88: 19 %). Limited to a quarter of the last chord
 /// either way (plus 2 half spacings, so that a short chord can grow); in lattice spacings.
 /// + - * / and sqrt in doubles, all exactly rounded, so the JS decoder computes the same.
-constexpr double kChordRule = 20000.0;  // kRuleTarget = 0.587
-[[gnu::always_inline]] inline int64_t RuleChord(int64_t h, int32_t omega) {
+constexpr double kChordRule = 20000.0;              // kRuleTarget = 0.587
+constexpr int64_t kRuleMaxHalf = int64_t{1} << 20;  // h above this counts as this in the rule
+
+/// RuleChord as the format defines it (and the JS decoder computes it): the doubles above, then
+/// the limits. The decoder's loop takes RuleChord's shorter road and comes here only where the
+/// two could differ.
+[[gnu::noinline]] int64_t RuleChordDefinition(int64_t h, int32_t omega) {
   if (h <= 0) return h >> 1;  // floor(h / 2)
   const int64_t lo = h - (h >> 2), hi = h + (h >> 2) + 2;
   const int64_t w = omega < 0 ? -static_cast<int64_t>(omega) : omega;
   int64_t g = hi;
   if (w > 0) {
-    const double c =
-        std::sqrt(kChordRule * static_cast<double>(std::min<int64_t>(h, 1 << 20)) /
-                  static_cast<double>(w));
-    g = c < static_cast<double>(lo) ? lo : c > static_cast<double>(hi) ? hi
-                                                                        : static_cast<int64_t>(c);
+    const double c = std::sqrt(kChordRule * static_cast<double>(std::min(h, kRuleMaxHalf)) /
+                               static_cast<double>(w));
+    g = c < static_cast<double>(lo)   ? lo
+        : c > static_cast<double>(hi) ? hi
+                                      : static_cast<int64_t>(c);
   }
   return g >> 1;
+}
+
+/// sqrt(kChordRule / w) for |omega| = w in [1, kMaxTurn]; 0 for w = 0 (RuleChord sets that aside).
+const double* RuleRootTable() {
+  static const std::unique_ptr<double[]> table = [] {
+    auto t = std::make_unique<double[]>(kMaxTurn + 1);
+    t[0] = 0;
+    for (int w = 1; w <= kMaxTurn; ++w) t[w] = std::sqrt(kChordRule / w);
+    return t;
+  }();
+  return table.get();
+}
+
+/// RuleChordDefinition, bit for bit, with a shorter dependency chain: sqrt(h) times a table entry
+/// in place of a division and a square root after it (the chord rule is the loop-carried chain of
+/// SKC4's decoder, h and omega come from the point just decoded). The definition's
+/// c = sqrt(kChordRule h / w) and this one differ by a few ulps: both within 2^-33 of the exact
+/// value, since c < 2^18 (h <= 2^20, w >= 1). So where this c is more than 2^-20 from an integer,
+/// both floor to the same integer, and the limits (integers) act on the floors alike. Where it is
+/// that close (about one chord in 500 000, or a crafted stream), the definition decides.
+[[gnu::always_inline]] inline int64_t RuleChord(int64_t h, int32_t omega, const double* root) {
+  if (h <= 0) [[unlikely]]
+    return h >> 1;
+  const int64_t lo = h - (h >> 2), hi = h + (h >> 2) + 2;
+  const int32_t w = omega < 0 ? -omega : omega;
+  const double c = std::sqrt(static_cast<double>(std::min(h, kRuleMaxHalf))) * root[w];
+  const int64_t n = static_cast<int64_t>(c);  // c >= 0: the floor
+  const double f = c - static_cast<double>(n);
+  constexpr double kNearInteger = 0x1p-20;
+  if ((f < kNearInteger || f > 1 - kNearInteger) && w != 0) [[unlikely]]
+    return RuleChordDefinition(h, omega);
+  return (w == 0 ? hi : std::clamp(n, lo, hi)) >> 1;
 }
 
 /// The turn a point makes off the predicted direction, in angle units, and the turtle after it;
@@ -139,7 +178,7 @@ constexpr double kChordRule = 20000.0;  // kRuleTarget = 0.587
   t.theta = (th + d) & (kAngles - 1);
   t.omega = std::clamp<int32_t>(t.omega + d, -kMaxTurn, kMaxTurn);
   const int64_t h = 2 * len + (e & 1);
-  t.lp = rule ? RuleChord(h, t.omega) : NextChord(h, t.l1) >> 1;
+  t.lp = rule ? RuleChord(h, t.omega, RuleRootTable()) : NextChord(h, t.l1) >> 1;
   t.l1 = h;
 }
 
@@ -199,11 +238,10 @@ bool PlaceNearest(Vec2 p, const double* cos_table, int32_t th, Vec2 target, doub
 }
 
 /// What the decoder needs of a symbol: its zigzag value without the extra bits, how many extra
-/// bits follow, and its magnitude class (0, 1, 2+) for the next contexts. One more entry for
-/// kRansNoSymbol (all zero).
+/// bits follow and their mask. One more entry for kRansNoSymbol (all zero).
 struct SymbolInfo {
-  uint64_t base;
-  int bits, mag;
+  uint64_t base, mask;
+  int bits;
 };
 const SymbolInfo* SymbolInfos() {
   static const std::array<SymbolInfo, kRansAlphabet + 1> table = [] {
@@ -213,7 +251,7 @@ const SymbolInfo* SymbolInfos() {
       t[s] = {s < kTokenDirect
                   ? static_cast<uint64_t>(s)
                   : (uint64_t{2} | static_cast<uint64_t>((s - kTokenDirect) & 1)) << bits,
-              bits, Mag3(s)};
+              (uint64_t{1} << bits) - 1, bits};
     }
     t[kRansAlphabet] = {0, 0, 0};
     return t;
@@ -221,8 +259,115 @@ const SymbolInfo* SymbolInfos() {
   return table.data();
 }
 
+/// Mag3 of every symbol, the tag of its rANS slots.
+const uint8_t* MagnitudeTags() {
+  static const std::array<uint8_t, kRansAlphabet> table = [] {
+    std::array<uint8_t, kRansAlphabet> t{};
+    for (int s = 0; s < kRansAlphabet; ++s) t[s] = static_cast<uint8_t>(Mag3(s));
+    return t;
+  }();
+  return table.data();
+}
+
 inline int64_t Unzig(uint64_t zz) {
   return static_cast<int64_t>(zz >> 1) ^ -static_cast<int64_t>(zz & 1);
+}
+
+/// What SKC3's point loop reads and does not change within a message (gathered once: a line is
+/// about 20 points, and the tables' accessors each check their guard).
+struct PointContext {
+  const RansSlot* tables;  // the message's kTables symbol tables
+  double hs, vs;           // step * kHalfAlong, step * kAcross
+  double lim;              // the plane: |x|, |y| <= lim
+  const SymbolInfo* info = SymbolInfos();
+  const double* cos_table = CosTable();
+  const int32_t* turn = TurnTable();
+  const double* root = RuleRootTable();
+};
+
+/// SKC3's point loop: the next `n` points of a line after `p` into `out`, each from an along and
+/// an across integer, advancing the turtle `t` (direction, turn, chords and the contexts of the
+/// next symbols; `kRule`: SKC4's chord rule, else SKC3's trend). `bad` is set where a symbol comes
+/// from an empty table, a chord leaves [-kMaxChord, kMaxChord] or a point the plane. `kChecked`
+/// false only where the stream holds a word for every symbol still to decode.
+/// Returns the number of points placed: checked, the loop stops at the next multiple of 64 points
+/// once the stream has run out or a point is bad (a claimed count may be far beyond the bytes;
+/// past the end the stream reads zeros).
+template <bool kChecked, bool kRule>
+size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_at, size_t n,
+                    Vec2 p, Turtle* t, bool* bad, Vec2* out) {
+  // Copies whose address does not escape, so that their state lives in registers (the stores to
+  // `out` would otherwise have them written back every point).
+  RansDecoder rans = *rans_at;
+  BitReader raw = *raw_at;
+  const RansSlot* tables = c.tables;
+  const SymbolInfo* info = c.info;
+  const double* cos_table = c.cos_table;
+  const int32_t* turn = c.turn;
+  const double* root = c.root;
+  const double hs = c.hs, vs = c.vs, lim = c.lim;
+  int32_t theta = t->theta, omega = t->omega;
+  int64_t lp = t->lp, l1 = t->l1;
+  int actx = t->actx, mag_e = t->mag_e;
+  bool fail = false;
+  // The largest |x| and |y| placed: two maxima a point rather than two compares. A NaN point
+  // makes every point after it NaN (each is the last plus a step), so the last point shows it.
+  Vec2 reach{0, 0};
+  size_t k = 0;
+  while (k < n) {
+    // Branch-free: the symbols are what the data makes them. kRansNoSymbol (a slot of an empty
+    // table) reads as 0 and fails the line.
+    // The slots carry each symbol's magnitude class as their tag: the next table is picked
+    // without waiting for a second lookup.
+    const RansSlot* atable = tables + static_cast<size_t>(actx) * kRansScale;
+    const RansSlot as = kChecked ? rans.DecodeSlot(atable, 0) : rans.DecodeSlotUnchecked(atable, 0);
+    const uint32_t asym = SlotSymbol(as);
+    const SymbolInfo& ai = info[asym];
+    const int64_t a = Unzig(ai.base + raw.Get(ai.bits, ai.mask));
+    const RansSlot* etable =
+        tables + static_cast<size_t>(kAlongTables + 3 * mag_e + SlotTag(as)) * kRansScale;
+    const RansSlot es = kChecked ? rans.DecodeSlot(etable, 1) : rans.DecodeSlotUnchecked(etable, 1);
+    const uint32_t esym = SlotSymbol(es);
+    const SymbolInfo& ei = info[esym];
+    const int64_t e = Unzig(ei.base + raw.Get(ei.bits, ei.mask));
+    const int32_t th = (theta + omega) & (kAngles - 1);
+    const int64_t len = lp + a;
+    p = Place(p, cos_table, th, len, e, hs, vs);
+    fail |=
+        (asym == kRansNoSymbol) | (esym == kRansNoSymbol) | (len > kMaxChord) | (len < -kMaxChord);
+    reach = {std::max(reach.x, std::abs(p.x)), std::max(reach.y, std::abs(p.y))};
+    const int64_t lc = std::clamp<int64_t>(len, 1, kRecipMax);
+    const int64_t ec = std::clamp<int64_t>(e, -lc, lc);
+    const int32_t d = static_cast<int32_t>((ec * turn[lc]) >> 16);
+    theta = (th + d) & (kAngles - 1);
+    omega = std::clamp<int32_t>(omega + d, -kMaxTurn, kMaxTurn);
+    const int64_t h = 2 * len + (e & 1);
+    if constexpr (kRule) {
+      lp = RuleChord(h, omega, root);
+    } else {
+      lp = NextChord(h, l1) >> 1;
+    }
+    l1 = h;
+    actx = static_cast<int>(SlotTag(as));
+    mag_e = static_cast<int>(SlotTag(es));
+    out[k++] = p;
+    // k is the index of the point just placed in its line (out starts at the line's second).
+    if (kChecked && (k & 63) == 0 && (fail || rans.overrun())) break;
+  }
+  if (k > 0) {
+    fail |=
+        !(reach.x <= lim) | !(reach.y <= lim) | !(std::abs(p.x) <= lim) | !(std::abs(p.y) <= lim);
+  }
+  t->theta = theta;
+  t->omega = omega;
+  t->lp = lp;
+  t->l1 = l1;
+  t->actx = actx;
+  t->mag_e = mag_e;
+  *bad |= fail;
+  *rans_at = rans;
+  *raw_at = raw;
+  return k;
 }
 
 bool StepIndex(double v, double step, int64_t* out) {
@@ -492,7 +637,7 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
       v = static_cast<uint32_t>(x);
     }
     if (!rc.ok()) return truncated("symbol tables");
-    if (!BuildRansSlots(f, &slots[static_cast<size_t>(t) * kRansScale])) {
+    if (!BuildRansSlots(f, &slots[static_cast<size_t>(t) * kRansScale], MagnitudeTags())) {
       return InvalidArgument("contour: symbol table " + std::to_string(t) +
                              " frequencies do not sum to " + std::to_string(kRansScale));
     }
@@ -532,14 +677,9 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
                     " trailing bytes in the SKC3 side information");
   }
 
-  const double* cos_table = CosTable();
-  const int32_t* turn = TurnTable();
-  const SymbolInfo* info = SymbolInfos();
   RansDecoder rans(rans_bytes);
   BitReader raw(raw_bytes);
-  const RansSlot* tables = slots.data();
-  const double lim = kMaxQuantised * step;
-  const double hs = step * kHalfAlong, vs = step * kAcross;
+  const PointContext context{slots.data(), step * kHalfAlong, step * kAcross, kMaxQuantised * step};
   lines->assign(nlines, {});
   Turtle carried[2];  // the end turtle of the last line of each side (index j % stride)
   for (uint64_t j = 0; j < nlines; ++j) {
@@ -577,50 +717,24 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
     }
     out[0] = p;
     const size_t coded = ls.closed ? out.size() - 1 : out.size();
-    bool bad = false;
-    int32_t theta = t.theta, omega = t.omega;
-    int64_t lp = t.lp, l1 = t.l1;
-    int actx = t.actx, mag_e = t.mag_e;
-    for (size_t k = 1; k < coded; ++k) {
-      // Branch-free: the symbols are what the data makes them. kRansNoSymbol (a slot of an empty
-      // table) reads as 0 and fails the line below.
-      const uint32_t asym = rans.Decode(tables + static_cast<size_t>(actx) * kRansScale, 0);
-      const SymbolInfo& ai = info[asym];
-      const int64_t a = Unzig(ai.base + raw.Get(ai.bits));
-      const uint32_t esym = rans.Decode(
-          tables + static_cast<size_t>(kAlongTables + 3 * mag_e + ai.mag) * kRansScale, 1);
-      const SymbolInfo& ei = info[esym];
-      const int64_t e = Unzig(ei.base + raw.Get(ei.bits));
-      const int32_t th = (theta + omega) & (kAngles - 1);
-      const int64_t len = lp + a;
-      p = Place(p, cos_table, th, len, e, hs, vs);
-      bad |= (asym == kRansNoSymbol) | (esym == kRansNoSymbol) | (len > kMaxChord) |
-             (len < -kMaxChord) | !(std::abs(p.x) <= lim) | !(std::abs(p.y) <= lim);
-      const int64_t lc = std::clamp<int64_t>(len, 1, kRecipMax);
-      const int64_t ec = std::clamp<int64_t>(e, -lc, lc);
-      const int32_t d = static_cast<int32_t>((ec * turn[lc]) >> 16);
-      theta = (th + d) & (kAngles - 1);
-      omega = std::clamp<int32_t>(omega + d, -kMaxTurn, kMaxTurn);
-      const int64_t h = 2 * len + (e & 1);
-      lp = skc4 ? RuleChord(h, omega) : NextChord(h, l1) >> 1;
-      l1 = h;
-      actx = ai.mag;
-      mag_e = ei.mag;
-      out[k] = p;
-      // Past the end the stream reads zeros: stop at once rather than run out a claimed count.
-      if ((k & 63) == 0 && (bad || rans.overrun())) break;
+    if (coded >= 2) {
+      const size_t n = coded - 1;
+      bool bad = false;
+      // Two symbols a point, at most a word each: unchecked where the words are there.
+      if (rans.words_left() / 2 >= n) {
+        (skc4 ? DecodePoints<false, true> : DecodePoints<false, false>)(context, &rans, &raw, n, p,
+                                                                        &t, &bad, &out[1]);
+      } else {
+        (skc4 ? DecodePoints<true, true> : DecodePoints<true, false>)(context, &rans, &raw, n, p,
+                                                                      &t, &bad, &out[1]);
+      }
+      if (bad) {
+        return InvalidArgument(
+            "contour: decoded point outside [-2^52, 2^52] steps, or a "
+            "symbol from an empty table");
+      }
+      if (rans.overrun()) return truncated("points");
     }
-    if (bad)
-      return InvalidArgument(
-          "contour: decoded point outside [-2^52, 2^52] steps, or a "
-          "symbol from an empty table");
-    if (rans.overrun()) return truncated("points");
-    t.theta = theta;
-    t.omega = omega;
-    t.lp = lp;
-    t.l1 = l1;
-    t.actx = actx;
-    t.mag_e = mag_e;
     if (ls.closed) out.back() = out.front();
   }
   if (!rans.ok()) return DataLoss("contour: the SKC3 symbol stream does not end where it began");
@@ -655,6 +769,10 @@ void ToCursor(const Turtle& t, Vec2 p, CodecCursor* c) {
 }
 
 }  // namespace
+
+int64_t Skc4ChordRule(int64_t h, int32_t omega) { return RuleChord(h, omega, RuleRootTable()); }
+
+int64_t Skc4ChordRuleDefinition(int64_t h, int32_t omega) { return RuleChordDefinition(h, omega); }
 
 void Skc4Predict(const CodecCursor& c, double step, Vec2* u, double* along_even,
                  double* along_odd) {

@@ -53,7 +53,7 @@ std::vector<uint32_t> NormaliseCounts(const std::vector<uint64_t>& counts) {
   return freq;
 }
 
-bool BuildRansSlots(const std::vector<uint32_t>& freq, RansSlot* slots) {
+bool BuildRansSlots(const std::vector<uint32_t>& freq, RansSlot* slots, const uint8_t* tags) {
   if (freq.size() > static_cast<size_t>(kRansAlphabet)) return false;
   uint32_t sum = 0;
   for (uint32_t f : freq) {
@@ -69,8 +69,9 @@ bool BuildRansSlots(const std::vector<uint32_t>& freq, RansSlot* slots) {
   if (sum != kRansScale) return false;
   uint32_t start = 0;
   for (size_t i = 0; i < freq.size(); ++i) {
+    const uint32_t tag = tags ? tags[i] & 3u : 0u;
     for (uint32_t k = 0; k < freq[i]; ++k) {
-      slots[start + k] = MakeSlot(freq[i], k, static_cast<uint32_t>(i));
+      slots[start + k] = MakeSlot(freq[i], k, static_cast<uint32_t>(i), tag);
     }
     start += freq[i];
   }

@@ -13,8 +13,10 @@
 #define SCULPT_SKIN_RANS_CODER_H_
 
 #include <array>
+#include <bit>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -60,21 +62,29 @@ inline int64_t TokenValue(int symbol, uint64_t extra) {
 /// Empty (all zero) counts give an empty table (all zero).
 std::vector<uint32_t> NormaliseCounts(const std::vector<uint64_t>& counts);
 
-/// The decoder's view of one table: per slot, the symbol (7 bits), slot - start of the symbol
-/// (kRansScaleBits) and its frequency (above), in one word so a table stays small in cache.
+/// The decoder's view of one table: per slot, the symbol (7 bits), a 2-bit tag the caller gives
+/// each symbol, slot - start of the symbol (kRansScaleBits) and its frequency (above), in one word
+/// so a table stays small in cache.
 using RansSlot = uint32_t;
-inline constexpr int kSlotBiasShift = 7;
+inline constexpr int kSlotTagShift = 7;
+inline constexpr int kSlotBiasShift = kSlotTagShift + 2;
 inline constexpr int kSlotFreqShift = kSlotBiasShift + kRansScaleBits;
-inline constexpr RansSlot MakeSlot(uint32_t freq, uint32_t bias, uint32_t symbol) {
-  return (freq << kSlotFreqShift) | (bias << kSlotBiasShift) | symbol;
+inline constexpr RansSlot MakeSlot(uint32_t freq, uint32_t bias, uint32_t symbol,
+                                   uint32_t tag = 0) {
+  return (freq << kSlotFreqShift) | (bias << kSlotBiasShift) | (tag << kSlotTagShift) | symbol;
 }
+inline constexpr uint32_t SlotSymbol(RansSlot s) { return s & 127; }
+/// The tag of the symbol a slot decodes (0 for a slot of an empty table).
+inline constexpr uint32_t SlotTag(RansSlot s) { return (s >> kSlotTagShift) & 3; }
 /// A symbol value that marks a slot of an empty table (its use is a decode error).
 inline constexpr uint16_t kRansNoSymbol = kRansAlphabet;
 
 /// Fills `slots` (kRansScale entries) from frequencies that sum to kRansScale (or are all zero:
-/// every slot then decodes kRansNoSymbol and leaves the state as it was). False if they sum to
-/// anything else or there are more than kRansAlphabet.
-bool BuildRansSlots(const std::vector<uint32_t>& freq, RansSlot* slots);
+/// every slot then decodes kRansNoSymbol and leaves the state as it was), each symbol s's slots
+/// tagged tags[s] (0-3; none if `tags` is null). False if they sum to anything else or there are
+/// more than kRansAlphabet.
+bool BuildRansSlots(const std::vector<uint32_t>& freq, RansSlot* slots,
+                    const uint8_t* tags = nullptr);
 
 /// Collects symbols with their frequency tables and state (0 or 1), then writes them in reverse.
 /// Not thread-safe.
@@ -110,32 +120,50 @@ class RansDecoder {
   }
   /// The next symbol of `lane` (0 or 1) from `table` (kRansScale slots).
   [[gnu::always_inline]] uint32_t Decode(const RansSlot* table, int lane) {
+    return SlotSymbol(DecodeSlot(table, lane));
+  }
+  /// The slot of the next symbol (its symbol and tag).
+  [[gnu::always_inline]] RansSlot DecodeSlot(const RansSlot* table, int lane) {
     // Two named states rather than an array, so both stay in registers.
-    return lane == 0 ? Step(table, x0_) : Step(table, x1_);
+    return lane == 0 ? Step<true>(table, x0_) : Step<true>(table, x1_);
   }
+  /// DecodeSlot without the end-of-stream guard: only while words_left() is at least the number
+  /// of symbols still to decode (a symbol takes at most one word).
+  [[gnu::always_inline]] RansSlot DecodeSlotUnchecked(const RansSlot* table, int lane) {
+    return lane == 0 ? Step<false>(table, x0_) : Step<false>(table, x1_);
+  }
+  /// The 16-bit words not yet read.
+  size_t words_left() const { return static_cast<size_t>(end_ - p_) / 2; }
   /// True when the stream was read exactly and ended where the encoder began.
-  bool ok() const {
-    return !overrun_ && !odd_ && p_ == end_ && x0_ == kRansLow && x1_ == kRansLow;
-  }
+  bool ok() const { return !overrun_ && !odd_ && p_ == end_ && x0_ == kRansLow && x1_ == kRansLow; }
   bool overrun() const { return overrun_; }
 
  private:
-  [[gnu::always_inline]] uint32_t Step(const RansSlot* table, uint32_t& state) {
+  template <bool kChecked>
+  [[gnu::always_inline]] RansSlot Step(const RansSlot* table, uint32_t& state) {
     uint32_t x = state;
     const RansSlot s = table[x & (kRansScale - 1)];
     x = (s >> kSlotFreqShift) * (x >> kRansScaleBits) + ((s >> kSlotBiasShift) & (kRansScale - 1));
     // Branch-free renormalisation: whether a word is due is what the data makes it, so a branch
-    // would be mispredicted about once in three symbols. The load is guarded by a branch that
-    // only the stream's end takes.
+    // would be mispredicted about once in three symbols. Checked, the load is guarded by a branch
+    // that only the stream's end takes.
     const bool need = x < kRansLow;
-    const bool have = p_ != end_;
-    const uint32_t w =
-        have ? static_cast<uint32_t>(p_[0]) | (static_cast<uint32_t>(p_[1]) << 8) : 0;
-    overrun_ |= need & !have;
-    x = need ? (x << 16) | w : x;
-    p_ += (need & have) ? 2 : 0;
+    uint32_t w;
+    if constexpr (kChecked) {
+      const bool have = p_ != end_;
+      w = have ? static_cast<uint32_t>(p_[0]) | (static_cast<uint32_t>(p_[1]) << 8) : 0;
+      overrun_ |= need & !have;
+      p_ += (need & have) ? 2 : 0;
+      x = need ? (x << 16) | w : x;
+    } else {
+      // Masks and shifts rather than a select, which GCC turns into a branch here.
+      const uint32_t n = need;
+      w = static_cast<uint32_t>(p_[0]) | (static_cast<uint32_t>(p_[1]) << 8);
+      p_ += 2 * n;
+      x = (x << (16 * n)) | (w & (0u - n));
+    }
     state = x;
-    return s & 127;
+    return s;
   }
   [[gnu::always_inline]] uint32_t Word() {
     if (p_ == end_) {
@@ -171,10 +199,12 @@ class BitReader {
   explicit BitReader(std::string_view bytes)
       : p_(reinterpret_cast<const uint8_t*>(bytes.data())), end_(p_ + bytes.size()) {}
   /// `count` <= 48 bits (0 reads nothing).
-  [[gnu::always_inline]] uint64_t Get(int count) {
+  [[gnu::always_inline]] uint64_t Get(int count) { return Get(count, (uint64_t{1} << count) - 1); }
+  /// Get(count) with its mask, 2^count - 1, from the caller's table.
+  [[gnu::always_inline]] uint64_t Get(int count, uint64_t mask) {
     if (n_ < count) [[unlikely]]
       Refill(count);
-    const uint64_t v = acc_ & ((uint64_t{1} << count) - 1);
+    const uint64_t v = acc_ & mask;
     acc_ >>= count;
     n_ -= count;
     return v;
@@ -185,6 +215,18 @@ class BitReader {
 
  private:
   [[gnu::always_inline]] void Refill(int count) {
+    if (end_ - p_ >= 8) {
+      // Eight bytes at once, as many whole ones counted as fit. The bits above n_ then hold the
+      // bytes not yet counted, which the next refill ORs in again at the same place.
+      uint64_t v;
+      std::memcpy(&v, p_, 8);
+      if constexpr (std::endian::native == std::endian::big) v = __builtin_bswap64(v);
+      acc_ |= v << n_;
+      const int take = (63 - n_) >> 3;
+      p_ += take;
+      n_ += 8 * take;
+      return;
+    }
     while (n_ <= 56 && p_ < end_) {
       acc_ |= static_cast<uint64_t>(*p_++) << n_;
       n_ += 8;

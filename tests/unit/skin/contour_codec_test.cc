@@ -3,6 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
+#include <fstream>
+#include <iterator>
 #include <numbers>
 #include <random>
 
@@ -517,6 +520,185 @@ TEST(ContourCodecTest, ClosedLoopsStayClosed) {
       EXPECT_LE(MaxError(lines[i], (*back)[i]), 1e-3 * kBound) << i << bytes->substr(0, 4);
     }
   }
+}
+
+}  // namespace
+}  // namespace sculpt::skin
+
+namespace sculpt::skin {
+namespace {
+
+/// FNV-1a over each line's size and its points' bit patterns: equal hashes, the same doubles.
+uint64_t HashLines(const std::vector<const Polyline2*>& lines) {
+  uint64_t h = 14695981039346656037ull;
+  auto mix = [&h](uint64_t v) {
+    for (int i = 0; i < 8; ++i) {
+      h ^= (v >> (8 * i)) & 0xff;
+      h *= 1099511628211ull;
+    }
+  };
+  for (const Polyline2* l : lines) {
+    mix(l->size());
+    for (const Vec2& p : *l) {
+      uint64_t x, y;
+      std::memcpy(&x, &p.x, 8);
+      std::memcpy(&y, &p.y, 8);
+      mix(x);
+      mix(y);
+    }
+  }
+  return h;
+}
+
+uint64_t HashView(const ContourView& view, size_t* points) {
+  std::vector<const Polyline2*> lines;
+  *points = 0;
+  for (const SectionContour& s : view.sections()) {
+    lines.push_back(&s.plus);
+    lines.push_back(&s.minus);
+    *points += s.plus.size() + s.minus.size();
+  }
+  return HashLines(lines);
+}
+
+std::string ReadGolden(const std::string& name) {
+  std::ifstream in(std::string(SCULPT_SOURCE_DIR) + "/tests/testdata/contour/" + name,
+                   std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// The decoder's output is part of the format: a receiver repeats the encoder's doubles bit for
+// bit (the encoder checks its bound on them). Messages written by the encoder of 2026-11-24
+// (tests/testdata/contour: a 120-ball random chain's skin, SKC3 and SKC4 snapshots and an update
+// each; six polylines, smooth, noisy, closed and far, an empty one, a parabola, in SKC3 and SKC4
+// at step 1e-3), and the hashes of what the decoder of that day gave for them. A faster decoder
+// must give the same doubles.
+TEST(ContourCodecTest, DecodesGoldenMessagesToTheSameDoubles) {
+  struct Golden {
+    const char* snapshot;
+    const char* update;
+    size_t snapshot_points, update_points;
+    uint64_t snapshot_hash, update_hash;
+  };
+  for (const Golden& g : {Golden{"skc3_snapshot.bin", "skc3_update.bin", 7293, 7299,
+                                 0xa650bf4d35d436ccull, 0x8fa235d97473fc83ull},
+                          Golden{"skc4_snapshot.bin", "skc4_update.bin", 8041, 8044,
+                                 0xfce9b6fa3eefa2bfull, 0x9342b118f5dd01afull}}) {
+    const std::string snap = ReadGolden(g.snapshot), update = ReadGolden(g.update);
+    ASSERT_FALSE(snap.empty()) << g.snapshot;
+    ASSERT_FALSE(update.empty()) << g.update;
+    ContourView view;
+    ASSERT_TRUE(view.Apply(snap).ok()) << g.snapshot;
+    size_t points = 0;
+    EXPECT_EQ(HashView(view, &points), g.snapshot_hash) << g.snapshot;
+    EXPECT_EQ(points, g.snapshot_points) << g.snapshot;
+    ASSERT_TRUE(view.Apply(update).ok()) << g.update;
+    EXPECT_EQ(HashView(view, &points), g.update_hash) << g.update;
+    EXPECT_EQ(points, g.update_points) << g.update;
+  }
+  EXPECT_EQ(ReadGolden("skc3_snapshot.bin").substr(0, 4), "SKC3");
+  EXPECT_EQ(ReadGolden("skc4_snapshot.bin").substr(0, 4), "SKC4");
+  for (const char* name : {"skc3_lines.bin", "skc4_lines.bin"}) {
+    const std::string bytes = ReadGolden(name);
+    ASSERT_FALSE(bytes.empty()) << name;
+    const auto back = DecodeContours(bytes);
+    ASSERT_TRUE(back.ok()) << name << ": " << back.status();
+    ASSERT_EQ(back->size(), 6u) << name;
+    std::vector<const Polyline2*> lines;
+    for (const Polyline2& l : *back) lines.push_back(&l);
+    // The same points both ways: SKC3 and SKC4 differ only in how the along integer is predicted.
+    EXPECT_EQ(HashLines(lines), 0xe23dacd4435485d5ull) << name;
+    // One byte short, it is refused.
+    EXPECT_FALSE(DecodeContours(bytes.substr(0, bytes.size() - 1)).ok()) << name;
+  }
+}
+
+// SKC4's chord rule takes a shorter road than its definition in doubles (which the JS decoder
+// follows): the two agree on every chord and turn a decoder can meet, including the chords whose
+// rule value is an integer, where the shorter road hands over to the definition.
+TEST(ContourCodecTest, Skc4ChordRuleEqualsItsDefinition) {
+  using internal::Skc4ChordRule;
+  using internal::Skc4ChordRuleDefinition;
+  constexpr int32_t kMaxTurn = 2048;
+  for (int64_t h = -3; h <= 4096; ++h) {
+    for (int32_t omega = -kMaxTurn; omega <= kMaxTurn; ++omega) {
+      ASSERT_EQ(Skc4ChordRule(h, omega), Skc4ChordRuleDefinition(h, omega))
+          << "h " << h << " omega " << omega;
+    }
+  }
+  std::mt19937_64 rng(1616);
+  for (int i = 0; i < 2000000; ++i) {
+    const int64_t h = static_cast<int64_t>(rng() >> (22 + rng() % 40));  // up to 2^42
+    const int32_t omega = static_cast<int32_t>(rng() % (2 * kMaxTurn + 1)) - kMaxTurn;
+    ASSERT_EQ(Skc4ChordRule(h, omega), Skc4ChordRuleDefinition(h, omega))
+        << "h " << h << " omega " << omega;
+  }
+  // 20000 h / w a perfect square: the rule's square root is an integer.
+  int exact = 0;
+  for (int32_t w : {1250, 2000, 800, 200, 50, 8, 2}) {
+    for (int64_t m = 1; m < 3000; ++m) {
+      const int64_t h = m * m * w / 20000;
+      if (h * 20000 != m * m * w) continue;
+      ++exact;
+      for (int64_t d : {-1, 0, 1}) {
+        ASSERT_EQ(Skc4ChordRule(h + d, w), Skc4ChordRuleDefinition(h + d, w)) << h + d << " " << w;
+        ASSERT_EQ(Skc4ChordRule(h + d, -w), Skc4ChordRuleDefinition(h + d, -w)) << h + d;
+      }
+    }
+  }
+  EXPECT_GT(exact, 1000);
+}
+
+}  // namespace
+}  // namespace sculpt::skin
+
+namespace sculpt::skin {
+namespace {
+
+// A line that ends 2^18 steps inside the plane's edge (2^52 steps), then each single-bit change of
+// its raw bits (the along integers' low bits, which no rANS state checks): a change that pushes
+// the chord out pushes the points after it past the edge, and the decoder refuses them as outside
+// the plane (the chords stay far below their own limit, 2^40 steps).
+TEST(ContourCodecTest, RejectsPointsOutsideThePlane) {
+  const double edge = 4503599627370496.0;  // 2^52 steps, step 1
+  Polyline2 line;
+  for (int k = 0; k < 8; ++k) line.push_back({edge - 8 * 262144.0 + k * 262144.0, 0});
+  const auto bytes = internal::EncodeContoursSkc3({line}, 1);
+  ASSERT_TRUE(bytes.ok()) << bytes.status();
+  ASSERT_TRUE(IsSkc3(*bytes));
+  ASSERT_TRUE(DecodeContours(*bytes).ok());
+  // The raw bits close the message: header (magic, kind, step, coding, one varint), then the
+  // body's side information and symbols, each after its varint length.
+  size_t pos = 4 + 1 + 8 + 1 + 1;
+  auto varint = [&] {
+    uint64_t v = 0;
+    for (int shift = 0;; shift += 7) {
+      const uint8_t b = static_cast<uint8_t>((*bytes)[pos++]);
+      v |= static_cast<uint64_t>(b & 0x7f) << shift;
+      if (!(b & 0x80)) return v;
+    }
+  };
+  pos += varint();
+  pos += varint();
+  ASSERT_LT(pos, bytes->size());
+  int outside = 0, accepted = 0;
+  for (size_t i = pos; i < bytes->size(); ++i) {
+    for (int bit = 0; bit < 8; ++bit) {
+      std::string b = *bytes;
+      b[i] ^= static_cast<char>(1 << bit);
+      const auto back = DecodeContours(b);
+      if (back.ok()) {
+        ++accepted;
+        for (const Vec2& p : (*back)[0]) EXPECT_LE(std::abs(p.x), edge) << i << " " << bit;
+      } else if (back.status().code() == Status::Code::kInvalidArgument) {
+        EXPECT_NE(back.status().message().find("outside [-2^52, 2^52] steps"), std::string::npos)
+            << back.status();
+        ++outside;
+      }
+    }
+  }
+  EXPECT_GT(outside, 0);
+  EXPECT_GT(accepted, 0);
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 #include <string>
 #include <vector>
@@ -50,6 +51,53 @@ TEST(RansCoderTest, RoundTripsSymbolsOnTwoLanesThroughSeveralTables) {
         << i;
   }
   EXPECT_TRUE(dec.ok());
+}
+
+// The unguarded step (for where the words are known to be there) reads the same symbols and
+// leaves the same state as the guarded one, and each slot carries its symbol's tag.
+TEST(RansCoderTest, UncheckedDecodeAndTagsMatchTheCheckedOnes) {
+  std::mt19937_64 rng(2);
+  std::vector<std::vector<uint32_t>> freq{Table(rng, 5), Table(rng, kRansAlphabet)};
+  std::vector<uint8_t> tags(kRansAlphabet);
+  for (int s = 0; s < kRansAlphabet; ++s) tags[s] = static_cast<uint8_t>((s * 7) % 4);
+  std::vector<RansSlot> slots(freq.size() * kRansScale);
+  for (size_t t = 0; t < freq.size(); ++t) {
+    ASSERT_TRUE(BuildRansSlots(freq[t], &slots[t * kRansScale], tags.data()));
+  }
+  std::vector<std::pair<size_t, uint32_t>> puts;
+  RansEncoder enc;
+  for (int i = 0; i < 5000; ++i) {
+    const size_t t = rng() % freq.size();
+    const uint32_t s = static_cast<uint32_t>(rng() % freq[t].size());
+    uint32_t start = 0;
+    for (uint32_t k = 0; k < s; ++k) start += freq[t][k];
+    puts.push_back({t, s});
+    enc.Put(freq[t][s], start, i & 1);
+  }
+  const std::string bytes = enc.Finish();
+  RansDecoder checked(bytes), unchecked(bytes);
+  // In runs of 40 symbols, as the contour codec decodes a line: unguarded where the stream holds
+  // a word for each.
+  constexpr size_t kRun = 40;
+  size_t unguarded = 0;
+  for (size_t run = 0; run < puts.size(); run += kRun) {
+    const bool guard = unchecked.words_left() < kRun;
+    for (size_t i = run; i < std::min(run + kRun, puts.size()); ++i) {
+      const RansSlot* table = &slots[puts[i].first * kRansScale];
+      const int lane = static_cast<int>(i & 1);
+      const RansSlot a = checked.DecodeSlot(table, lane);
+      const RansSlot b =
+          guard ? unchecked.DecodeSlot(table, lane) : unchecked.DecodeSlotUnchecked(table, lane);
+      unguarded += !guard;
+      ASSERT_EQ(SlotSymbol(a), puts[i].second) << i;
+      ASSERT_EQ(a, b) << i;
+      ASSERT_EQ(SlotTag(a), tags[puts[i].second]) << i;
+      ASSERT_EQ(checked.words_left(), unchecked.words_left()) << i;
+    }
+  }
+  EXPECT_GT(unguarded, puts.size() * 9 / 10);
+  EXPECT_TRUE(checked.ok());
+  EXPECT_TRUE(unchecked.ok());
 }
 
 TEST(RansCoderTest, EmptyStreamHoldsOnlyTheStates) {
