@@ -656,7 +656,10 @@ asio::awaitable<void> ClusterAgent::DropMove(int64_t mod_revision, std::string m
     LogEtcdTrouble("removing the move request of scene " + scene_, r.status());
     co_return;
   }
-  if (r->succeeded) {
+  if (r->succeeded && member == config_.member) {
+    spdlog::info("cluster: move request of scene {} to member {} removed: {}", scene_, member,
+                 why);
+  } else if (r->succeeded) {
     spdlog::warn("cluster: move request of scene {} to member {} removed: {}", scene_, member,
                  why);
   }
