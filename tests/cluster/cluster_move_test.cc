@@ -181,6 +181,82 @@ TEST_P(ClusterMoveTest, MovesTheSceneToAMemberAsAStandbyPromotionAndEveryStrokeI
   EXPECT_EQ(Owner()->member, target);
 }
 
+// A request the owner cannot carry out is removed with the reason in its log; a move that does
+// not finish within the command's timeout is withdrawn and the owner keeps acknowledging.
+TEST_P(ClusterMoveTest, RemovesRequestsItCannotCarryOutAndWithdrawsATimedOutMove) {
+  for (const char* n : {"a", "b", "c"}) {
+    ASSERT_NE(StartMember(n).WaitPort(), 0) << n << " did not start; see " << dir_.path();
+  }
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto o = Owner();
+        auto s = Standby();
+        auto m = s ? MemberOf(s->member) : std::nullopt;
+        return o && m && m->follows == "default";
+      },
+      milliseconds(20000)))
+      << "no owner with a following standby\n" << Diagnosis();
+  const OwnerRecord from = *Owner();
+  std::string target;
+  for (const char* n : {"a", "b", "c"}) {
+    if (n != from.member) target = n;
+  }
+  const std::string key = kKeys.Move("default");
+  auto gone = [&] { return !etcd_client_->Sync(etcd_client_->Get(key))->has_value(); };
+  auto owner_log = [&] {
+    std::ifstream in(dir_.path() / (from.member + ".log"));
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  // Written by hand (the command refuses both): a member that is not live, and a stale epoch.
+  ASSERT_TRUE(etcd_client_->Sync(etcd_client_->Put({key, EncodeMove({"zz", from.epoch}), 0})).ok());
+  EXPECT_TRUE(WaitFor(gone, milliseconds(5000)));
+  EXPECT_TRUE(WaitFor(
+      [&] {
+        return owner_log().find("move request of scene default to member zz removed: member zz "
+                                "is not a live member") != std::string::npos;
+      },
+      milliseconds(2000)))
+      << owner_log();
+  ASSERT_TRUE(
+      etcd_client_->Sync(etcd_client_->Put({key, EncodeMove({target, from.epoch + 5}), 0})).ok());
+  EXPECT_TRUE(WaitFor(gone, milliseconds(5000)));
+  EXPECT_TRUE(WaitFor(
+      [&] {
+        return owner_log().find("removed: its epoch " + std::to_string(from.epoch + 5) +
+                                " is stale") != std::string::npos;
+      },
+      milliseconds(2000)))
+      << owner_log();
+
+  const std::vector<std::string> addresses = Addresses();
+  Sculptor sculptor(0, static_cast<uint16_t>(std::stoi(from.tcp.substr(from.tcp.rfind(':') + 1))),
+                    addresses);
+  ASSERT_TRUE(sculptor.ok());
+  std::this_thread::sleep_for(milliseconds(500));
+  const RunResult timed_out = Sculpt("cluster move default " + target + " --etcd " +
+                                     etcd_->endpoint() + " --prefix t/ --timeout-ms 400");
+  EXPECT_EQ(timed_out.exit_code, 1) << timed_out.output;
+  EXPECT_NE(timed_out.output.find("member " + target +
+                                  " did not take scene default over within --timeout-ms=400"),
+            std::string::npos)
+      << timed_out.output;
+  EXPECT_NE(timed_out.output.find("the move request was removed"), std::string::npos)
+      << timed_out.output;
+  EXPECT_TRUE(gone());
+  // The owner keeps the scene and acknowledges again (it may have fenced for the move).
+  const auto after = Clock::now();
+  EXPECT_TRUE(WaitFor([&] { return sculptor.AckedSince(after); }, milliseconds(10000)))
+      << Diagnosis();
+  const auto owner = Owner();
+  ASSERT_TRUE(owner.has_value());
+  EXPECT_EQ(owner->member, from.member);
+  EXPECT_EQ(owner->epoch, from.epoch);
+  sculptor.Stop();
+  (void)sculptor.client().WaitAllAcked(milliseconds(3000));
+  EXPECT_EQ(sculptor.client().unacked(), 0u);
+  EXPECT_EQ(sculptor.client().stats().refused, 0u) << sculptor.refusals();
+}
+
 INSTANTIATE_TEST_SUITE_P(Replication, ClusterMoveTest, ::testing::Values("async", "sync"),
                          [](const auto& info) { return info.param; });
 
