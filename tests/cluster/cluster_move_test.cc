@@ -23,6 +23,8 @@ using sculpt::testing::WaitFor;
 using std::chrono::milliseconds;
 using Clock = std::chrono::steady_clock;
 
+class ClusterMoveTxnTest : public sculpt::testing::EtcdTest {};
+
 struct RunResult {
   int exit_code = -1;
   std::string output;  // stdout and stderr
@@ -40,6 +42,57 @@ RunResult Sculpt(const std::string& args) {
   const int status = pclose(p);
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
+}
+
+TEST(MoveRecordTest, RoundTripsAndParsesItsKey) {
+  const MoveRecord m{"c", 7, true};
+  auto back = DecodeMove(EncodeMove(m));
+  ASSERT_TRUE(back.ok()) << back.status();
+  EXPECT_EQ(back->member, "c");
+  EXPECT_EQ(back->epoch, 7u);
+  EXPECT_TRUE(back->released);
+  std::string scene, kind;
+  ASSERT_TRUE(kKeys.ParseSceneKey(kKeys.Move("default"), &scene, &kind));
+  EXPECT_EQ(scene, "default");
+  EXPECT_EQ(kind, "move");
+}
+
+TEST(MoveRecordTest, RejectsMalformedMoveRecords) {
+  EXPECT_FALSE(DecodeMove("not json").ok());
+  EXPECT_FALSE(DecodeMove(R"({"epoch": 1})").ok());                         // no member
+  EXPECT_FALSE(DecodeMove(R"({"member": "c"})").ok());                      // no epoch
+  EXPECT_FALSE(DecodeMove(R"({"member": "c", "epoch": -1})").ok());         // not unsigned
+  EXPECT_FALSE(DecodeMove(R"({"member": "c", "epoch": 1, "released": 1})").ok());
+  const auto e = DecodeMove(R"({"member": "", "epoch": 1})");
+  ASSERT_FALSE(e.ok());
+  EXPECT_NE(e.status().message().find("member"), std::string::npos) << e.status();
+  auto plain = DecodeMove(R"({"member": "c", "epoch": 1})");
+  ASSERT_TRUE(plain.ok());
+  EXPECT_FALSE(plain->released);
+}
+
+// A txn deletes keys only when its compares hold (the owner's release, the command's withdrawal).
+TEST_F(ClusterMoveTxnTest, TxnDeletesOnlyWhenTheComparesHold) {
+  auto& c = *etcd_client_;
+  auto put = c.Sync(c.Put({"t/scenes/x/move", "v", 0}));
+  ASSERT_TRUE(put.ok()) << put.status();
+  auto kv = c.Sync(c.Get("t/scenes/x/move"));
+  ASSERT_TRUE(kv.ok() && kv->has_value());
+  TxnRequest stale;
+  stale.compares = {{"t/scenes/x/move", Compare::Target::kModRevision, (*kv)->mod_revision - 1}};
+  stale.success_deletes = {"t/scenes/x/move"};
+  auto r = c.Sync(c.Txn(stale));
+  ASSERT_TRUE(r.ok()) << r.status();
+  EXPECT_FALSE(r->succeeded);
+  EXPECT_TRUE(c.Sync(c.Get("t/scenes/x/move"))->has_value());
+  TxnRequest current = stale;
+  current.compares[0].revision = (*kv)->mod_revision;
+  current.success = {{"t/scenes/x/other", "w", 0}};
+  r = c.Sync(c.Txn(current));
+  ASSERT_TRUE(r.ok()) << r.status();
+  EXPECT_TRUE(r->succeeded);
+  EXPECT_FALSE(c.Sync(c.Get("t/scenes/x/move"))->has_value());
+  EXPECT_TRUE(c.Sync(c.Get("t/scenes/x/other"))->has_value());
 }
 
 // The [cluster] lines of each member: the replication mode under test.
