@@ -4,10 +4,13 @@
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <thread>
 
 #include "cluster/etcd_client.h"
 #include "cluster/records.h"
@@ -22,6 +25,8 @@ struct SceneView {
   std::optional<cluster::OwnerRecord> owner;
   std::optional<cluster::EpochRecord> epoch;
   std::optional<std::string> standby;  // the standby key's value, raw
+  std::optional<cluster::MoveRecord> move;
+  int64_t move_create_revision = 0;
   std::vector<std::string> unreadable;
 };
 
@@ -78,6 +83,14 @@ ClusterView Sort(const std::vector<cluster::KeyValue>& kvs, const cluster::Keys&
       }
     } else if (kind == "standby") {
       s.standby = kv.value;
+    } else if (kind == "move") {
+      auto mv = cluster::DecodeMove(kv.value);
+      if (mv.ok()) {
+        s.move = *mv;
+        s.move_create_revision = kv.create_revision;
+      } else {
+        s.unreadable.push_back("move: " + mv.status().ToString());
+      }
     }
   }
   return view;
@@ -95,6 +108,7 @@ uint64_t EpochOf(const SceneView& s) {
 }
 
 std::string StateOf(const SceneView& s) {
+  if (s.move) return "moving to " + s.move->member;
   if (s.owner) return "owned";
   if (s.epoch) return "no owner (last: " + s.epoch->member + ")";
   return "no owner";
@@ -158,9 +172,9 @@ json ToJson(const ClusterView& v, const ClusterStatusOptions& o) {
 
 }  // namespace
 
-CLI::App* AddClusterCommand(CLI::App& app, ClusterStatusOptions& o) {
-  CLI::App* cluster_cmd =
-      app.add_subcommand("cluster", "Inspect a sculptd cluster (members and scenes in etcd)");
+ClusterCommands AddClusterCommand(CLI::App& app, ClusterStatusOptions& o, ClusterMoveOptions& mo) {
+  CLI::App* cluster_cmd = app.add_subcommand(
+      "cluster", "Inspect a sculptd cluster (members and scenes in etcd) or move a scene");
   cluster_cmd->require_subcommand(1);
   CLI::App* status = cluster_cmd->add_subcommand(
       "status",
@@ -183,7 +197,31 @@ CLI::App* AddClusterCommand(CLI::App& app, ClusterStatusOptions& o) {
       ->check(CLI::Range(0.1, 600.0))
       ->capture_default_str();
   status->add_flag("--json", o.json, "Print the status as JSON");
-  return status;
+
+  CLI::App* move = cluster_cmd->add_subcommand(
+      "move",
+      "Move a scene to another member: the member becomes the scene's standby, catches up, and "
+      "takes the scene over as in a failover (epoch + 1); no data is copied by hand");
+  move->footer(
+      "Writes <prefix>scenes/<scene>/move for the owner, which names MEMBER its standby, stops "
+      "acknowledging once MEMBER's copy has caught up, and releases the scene when the copy holds "
+      "its last edit; MEMBER then restarts on its copy and owns the scene at the next epoch. "
+      "Clients reconnect and resend as after a failover. Exit status: 0 when etcd names MEMBER "
+      "the owner, 1 when etcd did not answer, the owner refused the move or the timeout passed "
+      "(the request is then removed and the old owner keeps the scene), 2 for a refused scene, "
+      "member or option.");
+  move->add_option("scene", mo.scene, "The scene to move")->required();
+  move->add_option("member", mo.member, "The member that takes it over")->required();
+  move->add_option("--etcd", mo.etcd,
+                   "etcd endpoint http://HOST:PORT (repeatable, or comma-separated)")
+      ->required()
+      ->delimiter(',');
+  move->add_option("--prefix", mo.prefix, "The cluster's key prefix (cluster.prefix)")
+      ->capture_default_str();
+  move->add_option("--timeout-ms", mo.timeout_ms, "Milliseconds to wait for the move")
+      ->check(CLI::Range(int64_t{100}, int64_t{3600000}))
+      ->capture_default_str();
+  return {status, move};
 }
 
 int RunClusterStatus(const ClusterStatusOptions& o) {
@@ -209,6 +247,188 @@ int RunClusterStatus(const ClusterStatusOptions& o) {
     PrintTable(view, o);
   }
   return 0;
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// The members that could take `scene` from `owner`: live, offering it, allowed to follow.
+std::vector<std::string> Takers(const ClusterView& v, const std::string& scene,
+                                const std::string& owner) {
+  std::vector<std::string> out;
+  for (const cluster::MemberRecord& m : v.members) {
+    if (m.name != owner && m.standby &&
+        std::find(m.offers.begin(), m.offers.end(), scene) != m.offers.end()) {
+      out.push_back(m.name);
+    }
+  }
+  return out;
+}
+
+// Why `o.member` cannot take `o.scene` now, or empty when it can.
+std::string Refusal(const ClusterView& v, const ClusterMoveOptions& o) {
+  std::vector<std::string> scenes;
+  for (const auto& [name, s] : v.scenes) scenes.push_back(name);
+  const auto it = v.scenes.find(o.scene);
+  if (it == v.scenes.end()) {
+    return "scene \"" + o.scene + "\" is not in the cluster at " + o.prefix +
+           " (scenes: " + Join(scenes) + ")";
+  }
+  const SceneView& s = it->second;
+  if (!s.owner) {
+    return "scene " + o.scene + " has no live owner now" +
+           (s.epoch
+                ? " (last: " + s.epoch->member + ", epoch " + std::to_string(s.epoch->epoch) + ")"
+                : std::string()) +
+           ": a move needs a live owner; wait for its takeover and try again";
+  }
+  const std::string takers = Join(Takers(v, o.scene, s.owner->member));
+  if (o.member == s.owner->member) {
+    return "member " + o.member + " already owns scene " + o.scene + " (epoch " +
+           std::to_string(s.owner->epoch) +
+           "): nothing to move (members that can take it: " + takers + ")";
+  }
+  const auto m = std::find_if(v.members.begin(), v.members.end(),
+                              [&](const cluster::MemberRecord& r) { return r.name == o.member; });
+  if (m == v.members.end()) {
+    return "member \"" + o.member + "\" is not a live member of the cluster (members that can " +
+           "take scene " + o.scene + ": " + takers + ")";
+  }
+  if (std::find(m->offers.begin(), m->offers.end(), o.scene) == m->offers.end()) {
+    return "member " + o.member + " does not offer scene " + o.scene + " (it offers " +
+           Join(m->offers) + "; members that can take it: " + takers + ")";
+  }
+  if (!m->standby) {
+    return "member " + o.member + " may not follow a scene (its cluster.standby is false; " +
+           "members that can take scene " + o.scene + ": " + takers + ")";
+  }
+  if (s.move && s.move->epoch == s.owner->epoch) {
+    return "a move of scene " + o.scene + " to member " + s.move->member +
+           " is already under way (key " + cluster::Keys{o.prefix}.Move(o.scene) +
+           "); wait for it, or remove that key";
+  }
+  return "";
+}
+
+// Where the move stands, as one line (empty key: nothing new to say).
+std::pair<std::string, std::string> Progress(const ClusterView& v, const ClusterMoveOptions& o) {
+  const auto it = v.scenes.find(o.scene);
+  if (it == v.scenes.end()) return {"gone", "the scene's keys are gone"};
+  const SceneView& s = it->second;
+  const auto m = std::find_if(v.members.begin(), v.members.end(),
+                              [&](const cluster::MemberRecord& r) { return r.name == o.member; });
+  if (!s.owner) {
+    if (s.move && s.move->released) {
+      return {"released", "the owner released the scene; member " + o.member +
+                              " takes it over from its copy (it restarts on it)"};
+    }
+    return {"no-owner", "the scene has no owner now"};
+  }
+  if (!s.standby || StandbyMember(*s.standby) != o.member) {
+    return {"naming", "waiting for owner " + s.owner->member + " to name member " + o.member +
+                          " its standby"};
+  }
+  if (m == v.members.end() || m->follows != o.scene) {
+    return {"loading", "member " + o.member + " is the standby and loads its copy"};
+  }
+  return {"following", "member " + o.member + " follows; its copy holds seq " +
+                           std::to_string(m->follow_seq) + " (the owner stops acknowledging " +
+                           "once it has caught up)"};
+}
+
+}  // namespace
+
+int RunClusterMove(const ClusterMoveOptions& o) {
+  const auto start = Clock::now();
+  const auto deadline = start + std::chrono::milliseconds(o.timeout_ms);
+  auto client = cluster::EtcdClient::Create(
+      {o.etcd, std::chrono::milliseconds(std::clamp<int64_t>(o.timeout_ms, 100, 2000))});
+  if (!client.ok()) {
+    spdlog::error("cluster move: {}", client.status().ToString());
+    return 2;
+  }
+  cluster::EtcdClient& etcd = **client;
+  const cluster::Keys keys{o.prefix};
+  auto read = [&]() -> StatusOr<ClusterView> {
+    auto kvs = etcd.Sync(etcd.GetPrefix(o.prefix));
+    if (!kvs.ok()) return kvs.status();
+    return Sort(*kvs, keys);
+  };
+  auto first = read();
+  if (!first.ok()) {
+    spdlog::error(
+        "cluster move: cannot read {} from etcd at {}: {} (is etcd running? try `etcdctl "
+        "--endpoints {} endpoint health`)",
+        o.prefix, Join(o.etcd), first.status().ToString(), Join(o.etcd));
+    return 1;
+  }
+  if (const std::string why = Refusal(*first, o); !why.empty()) {
+    spdlog::error("cluster move: {}", why);
+    return 2;
+  }
+  const cluster::OwnerRecord from = *first->scenes.at(o.scene).owner;
+  const std::string key = keys.Move(o.scene);
+  const auto put = etcd.Sync(etcd.Put({key, cluster::EncodeMove({o.member, from.epoch}), 0}));
+  auto written = put.ok() ? etcd.Sync(etcd.Get(key))
+                          : StatusOr<std::optional<cluster::KeyValue>>(put.status());
+  if (!written.ok() || !written->has_value()) {
+    spdlog::error("cluster move: cannot write {}: {}", key,
+                  written.ok() ? "it was removed at once" : written.status().ToString());
+    return 1;
+  }
+  const int64_t created = (*written)->create_revision;
+  std::printf("moving scene %s from member %s (epoch %llu) to member %s (request %s)\n",
+              o.scene.c_str(), from.member.c_str(), static_cast<unsigned long long>(from.epoch),
+              o.member.c_str(), key.c_str());
+  std::fflush(stdout);
+  std::string phase, last = "no answer from etcd yet";
+  while (Clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    auto v = read();
+    if (!v.ok()) {
+      last = "etcd did not answer: " + v.status().ToString();
+      continue;
+    }
+    const auto it = v->scenes.find(o.scene);
+    const SceneView* s = it != v->scenes.end() ? &it->second : nullptr;
+    if (s && s->owner && s->owner->member == o.member && s->owner->epoch > from.epoch) {
+      std::printf("member %s owns scene %s at epoch %llu: moved in %.2f s\n", o.member.c_str(),
+                  o.scene.c_str(), static_cast<unsigned long long>(s->owner->epoch),
+                  std::chrono::duration<double>(Clock::now() - start).count());
+      return 0;
+    }
+    if (!s || !s->move || s->move->member != o.member || s->move->epoch != from.epoch) {
+      spdlog::error(
+          "cluster move: the request to move scene {} to member {} was removed before {} took it "
+          "over: the owner refused it or another move replaced it (member {}'s log says why: "
+          "\"cluster: move request of scene {} ... removed\")",
+          o.scene, o.member, o.member, from.member, o.scene);
+      return 1;
+    }
+    const auto [now_phase, line] = Progress(*v, o);
+    last = line;
+    if (now_phase != phase) {
+      phase = now_phase;
+      std::printf("  %.2f s: %s\n", std::chrono::duration<double>(Clock::now() - start).count(),
+                  line.c_str());
+      std::fflush(stdout);
+    }
+  }
+  // Only our request (a later one is another operator's).
+  cluster::TxnRequest txn;
+  txn.compares = {{key, cluster::Compare::Target::kCreateRevision, created}};
+  txn.success_deletes = {key};
+  const auto removed = etcd.Sync(etcd.Txn(std::move(txn)));
+  spdlog::error(
+      "cluster move: member {} did not take scene {} over within --timeout-ms={} (last: "
+      "{}); {}: member {} keeps the scene or takes it back",
+      o.member, o.scene, o.timeout_ms, last,
+      removed.ok() ? "the move request was removed"
+                   : "the move request could not be removed (" + removed.status().ToString() +
+                         "; remove " + key + " by hand)",
+      from.member);
+  return 1;
 }
 
 }  // namespace sculpt::client

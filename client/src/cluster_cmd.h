@@ -3,6 +3,7 @@
 #ifndef SCULPT_CLIENT_CLUSTER_CMD_H_
 #define SCULPT_CLIENT_CLUSTER_CMD_H_
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -19,9 +20,23 @@ struct ClusterStatusOptions {
   bool json = false;
 };
 
-/// Adds the `cluster` subcommand with its `status` subcommand, storing into `options` (which
-/// must outlive parsing); returns `status`.
-CLI::App* AddClusterCommand(CLI::App& app, ClusterStatusOptions& options);
+struct ClusterMoveOptions {
+  std::vector<std::string> etcd;
+  std::string prefix = "sculpt/";
+  std::string scene;
+  std::string member;
+  int64_t timeout_ms = 30000;  // for the whole move
+};
+
+struct ClusterCommands {
+  CLI::App* status = nullptr;
+  CLI::App* move = nullptr;
+};
+
+/// Adds the `cluster` subcommand with its `status` and `move` subcommands, storing into the
+/// options (which must outlive parsing).
+ClusterCommands AddClusterCommand(CLI::App& app, ClusterStatusOptions& status,
+                                  ClusterMoveOptions& move);
 
 /// Reads every key under the prefix in one etcd range (one revision: a consistent picture) and
 /// prints members and scenes (a table, or JSON with --json). Returns the exit code: 0 when
@@ -29,6 +44,15 @@ CLI::App* AddClusterCommand(CLI::App& app, ClusterStatusOptions& options);
 /// read, 2 for a malformed --etcd URL. A value that does not decode (another version's
 /// member, a forged key) is shown as unreadable, not trusted.
 int RunClusterStatus(const ClusterStatusOptions& options);
+
+/// `sculpt cluster move SCENE MEMBER` (docs/cluster.md "Moving a scene"): checks that the scene
+/// has a live owner and that MEMBER is another live member offering the scene and able to
+/// follow, writes `<prefix>scenes/<scene>/move` (the member and the owner's epoch) and waits,
+/// printing progress, until etcd names MEMBER the owner at a higher epoch. Returns 0 then; 2 for
+/// a refused scene or member (the message names the value and what is allowed) or a malformed
+/// URL; 1 when etcd does not answer, the owner removed the request, or the timeout passed (the
+/// request is then removed, and the old owner keeps or takes back the scene).
+int RunClusterMove(const ClusterMoveOptions& options);
 
 }  // namespace sculpt::client
 

@@ -1,5 +1,5 @@
 /// @brief `sculpt`: the command-line client. Subcommands: demo, info, export, play, thesis, skin,
-/// undo, redo, history, cluster status.
+/// undo, redo, history, cluster status, cluster move.
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -278,7 +278,9 @@ int main(int argc, char** argv) {
 
 #ifdef SCULPT_CLI_CLUSTER
   sculpt::client::ClusterStatusOptions cluster_opts;
-  CLI::App* cluster_status_cmd = sculpt::client::AddClusterCommand(app, cluster_opts);
+  sculpt::client::ClusterMoveOptions cluster_move_opts;
+  const sculpt::client::ClusterCommands cluster_cmds =
+      sculpt::client::AddClusterCommand(app, cluster_opts, cluster_move_opts);
 #endif
 
   CLI11_PARSE(app, argc, argv);
@@ -303,7 +305,8 @@ int main(int argc, char** argv) {
   }
 
 #ifdef SCULPT_CLI_CLUSTER
-  if (*cluster_status_cmd) return sculpt::client::RunClusterStatus(cluster_opts);
+  if (*cluster_cmds.status) return sculpt::client::RunClusterStatus(cluster_opts);
+  if (*cluster_cmds.move) return sculpt::client::RunClusterMove(cluster_move_opts);
 #endif
   if (*skin_cmd) return sculpt::client::RunSkin(skin_opts);
   if (*undo_cmd) return sculpt::client::RunUndo(undo_opts);

@@ -382,6 +382,7 @@ int main(int argc, char** argv) {
         config.cluster, config.scene.name,
         [&server] { return static_cast<uint32_t>(server.JoinedSeats().joined); });
     (*scene)->set_ownership_fence(cluster->fence());
+    cluster->set_scene_seq([sc = scene->get()] { return sc->global_seq(); });
     server.set_router(cluster.get());
     // A standby follows another owner's scene and, on failover, restarts on its copy.
     cluster->EnableStandby({config.data_dir, config.viewer_token,

@@ -81,7 +81,8 @@ MemberRecord ClusterAgent::SelfRecord() const {
   m.standby = standby_.has_value();
   if (follower_ && follower_->ready()) {
     m.follows = follower_->options().scene;
-    m.follow_seq = follow_seq_.load();
+    // Read now, not at the last tick: an owner moving its scene here waits on this figure.
+    m.follow_seq = follower_->durable_seq();
   }
   return m;
 }
@@ -221,6 +222,8 @@ asio::awaitable<void> ClusterAgent::Tick() {
   co_await MaybeAcquire();
   if (stopping_) co_return;
   co_await TendStandby();
+  if (stopping_) co_return;
+  co_await TendMove();
 }
 
 asio::awaitable<void> ClusterAgent::KeepLeaseAlive() {
@@ -275,6 +278,12 @@ asio::awaitable<Status> ClusterAgent::Refresh() {
       if (sb.ok()) {
         st.standby = std::move(sb).value();
         st.standby_mod_revision = kv.mod_revision;
+      }
+    } else if (kind == "move") {
+      auto mv = DecodeMove(kv.value);
+      if (mv.ok()) {
+        st.move = std::move(mv).value();
+        st.move_mod_revision = kv.mod_revision;
       }
     } else if (kind == "owner") {
       // An owner key not under a lease would outlive its owner: not honoured.
@@ -353,6 +362,12 @@ asio::awaitable<void> ClusterAgent::MaybeAcquire() {
                                           : " may take it over")
                              : "; it had no standby that followed its edits");
       }
+    } else if (st.move && st.move->released && st.move->epoch == st.epoch->epoch &&
+               st.move->member != config_.member) {
+      // This member released the scene for a move: the target takes it over from its copy. It
+      // is taken back only if the request is removed (`sculpt cluster move` timed out).
+      reason = "it is being moved to member " + st.move->member +
+               ", which takes it over from its copy";
     }
   } else if (const auto pick = PickMember(members, scene_); pick && *pick != config_.member) {
     reason = "placed on member " + *pick + ", which has not taken it yet";
@@ -519,6 +534,167 @@ asio::awaitable<void> ClusterAgent::Promote(uint64_t dead_epoch) {
   Reexec(standby_->restart_argv);
 }
 
+asio::awaitable<void> ClusterAgent::TendMove() {
+  const auto [st, members] = ReadTable();
+  if (!owned_) {
+    // Ownership lost meanwhile (LoseOwnership fenced already) or released: nothing to undo.
+    move_fenced_ = false;
+    move_mark_.reset();
+    co_return;
+  }
+  if (!st.move) {
+    ResumeAfterMove("its move request was removed");
+    move_target_.clear();
+    co_return;
+  }
+  const MoveRecord& mv = *st.move;
+  const uint64_t epoch = owned_epoch_.load();
+  const auto target = std::find_if(members.begin(), members.end(),
+                                   [&](const MemberRecord& m) { return m.name == mv.member; });
+  const auto limit = std::max(std::chrono::milliseconds(10000), 4 * tick_);
+  // A request this member cannot carry out is removed, with the reason in the log.
+  std::string why;
+  if (mv.member == config_.member) {
+    why = mv.epoch < epoch ? "done, this member took it over at epoch " + std::to_string(epoch)
+                           : "this member already owns it (epoch " + std::to_string(epoch) + ")";
+  } else if (mv.epoch != epoch) {
+    why = "its epoch " + std::to_string(mv.epoch) + " is stale (this member owns the scene at " +
+          "epoch " + std::to_string(epoch) + ")";
+  } else if (target == members.end()) {
+    why = "member " + mv.member + " is not a live member";
+  } else if (!target->standby) {
+    why = "member " + mv.member + " may not follow a scene (its cluster.standby is false)";
+  } else if (std::find(target->offers.begin(), target->offers.end(), scene_) ==
+             target->offers.end()) {
+    why = "member " + mv.member + " does not offer scene " + scene_;
+  } else if (config_.replication == "none") {
+    why = "the scene has replication = \"none\": no standby follows it";
+  } else if (!scene_seq_) {
+    why = "this member cannot read its scene's sequence";
+  } else if (move_fenced_ && Clock::now() - move_fenced_at_ > limit) {
+    why = "member " + mv.member + "'s copy did not reach the last sequence within " +
+          std::to_string(limit.count()) + " ms of the fence";
+  }
+  if (!why.empty()) {
+    co_await DropMove(st.move_mod_revision, mv.member, why);
+    co_return;
+  }
+  if (move_target_ != mv.member) {
+    move_target_ = mv.member;
+    move_mark_.reset();
+    spdlog::info("cluster: moving scene {} (epoch {}) to member {} as requested", scene_, epoch,
+                 mv.member);
+  }
+  if (!st.standby || st.standby->member != mv.member) {
+    // The target follows first, as any standby does (TendStandby keeps it while it lives).
+    StandbyRecord record{mv.member, epoch};
+    auto put_call = etcd_->Put({keys_.Standby(scene_), EncodeStandby(record), 0});
+    auto put = co_await std::move(put_call);
+    if (!put.ok()) {
+      LogEtcdTrouble("naming the standby for a move", put.status());
+      co_return;
+    }
+    spdlog::info("cluster: member {} is the standby of scene {} (epoch {}), for the move",
+                 mv.member, scene_, epoch);
+    std::lock_guard<std::mutex> lock(mu_);
+    scenes_[scene_].standby = record;
+    co_return;
+  }
+  // How far the target's copy is durable, as its member record said at its last refresh.
+  const uint64_t copy = target->follows == scene_ ? target->follow_seq : 0;
+  const uint64_t seq = scene_seq_();
+  if (!move_fenced_) {
+    if (target->follows != scene_) co_return;  // still loading its copy
+    // Caught up: the copy holds what this member had when the target was first seen following,
+    // so what remains after the fence is a few ticks of edits at most.
+    if (!move_mark_) move_mark_ = seq;
+    if (copy < *move_mark_) co_return;
+    fence_->Revoke();
+    move_fenced_ = true;
+    move_fenced_at_ = Clock::now();
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      moving_to_ = mv.member;
+    }
+    spdlog::info("cluster: scene {} fenced for the move to member {} (its copy holds seq {}, this "
+                 "member seq {}): sequencing and acknowledging nothing more",
+                 scene_, mv.member, copy, seq);
+    co_return;
+  }
+  if (copy < seq) co_return;  // the copy takes the last edits
+  // Release: the owner key goes (still ours: the epoch record is unchanged since an acquisition
+  // writes both) and the request says so, in one txn.
+  MoveRecord released = mv;
+  released.released = true;
+  TxnRequest txn;
+  txn.compares = {{keys_.Epoch(scene_), Compare::Target::kModRevision, st.epoch_mod_revision},
+                  {keys_.Move(scene_), Compare::Target::kModRevision, st.move_mod_revision}};
+  txn.success = {{keys_.Move(scene_), EncodeMove(released), 0}};
+  txn.success_deletes = {keys_.Owner(scene_)};
+  auto r_call = etcd_->Txn(std::move(txn));
+  auto r = co_await std::move(r_call);
+  if (!r.ok()) {
+    LogEtcdTrouble("releasing scene " + scene_ + " for the move", r.status());
+    co_return;
+  }
+  if (!r->succeeded) co_return;  // the request or the epoch changed: the next tick reads them
+  owned_ = false;
+  owned_epoch_ = 0;
+  move_fenced_ = false;
+  move_mark_.reset();
+  move_target_.clear();
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    SceneState& mine = scenes_[scene_];
+    mine.owner.reset();
+    mine.move = released;
+    moving_to_.clear();
+    waiting_reason_ = "it is being moved to member " + mv.member +
+                      ", which takes it over from its copy";
+  }
+  spdlog::info("cluster: member {} released scene {} (epoch {}, seq {}) to member {}, whose copy "
+               "holds it: {} takes it over as its standby",
+               config_.member, scene_, epoch, seq, mv.member, mv.member);
+  auto put_call = etcd_->Put({keys_.Member(config_.member), EncodeMember(SelfRecord()), lease_});
+  auto put = co_await std::move(put_call);
+  if (!put.ok()) LogEtcdTrouble("publishing the load", put.status());
+}
+
+asio::awaitable<void> ClusterAgent::DropMove(int64_t mod_revision, std::string member,
+                                             std::string why) {
+  // Only the request read (a newer one is judged on its own at the next tick).
+  TxnRequest txn;
+  txn.compares = {{keys_.Move(scene_), Compare::Target::kModRevision, mod_revision}};
+  txn.success_deletes = {keys_.Move(scene_)};
+  auto r_call = etcd_->Txn(std::move(txn));
+  auto r = co_await std::move(r_call);
+  if (!r.ok()) {
+    LogEtcdTrouble("removing the move request of scene " + scene_, r.status());
+    co_return;
+  }
+  if (r->succeeded && member == config_.member) {
+    spdlog::info("cluster: move request of scene {} to member {} removed: {}", scene_, member,
+                 why);
+  } else if (r->succeeded) {
+    spdlog::warn("cluster: move request of scene {} to member {} removed: {}", scene_, member,
+                 why);
+  }
+  ResumeAfterMove("its move request was removed");
+  move_target_.clear();
+}
+
+void ClusterAgent::ResumeAfterMove(const std::string& why) {
+  move_mark_.reset();
+  if (!move_fenced_) return;
+  move_fenced_ = false;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    moving_to_.clear();
+  }
+  if (owned_) fence_->Grant(owned_epoch_.load(), lease_valid_until_);
+  spdlog::warn("cluster: scene {}: the move is off ({}): acknowledging again", scene_, why);
+}
+
 uint64_t ClusterAgent::owned_epoch() const { return fence_->held() ? owned_epoch_.load() : 0; }
 
 Route ClusterAgent::RouteScene(const std::string& requested) const {
@@ -548,8 +724,11 @@ Route ClusterAgent::RouteScene(const std::string& requested) const {
     r.kind = Route::Kind::kUnavailable;
     r.reason =
         "scene " + scene_ + " has no owner now: " +
-        (it != scenes_.end() && it->second.owner ? "this member's lease is not confirmed by etcd"
-                                                 : waiting_reason_);
+        (it != scenes_.end() && it->second.owner
+             ? (moving_to_.empty() ? "this member's lease is not confirmed by etcd"
+                                   : "it is being moved to member " + moving_to_ +
+                                         ", which takes it over once its copy holds every edit")
+             : waiting_reason_);
     return r;
   }
   if (it != scenes_.end()) {

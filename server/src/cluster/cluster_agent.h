@@ -66,6 +66,12 @@ class ClusterAgent : public SceneRouter {
   /// Before Start: this member may be a standby (cluster.standby) and take a scene over. Without
   /// it the member neither follows nor takes over a scene another member owned.
   void EnableStandby(StandbyOptions options);
+  /// Before Start: the scene's last applied sequence (Scene::global_seq), which an owner asked to
+  /// move its scene (`scenes/<scene>/move`) compares with its standby's copy. Without it no
+  /// move request is carried out.
+  void set_scene_seq(std::function<uint64_t()> scene_seq) {
+    if (!started_) scene_seq_ = std::move(scene_seq);
+  }
   /// Revokes the lease (this member's keys and its scene's owner key go at once), stops the
   /// loop and fences the scene. Idempotent.
   void Stop();
@@ -90,6 +96,14 @@ class ClusterAgent : public SceneRouter {
   // Owner: names a standby when there is none or it left. Standby: follows the owner, or takes
   // the scene over when the owner is gone.
   asio::awaitable<void> TendStandby();
+  // Owner asked to move its scene (`scenes/<scene>/move`, docs/cluster.md "Moving a scene"):
+  // names the target standby, fences once its copy has caught up, releases the owner key once
+  // the copy holds the last sequence; the target's takeover (TendStandby, Promote) does the rest.
+  // A request it cannot carry out is removed with the reason.
+  asio::awaitable<void> TendMove();
+  asio::awaitable<void> DropMove(int64_t mod_revision, std::string member, std::string why);
+  // The move is off while fenced for it: acknowledge again.
+  void ResumeAfterMove(const std::string& why);
   // The standby copy becomes the data directory and the process starts again (never returns
   // unless that fails).
   asio::awaitable<void> Promote(uint64_t dead_epoch);
@@ -125,6 +139,13 @@ class ClusterAgent : public SceneRouter {
   std::mutex retired_mu_;
   std::vector<Retired> retired_;  // followers being stopped (a stop may wait on a connect)
   std::atomic<uint64_t> follow_seq_{0};
+  std::function<uint64_t()> scene_seq_;  // set before Start
+  // The move in progress (agent's thread): fenced for it since move_fenced_at_; the owner's
+  // sequence when the target was first seen following (its copy must reach it before the fence).
+  bool move_fenced_ = false;
+  OwnershipFence::Clock::time_point move_fenced_at_{};
+  std::string move_target_;
+  std::optional<uint64_t> move_mark_;
 
   // What the last Refresh read; RouteScene's table.
   struct SceneState {
@@ -133,6 +154,8 @@ class ClusterAgent : public SceneRouter {
     int64_t epoch_mod_revision = 0;
     std::optional<StandbyRecord> standby;
     int64_t standby_mod_revision = 0;
+    std::optional<MoveRecord> move;
+    int64_t move_mod_revision = 0;
   };
   // This member's scene as the last Refresh read it, and the live members, copied under mu_.
   std::pair<SceneState, std::vector<MemberRecord>> ReadTable() const;
@@ -140,6 +163,7 @@ class ClusterAgent : public SceneRouter {
   std::map<std::string, SceneState> scenes_;  // guarded by mu_
   std::vector<MemberRecord> members_;         // guarded by mu_
   std::string waiting_reason_;  // guarded by mu_: why this member's scene has no owner
+  std::string moving_to_;       // guarded by mu_: fenced for a move to this member
   std::atomic<uint64_t> owned_epoch_{0};
   std::atomic<uint64_t> etcd_failures_{0};     // keep-alives and refreshes etcd did not answer
   std::atomic<uint64_t> ownership_losses_{0};  // times this member stopped owning its scene

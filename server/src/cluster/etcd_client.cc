@@ -135,6 +135,9 @@ std::string TxnBody(const TxnRequest& txn) {
   }
   Json success = Json::array();
   for (const PutOp& p : txn.success) success.push_back({{"request_put", Json::parse(PutBody(p))}});
+  for (const std::string& k : txn.success_deletes) {
+    success.push_back({{"request_delete_range", {{"key", Base64(k)}}}});
+  }
   Json failure = Json::array();
   for (const std::string& k : txn.failure_ranges) {
     failure.push_back({{"request_range", {{"key", Base64(k)}}}});

@@ -57,10 +57,12 @@ struct PutOp {
   int64_t lease = 0;  // 0: none
 };
 
-/// If every compare holds, the puts; otherwise the keys of `failure_ranges` are read.
+/// If every compare holds, the puts and the deletes; otherwise the keys of `failure_ranges` are
+/// read.
 struct TxnRequest {
   std::vector<Compare> compares;
   std::vector<PutOp> success;
+  std::vector<std::string> success_deletes;  // keys deleted when the compares hold
   std::vector<std::string> failure_ranges;
 };
 

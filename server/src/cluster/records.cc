@@ -80,6 +80,22 @@ StatusOr<StandbyRecord> DecodeStandby(const std::string& text) {
   return s;
 }
 
+std::string EncodeMove(const MoveRecord& m) {
+  return Json{{"member", m.member}, {"epoch", m.epoch}, {"released", m.released}}.dump();
+}
+
+StatusOr<MoveRecord> DecodeMove(const std::string& text) {
+  SCULPT_ASSIGN_OR_RETURN(Json j, ParseObject("move record", text));
+  MoveRecord m;
+  SCULPT_RETURN_IF_ERROR(Text(j, "member", true, &m.member));
+  SCULPT_RETURN_IF_ERROR(Count(j, "epoch", &m.epoch));
+  if (const auto it = j.find("released"); it != j.end()) {
+    if (!it->is_boolean()) return Outside("released", it->dump().substr(0, 64), "true or false");
+    m.released = it->get<bool>();
+  }
+  return m;
+}
+
 std::string EncodeOwner(const OwnerRecord& o) {
   return Json{{"member", o.member}, {"tcp", o.tcp}, {"http", o.http}, {"epoch", o.epoch}}.dump();
 }
@@ -133,7 +149,7 @@ StatusOr<EpochRecord> DecodeEpoch(const std::string& text) {
 bool Keys::ParseSceneKey(const std::string& key, std::string* scene, std::string* kind) const {
   const std::string scenes = Scenes();
   if (key.compare(0, scenes.size(), scenes) != 0) return false;
-  for (const char* k : {"/owner", "/epoch", "/standby"}) {
+  for (const char* k : {"/owner", "/epoch", "/standby", "/move"}) {
     const std::string suffix = k;
     if (key.size() > scenes.size() + suffix.size() &&
         key.compare(key.size() - suffix.size(), suffix.size(), suffix) == 0) {

@@ -47,7 +47,20 @@ struct StandbyRecord {
   uint64_t epoch = 0;
 };
 
+/// `scenes/<scene>/move`, without a lease: an operator's request (`sculpt cluster move`) that the
+/// owner at `epoch` hand the scene to `member` by naming it standby and releasing the scene once
+/// its copy holds every sequence. The owner rewrites it with `released` when it has deleted its
+/// owner key: from then on only `member` (promoting its copy) or a removal of the request by the
+/// operator ends the wait, and the old owner does not take the scene back meanwhile.
+struct MoveRecord {
+  std::string member;
+  uint64_t epoch = 0;
+  bool released = false;
+};
+
 std::string EncodeMember(const MemberRecord& m);
+std::string EncodeMove(const MoveRecord& m);
+StatusOr<MoveRecord> DecodeMove(const std::string& json);
 std::string EncodeStandby(const StandbyRecord& s);
 StatusOr<StandbyRecord> DecodeStandby(const std::string& json);
 std::string EncodeOwner(const OwnerRecord& o);
@@ -67,7 +80,9 @@ struct Keys {
   std::string Owner(const std::string& scene) const { return Scenes() + scene + "/owner"; }
   std::string Epoch(const std::string& scene) const { return Scenes() + scene + "/epoch"; }
   std::string Standby(const std::string& scene) const { return Scenes() + scene + "/standby"; }
-  /// The scene of an owner, epoch or standby key and which it is ("owner", "epoch", "standby");
+  std::string Move(const std::string& scene) const { return Scenes() + scene + "/move"; }
+  /// The scene of an owner, epoch, standby or move key and which it is ("owner", "epoch",
+  /// "standby", "move");
   /// false for another key.
   bool ParseSceneKey(const std::string& key, std::string* scene, std::string* kind) const;
 };
