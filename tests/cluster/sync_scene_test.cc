@@ -10,6 +10,7 @@
 #include "cluster/processes.h"
 #include "integration/raw_client.h"
 #include "scene/scene.h"
+#include "sculpt/codec/skin_messages.h"
 
 namespace sculpt::server {
 namespace {
@@ -107,6 +108,43 @@ TEST_F(SyncSceneTest, FallsBackToAsyncWhenNoStandbyConfirms) {
   scene_->StandbyDurable(scene_->global_seq());
   ASSERT_EQ(h.wait_for(milliseconds(5000)), std::future_status::ready);
   EXPECT_EQ(scene_->acks().fallbacks(), 1u);
+}
+
+// A ball edit changes no object, so it never reaches the standby's copy: once the standby holds
+// everything before it, its answer goes (it used to wait for the next stroke, or the fall-back,
+// which then switched the scene to async).
+TEST_F(SyncSceneTest, AnEditTheStandbyNeverGetsWaitsOnlyForWhatCameBefore) {
+  SkinConfig skin;
+  skin.name = "outline";
+  skin.origin = {0, 0, 0};
+  skin.chord_tolerance = 0.05;
+  skin.balls = {{-12, 0, 3, 0}, {-6, 1, 2.5, 0}, {0, 0, 3, 0}, {6, -1, 2.5, 0}, {12, 0, 3, 0}};
+  config_.scene.skins = {skin};
+  Open(/*fallback_ms=*/0);  // never fall back
+  std::future<StrokeOutcome> stroke = Press(1);
+  ASSERT_TRUE(sculpt::testing::WaitFor([&] { return scene_->global_seq() > 0; }, milliseconds(5000)));
+  const uint64_t stroke_last = scene_->global_seq();
+  v1::SkinBallEdit e;
+  e.set_client_seq(1);
+  e.set_skin("outline");
+  e.set_op(v1::SKIN_BALL_OP_MOVE);
+  e.set_index(2);
+  e.mutable_ball()->set_x(0.5);
+  e.mutable_ball()->set_r(3);
+  auto edit = codec::DecodeSkinBallEdit(e);
+  ASSERT_TRUE(edit.ok()) << edit.status();
+  auto p = std::make_shared<std::promise<SkinOutcome>>();
+  std::future<SkinOutcome> ball = p->get_future();
+  scene_->EditSkin(7, std::move(edit).value(), [p](const SkinOutcome& k) { p->set_value(k); });
+  EXPECT_EQ(ball.wait_for(milliseconds(300)), std::future_status::timeout)
+      << "answered before the standby held the stroke before it";
+  scene_->StandbyDurable(stroke_last);
+  ASSERT_EQ(stroke.wait_for(milliseconds(5000)), std::future_status::ready);
+  ASSERT_EQ(ball.wait_for(milliseconds(5000)), std::future_status::ready)
+      << "the ball edit waits for a standby that never gets it";
+  EXPECT_TRUE(ball.get().status.ok());
+  EXPECT_GT(scene_->global_seq(), stroke_last);
+  EXPECT_FALSE(scene_->acks().fallen_back());
 }
 
 TEST_F(SyncSceneTest, AsyncIsTheDefault) {

@@ -28,9 +28,25 @@ AckGate::Clock::time_point AckGate::Now() const {
   return options_.now ? options_.now() : Clock::now();
 }
 
+uint64_t AckGate::StandbyBoundLocked() const {
+  uint64_t bound = standby_durable_;
+  for (auto it = skipped_.begin(); it != skipped_.end() && it->first <= bound + 1; ++it) {
+    bound = std::max(bound, it->second);
+  }
+  return bound;
+}
+
 uint64_t AckGate::BoundLocked() const {
   if (!options_.sync || fallen_back_.load()) return local_durable_;
-  return std::min(local_durable_, standby_durable_);
+  return std::min(local_durable_, StandbyBoundLocked());
+}
+
+void AckGate::Skip(uint64_t first, uint64_t last) {
+  if (!options_.sync || last < first) return;
+  std::lock_guard<std::mutex> lock(mu_);
+  if (last <= standby_durable_) return;
+  uint64_t& end = skipped_[first];
+  end = std::max(end, last);
 }
 
 void AckGate::Hold(uint64_t seq, std::function<void()> answer) {
@@ -58,7 +74,10 @@ void AckGate::StandbyDurable(uint64_t seq) {
   {
     std::lock_guard<std::mutex> lock(mu_);
     standby_durable_ = std::max(standby_durable_, seq);
-    if (fallen_back_ && standby_durable_ >= resume_at_) {
+    while (!skipped_.empty() && skipped_.begin()->second <= standby_durable_) {
+      skipped_.erase(skipped_.begin());
+    }
+    if (fallen_back_ && StandbyBoundLocked() >= resume_at_) {
       fallen_back_ = false;
       spdlog::info(
           "replication: the standby's copy is durable to seq {} again: acknowledgements wait "
@@ -115,7 +134,7 @@ void AckGate::CheckFallback() {
     // Only an answer the standby alone holds back counts: a slow local disk is not the
     // standby's fault, and async would not answer it earlier.
     if (Now() - front.since < options_.fallback || front.seq > local_durable_ ||
-        front.seq <= standby_durable_) {
+        front.seq <= StandbyBoundLocked()) {
       return;
     }
     fallen_back_ = true;

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <map>
 #include <mutex>
 #include <thread>
 
@@ -52,6 +53,11 @@ class AckGate {
   void LocalDurable(uint64_t seq);
   /// The standby's copy is durable up to `seq` (values below an earlier one are ignored).
   void StandbyDurable(uint64_t seq);
+  /// Seqs first..last will never reach the standby's copy (an edit that changed no object: a
+  /// ball edit, a model intent, a refused apply). An answer waits for the standby only up to the
+  /// seq before them; without this it waited for the next edit the standby does get, or the
+  /// fall-back. Call before the Hold of an answer at `last`.
+  void Skip(uint64_t first, uint64_t last);
   /// Tests with an injected clock: checks the fallback deadline now (the timer thread does it by
   /// itself at the deadline on the real clock).
   void CheckFallback();
@@ -73,6 +79,8 @@ class AckGate {
   Clock::time_point Now() const;
   // The seq up to which answers may go; caller holds mu_.
   uint64_t BoundLocked() const;
+  // standby_durable_ carried across the skipped seqs that follow it; caller holds mu_.
+  uint64_t StandbyBoundLocked() const;
   void Release();
   void TimerLoop();
 
@@ -82,6 +90,7 @@ class AckGate {
   std::deque<Held> held_;         // guarded by mu_, in seq order
   uint64_t local_durable_ = 0;    // guarded by mu_
   uint64_t standby_durable_ = 0;  // guarded by mu_
+  std::map<uint64_t, uint64_t> skipped_;  // guarded by mu_: first -> last, above standby_durable_
   uint64_t newest_held_ = 0;      // guarded by mu_: the highest seq ever held
   uint64_t resume_at_ = 0;        // guarded by mu_: fallen back until the standby reaches it
   bool releasing_ = false;        // guarded by mu_: one thread answers at a time

@@ -74,6 +74,40 @@ TEST_F(AckGateTest, SyncHoldsTheAckUntilTheStandbyIsDurable) {
   EXPECT_EQ(gate->standby_durable_seq(), 4u);
 }
 
+// Edits that never reach the standby's copy (ball edits, model intents: no object changed) wait
+// for the standby only up to the seq before them, not for the next edit it does get.
+TEST_F(AckGateTest, SkippedSeqsWaitForTheStandbyOnlyUpToTheSeqBeforeThem) {
+  auto gate = MakeGate(true, milliseconds(0));  // never falls back: only Skip can release
+  Hold(*gate, 1);
+  gate->Skip(2, 2);
+  Hold(*gate, 2);
+  gate->Skip(3, 4);
+  Hold(*gate, 4);
+  Hold(*gate, 5);  // reaches the standby
+  gate->LocalDurable(5);
+  EXPECT_TRUE(Answered().empty()) << "a skipped seq went before the standby held seq 1";
+  gate->StandbyDurable(1);
+  EXPECT_EQ(Answered(), (std::vector<uint64_t>{1, 2, 4}));
+  EXPECT_EQ(gate->held(), 1u) << "seq 5 reaches the standby and must wait for it";
+  gate->StandbyDurable(5);
+  EXPECT_EQ(Answered(), (std::vector<uint64_t>{1, 2, 4, 5}));
+  // A skip the standby already passed changes nothing; one past a gap does not bridge it.
+  gate->Skip(3, 3);
+  gate->Skip(8, 8);
+  Hold(*gate, 8);
+  gate->LocalDurable(8);
+  EXPECT_EQ(gate->held(), 1u) << "seqs 6-7 reach the standby: seq 8 waits for them";
+  gate->StandbyDurable(7);
+  EXPECT_EQ(Answered(), (std::vector<uint64_t>{1, 2, 4, 5, 8}));
+  // Async ignores skips.
+  auto async = MakeGate(false, milliseconds(0));
+  async->Skip(1, 1);
+  async->Hold(1, [] {});
+  EXPECT_EQ(async->held(), 1u);
+  async->LocalDurable(1);
+  EXPECT_EQ(async->held(), 0u);
+}
+
 TEST_F(AckGateTest, StandbyOlderWordIsIgnored) {
   auto gate = MakeGate(true, milliseconds(1000));
   gate->LocalDurable(10);
