@@ -160,6 +160,27 @@ TEST_F(ClientServerTest, ReconnectResendsUnackedStrokesWithoutApplyingTwice) {
   for (uint64_t seq : duplicates) EXPECT_LE(seq, static_cast<uint64_t>(kBeforeDrop));
 }
 
+// After a failover a client has seconds of strokes to resend, more than the server's stroke
+// burst (60 per connection by default): the client writes a burst and paces the rest under the
+// rate the Welcome names, so none is refused, and the strokes made meanwhile follow in order.
+TEST_F(ClientServerTest, ResendsMoreThanTheStrokeBurstArePacedNotRefused) {
+  constexpr int kWhileDown = 150;  // 2.5 burst's worth, never written before the Reconnect
+  auto c = Joined(v1::ROLE_SCULPTOR, "pacer", /*client_id=*/0x9ace);
+  ASSERT_TRUE(c->SendStroke(Arc(5, 0)).ok());
+  ASSERT_TRUE(c->WaitAllAcked(seconds(10)));
+  c->DropConnection();
+  for (int i = 1; i <= kWhileDown; ++i) ASSERT_TRUE(c->SendStroke(Arc(5, i % 24)).ok());
+  ASSERT_TRUE(c->Reconnect().ok());
+  // Made while the resends are still going out: they queue behind them.
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(c->SendStroke(Arc(5, i)).ok());
+  ASSERT_TRUE(c->WaitAllAcked(seconds(30)));
+  const ClientStats st = c->stats();
+  EXPECT_EQ(st.refused, 0u) << "resends refused by the server's stroke limit";
+  EXPECT_EQ(st.acks, static_cast<uint64_t>(1 + kWhileDown + 5));
+  EXPECT_EQ(st.acks_out_of_order, 0u);
+  EXPECT_EQ(scene_->global_seq(), static_cast<uint64_t>((1 + kWhileDown + 5) * kPosesPerStroke));
+}
+
 TEST_F(ClientServerTest, ViewerStrokeIsPermissionDeniedWhileSculptorKeepsWorking) {
   constexpr int kStrokes = 20;
   auto sculptor = Joined(v1::ROLE_SCULPTOR, "sculptor");

@@ -27,6 +27,10 @@ using Clock = std::chrono::steady_clock;
 // Answers to undo requests kept for WaitUndoAck; beyond it the oldest go (a caller that only
 // reads events never waits for them).
 constexpr size_t kMaxUndoAnswers = 1024;
+// Resends written at once after a Join; the rest are paced (Impl::PaceResendsLocked). Under the
+// server's default stroke burst of 60 per connection, and 4 clients' worth under the budget
+// shared by one address.
+constexpr size_t kResendBurst = 24;
 
 struct IoThread::Impl {
   asio::io_context io;
@@ -577,6 +581,32 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
     KickLocked(conn);
   }
 
+  /// Writes the pending requests not yet on `c` in client_seq order, at most `burst` now and the
+  /// rest one every `interval`, on the I/O thread; stops when `c` is no longer the joined
+  /// connection (the next Join starts again).
+  void PaceResendsLocked(const std::shared_ptr<Conn>& c, size_t burst,
+                         std::chrono::microseconds interval) {
+    size_t n = 0;
+    for (auto& [seq, p] : pending) {
+      if (p.written) continue;
+      if (n == burst) {
+        auto timer = std::make_shared<asio::steady_timer>(io, interval);
+        auto self = shared_from_this();
+        timer->async_wait([self, c, timer, interval](boost::system::error_code ec) {
+          if (ec) return;
+          std::lock_guard<std::mutex> lock(self->mu);
+          if (self->conn != c || c->closed || self->phase != Phase::kJoined) return;
+          self->PaceResendsLocked(c, 1, interval);
+        });
+        return;
+      }
+      p.written = true;
+      QueueLocked(p.frame, seq);
+      ++n;
+    }
+    resend_backlog = false;
+  }
+
   template <typename Message>
   static std::string Frame(const Message& m) {
     std::string frame;
@@ -626,6 +656,9 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
   bool joined_once = false;
 
   v1::Welcome welcome;
+  // Resends after a reconnect go out paced (PaceResendsLocked): true while pending requests
+  // wait for the pacer, which also carries the requests made meanwhile, in client_seq order.
+  bool resend_backlog = false;
   std::optional<v1::Error> handshake_error;
   JoinedScene join;
   std::map<std::string, uint32_t> next_chunk;
@@ -867,14 +900,22 @@ StatusOr<JoinedScene> JoinHere(Client::Impl& d, const std::string& scene) {
   d.scene = scene;
   d.joined_once = true;
   d.scene_info = d.join.info;
-  // Resends go out before the phase lets new strokes onto the wire, so every stroke reaches
-  // the server in client_seq order (see the class comment).
+  // Resends go out before new strokes, so every stroke reaches the server in client_seq order
+  // (see the class comment). After a failover they are seconds of strokes: a burst, then paced
+  // at 3/4 of the rate the server's Welcome allows, so its stroke limits (per connection, and
+  // shared by the clients behind one address) do not refuse them; requests made meanwhile
+  // queue behind them.
   for (auto& [seq, p] : d.pending) {
     if (p.written) ++(p.undo ? d.stats.undos_resent : d.stats.strokes_resent);
-    p.written = true;
-    d.QueueLocked(p.frame, seq);
+    p.written = false;
   }
   d.phase = Client::Impl::Phase::kJoined;
+  d.resend_backlog = !d.pending.empty();
+  if (d.resend_backlog) {
+    const double rate = std::max(1.0, 0.75 * d.welcome.max_strokes_per_second());
+    d.PaceResendsLocked(d.conn, kResendBurst,
+                        std::chrono::microseconds(static_cast<int64_t>(1e6 / rate)));
+  }
   return std::move(d.join);
 }
 
@@ -1012,7 +1053,7 @@ StatusOr<uint64_t> Client::SendStrokeMessage(v1::Stroke stroke) {
   p.frame = Impl::Frame(m);
   p.sent_at = Clock::now();
   ++d.stats.strokes_sent;
-  if (d.phase == Impl::Phase::kJoined) {
+  if (d.phase == Impl::Phase::kJoined && !d.resend_backlog) {
     p.written = true;
     d.QueueLocked(p.frame, seq);
   }
@@ -1054,7 +1095,7 @@ StatusOr<uint64_t> Client::SendUndo(const std::string& object, bool redo) {
   p.undo = true;
   p.redo = redo;
   ++d.stats.undos_sent;
-  if (d.phase == Impl::Phase::kJoined) {
+  if (d.phase == Impl::Phase::kJoined && !d.resend_backlog) {
     p.written = true;
     d.QueueLocked(p.frame, seq);
   }
