@@ -19,30 +19,13 @@ namespace {
 using soak::kKeys;
 using soak::Sculptor;
 using sculpt::testing::Member;
+using sculpt::testing::RunResult;
+using sculpt::testing::Sculpt;
 using sculpt::testing::WaitFor;
 using std::chrono::milliseconds;
 using Clock = std::chrono::steady_clock;
 
 class ClusterMoveTxnTest : public sculpt::testing::EtcdTest {};
-
-struct RunResult {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr
-};
-
-// Runs `sculpt ARGS` through the shell (arguments are test-made: no quoting needed).
-RunResult Sculpt(const std::string& args) {
-  RunResult r;
-  const std::string cmd = std::string(SCULPT_BIN_DIR) + "/sculpt " + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  if (p == nullptr) return r;
-  std::array<char, 4096> buf;
-  size_t n = 0;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
-  const int status = pclose(p);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
 
 TEST(MoveRecordTest, RoundTripsAndParsesItsKey) {
   const MoveRecord m{"c", 7, true};
@@ -117,14 +100,7 @@ TEST_P(ClusterMoveTest, MovesTheSceneToAMemberAsAStandbyPromotionAndEveryStrokeI
   for (const char* n : {"a", "b", "c"}) {
     ASSERT_NE(StartMember(n).WaitPort(), 0) << n << " did not start; see " << dir_.path();
   }
-  ASSERT_TRUE(WaitFor(
-      [&] {
-        auto o = Owner();
-        auto s = Standby();
-        auto m = s ? MemberOf(s->member) : std::nullopt;
-        return o && m && m->follows == "default";
-      },
-      milliseconds(20000)))
+  ASSERT_TRUE(OwnerWithAFollowingStandby(milliseconds(20000)))
       << "no owner with a following standby\n" << Diagnosis();
   const OwnerRecord from = *Owner();
   const std::string standby = Standby()->member;
@@ -240,14 +216,7 @@ TEST_P(ClusterMoveTest, RemovesRequestsItCannotCarryOutAndWithdrawsATimedOutMove
   for (const char* n : {"a", "b", "c"}) {
     ASSERT_NE(StartMember(n).WaitPort(), 0) << n << " did not start; see " << dir_.path();
   }
-  ASSERT_TRUE(WaitFor(
-      [&] {
-        auto o = Owner();
-        auto s = Standby();
-        auto m = s ? MemberOf(s->member) : std::nullopt;
-        return o && m && m->follows == "default";
-      },
-      milliseconds(20000)))
+  ASSERT_TRUE(OwnerWithAFollowingStandby(milliseconds(20000)))
       << "no owner with a following standby\n" << Diagnosis();
   const OwnerRecord from = *Owner();
   std::string target;

@@ -23,29 +23,12 @@ using nlohmann::json;
 using sculpt::testing::ChildProcess;
 using sculpt::testing::EtcdProcess;
 using sculpt::testing::TempDir;
+using sculpt::testing::RunResult;
+using sculpt::testing::Sculpt;
 using sculpt::testing::WaitFor;
 using std::chrono::milliseconds;
 
 const Keys kKeys{"t/"};
-
-struct RunResult {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr
-};
-
-// Runs `sculpt ARGS` through the shell (arguments are test-made: no quoting needed).
-RunResult Sculpt(const std::string& args) {
-  RunResult r;
-  const std::string cmd = std::string(SCULPT_BIN_DIR) + "/sculpt " + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  if (p == nullptr) return r;
-  std::array<char, 4096> buf;
-  size_t n = 0;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
-  const int status = pclose(p);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
 
 // The JSON document of --json output (from its first line starting with '{').
 json JsonOf(const std::string& out) {

@@ -207,19 +207,24 @@ class FailoverSoakTest : public sculpt::testing::EtcdTest {
     return out;
   }
 
-  // kill -9 of the scene's owner `rounds` times under the sculptors; see the file comment.
-  void RunRounds(int rounds) {
-    for (const char* n : {"a", "b", "c"}) {
-      ASSERT_NE(Start(n).WaitPort(), 0) << n << " did not start; see " << dir_.path();
-    }
-    ASSERT_TRUE(WaitFor(
+  // Waits until etcd names an owner and a standby whose copy follows the scene.
+  bool OwnerWithAFollowingStandby(milliseconds limit) {
+    return WaitFor(
         [&] {
           auto o = Owner();
           auto s = Standby();
           auto m = s ? MemberOf(s->member) : std::nullopt;
           return o && m && m->follows == "default";
         },
-        milliseconds(20000)))
+        limit);
+  }
+
+  // kill -9 of the scene's owner `rounds` times under the sculptors; see the file comment.
+  void RunRounds(int rounds) {
+    for (const char* n : {"a", "b", "c"}) {
+      ASSERT_NE(Start(n).WaitPort(), 0) << n << " did not start; see " << dir_.path();
+    }
+    ASSERT_TRUE(OwnerWithAFollowingStandby(milliseconds(20000)))
         << "no owner with a following standby; see " << dir_.path();
     const std::vector<std::string> addresses = Addresses();
     ASSERT_EQ(addresses.size(), 3u);
@@ -271,13 +276,7 @@ class FailoverSoakTest : public sculpt::testing::EtcdTest {
           std::chrono::duration<double, std::milli>(Clock::now() - killed).count());
       // The killed member comes back on its data directory and follows the new owner.
       ASSERT_NE(Start(victim).WaitPort(), 0) << "round " << round << ": " << victim;
-      ASSERT_TRUE(WaitFor(
-          [&] {
-            auto s = Standby();
-            auto m = s ? MemberOf(s->member) : std::nullopt;
-            return m && m->follows == "default";
-          },
-          milliseconds(30000)))
+      ASSERT_TRUE(OwnerWithAFollowingStandby(milliseconds(30000)))
           << "round " << round << ": no standby follows again\n" << Diagnosis();
       // The wall clock of the kill finds the round in the members' logs (SCULPT_KEEP_TEST_DIRS).
       const std::time_t t = std::chrono::system_clock::to_time_t(killed_wall);

@@ -11,6 +11,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <cstdio>
@@ -39,6 +40,27 @@ inline uint16_t FreePort() {
   boost::asio::io_context io;
   boost::asio::ip::tcp::acceptor a(io, {boost::asio::ip::make_address("127.0.0.1"), 0});
   return a.local_endpoint().port();
+}
+
+/// What `sculpt ARGS` printed (stdout and stderr) and its exit code (-1 when it did not exit).
+struct RunResult {
+  int exit_code = -1;
+  std::string output;
+};
+
+/// Runs the `sculpt` binary of SCULPT_BIN_DIR through the shell (arguments are test-made: no
+/// quoting needed).
+inline RunResult Sculpt(const std::string& args) {
+  RunResult r;
+  const std::string cmd = std::string(SCULPT_BIN_DIR) + "/sculpt " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  if (p == nullptr) return r;
+  std::array<char, 4096> buf;
+  size_t n = 0;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
+  const int status = pclose(p);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
 }
 
 /// A fresh directory under the system's temporary folder, removed by the destructor unless
