@@ -138,11 +138,12 @@ TEST_F(LearntMembersTest, ClientReconnectsThroughAMemberItWasNotGiven) {
   EXPECT_EQ(client.unacked(), 0u);
   EXPECT_EQ(client.stats().refused, 0u);
   // b's SceneInfo lists b (a is gone from etcd once its lease expired).
+  const v1::SceneInfo rejoined = client.scene_info();
   bool b_listed = false;
-  for (const v1::ClusterMember& m : client.scene_info().cluster_members()) {
+  for (const v1::ClusterMember& m : rejoined.cluster_members()) {
     b_listed = b_listed || m.name() == "b";
   }
-  EXPECT_TRUE(b_listed) << client.scene_info().ShortDebugString();
+  EXPECT_TRUE(b_listed) << rejoined.ShortDebugString();
   // Both strokes applied exactly once on b: 2 poses each.
   auto fetched = sculpt::client::FetchScene(b->tcp, "sculpt-dev-viewer", v1::ROLE_VIEWER, "",
                                             milliseconds(5000), {});
