@@ -68,7 +68,9 @@ class LearntMembersTest : public sculpt::testing::EtcdTest {
     auto v = decode((*kv)->value);
     return v.ok() ? std::optional<T>(*v) : std::nullopt;
   }
-  std::optional<OwnerRecord> Owner() { return Read<OwnerRecord>(kKeys.Owner("default"), DecodeOwner); }
+  std::optional<OwnerRecord> Owner() {
+    return Read<OwnerRecord>(kKeys.Owner("default"), DecodeOwner);
+  }
   std::optional<MemberRecord> MemberOf(const std::string& name) {
     return Read<MemberRecord>(kKeys.Member(name), DecodeMember);
   }

@@ -43,7 +43,9 @@ TEST(ClientMembersTest, KeepsValidDistinctMembersAtMost64AndReconnectsThroughThe
       Member("big", "127.0.0.1:65536"), Member("empty", ""),
       Member("long", std::string(400, 'h') + ":80"), Member("b", second_at),
       Member("b-again", second_at)};
-  for (int i = 0; i < 80; ++i) listed.push_back(Member("m" + std::to_string(i), "h" + std::to_string(i) + ":7000"));
+  for (int i = 0; i < 80; ++i) {
+    listed.push_back(Member("m" + std::to_string(i), "h" + std::to_string(i) + ":7000"));
+  }
   first->set_cluster_members(listed);
 
   Client client(Options());
