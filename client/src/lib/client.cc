@@ -654,6 +654,10 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
   uint64_t client_id = 0;
   std::string scene;
   bool joined_once = false;
+  // Cluster mode: the members' TCP addresses (HOST:PORT) the last SceneInfo that listed any
+  // named, valid and distinct, at most kMaxLearntMembers; Reconnect() tries them after
+  // options.cluster_members.
+  std::vector<std::string> learnt_members;
 
   v1::Welcome welcome;
   // Resends after a reconnect go out paced (PaceResendsLocked): true while pending requests
@@ -853,6 +857,26 @@ namespace {
 
 // One JoinScene on the current connection. A Redirect answer closes the connection and is left
 // in d.redirect for Join to follow.
+// SceneInfo.cluster_members is the answering member's view, untrusted like any server input:
+// an address that does not parse as HOST:PORT is skipped, and the list is bounded. A SceneInfo
+// without members (a single process, or a member that has not read etcd yet) keeps what was
+// learnt before.
+void LearnMembersLocked(Client::Impl& d, const v1::SceneInfo& info) {
+  std::vector<std::string> learnt;
+  for (const v1::ClusterMember& m : info.cluster_members()) {
+    if (learnt.size() >= kMaxLearntMembers) break;
+    std::string host;
+    uint16_t port = 0;
+    if (m.tcp_address().size() > 300 || !ParseServerAddress(m.tcp_address(), &host, &port).ok()) {
+      continue;
+    }
+    if (std::find(learnt.begin(), learnt.end(), m.tcp_address()) == learnt.end()) {
+      learnt.push_back(m.tcp_address());
+    }
+  }
+  if (!learnt.empty()) d.learnt_members = std::move(learnt);
+}
+
 StatusOr<JoinedScene> JoinHere(Client::Impl& d, const std::string& scene) {
   std::unique_lock<std::mutex> lock(d.mu);
   if (d.phase == Client::Impl::Phase::kJoined) {
@@ -900,6 +924,7 @@ StatusOr<JoinedScene> JoinHere(Client::Impl& d, const std::string& scene) {
   d.scene = scene;
   d.joined_once = true;
   d.scene_info = d.join.info;
+  LearnMembersLocked(d, d.join.info);
   // Resends go out before new strokes, so every stroke reaches the server in client_seq order
   // (see the class comment). After a failover they are seconds of strokes: a burst, then paced
   // at 3/4 of the rate the server's Welcome allows, so its stroke limits (per connection, and
@@ -989,14 +1014,23 @@ Status Client::Reconnect() {
   Status s = rejoin(host, port);
   // Cluster mode: through any other member (it redirects to the owner) when the last server is
   // gone or cannot serve the scene now. Only for errors of reach, not for a refused token.
-  for (const std::string& member : impl_->options.cluster_members) {
+  // The members given first, then those the last join's SceneInfo listed (each tried once).
+  std::vector<std::string> members = impl_->options.cluster_members;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mu);
+    for (const std::string& m : impl_->learnt_members) {
+      if (std::find(members.begin(), members.end(), m) == members.end()) members.push_back(m);
+    }
+  }
+  std::vector<std::pair<std::string, uint16_t>> tried{{host, port}};
+  for (const std::string& member : members) {
     if (s.ok() || s.code() != Status::Code::kUnavailable) break;
-    const size_t colon = member.rfind(':');
-    if (colon == std::string::npos) continue;
-    const std::string h = member.substr(0, colon);
-    const int p = std::atoi(member.c_str() + colon + 1);
-    if (p <= 0 || p > 65535 || (h == host && p == port)) continue;
-    s = rejoin(h, static_cast<uint16_t>(p));
+    std::string h;
+    uint16_t p = 0;
+    if (!ParseServerAddress(member, &h, &p).ok()) continue;
+    if (std::find(tried.begin(), tried.end(), std::pair{h, p}) != tried.end()) continue;
+    tried.emplace_back(h, p);
+    s = rejoin(h, p);
   }
   return s;
 }
@@ -1288,6 +1322,11 @@ uint64_t Client::client_id() const {
 v1::Welcome Client::welcome() const {
   std::lock_guard<std::mutex> lock(impl_->mu);
   return impl_->welcome;
+}
+
+std::vector<std::string> Client::learnt_members() const {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  return impl_->learnt_members;
 }
 
 v1::SceneInfo Client::scene_info() const {

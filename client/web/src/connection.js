@@ -13,6 +13,35 @@ export function num(x) {
   return Number(x);
 }
 
+// At most this many cluster members' addresses are kept from a SceneInfo.
+export const kMaxClusterMembers = 64;
+
+/** Whether `text` is HOST:PORT: a host name, an IPv4 address or a bracketed IPv6 one, port 1..65535. */
+export function isHostPort(text) {
+  if (typeof text !== 'string' || text.length === 0 || text.length > 300) return false;
+  const m = /^(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9](?:[A-Za-z0-9.-]*[A-Za-z0-9])?):([0-9]{1,5})$/.exec(text);
+  if (!m) return false;
+  const port = Number(m[2]);
+  return port >= 1 && port <= 65535;
+}
+
+/**
+ * SceneInfo.cluster_members' HTTP addresses (cluster mode): the live members as the member that
+ * answered the join read them, its own included, to rejoin through when it dies. What a server
+ * says is checked like any input: entries that are not HOST:PORT (a member without an HTTP port
+ * has none) are skipped, duplicates dropped, at most `max` kept, in the order given.
+ */
+export function clusterHttpAddresses(info, max = kMaxClusterMembers) {
+  const out = [];
+  const members = (info && Array.isArray(info.clusterMembers)) ? info.clusterMembers : [];
+  for (const m of members) {
+    if (out.length >= max) break;
+    const address = m && m.httpAddress;
+    if (isHostPort(address) && !out.includes(address)) out.push(address);
+  }
+  return out;
+}
+
 const kErrorNames = Object.fromEntries(Object.entries(v1.ErrorCode).map(([k, v]) => [v, k]));
 
 /** "INVALID_ARGUMENT Stroke.tool_size.x=40 outside [0.5, 16]: message" */

@@ -5,7 +5,7 @@
 // contour_codec.js), undo.js (undo and redo); this file is the page and its state.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
-import { Connection, Outbox, describeError, num, v1 } from './connection.js';
+import { Connection, Outbox, clusterHttpAddresses, describeError, num, v1 } from './connection.js';
 import { ChunkMeshes } from './meshes.js';
 import { Sculpting, Presence, isUnavailable } from './tools.js';
 import { Contours } from './contours.js';
@@ -316,6 +316,7 @@ class App {
       this.showNotice(`scene "${info.scene}" is on member ${this.stats.member} (${host})`);
     }
     this.joinedHost = host;
+    this.learnMembers(info);
     this.welcome = welcome;
     this.stats.role = welcome.role === v1.Role.ROLE_VIEWER ? 'viewer' : 'sculptor';
     this.info = info;
@@ -352,9 +353,21 @@ class App {
   }
 
   /**
+   * Cluster mode: the members' HTTP addresses the SceneInfo of a join listed (valid HOST:PORT,
+   * distinct, at most 64), kept for rejoining when the members the page knew otherwise are gone.
+   * A SceneInfo without members (a single process, or a member that has not read them yet)
+   * keeps the list from before.
+   */
+  learnMembers(info) {
+    const learnt = clusterHttpAddresses(info);
+    if (learnt.length > 0) this.learntMembers = learnt;
+    this.stats.learntMembers = this.learntMembers || [];
+  }
+
+  /**
    * The connection is lost, or its member refused an edit because it does not hold the scene
    * now: rejoins through the members the page knows (the last one it joined, the one that served
-   * the page, the fragment's `members`), each join following redirects to the scene's owner, with
+   * the page, the fragment's `members`, then the members the last join's SceneInfo listed), each join following redirects to the scene's owner, with
    * a growing pause between tries, then resends every unacknowledged edit in order (Outbox). New
    * edits made meanwhile wait in the outbox and follow the resent ones.
    */
@@ -376,7 +389,8 @@ class App {
     this.stats.reconnects += 1;
     this.stats.lastLoss = why;
     const started = performance.now();
-    const hosts = [...new Set([this.joinedHost, location.host, ...(this.opts.members || [])])];
+    const hosts = [...new Set([this.joinedHost, location.host, ...(this.opts.members || []),
+      ...(this.learntMembers || [])])];
     let last = why;
     for (let attempt = 1; attempt <= kReconnectTries; ++attempt) {
       // Short: the line sits over the view. Why is said in the console (and if all tries fail).
@@ -398,6 +412,7 @@ class App {
           continue;
         }
         this.joinedHost = joined.host;
+        this.learnMembers(joined.info);
         this.welcome = joined.welcome;
         this.info = joined.info;
         this.joined(joined.welcome, joined.info);

@@ -697,6 +697,14 @@ void ClusterAgent::ResumeAfterMove(const std::string& why) {
 
 uint64_t ClusterAgent::owned_epoch() const { return fence_->held() ? owned_epoch_.load() : 0; }
 
+std::vector<MemberAddress> ClusterAgent::LiveMembers() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  std::vector<MemberAddress> out;
+  out.reserve(members_.size());
+  for (const MemberRecord& m : members_) out.push_back({m.name, m.tcp, m.http});
+  return out;
+}
+
 Route ClusterAgent::RouteScene(const std::string& requested) const {
   Route r;
   r.scene = requested.empty() ? scene_ : requested;

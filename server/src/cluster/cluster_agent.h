@@ -79,6 +79,7 @@ class ClusterAgent : public SceneRouter {
   /// What the commit pipeline consults; valid from construction (not held until acquired).
   std::shared_ptr<const OwnershipFence> fence() const { return fence_; }
   Route RouteScene(const std::string& scene) const override;
+  std::vector<MemberAddress> LiveMembers() const override;
   /// The epoch this member holds its scene at, 0 when it does not.
   uint64_t owned_epoch() const;
   /// The cluster's figures for /metrics (docs/cluster.md, "Metrics"): ownership, live members,

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace sculpt::server::cluster {
 
@@ -28,6 +29,13 @@ struct Route {
   std::string standby;
 };
 
+/// A live member's addresses as its etcd record gives them (SceneInfo.cluster_members).
+struct MemberAddress {
+  std::string name;
+  std::string tcp;   // HOST:PORT
+  std::string http;  // HOST:PORT; empty when it has no HTTP port
+};
+
 /// Answers from what the member last read from etcd, without waiting on the network: sessions
 /// call it on their strand. Thread safety: RouteScene from any thread.
 class SceneRouter {
@@ -35,6 +43,9 @@ class SceneRouter {
   virtual ~SceneRouter() = default;
   /// `scene` empty: this member's configured scene.
   virtual Route RouteScene(const std::string& scene) const = 0;
+  /// The live members as last read (this member included), in the order read; empty when none
+  /// were read. From any thread.
+  virtual std::vector<MemberAddress> LiveMembers() const { return {}; }
 };
 
 }  // namespace sculpt::server::cluster

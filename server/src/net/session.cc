@@ -352,6 +352,9 @@ void Session::OnJoinState(StatusOr<JoinState> js) {
       std::max(0.0, limits.stroke_burst + limits.strokes_per_second * kFreeResendSeconds));
   v1::ServerMessage info;
   *info.mutable_scene_info() = ToWireSceneInfo(js->info);
+  if (const cluster::SceneRouter* router = server_.router()) {
+    SetWireClusterMembers(router->LiveMembers(), info.mutable_scene_info());
+  }
   Send(info);
   // The state goes out in chunks, queued behind nothing else of this session; other sessions
   // are not touched (late join without stalling the others).
@@ -667,6 +670,9 @@ void Session::OnJoin(const v1::JoinScene& j) {
     // A replica loads its region through Subscribe: scene info only.
     v1::ServerMessage info;
     *info.mutable_scene_info() = ToWireSceneInfo(server_.scene().Info());
+    if (const cluster::SceneRouter* router = server_.router()) {
+      SetWireClusterMembers(router->LiveMembers(), info.mutable_scene_info());
+    }
     return Send(info);
   }
   server_.scene().RequestJoinState(

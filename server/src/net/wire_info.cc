@@ -47,4 +47,16 @@ v1::SceneInfo ToWireSceneInfo(const SceneSummary& s) {
   return info;
 }
 
+void SetWireClusterMembers(const std::vector<cluster::MemberAddress>& members,
+                           v1::SceneInfo* info) {
+  info->clear_cluster_members();
+  for (const cluster::MemberAddress& m : members) {
+    if (static_cast<size_t>(info->cluster_members_size()) >= kMaxWireClusterMembers) break;
+    v1::ClusterMember* w = info->add_cluster_members();
+    w->set_name(m.name);
+    w->set_tcp_address(m.tcp);
+    w->set_http_address(m.http);
+  }
+}
+
 }  // namespace sculpt::server

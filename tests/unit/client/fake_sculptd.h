@@ -60,6 +60,12 @@ class FakeSculptd {
     handler_ = std::move(handler);
   }
 
+  /// SceneInfo.cluster_members of every later join's answer (cluster mode).
+  void set_cluster_members(std::vector<v1::ClusterMember> members) {
+    std::lock_guard<std::mutex> lock(mu_);
+    cluster_members_ = std::move(members);
+  }
+
   /// Every message received (Hello and JoinScene included), with its connection number (0, 1..).
   std::vector<std::pair<int, v1::ClientMessage>> received() const {
     std::lock_guard<std::mutex> lock(mu_);
@@ -145,6 +151,8 @@ class FakeSculptd {
         o->set_name(name);
         o->set_voxel_size(0.5);
       }
+      std::lock_guard<std::mutex> lock(mu_);
+      for (const v1::ClusterMember& c : cluster_members_) *info->add_cluster_members() = c;
       r.messages.push_back(s);
     } else if (handler) {
       r = handler(m, connection);
@@ -156,6 +164,7 @@ class FakeSculptd {
   std::condition_variable cv_;
   Handler handler_;
   std::vector<std::pair<int, v1::ClientMessage>> received_;
+  std::vector<v1::ClusterMember> cluster_members_;
   boost::asio::io_context io_;
   boost::asio::ip::tcp::acceptor acceptor_;
   std::atomic<bool> stop_{false};

@@ -73,7 +73,8 @@ struct ClientOptions {
   ClientTlsOptions tls;
   /// Cluster mode: other members (HOST:PORT). Reconnect() tries them in turn when the server
   /// it knew does not answer or cannot serve the scene (its machine died, it lost the scene);
-  /// any member redirects to the scene's owner.
+  /// any member redirects to the scene's owner. After these, Reconnect() also tries the members
+  /// the last join's SceneInfo.cluster_members named (Client::learnt_members()).
   std::vector<std::string> cluster_members;
 };
 
@@ -285,6 +286,10 @@ class Client {
   uint64_t client_id() const;
   v1::Welcome welcome() const;
   v1::SceneInfo scene_info() const;
+  /// Cluster mode: the members' TCP addresses (HOST:PORT) the last join that listed any named
+  /// in SceneInfo.cluster_members (valid, distinct, at most kMaxLearntMembers); Reconnect()
+  /// tries them after ClientOptions::cluster_members. Empty on a single process.
+  std::vector<std::string> learnt_members() const;
   ClientStats stats() const;
 
   struct Impl;
@@ -307,6 +312,9 @@ uint64_t NewClientId();
 uint64_t ClockClientSeq();
 /// Splits "HOST:PORT" (IPv6 as "[::1]:7420"). InvalidArgument naming the text otherwise.
 Status ParseServerAddress(const std::string& text, std::string* host, uint16_t* port);
+
+/// At most this many members learnt from SceneInfo.cluster_members are kept.
+inline constexpr size_t kMaxLearntMembers = 64;
 
 /// Connects (over TLS with `tls`), joins as `role` and returns the scene's current state, then
 /// says Bye. Errors as Connect, Hello and Join.

@@ -1,0 +1,200 @@
+// Browser test of rejoining through a member the page learnt from SceneInfo.cluster_members
+// (issue 17): an etcd (Debian's etcd-server) and two sculptd members on loopback; a owns the
+// scene and b follows it as its standby. The page is opened on a's own HTTP port with no
+// #members fragment, so the only members it is told of are those a lists when it answers the
+// join. It sculpts (acknowledged by a); then a is killed (SIGKILL) and the page sculpts on: its
+// socket closes, a (the member it joined and the one that served the page) no longer answers,
+// and the page must find b from the list it learnt, wait for b to take the scene over, rejoin
+// there and have every stroke acknowledged by b, each applied exactly once. Usage:
+//   node test/members_browser_test.mjs --bin BUILD/bin --web-root DIST
+// Exits 0 with "skipped" when /usr/bin/etcd is missing; non-zero with the failing check's name.
+import { execFileSync, spawn } from 'node:child_process';
+import { mkdirSync, mkdtempSync, existsSync, rmSync, writeFileSync } from 'node:fs';
+import { createServer } from 'node:net';
+import { tmpdir } from 'node:os';
+import { join } from 'node:path';
+import { chromiumPath, launchChromium } from './chromium.mjs';
+import { sculptdPorts, startSculptd, stopSculptd } from './sculptd.mjs';
+
+const args = Object.fromEntries(process.argv.slice(2).reduce((acc, a, i, all) =>
+  (a.startsWith('--') ? [...acc, [a.slice(2), all[i + 1]]] : acc), []));
+const { bin } = args;
+const webRoot = args['web-root'];
+const etcdBinary = '/usr/bin/etcd';
+if (!bin || !webRoot) { console.error('usage: --bin DIR --web-root DIR'); process.exit(2); }
+if (!existsSync(chromiumPath)) { console.error(`${chromiumPath} missing`); process.exit(1); }
+if (!existsSync(etcdBinary)) {
+  console.log(`members browser test: skipped (${etcdBinary} missing: install Debian's etcd-server)`);
+  process.exit(0);
+}
+
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+let failures = 0;
+function check(name, ok, detail = '') {
+  console.log(`${ok ? 'ok  ' : 'FAIL'} ${name}${detail ? `: ${detail}` : ''}`);
+  if (!ok) failures += 1;
+}
+const freePort = () => new Promise((resolve, reject) => {
+  const s = createServer();
+  s.once('error', reject);
+  s.listen(0, '127.0.0.1', () => { const { port } = s.address(); s.close(() => resolve(port)); });
+});
+const b64 = (text) => Buffer.from(text).toString('base64');
+
+const dir = mkdtempSync(join(tmpdir(), 'sculpt-members-browser-'));
+const kPrefix = 't/';
+const [etcdPort, peerPort, aHttp, bHttp] = [await freePort(), await freePort(), await freePort(), await freePort()];
+const etcdUrl = `http://127.0.0.1:${etcdPort}`;
+const peerUrl = `http://127.0.0.1:${peerPort}`;
+const etcd = spawn(etcdBinary, ['--name', 't', '--data-dir', join(dir, 'etcd'), '--listen-client-urls', etcdUrl,
+  '--advertise-client-urls', etcdUrl, '--listen-peer-urls', peerUrl, '--initial-advertise-peer-urls', peerUrl,
+  '--initial-cluster', `t=${peerUrl}`], { stdio: 'ignore' });
+
+// The value of `key` through etcd's v3 JSON gateway, or null (absent, or etcd not answering yet).
+async function etcdGet(key) {
+  try {
+    const res = await fetch(`${etcdUrl}/v3/kv/range`, { method: 'POST', body: JSON.stringify({ key: b64(key) }),
+      signal: AbortSignal.timeout(1000) });
+    if (!res.ok) return null;
+    const body = await res.json();
+    return body.kvs && body.kvs.length ? Buffer.from(body.kvs[0].value, 'base64').toString() : '';
+  } catch { return null; }
+}
+const etcdJson = async (key) => { const v = await etcdGet(key); try { return v ? JSON.parse(v) : null; } catch { return null; } };
+async function until(what, fn, limitMs) {
+  const end = Date.now() + limitMs;
+  for (;;) {
+    const v = await fn();
+    if (v) return v;
+    if (Date.now() > end) throw new Error(`${what} within ${limitMs / 1000} s`);
+    await sleep(100);
+  }
+}
+
+// Fixed HTTP ports: b, promoted, runs again with the same command line and keeps its address.
+const member = (name, http, otherHttp) => {
+  const mdir = join(dir, name);
+  mkdirSync(mdir);
+  writeFileSync(join(mdir, 'config.toml'), `[cluster]\netcd = ["${etcdUrl}"]\nmember = "${name}"\n`
+    + `lease_ttl_ms = 2000\nprefix = "${kPrefix}"\n`);
+  return startSculptd({ bin, webRoot, dir: mdir, http: `127.0.0.1:${http}`, label: `members browser test (${name})`,
+    limitMs: 200000, extra: ['--config', join(mdir, 'config.toml'), '--http-allow-origin', `http://127.0.0.1:${otherHttp}`] });
+};
+
+// The scene's sequence as a viewer joining through `tcpAddress` finds it (`sculpt info`).
+const sceneSeq = (tcpAddress) => JSON.parse(execFileSync(join(bin, 'sculpt'), ['info', '--server', tcpAddress],
+  { encoding: 'utf8', timeout: 30000 })).global_seq;
+
+let a, b, browser, page;
+let stage = 'starting';
+try {
+  await until('etcd did not answer', async () => (await etcdGet('ping')) !== null, 20000);
+  a = member('a', aHttp, bHttp);
+  const aPorts = await sculptdPorts(a);
+  await until('a did not take the scene', async () => (await etcdJson(`${kPrefix}scenes/default/owner`))?.member === 'a', 10000);
+  b = member('b', bHttp, aHttp);
+  await sculptdPorts(b);
+  stage = 'waiting for b to follow a';
+  await until('b did not become a\'s standby', async () => {
+    const standby = await etcdJson(`${kPrefix}scenes/default/standby`);
+    const m = await etcdJson(`${kPrefix}members/b`);
+    return standby?.member === 'b' && m?.follows === 'default';
+  }, 30000);
+  const initialSeq = sceneSeq(`127.0.0.1:${aPorts.tcpPort}`);
+
+  browser = await launchChromium();
+  page = await browser.newPage({ viewport: { width: 480, height: 360 } });
+  page.logs = [];
+  page.on('console', (m) => page.logs.push(`${m.type()}: ${m.text()}`));
+  page.on('pageerror', (e) => page.logs.push(`pageerror: ${e.message}`));
+  stage = 'joining on a, the owner, without #members';
+  await page.goto(`http://127.0.0.1:${aHttp}/#token=sculpt-dev-sculptor&role=sculptor&name=dora`);
+  await page.waitForFunction(() => window.sculpt?.stats.state === 'joined' && window.sculpt.meshes.totals().chunks > 0
+    && window.sculpt.framed && window.sculpt.meshes.decoding === 0, null, { timeout: 60000, polling: 100 });
+  const first = await page.evaluate(() => ({ server: window.sculpt.stats.server, redirects: window.sculpt.stats.redirects,
+    members: window.sculpt.opts.members, learnt: window.sculpt.stats.learntMembers }));
+  check('the page joined on a directly, told of no member', first.server === `127.0.0.1:${aHttp}`
+    && first.redirects === 0 && first.members.length === 0, JSON.stringify(first));
+  check('a listed both members\' HTTP addresses', JSON.stringify([...first.learnt].sort())
+    === JSON.stringify([`127.0.0.1:${aHttp}`, `127.0.0.1:${bHttp}`].sort()), JSON.stringify(first.learnt));
+
+  stage = 'looking for the surface';
+  const at = await (await page.waitForFunction(() => {
+    for (const [dx, dy] of [[0, 0], [-30, 0], [30, 0], [0, -30], [0, 30], [-60, 20], [60, -20]]) {
+      const x = 240 + dx, y = 180 + dy;
+      if (window.sculpt.sculpting.hit({ clientX: x, clientY: y })
+        && window.sculpt.sculpting.hit({ clientX: x + 18, clientY: y + 6 })) return [x, y];
+    }
+    return null;
+  }, null, { timeout: 30000, polling: 200 })).jsonValue();
+  const drag = async (steps) => {
+    await page.mouse.move(at[0], at[1]);
+    await page.mouse.down();
+    for (let i = 0; i <= steps; ++i) { await page.mouse.move(at[0] + 3 * (i % 7), at[1] + (i % 7)); await sleep(20); }
+    await page.mouse.up();
+  };
+  const stats = () => page.evaluate(() => {
+    const s = window.sculpt.stats;
+    return { state: s.state, sent: s.strokesSent, poses: s.posesSent, acks: s.acks, refused: s.strokesRefused || 0,
+      reconnects: s.reconnects, resent: s.resent, server: s.server, member: s.member,
+      unanswered: window.sculpt.outbox?.size ?? 0, pending: window.sculpt.sculpting.pending.size,
+      globalSeq: s.globalSeq, notice: s.notice, errors: s.errors };
+  });
+
+  stage = 'first drag, on a';
+  await drag(6);
+  await page.waitForFunction(() => window.sculpt.stats.acks > 0 && (window.sculpt.outbox?.size ?? 0) === 0
+    && window.sculpt.sculpting.pending.size === 0, null, { timeout: 30000, polling: 100 });
+  const before = await stats();
+  check('the first drag acknowledged by a', before.sent > 0 && before.acks === before.sent && before.refused === 0,
+    JSON.stringify(before));
+  // Replication is asynchronous here: b must hold what a acknowledged before a dies.
+  stage = 'waiting for b\'s copy';
+  await until('b\'s copy did not catch up', async () => (await etcdJson(`${kPrefix}members/b`))?.follow_seq >= before.globalSeq,
+    15000);
+
+  stage = 'killing a';
+  a.server.kill('SIGKILL');
+  await page.waitForFunction(() => window.sculpt.stats.reconnects > 0, null, { timeout: 10000, polling: 50 });
+  await drag(8);  // made while the page reconnects: kept, sent once it has rejoined
+  stage = 'waiting for b to take the scene';
+  const owner = await until('b did not take the scene over', async () => {
+    const o = await etcdJson(`${kPrefix}scenes/default/owner`);
+    return o?.member === 'b' ? o : null;
+  }, 30000);
+  check('b owns the scene at epoch 2', owner.epoch === 2, JSON.stringify(owner));
+  stage = 'waiting for every stroke to be acknowledged after the reconnection';
+  await page.waitForFunction(() => window.sculpt.stats.state === 'joined' && (window.sculpt.outbox?.size ?? 0) === 0
+    && window.sculpt.sculpting.pending.size === 0 && !window.sculpt.sculpting.dragging,
+  null, { timeout: 60000, polling: 100 }).catch(() => console.log('not every stroke answered within 60 s'));
+  const after = await stats();
+  console.log(`page: ${JSON.stringify({ ...after, errors: undefined })}`);
+  check('the page reconnected to b, which it learnt from a', after.reconnects >= 1 && after.server === `127.0.0.1:${bHttp}`,
+    `${after.reconnects} reconnections, on ${after.server}`);
+  check('every stroke acknowledged, none refused', after.acks === after.sent && after.refused === 0
+    && after.sent > before.sent, JSON.stringify(after));
+  check('the page said it reconnected', /^reconnected to .*\(all acknowledged\)$/.test(after.notice), after.notice);
+  check('no error shown to the user', after.errors.length === 0, JSON.stringify(after.errors));
+  stage = 'reading the scene on b';
+  const bRecord = await etcdJson(`${kPrefix}members/b`);
+  const seq = sceneSeq(bRecord.tcp);
+  check('each stroke applied exactly once: the scene\'s sequence is one edit per pose sent',
+    seq === initialSeq + after.poses, `scene at seq ${seq}, initial ${initialSeq} + ${after.poses} poses`);
+  const bad = page.logs.filter((l) => l.startsWith('pageerror') || l.includes('Content Security Policy'));
+  check('no page errors or CSP violations', bad.length === 0, bad.join(' | '));
+} catch (err) {
+  check(`members run (${stage})`, false, err.stack || String(err));
+  if (page) {
+    console.error(`page:\n  ${(page.logs || []).slice(-15).join('\n  ')}`);
+    console.error(`  stats: ${await page.evaluate(() => JSON.stringify({ ...window.sculpt?.stats, ackLatencies: undefined,
+      unanswered: window.sculpt?.outbox?.size })).catch((e) => e.message)}`);
+  }
+} finally {
+  if (browser) await browser.close();
+  if (b) await stopSculptd(b);
+  if (a) await stopSculptd(a);
+  etcd.kill('SIGKILL');
+  rmSync(dir, { recursive: true, force: true });
+}
+console.log(failures === 0 ? 'members browser test: all passed' : `members browser test: ${failures} failed`);
+process.exit(failures === 0 ? 0 : 1);
