@@ -12,77 +12,17 @@
 // writes the unanswered strokes again in order, before the ones made meanwhile. Usage:
 //   node test/failover_browser_test.mjs --bin BUILD/bin --web-root DIST
 // Exits 0 with "skipped" when /usr/bin/etcd is missing; non-zero with the failing check's name.
-import { execFileSync, spawn } from 'node:child_process';
-import { mkdirSync, mkdtempSync, existsSync, rmSync, writeFileSync } from 'node:fs';
-import { createServer } from 'node:net';
-import { tmpdir } from 'node:os';
+import { execFileSync } from 'node:child_process';
+import { rmSync } from 'node:fs';
 import { join } from 'node:path';
-import { chromiumPath, launchChromium } from './chromium.mjs';
-import { sculptdPorts, startSculptd, stopSculptd } from './sculptd.mjs';
+import { launchChromium } from './chromium.mjs';
+import { clusterTest, freePort, sleep } from './cluster.mjs';
+import { sculptdPorts, stopSculptd } from './sculptd.mjs';
 
-const args = Object.fromEntries(process.argv.slice(2).reduce((acc, a, i, all) =>
-  (a.startsWith('--') ? [...acc, [a.slice(2), all[i + 1]]] : acc), []));
-const { bin } = args;
-const webRoot = args['web-root'];
-const etcdBinary = '/usr/bin/etcd';
-if (!bin || !webRoot) { console.error('usage: --bin DIR --web-root DIR'); process.exit(2); }
-if (!existsSync(chromiumPath)) { console.error(`${chromiumPath} missing`); process.exit(1); }
-if (!existsSync(etcdBinary)) {
-  console.log(`failover browser test: skipped (${etcdBinary} missing: install Debian's etcd-server)`);
-  process.exit(0);
-}
-
-const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
-let failures = 0;
-function check(name, ok, detail = '') {
-  console.log(`${ok ? 'ok  ' : 'FAIL'} ${name}${detail ? `: ${detail}` : ''}`);
-  if (!ok) failures += 1;
-}
-const freePort = () => new Promise((resolve, reject) => {
-  const s = createServer();
-  s.once('error', reject);
-  s.listen(0, '127.0.0.1', () => { const { port } = s.address(); s.close(() => resolve(port)); });
-});
-const b64 = (text) => Buffer.from(text).toString('base64');
-
-const dir = mkdtempSync(join(tmpdir(), 'sculpt-failover-browser-'));
-const kPrefix = 't/';
-const [etcdPort, peerPort, aHttp, bHttp] = [await freePort(), await freePort(), await freePort(), await freePort()];
-const etcdUrl = `http://127.0.0.1:${etcdPort}`;
-const peerUrl = `http://127.0.0.1:${peerPort}`;
-const etcd = spawn(etcdBinary, ['--name', 't', '--data-dir', join(dir, 'etcd'), '--listen-client-urls', etcdUrl,
-  '--advertise-client-urls', etcdUrl, '--listen-peer-urls', peerUrl, '--initial-advertise-peer-urls', peerUrl,
-  '--initial-cluster', `t=${peerUrl}`], { stdio: 'ignore' });
-
-// The value of `key` through etcd's v3 JSON gateway, or null (absent, or etcd not answering yet).
-async function etcdGet(key) {
-  try {
-    const res = await fetch(`${etcdUrl}/v3/kv/range`, { method: 'POST', body: JSON.stringify({ key: b64(key) }),
-      signal: AbortSignal.timeout(1000) });
-    if (!res.ok) return null;
-    const body = await res.json();
-    return body.kvs && body.kvs.length ? Buffer.from(body.kvs[0].value, 'base64').toString() : '';
-  } catch { return null; }
-}
-const etcdJson = async (key) => { const v = await etcdGet(key); try { return v ? JSON.parse(v) : null; } catch { return null; } };
-async function until(what, fn, limitMs) {
-  const end = Date.now() + limitMs;
-  for (;;) {
-    const v = await fn();
-    if (v) return v;
-    if (Date.now() > end) throw new Error(`${what} within ${limitMs / 1000} s`);
-    await sleep(100);
-  }
-}
-
-const member = (name, http, otherHttp) => {
-  const mdir = join(dir, name);
-  mkdirSync(mdir);
-  writeFileSync(join(mdir, 'config.toml'), `[cluster]\netcd = ["${etcdUrl}"]\nmember = "${name}"\n`
-    + `lease_ttl_ms = 2000\nprefix = "${kPrefix}"\n`);
-  return startSculptd({ bin, webRoot, dir: mdir, http: `127.0.0.1:${http}`, label: `failover browser test (${name})`,
-    limitMs: 200000, extra: ['--config', join(mdir, 'config.toml'), '--http-allow-origin', `http://127.0.0.1:${otherHttp}`] });
-};
+const t = await clusterTest('failover browser test');
+const { bin, webRoot, dir, kPrefix, etcd, etcdGet, etcdJson, until, check } = t;
+const [aHttp, bHttp] = [await freePort(), await freePort()];
+const member = (name, http, otherHttp) => t.member(name, http, otherHttp, 200000);
 
 // The scene's sequence as a viewer joining through `tcpPort` finds it (`sculpt info --server`,
 // which follows one redirect to the owner).
@@ -280,5 +220,5 @@ try {
   etcd.kill('SIGKILL');
   rmSync(dir, { recursive: true, force: true });
 }
-console.log(failures === 0 ? 'failover browser test: all passed' : `failover browser test: ${failures} failed`);
-process.exit(failures === 0 ? 0 : 1);
+console.log(t.failures === 0 ? 'failover browser test: all passed' : `failover browser test: ${t.failures} failed`);
+process.exit(t.failures === 0 ? 0 : 1);
