@@ -9,6 +9,7 @@
 #include <iterator>
 #include <map>
 #include <mutex>
+#include <optional>
 
 #include "cluster/etcd_client.h"
 #include "cluster/processes.h"
@@ -30,6 +31,19 @@ using sculpt::testing::WaitFor;
 using std::chrono::milliseconds;
 
 constexpr const char* kPeerToken = "peer-secret-of-the-test-cluster";
+
+// Reads until a message of the wanted case, for at most `limit` (presence keeps arriving, so
+// RawClient::ReadUntil alone would wait forever for a message that never comes).
+std::optional<v1::ServerMessage> ReadWithin(RawClient& c, v1::ServerMessage::BodyCase want,
+                                            milliseconds limit = milliseconds(5000)) {
+  const auto end = std::chrono::steady_clock::now() + limit;
+  while (std::chrono::steady_clock::now() < end) {
+    auto m = c.Read();
+    if (!m) return std::nullopt;
+    if (m->body_case() == want) return m;
+  }
+  return std::nullopt;
+}
 
 // --- the configuration -----------------------------------------------------------------------
 
@@ -140,18 +154,18 @@ class PeerSessionTest : public ::testing::Test {
                                       int* resend_entries) {
     auto c = std::make_unique<RawClient>(server_.port());
     EXPECT_TRUE(c->Send(Hello(token, v1::ROLE_VIEWER, name, 4242)));
-    EXPECT_TRUE(c->ReadUntil(v1::ServerMessage::kWelcome).has_value());
+    EXPECT_TRUE(ReadWithin(*c, v1::ServerMessage::kWelcome).has_value());
     v1::ClientMessage j;
     j.mutable_join()->set_skip_state(true);
     EXPECT_TRUE(c->Send(j));
-    auto info = c->ReadUntil(v1::ServerMessage::kSceneInfo);
+    auto info = ReadWithin(*c, v1::ServerMessage::kSceneInfo);
     EXPECT_TRUE(info.has_value());
     if (info) object_ = info->scene_info().objects(0).name();
     v1::ClientMessage s;
     s.mutable_subscribe()->set_object(object_);
     s.mutable_subscribe()->set_mode(v1::REPLICA_MODE_REPLAY);
     EXPECT_TRUE(c->Send(s));
-    auto load = c->ReadUntil(v1::ServerMessage::kLeafDelta);
+    auto load = ReadWithin(*c, v1::ServerMessage::kLeafDelta);
     EXPECT_TRUE(load.has_value());
     if (load) {
       EXPECT_TRUE(load->leaf_delta().replace_region());
@@ -168,7 +182,7 @@ class PeerSessionTest : public ::testing::Test {
   // One acknowledged stroke (async replication), so the scene has a resend table entry.
   void Sculpt(RawClient& s) {
     ASSERT_TRUE(s.Send(RawClient::PressStroke(1, {0, 0, 22.5}, 3)));
-    auto ack = s.ReadUntil(v1::ServerMessage::kAck);
+    auto ack = ReadWithin(s, v1::ServerMessage::kAck);
     ASSERT_TRUE(ack.has_value());
     ASSERT_EQ(ack->ack().client_seq(), 1u);
   }
@@ -189,7 +203,7 @@ TEST_F(PeerSessionTest, RejectsViewerClaimingTheStandbysName) {
   auto impostor = Follower("sculpt-dev-viewer", "standby-b", &impostor_entries);
   EXPECT_EQ(impostor_entries, 0) << "the owner's resend table went to a viewer";
   ASSERT_TRUE(impostor->Send(Progress(object_, server_.scene().global_seq())));
-  auto err = impostor->ReadUntil(v1::ServerMessage::kError);
+  auto err = ReadWithin(*impostor, v1::ServerMessage::kError);
   ASSERT_TRUE(err.has_value()) << "a viewer claiming the standby's name was not refused";
   EXPECT_EQ(err->error().code(), v1::ERROR_CODE_PERMISSION_DENIED);
   EXPECT_EQ(err->error().field(), "Hello.token");
@@ -218,7 +232,7 @@ TEST_F(PeerSessionTest, RejectsPeerWithAnotherMembersName) {
   auto c = Follower(kPeerToken, "standby-c", &entries);
   EXPECT_EQ(entries, 0) << "a member that is not the named standby got the resend table";
   ASSERT_TRUE(c->Send(Progress(object_, 1)));
-  auto err = c->ReadUntil(v1::ServerMessage::kError);
+  auto err = ReadWithin(*c, v1::ServerMessage::kError);
   ASSERT_TRUE(err.has_value());
   EXPECT_EQ(err->error().code(), v1::ERROR_CODE_PERMISSION_DENIED);
   EXPECT_EQ(err->error().field(), "Hello.client_name");
@@ -229,7 +243,7 @@ TEST_F(PeerSessionTest, RejectsPeerTokenForTheSculptorRole) {
   Start();
   RawClient c(server_.port());
   ASSERT_TRUE(c.Send(Hello(kPeerToken, v1::ROLE_SCULPTOR, "standby-b", 77)));
-  auto err = c.ReadUntil(v1::ServerMessage::kError);
+  auto err = ReadWithin(c, v1::ServerMessage::kError);
   ASSERT_TRUE(err.has_value());
   EXPECT_EQ(err->error().code(), v1::ERROR_CODE_UNAUTHENTICATED);
   EXPECT_EQ(err->error().field(), "Hello.token");
@@ -241,17 +255,17 @@ TEST_F(PeerSessionTest, PeerIsAcceptedAmongNamedUsers) {
   {
     RawClient v(server_.port());
     ASSERT_TRUE(v.Send(Hello("sculpt-dev-viewer", v1::ROLE_VIEWER, "standby-b", 78)));
-    auto err = v.ReadUntil(v1::ServerMessage::kError);
+    auto err = ReadWithin(v, v1::ServerMessage::kError);
     ASSERT_TRUE(err.has_value());
     EXPECT_EQ(err->error().code(), v1::ERROR_CODE_UNAUTHENTICATED);
   }
   RawClient s(server_.port());
   ASSERT_TRUE(s.Send(Hello("alice-token-0123456789", v1::ROLE_SCULPTOR, "alice", 79)));
-  auto welcome = s.ReadUntil(v1::ServerMessage::kWelcome);
+  auto welcome = ReadWithin(s, v1::ServerMessage::kWelcome);
   ASSERT_TRUE(welcome.has_value());
   EXPECT_EQ(welcome->welcome().user(), "alice");
   ASSERT_TRUE(s.Join());
-  ASSERT_TRUE(s.ReadUntil(v1::ServerMessage::kSceneInfo).has_value());
+  ASSERT_TRUE(ReadWithin(s, v1::ServerMessage::kSceneInfo).has_value());
   Sculpt(s);
   // The standby is no user of the file: its peer token lets it in, under the name it claims.
   int entries = -1;
@@ -393,9 +407,9 @@ TEST_F(PeerClusterTest, NamedUsersOnlyClusterFollowsSyncsAndFailsOver) {
           h.mutable_hello()->set_role(v1::ROLE_SCULPTOR);
           h.mutable_hello()->set_client_name("alice");
           h.mutable_hello()->set_client_id(99);
-          if (!probe.Send(h) || !probe.ReadUntil(v1::ServerMessage::kWelcome)) return false;
+          if (!probe.Send(h) || !ReadWithin(probe, v1::ServerMessage::kWelcome)) return false;
           if (!probe.Join()) return false;
-          auto info = probe.ReadUntil(v1::ServerMessage::kSceneInfo);
+          auto info = ReadWithin(probe, v1::ServerMessage::kSceneInfo);
           if (!info) return false;
           seq = info->scene_info().global_seq();
           return true;
