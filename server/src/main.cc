@@ -360,7 +360,10 @@ int main(int argc, char** argv) {
                 config.listen.c_str(), config.data_dir.c_str(), config.scene.name.c_str(),
                 config.tls.enabled() ? ", TLS" : "",
                 config.cluster.enabled()
-                    ? (", cluster member " + config.cluster.member).c_str()
+                    ? (", cluster member " + config.cluster.member +
+                       (config.cluster.peer_token.empty() ? ", no peer token"
+                                                          : ", peer token set"))
+                          .c_str()
                     : "");
     return 0;
   }
@@ -378,6 +381,12 @@ int main(int argc, char** argv) {
   // first connection on; the agent reaches etcd once the ports are known.
   std::unique_ptr<sculpt::server::cluster::ClusterAgent> cluster;
   if (config.cluster.enabled()) {
+    if (config.cluster.peer_token.empty()) {
+      spdlog::warn("cluster: no cluster.peer_token: standby sessions are recognised by their "
+                   "Hello name alone, so any holder of the viewer token can pass for a standby "
+                   "(and a cluster of named users only cannot follow); set the same peer_token "
+                   "on every member");
+    }
     cluster = std::make_unique<sculpt::server::cluster::ClusterAgent>(
         config.cluster, config.scene.name,
         [&server] { return static_cast<uint32_t>(server.JoinedSeats().joined); });

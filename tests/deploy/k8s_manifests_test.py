@@ -74,11 +74,16 @@ def main():
     sculptd = docs[("StatefulSet", "sculptd")]["spec"]["template"]["spec"]
     args = sculptd["containers"][0]["args"]
     env = {e["name"] for e in sculptd["containers"][0].get("env", [])}
-    check("SCULPT_VIEWER_TOKEN" in env,
-          "sculptd gets the viewer token from the environment (members follow each other with it)")
+    check("SCULPT_VIEWER_TOKEN" in env, "sculptd gets the viewer token from the environment")
+    init = {e["name"]: e for e in sculptd["initContainers"][0].get("env", [])}
+    peer_ref = init.get("SCULPT_PEER_TOKEN", {}).get("valueFrom", {}).get("secretKeyRef", {})
+    check(peer_ref.get("name") == "sculpt-tokens" and peer_ref.get("key") == "peer",
+          "the init container gets the peer token from the Secret sculpt-tokens (key peer)")
 
     with tempfile.TemporaryDirectory() as tmp:
-        pod_env = dict(os.environ, POD_NAME="sculptd-1", POD_NAMESPACE="sculpt", SERVICE="sculptd")
+        peer_token = "k8s-test-peer-token-0123456789abcdef"
+        pod_env = dict(os.environ, POD_NAME="sculptd-1", POD_NAMESPACE="sculpt", SERVICE="sculptd",
+                       SCULPT_PEER_TOKEN=peer_token)
         outs = {}
         # The checked script, and the ConfigMap's copy run as the init container runs it.
         rendered = os.path.join(tmp, "checked.toml")
@@ -86,6 +91,15 @@ def main():
                             os.path.join(a.k8s, "member.toml.in"), rendered],
                            env=pod_env, capture_output=True, text=True)
         check(r.returncode == 0, "render-config.sh renders the template: " + r.stderr.strip())
+        check(peer_token not in r.stdout + r.stderr, "render-config.sh does not print the token")
+        check(os.stat(rendered).st_mode & 0o077 == 0,
+              "the rendered file (it holds the peer token) is readable by its owner only")
+        no_peer = {k: v for k, v in pod_env.items() if k != "SCULPT_PEER_TOKEN"}
+        r = subprocess.run(["sh", os.path.join(a.k8s, "render-config.sh"),
+                            os.path.join(a.k8s, "member.toml.in"), os.path.join(tmp, "x.toml")],
+                           env=no_peer, capture_output=True, text=True)
+        check(r.returncode != 0 and "SCULPT_PEER_TOKEN" in r.stderr,
+              "render-config.sh refuses to render without SCULPT_PEER_TOKEN")
         with open(rendered, "rb") as f:
             outs["checked"] = tomllib.load(f)
         tpl = os.path.join(tmp, "config-template")
@@ -107,6 +121,8 @@ def main():
         check(k["member"] == "sculptd-1" and k["advertise"] == host + ":7420" and
               k["advertise_http"] == host + ":7421",
               "the member is named after its pod and advertises its stable DNS name")
+        check(k.get("peer_token") == peer_token,
+              "cluster.peer_token is the one from SCULPT_PEER_TOKEN")
 
         # sculptd accepts the rendered file with the StatefulSet's own arguments.
         serve_args = [x.replace("/config/sculptd.toml", rendered) for x in args]
@@ -115,9 +131,11 @@ def main():
                            env=dict(os.environ, SCULPT_SCULPTOR_TOKEN="k8s-test-sculptor",
                                     SCULPT_VIEWER_TOKEN="k8s-test-viewer"),
                            capture_output=True, text=True)
-        check(r.returncode == 0 and "cluster member sculptd-1" in r.stdout,
+        check(r.returncode == 0 and "cluster member sculptd-1" in r.stdout and
+              "peer token set" in r.stdout,
               "sculptd serve --check accepts the rendered configuration: " +
               (r.stdout + r.stderr).strip())
+        check(peer_token not in r.stdout + r.stderr, "sculptd serve --check does not print the token")
 
         # And the check is a real one: a rendering that lost the member name is refused.
         bad = os.path.join(tmp, "bad.toml")

@@ -487,7 +487,9 @@ asio::awaitable<void> ClusterAgent::TendStandby() {
       fo.data_dir = standby_->data_dir;
       fo.scene = scene_;
       fo.member = config_.member;
-      fo.token = standby_->token;
+      // The members' peer token when the cluster has one (the owner then takes only a session
+      // that presented it for its standby); else the viewer token.
+      fo.token = config_.peer_token.empty() ? standby_->token : config_.peer_token;
       fo.owner_tcp = st.owner->tcp;
       fo.owner_epoch = st.owner->epoch;
       fo.snapshot_every_records = standby_->snapshot_every_edits;

@@ -189,6 +189,8 @@ void StandbyFollower::Run() {
   im.client = std::make_unique<client::Client>(co);
   Status s = im.client->Connect(o.owner_tcp.substr(0, colon), static_cast<uint16_t>(port));
   if (s.ok()) {
+    // The peer token (cluster.peer_token) when the cluster has one: with it the owner knows this
+    // session for its standby, named users or not.
     auto hello = im.client->Hello(o.token, v1::ROLE_VIEWER, "standby-" + o.member, 0);
     s = hello.status();
   }

@@ -50,7 +50,7 @@ struct FollowerOptions {
   std::string data_dir;
   std::string scene;
   std::string member;  // this member's name (the session name the owner logs)
-  std::string token;   // a viewer token the owner accepts
+  std::string token;   // cluster.peer_token, or (none configured) a viewer token the owner accepts
   std::string owner_tcp;  // HOST:PORT
   uint64_t owner_epoch = 0;
   /// The copy snapshots its object after this many logged records and drops the log before the

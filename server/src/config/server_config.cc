@@ -88,6 +88,10 @@ Status CheckKeys(const std::string& path, const toml::table& t, const std::strin
   return Status::Ok();
 }
 
+// cluster.peer_token's length in characters: 16 at least (`openssl rand -hex 16` gives 32).
+constexpr size_t kMinPeerToken = 16;
+constexpr size_t kMaxPeerToken = 1024;
+
 // A host clients can be sent to: not a wildcard address.
 bool IsWildcardHost(const std::string& host) {
   return host.empty() || host == "0.0.0.0" || host == "::" || host == "[::]";
@@ -97,6 +101,25 @@ Status ValidateClusterConfig(const ServerConfig& c) {
   const ClusterConfig& k = c.cluster;
   SCULPT_RETURN_IF_ERROR(OneOf("cluster.replication", k.replication, {"sync", "async", "none"}));
   SCULPT_RETURN_IF_ERROR(Range("cluster.sync_fallback_ms", k.sync_fallback_ms, 0, 600000));
+  if (!k.peer_token.empty()) {
+    // The value is a secret: the error names its length, never its characters.
+    if (k.peer_token.size() < kMinPeerToken || k.peer_token.size() > kMaxPeerToken) {
+      return Outside("cluster.peer_token",
+                     "(hidden, " + std::to_string(k.peer_token.size()) + " characters)",
+                     "[" + std::to_string(kMinPeerToken) + ", " + std::to_string(kMaxPeerToken) +
+                         "] characters (e.g. `openssl rand -hex 16`)");
+    }
+    if (k.peer_token == c.viewer_token || k.peer_token == c.sculptor_token) {
+      return InvalidArgument(
+          "cluster.peer_token equals the shared viewer_token or sculptor_token: every holder of "
+          "that token could pass for a member's standby; choose a secret of its own");
+    }
+    if (!k.enabled()) {
+      return InvalidArgument(
+          "cluster.peer_token is set but cluster.etcd is empty: the peer token is for cluster "
+          "members; leave out the [cluster] section for a single process");
+    }
+  }
   if (!k.enabled()) {
     if (!k.member.empty() || !k.advertise.empty() || !k.advertise_http.empty()) {
       return InvalidArgument(
@@ -181,7 +204,7 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     SCULPT_RETURN_IF_ERROR(
         CheckKeys(path, *t, "cluster",
                   {"etcd", "member", "advertise", "advertise_http", "lease_ttl_ms", "prefix",
-                   "standby", "replication", "sync_fallback_ms"}));
+                   "standby", "replication", "sync_fallback_ms", "peer_token"}));
     if (const toml::node* e = t->get("etcd")) {
       const toml::array* a = e->as_array();
       if (!a) return Outside("cluster.etcd", "not an array", "arrays of \"http://HOST:PORT\"");
@@ -199,6 +222,7 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     Get(*t, "standby", &c->cluster.standby);
     Get(*t, "replication", &c->cluster.replication);
     Get(*t, "sync_fallback_ms", &c->cluster.sync_fallback_ms);
+    Get(*t, "peer_token", &c->cluster.peer_token);
   }
   if (const toml::table* t = root["tls"].as_table()) {
     SCULPT_RETURN_IF_ERROR(CheckKeys(path, *t, "tls",

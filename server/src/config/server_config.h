@@ -171,6 +171,12 @@ struct ClusterConfig {
   /// "sync": how long an acknowledgement waits for the standby before the scene falls back to
   /// async; 0: never (strict, PostgreSQL's synchronous_commit with no standby: acks wait).
   int sync_fallback_ms = 1000;
+  /// The members' shared secret (16 to 1024 characters, the same on every member; never logged).
+  /// A follower says Hello with it, and an owner takes a session for its standby (progress acks,
+  /// the resend table with a region load) only when that session presented it and is named
+  /// `standby-<the named standby>`; it is accepted also when named users are configured. Empty:
+  /// the standby is recognised by its Hello name alone, on the viewer token (warned at start-up).
+  std::string peer_token;
   bool enabled() const { return !etcd.empty(); }
 };
 

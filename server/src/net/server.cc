@@ -22,6 +22,7 @@ Authenticator::Options AuthOptions(const ServerConfig& c, bool with_users_file) 
   if (with_users_file) o.users_file = c.users_file;
   o.sculptor_token = c.sculptor_token;
   o.viewer_token = c.viewer_token;
+  o.peer_token = c.cluster.peer_token;
   o.free_failures = c.limits.auth_free_failures;
   o.first_backoff = std::chrono::milliseconds(c.limits.auth_backoff_ms);
   return o;

@@ -48,6 +48,16 @@ uint64_t ComputeOwner(bool named, const std::string& user, const std::string& so
   return h == 0 ? 1 : h;
 }
 
+// Cluster mode: whether a session is the scene's standby, as this owner names it in etcd. Its
+// Hello says `standby-<member>`; when the cluster has a peer token (cluster.peer_token), the
+// session must also have presented it, so a viewer-token holder claiming the name is not taken
+// for the standby.
+bool IsSceneStandby(const cluster::Route& route, const std::string& user, bool peer,
+                    const ServerConfig& config) {
+  return route.kind == cluster::Route::Kind::kLocal && !route.standby.empty() &&
+         user == "standby-" + route.standby && (peer || config.cluster.peer_token.empty());
+}
+
 // The id a named user's client_id is filed under: 64 bits of BLAKE2b(user, client_id), never 0.
 uint64_t BoundClientId(const std::string& user, uint64_t client_id) {
   std::string in = user;
@@ -566,6 +576,8 @@ void Session::OnAuthenticated(AuthResult r, v1::Role role, uint64_t client_id,
   // client's strokes taken for resends.
   client_id_ = r.named ? BoundClientId(r.user, client_id) : client_id;
   user_ = r.user;
+  peer_ = r.peer;
+  if (r.peer) spdlog::info("session {}: cluster peer {} from {}", id_, r.user, transport_->remote());
   if (r.named) server_.scene().NameAuthor(client_id_, r.user);  // in its log records and history
   {
     std::lock_guard<std::mutex> lock(presence_mu_);
@@ -737,12 +749,10 @@ ReplicaSink Session::Sink() {
   ReplicaSink sink;
   sink.session_id = id_;
   sink.client_id = client_id_;
-  // Cluster mode: the scene's named standby (as its Hello names it, like ReplicaProgress) gets
-  // the resend table with its region loads.
+  // Cluster mode: the scene's named standby (as for ReplicaProgress: its Hello name, and the
+  // peer token when the cluster has one) gets the resend table with its region loads.
   if (const cluster::SceneRouter* router = server_.router()) {
-    const cluster::Route route = router->RouteScene("");
-    sink.standby = route.kind == cluster::Route::Kind::kLocal && !route.standby.empty() &&
-                   user_ == "standby-" + route.standby;
+    sink.standby = IsSceneStandby(router->RouteScene(""), user_, peer_, server_.config());
   }
   // Weak: a subscription the scene still holds must not keep a closed session alive.
   std::weak_ptr<Session> weak = shared_from_this();
@@ -814,14 +824,22 @@ void Session::OnReplicaProgress(const v1::ReplicaProgress& p) {
     return Violation();
   }
   // The follower says who it is in its Hello (client_name "standby-<member>"); only the member
-  // this owner named in etcd counts. As strong as the viewer token it connected with.
+  // this owner named in etcd counts, and with cluster.peer_token only a session that presented
+  // it (without one: as strong as the viewer token it connected with).
   const cluster::Route route = router->RouteScene("");
-  if (route.kind != cluster::Route::Kind::kLocal || route.standby.empty() ||
-      user_ != "standby-" + route.standby) {
+  if (!IsSceneStandby(route, user_, peer_, server_.config())) {
     // Charged rather than counted as a violation: a member just named standby may report before
     // this owner's routing table (up to one tick old) names it, and must not be disconnected
     // for that; anyone else sending these runs out of request tokens.
     if (!Charge("ReplicaProgress", kDivergenceCost, Clock::now())) return;
+    if (!route.standby.empty() && user_ == "standby-" + route.standby) {
+      // The right name without the peer token: a viewer passing for the standby.
+      SendError(ProtocolError(v1::ERROR_CODE_PERMISSION_DENIED, "Hello.token", "(hidden)",
+                              "the cluster's peer token (cluster.peer_token)",
+                              "ReplicaProgress is accepted only from the scene's standby, which "
+                              "says Hello with the members' peer token"));
+      return;
+    }
     SendError(ProtocolError(v1::ERROR_CODE_PERMISSION_DENIED, "Hello.client_name", user_,
                             route.standby.empty() ? std::string("the scene's named standby (none)")
                                                   : "standby-" + route.standby,

@@ -196,6 +196,7 @@ class Session : public std::enable_shared_from_this<Session> {
   v1::Role role_ = v1::ROLE_UNSPECIFIED;
   uint64_t client_id_ = 0;  // the id edits are filed under (bound to the user when named)
   std::string user_;        // the authenticated user name (named users) or the claimed name
+  bool peer_ = false;       // presented the cluster's peer token (a member's follower)
   RateLimiter strokes_;  // strokes and every other edit message
   RateLimiter poses_;    // each pose is an edit: bounds the work one client queues
   RateLimiter requests_;  // every request that is not an edit, by its cost

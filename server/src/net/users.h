@@ -79,11 +79,15 @@ struct AuthResult {
   };
   Outcome outcome = Outcome::kUnauthenticated;
   std::string user;      // kOk: the authenticated name
-  bool named = false;    // kOk: from a users file (false: a shared token)
+  bool named = false;    // kOk: from a users file (false: a shared token or the peer token)
+  /// kOk: a cluster member (a viewer Hello presenting the configured peer token); `user` is then
+  /// the name its Hello claimed, e.g. "standby-b".
+  bool peer = false;
   std::string message;
 };
 
-/// Decides who a Hello is from. Without a users file it compares the two shared tokens of the
+/// Decides who a Hello is from. A viewer presenting the peer token (when one is configured) is a
+/// cluster member, decided at once in constant time, users file or not. Without a users file it compares the two shared tokens of the
 /// configuration (constant time); with one, it verifies the claimed user's token hash on a
 /// worker thread of its own (a hash takes milliseconds by design and must not stall sessions),
 /// caching successes for a while. A source address that keeps failing waits before its next
@@ -95,6 +99,9 @@ class Authenticator {
   struct Options {
     std::string users_file;            // empty: the shared tokens
     std::string sculptor_token, viewer_token;
+    /// The cluster members' shared secret (cluster.peer_token); empty: no peers. A viewer Hello
+    /// presenting it is a peer, with or without a users file.
+    std::string peer_token;
     size_t max_pending = 64;           // verifications queued at most; beyond: refused
     int free_failures = 5;             // failures per source before the backoff starts
     std::chrono::milliseconds first_backoff{250};  // 0: no backoff
@@ -125,6 +132,8 @@ class Authenticator {
   explicit Authenticator(Options options);
   void WorkerLoop();
   AuthResult Check(const Job& job);
+  /// True when `role` is the viewer's and `token` equals the configured peer token.
+  bool IsPeer(const std::string& token, UserRole role) const;
   void Record(const std::string& source, const AuthResult& r);
 
   Options options_;
