@@ -24,8 +24,13 @@ const b64 = (text) => Buffer.from(text).toString('base64');
 const kEtcdBinary = '/usr/bin/etcd';
 
 // Reads --bin and --web-root, checks Chromium and etcd, makes the test's temporary directory and
-// starts etcd in it. `name` is the test's name in its messages ("failover browser test").
-export async function clusterTest(name) {
+// starts etcd in it. `name` is the test's name in its messages ("failover browser test"); past
+// `limitMs` the whole test fails saying so (under ctest's TIMEOUT, so the log says where it hung).
+export async function clusterTest(name, limitMs) {
+  setTimeout(() => {
+    console.error(`FAIL ${name} exceeded ${limitMs / 1000} s`);
+    process.exit(1);
+  }, limitMs).unref();
   const args = Object.fromEntries(process.argv.slice(2).reduce((acc, a, i, all) =>
     (a.startsWith('--') ? [...acc, [a.slice(2), all[i + 1]]] : acc), []));
   const { bin } = args;

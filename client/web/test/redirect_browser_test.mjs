@@ -13,7 +13,7 @@ import { launchChromium } from './chromium.mjs';
 import { clusterTest, freePort, sleep } from './cluster.mjs';
 import { sculptdPorts, stopSculptd } from './sculptd.mjs';
 
-const t = await clusterTest('redirect browser test');
+const t = await clusterTest('redirect browser test', 165000);
 const { bin, webRoot, dir, kPrefix, etcd, etcdGet, etcdJson, until, check } = t;
 const [aHttp, bHttp] = [await freePort(), await freePort()];
 const member = (name, http, otherHttp) => t.member(name, http, otherHttp, 150000);

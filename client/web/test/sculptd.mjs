@@ -42,7 +42,13 @@ export async function stopSculptd({ server, watchdog, dir }) {
   if (server.exitCode === null && server.signalCode === null) {
     const exited = new Promise((r) => server.once('exit', r));
     server.kill('SIGTERM');
+    // Bounded: a member whose shutdown hangs must not hold the test until ctest's timeout.
+    const killer = setTimeout(() => {
+      console.error(`sculptd (${dir}) did not exit within 15 s of SIGTERM: killed`);
+      server.kill('SIGKILL');
+    }, 15000);
     await exited;
+    clearTimeout(killer);
   }
   rmSync(dir, { recursive: true, force: true });
 }
