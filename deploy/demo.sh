@@ -47,7 +47,7 @@ if [ -n "$HTTP_PORT" ] && command -v node > /dev/null && [ -x /usr/bin/chromium 
    [ -d "$(dirname "$0")/../client/web/node_modules/playwright-core" ]; then
   sleep "$(( RUN_SECONDS / 2 ))"
   node "$SHOT_SCRIPT" "${WEB_URL}#role=viewer&token=sculpt-dev-viewer&name=demo-camera" \
-    "$OUT/live.png" 500 > "$OUT/screenshot.log" 2>&1 &&
+    "$OUT/live.png" 1500 > "$OUT/screenshot.log" 2>&1 &&
     echo "demo: $(cat "$OUT/screenshot.log")" ||
     echo "demo: no live screenshot (see $OUT/screenshot.log)"
 else
