@@ -91,3 +91,16 @@ export async function clusterTest(name, limitMs) {
   };
   return t;
 }
+
+// A point of the page's canvas where a drag starts on the object (the point and one 18 px to its
+// right both hit it), searched around the view's centre; throws after 30 s.
+export async function surfacePoint(page) {
+  return (await page.waitForFunction(() => {
+    for (const [dx, dy] of [[0, 0], [-30, 0], [30, 0], [0, -30], [0, 30], [-60, 20], [60, -20]]) {
+      const x = 240 + dx, y = 180 + dy;
+      if (window.sculpt.sculpting.hit({ clientX: x, clientY: y })
+        && window.sculpt.sculpting.hit({ clientX: x + 18, clientY: y + 6 })) return [x, y];
+    }
+    return null;
+  }, null, { timeout: 30000, polling: 200 })).jsonValue();
+}

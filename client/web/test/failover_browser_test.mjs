@@ -16,7 +16,7 @@ import { execFileSync } from 'node:child_process';
 import { rmSync } from 'node:fs';
 import { join } from 'node:path';
 import { launchChromium } from './chromium.mjs';
-import { clusterTest, freePort, sleep } from './cluster.mjs';
+import { clusterTest, freePort, sleep, surfacePoint } from './cluster.mjs';
 import { sculptdPorts, stopSculptd } from './sculptd.mjs';
 
 const t = await clusterTest('failover browser test', 220000);
@@ -60,14 +60,7 @@ try {
   check('the page joined on a', first.member === 'a' && first.server === `127.0.0.1:${aHttp}`, JSON.stringify(first));
 
   stage = 'looking for the surface';
-  const at = await (await page.waitForFunction(() => {
-    for (const [dx, dy] of [[0, 0], [-30, 0], [30, 0], [0, -30], [0, 30], [-60, 20], [60, -20]]) {
-      const x = 240 + dx, y = 180 + dy;
-      if (window.sculpt.sculpting.hit({ clientX: x, clientY: y })
-        && window.sculpt.sculpting.hit({ clientX: x + 18, clientY: y + 6 })) return [x, y];
-    }
-    return null;
-  }, null, { timeout: 30000, polling: 200 })).jsonValue();
+  const at = await surfacePoint(page);
   // A drag of `steps` moves; each 60 Hz flush sends what was sampled as one stroke.
   const drag = async (steps) => {
     await page.mouse.move(at[0], at[1]);

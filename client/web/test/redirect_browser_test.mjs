@@ -10,7 +10,7 @@ import { execFileSync } from 'node:child_process';
 import { rmSync } from 'node:fs';
 import { join } from 'node:path';
 import { launchChromium } from './chromium.mjs';
-import { clusterTest, freePort, sleep } from './cluster.mjs';
+import { clusterTest, freePort, sleep, surfacePoint } from './cluster.mjs';
 import { sculptdPorts, stopSculptd } from './sculptd.mjs';
 
 const t = await clusterTest('redirect browser test', 165000);
@@ -69,14 +69,7 @@ try {
 
   // A point of the page where the pointer is on the surface (the view settles after framing).
   stage = 'looking for the surface';
-  const at = await (await page.waitForFunction(() => {
-    for (const [dx, dy] of [[0, 0], [-30, 0], [30, 0], [0, -30], [0, 30], [-60, 20], [60, -20]]) {
-      const x = 240 + dx, y = 180 + dy;
-      if (window.sculpt.sculpting.hit({ clientX: x, clientY: y })
-        && window.sculpt.sculpting.hit({ clientX: x + 18, clientY: y + 6 })) return [x, y];
-    }
-    return null;
-  }, null, { timeout: 30000, polling: 200 })).jsonValue();
+  const at = await surfacePoint(page);
   await page.mouse.move(at[0], at[1]);
   await page.mouse.down();
   for (let i = 0; i <= 6; ++i) { await page.mouse.move(at[0] + 3 * i, at[1] + i); await sleep(15); }
