@@ -25,7 +25,7 @@ struct MaterialDecl {
   bool operator==(const MaterialDecl&) const = default;
 };
 
-// Edits carry fractions at their write-back (edit.cc's SpliceBack calls the carry rule on the
+// Edits carry fractions at their write-back (edit_block.cc's SpliceBack calls the carry rule on the
 // block's before/after fields): every EditKind, batches, replays and ReinitializeRegion. The one
 // exception is CompensationRegion::kGlobal, the thesis-reproduction mode that offsets the whole
 // grid after the write-back: voxels its sub-voxel offset moves inside keep what they held.
