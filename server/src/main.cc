@@ -394,9 +394,15 @@ int main(int argc, char** argv) {
     cluster->set_scene_seq([sc = scene->get()] { return sc->global_seq(); });
     server.set_router(cluster.get());
     // A standby follows another owner's scene and, on failover, restarts on its copy.
-    cluster->EnableStandby({config.data_dir, config.viewer_token,
-                            std::vector<std::string>(argv, argv + argc),
-                            config.snapshot_every_edits});
+    sculpt::server::cluster::StandbyOptions standby{config.data_dir, config.viewer_token,
+                                                    std::vector<std::string>(argv, argv + argc),
+                                                    config.snapshot_every_edits};
+    // Over TLS when the cluster's ports speak it (one rule for every member: peer_ca_file).
+    standby.tls.enabled = config.cluster.PeerTls(config.tls);
+    standby.tls.ca_file = config.cluster.peer_ca_file;
+    standby.tls.cert_file = config.tls.cert_file;
+    standby.tls.key_file = config.tls.key_file;
+    cluster->EnableStandby(std::move(standby));
   }
   auto port = server.Start();
   if (!port.ok()) {

@@ -279,8 +279,6 @@ TEST_F(PeerSessionTest, PeerIsAcceptedAmongNamedUsers) {
 
 // --- a real cluster of named users only ------------------------------------------------------
 
-const Keys kKeys{"t/"};
-
 class PeerClusterTest : public sculpt::testing::EtcdTest {
  protected:
   void TearDown() override {
@@ -291,22 +289,6 @@ class PeerClusterTest : public sculpt::testing::EtcdTest {
     members_.push_back(std::make_unique<Member>(name, etcd_->endpoint(), dir_.path(), extra,
                                                 std::vector<std::string>{"--users", users_}));
     return *members_.back();
-  }
-  template <typename Record, typename Decode>
-  std::optional<Record> Read(const std::string& key, Decode decode) {
-    auto kv = etcd_client_->Sync(etcd_client_->Get(key));
-    if (!kv.ok() || !kv->has_value()) return std::nullopt;
-    auto r = decode((*kv)->value);
-    return r.ok() ? std::optional<Record>(*r) : std::nullopt;
-  }
-  std::optional<OwnerRecord> Owner() {
-    return Read<OwnerRecord>(kKeys.Owner("default"), DecodeOwner);
-  }
-  std::optional<StandbyRecord> Standby() {
-    return Read<StandbyRecord>(kKeys.Standby("default"), DecodeStandby);
-  }
-  std::optional<MemberRecord> MemberOf(const std::string& name) {
-    return Read<MemberRecord>(kKeys.Member(name), DecodeMember);
   }
   std::string Log(const std::string& member) {
     std::ifstream in(dir_.path() / (member + ".log"));
@@ -329,14 +311,15 @@ TEST_F(PeerClusterTest, NamedUsersOnlyClusterFollowsSyncsAndFailsOver) {
   const std::string peer = std::string("peer_token = \"") + kPeerToken + "\"\n";
   Member& a = Start("a", peer + "replication = \"sync\"\nsync_fallback_ms = 60000\n");
   ASSERT_NE(a.WaitPort(), 0) << "member a did not start; see " << dir_.path() / "a.log";
-  ASSERT_TRUE(WaitFor([&] { return Owner().has_value(); }, milliseconds(5000)));
-  ASSERT_EQ(Owner()->member, "a");
+  ASSERT_TRUE(WaitFor([&] { return OwnerOf("default").has_value(); }, milliseconds(5000)));
+  ASSERT_EQ(OwnerOf("default")->member, "a");
   Member& b = Start("b", peer + "replication = \"sync\"\nsync_fallback_ms = 300\n");
   ASSERT_NE(b.WaitPort(), 0) << "member b did not start; see " << dir_.path() / "b.log";
   ASSERT_TRUE(WaitFor(
       [&] {
         auto m = MemberOf("b");
-        return Standby() && Standby()->member == "b" && m && m->follows == "default";
+        return StandbyOf("default") && StandbyOf("default")->member == "b" && m &&
+               m->follows == "default";
       },
       milliseconds(15000)))
       << "b's copy never completed; see " << dir_.path() / "b.log";
@@ -386,10 +369,11 @@ TEST_F(PeerClusterTest, NamedUsersOnlyClusterFollowsSyncsAndFailsOver) {
       << "b's region load came without a's resend table";
 
   a.process().Kill(SIGKILL);
-  ASSERT_TRUE(WaitFor([&] { return Owner().has_value() && Owner()->member == "b"; },
-                      milliseconds(25000)))
+  ASSERT_TRUE(
+      WaitFor([&] { return OwnerOf("default").has_value() && OwnerOf("default")->member == "b"; },
+              milliseconds(25000)))
       << "b did not take the scene over; see " << dir_.path() / "b.log";
-  EXPECT_EQ(Owner()->epoch, 2u);
+  EXPECT_EQ(OwnerOf("default")->epoch, 2u);
   // alice on b (restarted on its copy; the same port file, rewritten): every acknowledged
   // stroke is there.
   uint64_t seq = 0;

@@ -19,11 +19,13 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "cluster/etcd_client.h"
+#include "cluster/records.h"
 #include "net/net.h"
 
 namespace sculpt::testing {
@@ -242,8 +244,31 @@ class EtcdTest : public ::testing::Test {
     etcd_.reset();
   }
 
+  // The records the members keep under the tests' prefix "t/" (nullopt: absent or unreadable).
+  std::optional<server::cluster::OwnerRecord> OwnerOf(const std::string& scene) {
+    return Read(keys_.Owner(scene), server::cluster::DecodeOwner);
+  }
+  std::optional<server::cluster::StandbyRecord> StandbyOf(const std::string& scene) {
+    return Read(keys_.Standby(scene), server::cluster::DecodeStandby);
+  }
+  std::optional<server::cluster::MemberRecord> MemberOf(const std::string& name) {
+    return Read(keys_.Member(name), server::cluster::DecodeMember);
+  }
+
   std::unique_ptr<EtcdProcess> etcd_;
   std::unique_ptr<server::cluster::EtcdClient> etcd_client_;
+
+ private:
+  template <typename Record>
+  std::optional<Record> Read(const std::string& key,
+                             StatusOr<Record> (*decode)(const std::string&)) {
+    auto kv = etcd_client_->Sync(etcd_client_->Get(key));
+    if (!kv.ok() || !kv->has_value()) return std::nullopt;
+    auto r = decode((*kv)->value);
+    if (!r.ok()) return std::nullopt;
+    return *r;
+  }
+  const server::cluster::Keys keys_{"t/"};
 };
 
 }  // namespace sculpt::testing

@@ -19,6 +19,7 @@
 #include "integration/in_process_server.h"
 #include "integration/raw_client.h"
 #include "integration/raw_server.h"
+#include "integration/test_pki.h"
 #include "net/beast.h"
 #include "net/http_server.h"
 #include "net/server.h"
@@ -34,53 +35,9 @@ namespace {
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
+using sculpt::testing::Pki;
 using sculpt::testing::RawClient;
 using sculpt::testing_support::PressArc;
-
-// A throw-away PKI: a CA; a server certificate for localhost and 127.0.0.1; an expired one; a
-// client certificate; and a second CA that signed nothing the server presents.
-class Pki {
- public:
-  static Pki& Get() {
-    static Pki pki;
-    return pki;
-  }
-  fs::path dir;
-  bool ok = false;
-  std::string File(const char* name) const { return (dir / name).string(); }
-
- private:
-  Pki() {
-    dir = fs::temp_directory_path() / ("sculpt_tls_pki_" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    std::ofstream(dir / "san.ext") << "subjectAltName=DNS:localhost,IP:127.0.0.1\n";
-    std::ofstream(dir / "ca.cnf") << "[ca]\ndefault_ca = c\n[c]\ndir = .\ndatabase = index.txt\n"
-                                     "new_certs_dir = .\nserial = serial\ndefault_md = sha256\n"
-                                     "policy = p\n[p]\ncommonName = supplied\n";
-    std::ofstream(dir / "index.txt");
-    std::ofstream(dir / "serial") << "01\n";
-    const std::string ec = " -newkey ec -pkeyopt ec_paramgen_curve:P-256 -nodes ";
-    const std::string script =
-        "cd '" + dir.string() + "' && "
-        "openssl req -x509" + ec + "-keyout ca.key -out ca.pem -days 2 -subj /CN=test-ca && "
-        "openssl req -x509" + ec + "-keyout other-ca.key -out other-ca.pem -days 2 "
-        "-subj /CN=other-ca && "
-        "openssl req" + ec + "-keyout server.key -out server.csr -subj /CN=localhost && "
-        "openssl x509 -req -in server.csr -CA ca.pem -CAkey ca.key -CAcreateserial "
-        "-out server.pem -days 2 -extfile san.ext && "
-        "openssl req" + ec + "-keyout expired.key -out expired.csr -subj /CN=localhost && "
-        "openssl ca -batch -config ca.cnf -cert ca.pem -keyfile ca.key -in expired.csr "
-        "-out expired.pem -startdate 20200101000000Z -enddate 20200102000000Z "
-        "-extfile san.ext -notext && "
-        "openssl req" + ec + "-keyout client.key -out client.csr -subj /CN=replica-1 && "
-        "openssl x509 -req -in client.csr -CA ca.pem -CAkey ca.key -CAcreateserial "
-        "-out client.pem -days 2";
-    ok = std::system(("(" + script + ") > openssl.log 2>&1").c_str()) == 0;
-    if (!ok) std::system(("cat '" + dir.string() + "/openssl.log'").c_str());
-  }
-  ~Pki() { fs::remove_all(dir); }
-};
 
 // A blocking WebSocket-over-TLS client speaking sculpt.v1, one message per binary message.
 class WssClient {

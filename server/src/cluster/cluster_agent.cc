@@ -491,6 +491,7 @@ asio::awaitable<void> ClusterAgent::TendStandby() {
       // that presented it for its standby); else the viewer token.
       fo.token = config_.peer_token.empty() ? standby_->token : config_.peer_token;
       fo.owner_tcp = st.owner->tcp;
+      fo.tls = standby_->tls;
       fo.owner_epoch = st.owner->epoch;
       fo.snapshot_every_records = standby_->snapshot_every_edits;
       follower_ = std::make_unique<StandbyFollower>(std::move(fo));

@@ -49,6 +49,8 @@ struct StandbyOptions {
   std::vector<std::string> restart_argv;
   /// The copy's snapshot interval in logged records (config.snapshot_every_edits).
   uint64_t snapshot_every_edits = 5000;
+  /// TLS to the owners it follows (ClusterConfig::peer_ca_file).
+  PeerTlsOptions tls;
 };
 
 class ClusterAgent : public SceneRouter {

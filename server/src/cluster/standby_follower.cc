@@ -186,6 +186,10 @@ void StandbyFollower::Run() {
   client::ClientOptions co;
   co.skip_state = true;
   co.timeout = std::chrono::milliseconds(5000);
+  co.tls.enabled = o.tls.enabled;
+  co.tls.ca_file = o.tls.ca_file;
+  co.tls.cert_file = o.tls.cert_file;
+  co.tls.key_file = o.tls.key_file;
   im.client = std::make_unique<client::Client>(co);
   Status s = im.client->Connect(o.owner_tcp.substr(0, colon), static_cast<uint16_t>(port));
   if (s.ok()) {

@@ -46,12 +46,22 @@ std::optional<uint64_t> PromotedFromEpoch(const std::string& data_dir, const std
 /// Forgets the promotion marker (once the scene is acquired).
 void ClearPromotedMarker(const std::string& data_dir);
 
+/// TLS to the owner: a cluster whose members' TCP ports speak TLS (cluster.peer_ca_file,
+/// docs/cluster.md "TLS between members").
+struct PeerTlsOptions {
+  bool enabled = false;
+  std::string ca_file;    // PEM CAs the owner's certificate must chain to; empty: system store
+  std::string cert_file;  // this member's certificate and key, for owners that require one
+  std::string key_file;
+};
+
 struct FollowerOptions {
   std::string data_dir;
   std::string scene;
   std::string member;  // this member's name (the session name the owner logs)
   std::string token;   // cluster.peer_token, or (none configured) a viewer token the owner accepts
-  std::string owner_tcp;  // HOST:PORT
+  std::string owner_tcp;  // HOST:PORT; over TLS the certificate must name HOST
+  PeerTlsOptions tls;
   uint64_t owner_epoch = 0;
   /// The copy snapshots its object after this many logged records and drops the log before the
   /// previous snapshot (as the owner does with snapshot_every_edits), so a failover replays a

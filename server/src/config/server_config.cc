@@ -120,6 +120,19 @@ Status ValidateClusterConfig(const ServerConfig& c) {
           "members; leave out the [cluster] section for a single process");
     }
   }
+  if (!k.peer_ca_file.empty()) {
+    if (!k.enabled()) {
+      return InvalidArgument("cluster.peer_ca_file=" + k.peer_ca_file +
+                             " is set but cluster.etcd is empty: it is for connections between "
+                             "cluster members; leave out the [cluster] section for a single process");
+    }
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(k.peer_ca_file, ec)) {
+      return InvalidArgument("cluster.peer_ca_file=" + k.peer_ca_file +
+                             " is not a readable file (PEM CA certificates the other members' "
+                             "certificates chain to)");
+    }
+  }
   if (!k.enabled()) {
     if (!k.member.empty() || !k.advertise.empty() || !k.advertise_http.empty()) {
       return InvalidArgument(
@@ -204,7 +217,8 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     SCULPT_RETURN_IF_ERROR(
         CheckKeys(path, *t, "cluster",
                   {"etcd", "member", "advertise", "advertise_http", "lease_ttl_ms", "prefix",
-                   "standby", "replication", "sync_fallback_ms", "peer_token"}));
+                   "standby", "replication", "sync_fallback_ms", "peer_token",
+                   "peer_ca_file"}));
     if (const toml::node* e = t->get("etcd")) {
       const toml::array* a = e->as_array();
       if (!a) return Outside("cluster.etcd", "not an array", "arrays of \"http://HOST:PORT\"");
@@ -223,6 +237,12 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     Get(*t, "replication", &c->cluster.replication);
     Get(*t, "sync_fallback_ms", &c->cluster.sync_fallback_ms);
     Get(*t, "peer_token", &c->cluster.peer_token);
+    Get(*t, "peer_ca_file", &c->cluster.peer_ca_file);
+    // Relative to the config file's folder, as the [tls] files are.
+    std::string& ca = c->cluster.peer_ca_file;
+    if (!ca.empty() && std::filesystem::path(ca).is_relative()) {
+      ca = (std::filesystem::path(path).parent_path() / ca).lexically_normal().string();
+    }
   }
   if (const toml::table* t = root["tls"].as_table()) {
     SCULPT_RETURN_IF_ERROR(CheckKeys(path, *t, "tls",

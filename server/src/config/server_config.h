@@ -177,7 +177,16 @@ struct ClusterConfig {
   /// `standby-<the named standby>`; it is accepted also when named users are configured. Empty:
   /// the standby is recognised by its Hello name alone, on the viewer token (warned at start-up).
   std::string peer_token;
+  /// PEM CAs the other members' TCP certificates must chain to. A member follows its owner over
+  /// TLS when this is set or its own port speaks TLS (tls.cert_file; the CA is then the
+  /// system's store unless this names one): a cluster is TLS on every member or on none. The
+  /// owner's certificate must name the host of its advertised address, and the follower
+  /// presents this member's tls.cert_file and key_file to owners that ask for a client
+  /// certificate (tls.client_ca_file).
+  std::string peer_ca_file;
   bool enabled() const { return !etcd.empty(); }
+  /// Whether this member connects to other members over TLS (see peer_ca_file).
+  bool PeerTls(const TlsConfig& tls) const { return !peer_ca_file.empty() || tls.enabled(); }
 };
 
 struct ServerConfig {
