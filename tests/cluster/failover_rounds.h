@@ -146,18 +146,6 @@ class Sculptor {
   std::thread thread_;
 };
 
-// Under ASan a new owner is several times slower and reads the sculptors' paced resends in
-// bursts, so its stroke limits refuse some of them (docs/cluster.md, "Failover rounds"): the
-// sanitizer run, there for the failover paths' memory safety, raises the bursts; the Release run
-// (make test) and the soak keep the default limits. Appended to a member's configuration.
-inline std::string SanitizerLimits() {
-#if defined(__SANITIZE_ADDRESS__)
-  return "[limits]\nstroke_burst = 2000\npose_burst = 20000\n";
-#else
-  return "";
-#endif
-}
-
 class FailoverSoakTest : public sculpt::testing::EtcdTest {
  protected:
   void TearDown() override {
@@ -174,7 +162,7 @@ class FailoverSoakTest : public sculpt::testing::EtcdTest {
     if (ports_.count(name) == 0) ports_[name] = sculpt::testing::FreePort();
     members_[name] = std::make_unique<Member>(
         name, etcd_->endpoint(), dir_.path(),
-        "replication = \"sync\"\nsync_fallback_ms = 0\n" + SanitizerLimits(),
+        "replication = \"sync\"\nsync_fallback_ms = 0\n",
         std::vector<std::string>{"--http", "127.0.0.1:0"}, 2000,
         "127.0.0.1:" + std::to_string(ports_[name]));
     return *members_[name];
