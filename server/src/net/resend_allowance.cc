@@ -31,7 +31,7 @@ uint64_t ResendAllowance::AllowanceFor(const LimitsConfig& limits) {
 }
 
 StatusOr<ResendAllowance::Ranges> ResendAllowance::Decode(const v1::JoinScene& join,
-                                                           uint64_t allowance) {
+                                                          uint64_t allowance) {
   Ranges out{};
   // Sequences declared so far; saturates rather than wraps (each range is checked first).
   uint64_t total = 0;
@@ -50,10 +50,10 @@ StatusOr<ResendAllowance::Ranges> ResendAllowance::Decode(const v1::JoinScene& j
     }
     Range& slot = out[static_cast<size_t>(stream - 1)];
     if (slot.last != 0) {
-      return FieldViolation(Status::Code::kInvalidArgument, Field(k, "stream"),
-                            v1::EditStream_Name(r.stream()), "one range per stream",
-                            Field(k, "stream") + "=" + v1::EditStream_Name(r.stream()) +
-                                " declared twice");
+      return FieldViolation(
+          Status::Code::kInvalidArgument, Field(k, "stream"), v1::EditStream_Name(r.stream()),
+          "one range per stream",
+          Field(k, "stream") + "=" + v1::EditStream_Name(r.stream()) + " declared twice");
     }
     if (r.first_seq() == 0) {
       return Outside(Field(k, "first_seq"), "0", "[1, 2^64-1]");
@@ -67,9 +67,9 @@ StatusOr<ResendAllowance::Ranges> ResendAllowance::Decode(const v1::JoinScene& j
                 ? std::numeric_limits<uint64_t>::max()
                 : total + size_minus_one + 1;
     if (total > allowance) {
-      const std::string value =
-          total == std::numeric_limits<uint64_t>::max() ? "more than 2^64-2 client_seqs"
-                                                        : std::to_string(total) + " client_seqs";
+      const std::string value = total == std::numeric_limits<uint64_t>::max()
+                                    ? "more than 2^64-2 client_seqs"
+                                    : std::to_string(total) + " client_seqs";
       return Outside("JoinScene.resends", value,
                      "[0, " + std::to_string(allowance) +
                          "] client_seqs (limits.stroke_burst + 5 s of limits.strokes_per_second)",

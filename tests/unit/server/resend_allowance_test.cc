@@ -102,9 +102,8 @@ TEST_F(ResendAllowanceTest, RejectsARangeSpanningAllSequencesWithoutWrapping) {
   const uint64_t max = std::numeric_limits<uint64_t>::max();
   const auto v = ViolationOf(Declaring({{v1::EDIT_STREAM_STROKES, 1, max}}), 1000);
   EXPECT_EQ(v.field, "JoinScene.resends");
-  auto r = ResendAllowance::Decode(Declaring({{v1::EDIT_STREAM_STROKES, 5, 4},
-                                              {v1::EDIT_STREAM_PAINTS, 1, max}}),
-                                   1000);
+  auto r = ResendAllowance::Decode(
+      Declaring({{v1::EDIT_STREAM_STROKES, 5, 4}, {v1::EDIT_STREAM_PAINTS, 1, max}}), 1000);
   ASSERT_FALSE(r.ok());
   ASSERT_TRUE(r.status().violation());
   EXPECT_EQ(r.status().violation()->field, "JoinScene.resends[0].last_seq");
