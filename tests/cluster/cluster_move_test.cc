@@ -86,7 +86,7 @@ class ClusterMoveTest : public soak::FailoverSoakTest,
     if (ports_.count(name) == 0) ports_[name] = sculpt::testing::FreePort();
     members_[name] = std::make_unique<Member>(
         name, etcd_->endpoint(), dir_.path(),
-        "replication = \"" + GetParam() + "\"\n",
+        "replication = \"" + GetParam() + "\"\n" + soak::SanitizerLimits(),
         std::vector<std::string>{"--http", "127.0.0.1:0"}, 2000,
         "127.0.0.1:" + std::to_string(ports_[name]));
     return *members_[name];
