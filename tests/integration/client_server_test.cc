@@ -181,6 +181,35 @@ TEST_F(ClientServerTest, ResendsMoreThanTheStrokeBurstArePacedNotRefused) {
   EXPECT_EQ(scene_->global_seq(), static_cast<uint64_t>((1 + kWhileDown + 5) * kPosesPerStroke));
 }
 
+// A server whose stroke burst (8) is below the client's resend burst (24 written at once): the
+// client declares its pending strokes in the JoinScene, so the server takes no tokens for them
+// however fast it reads them, and none is refused; without the declaration 16 of the first 24
+// would be.
+class TightBurstClientServerTest : public ClientServerTest {
+ protected:
+  void SetUp() override {
+    srv_.config().limits.stroke_burst = 8;
+    ClientServerTest::SetUp();
+  }
+};
+
+TEST_F(TightBurstClientServerTest, ResendsDeclaredInTheJoinAreNotRefusedBeyondTheStrokeBurst) {
+  constexpr int kWhileDown = 100;
+  auto c = Joined(v1::ROLE_SCULPTOR, "declarer", /*client_id=*/0xdec1);
+  ASSERT_TRUE(c->SendStroke(Arc(5, 0)).ok());
+  ASSERT_TRUE(c->WaitAllAcked(seconds(10)));
+  c->DropConnection();
+  for (int i = 1; i <= kWhileDown; ++i) ASSERT_TRUE(c->SendStroke(Arc(5, i % 24)).ok());
+  ASSERT_TRUE(c->Reconnect().ok());
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(c->SendStroke(Arc(5, i)).ok());
+  ASSERT_TRUE(c->WaitAllAcked(seconds(30)));
+  const ClientStats st = c->stats();
+  EXPECT_EQ(st.refused, 0u) << "declared resends refused by the server's stroke limit";
+  EXPECT_EQ(st.acks, static_cast<uint64_t>(1 + kWhileDown + 5));
+  EXPECT_EQ(st.acks_out_of_order, 0u);
+  EXPECT_EQ(scene_->global_seq(), static_cast<uint64_t>((1 + kWhileDown + 5) * kPosesPerStroke));
+}
+
 TEST_F(ClientServerTest, ViewerStrokeIsPermissionDeniedWhileSculptorKeepsWorking) {
   constexpr int kStrokes = 20;
   auto sculptor = Joined(v1::ROLE_SCULPTOR, "sculptor");

@@ -322,6 +322,86 @@ TEST_F(LimitsTest, ResendsOfCommittedStrokesAfterAReconnectTakeNoTokensButReplay
   EXPECT_GE(replays_refused, 5);
 }
 
+// After a failover the client resends strokes the new owner never committed: they must be
+// applied, not refused by the rate limit. Declared in JoinScene.resends, a burst far above
+// stroke_burst is all applied; strokes beyond the declared range are charged as usual.
+TEST_F(LimitsTest, DeclaredResendsAfterAReconnectAreAllAppliedButLaterStrokesAreCharged) {
+  config_.limits.strokes_per_second = 1;
+  config_.limits.stroke_burst = 4;
+  config_.limits.source_rate_factor = 1;
+  Start();
+  // Allowance 4 + 5 s x 1/s = 9 free edits per connection.
+  const uint64_t id = 0x5eed1000u + static_cast<uint64_t>(::getpid());
+  v1::JoinScene join;
+  v1::ResendRange* r = join.add_resends();
+  r->set_stream(v1::EDIT_STREAM_STROKES);
+  r->set_first_seq(1);
+  r->set_last_seq(9);
+  RawClient a(port_);
+  ASSERT_TRUE(a.Enter(kSculptor, v1::ROLE_SCULPTOR, id, join));
+  for (int i = 1; i <= 17; ++i) a.Send(RawClient::PressStroke(i, {0, 0, 13.3}, 1));
+  int applied = 0, refused = 0;
+  std::vector<uint64_t> refused_seqs;
+  for (int answers = 0; answers < 17;) {
+    auto m = a.Read();
+    ASSERT_TRUE(m.has_value()) << "after " << answers << " answers";
+    if (m->has_ack()) {
+      EXPECT_FALSE(m->ack().duplicate());
+      ++applied;
+      ++answers;
+    } else if (m->has_error() && m->error().field() == "strokes_per_second") {
+      ++refused;
+      refused_seqs.push_back(m->error().client_seq());
+      ++answers;
+    } else if (m->has_error()) {
+      ADD_FAILURE() << m->error().ShortDebugString();
+      ++answers;
+    }
+  }
+  // The 9 declared ones all; of the 8 after them the 4-token burst (the declared ones took
+  // none) and at most one token refilled meanwhile.
+  EXPECT_GE(applied, 9 + 4);
+  EXPECT_LE(applied, 9 + 5);
+  EXPECT_GE(refused, 3);
+  for (uint64_t seq : refused_seqs) EXPECT_GT(seq, 9u + 4u);
+  EXPECT_EQ(applied + refused, 17);
+}
+
+// Declared resends and undeclared ones on the same tight limits: without the declaration the
+// same burst is refused past the bucket; with a declaration larger than the allowance the join
+// is refused naming the field.
+TEST_F(LimitsTest, UndeclaredResendsAreChargedAndATooLargeDeclarationIsRefused) {
+  config_.limits.strokes_per_second = 1;
+  config_.limits.stroke_burst = 4;
+  config_.limits.source_rate_factor = 1;
+  Start();
+  {
+    RawClient a(port_);
+    ASSERT_TRUE(a.Enter(kSculptor, v1::ROLE_SCULPTOR));
+    for (int i = 1; i <= 9; ++i) a.Send(RawClient::PressStroke(i, {0, 0, 13.3}, 1));
+    const auto [acks, refused] = CountAcks(a, 9, "strokes_per_second");
+    EXPECT_LE(acks, 5);  // the burst of 4 and at most one token refilled meanwhile
+    EXPECT_GE(refused, 4);
+  }
+  RawClient b(port_);
+  ASSERT_TRUE(b.Hello(kSculptor, v1::ROLE_SCULPTOR));
+  ASSERT_TRUE(b.ReadUntil(v1::ServerMessage::kWelcome));
+  v1::JoinScene join;
+  v1::ResendRange* r = join.add_resends();
+  r->set_stream(v1::EDIT_STREAM_STROKES);
+  r->set_first_seq(100);
+  r->set_last_seq(109);  // 10 > 4 + 5 s x 1/s
+  ASSERT_TRUE(b.Join(join));
+  const v1::Error e = NextError(b);
+  EXPECT_EQ(e.code(), v1::ERROR_CODE_RESOURCE_EXHAUSTED);
+  EXPECT_EQ(e.field(), "JoinScene.resends");
+  EXPECT_EQ(e.value(), "10 client_seqs");
+  EXPECT_EQ(e.allowed_range().rfind("[0, 9]", 0), 0u) << e.allowed_range();
+  // Not joined: a stroke is refused as before JoinScene.
+  b.Send(RawClient::PressStroke(100, {0, 0, 13.3}, 1));
+  EXPECT_EQ(NextError(b).field(), "Stroke");
+}
+
 // A job on the compute thread is never interrupted, so a stroke's kernel work is bounded: a
 // long stroke is refused naming the limit and how many of its poses fit, those poses are
 // accepted, one more is not, and a single pose of any allowed tool is always accepted.

@@ -97,16 +97,17 @@ class RawClient {
     h->set_client_id(client_id);
     return Send(m);
   }
-  bool Join() {
+  bool Join(const v1::JoinScene& join = {}) {
     v1::ClientMessage m;
-    m.mutable_join();
+    *m.mutable_join() = join;
     return Send(m);
   }
   /// Hello + Welcome + Join + SceneInfo + all state chunks.
-  bool Enter(const std::string& token, v1::Role role, uint64_t client_id = kAutoId) {
+  bool Enter(const std::string& token, v1::Role role, uint64_t client_id = kAutoId,
+             const v1::JoinScene& join = {}) {
     if (!Hello(token, role, client_id)) return false;
     if (!ReadUntil(v1::ServerMessage::kWelcome)) return false;
-    if (!Join()) return false;
+    if (!Join(join)) return false;
     auto info = ReadUntil(v1::ServerMessage::kSceneInfo);
     if (!info) return false;
     info_ = info->scene_info();

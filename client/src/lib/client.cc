@@ -31,6 +31,9 @@ constexpr size_t kMaxUndoAnswers = 1024;
 // server's default stroke burst of 60 per connection, and 4 clients' worth under the budget
 // shared by one address.
 constexpr size_t kResendBurst = 24;
+// Seconds of Welcome.max_strokes_per_second a JoinScene declares as resends at most: the server
+// lets limits.stroke_burst + 5 s of strokes pass free (proto/README.md, "Declared resends").
+constexpr double kDeclaredResendSeconds = 5.0;
 
 struct IoThread::Impl {
   asio::io_context io;
@@ -877,6 +880,32 @@ void LearnMembersLocked(Client::Impl& d, const v1::SceneInfo& info) {
   if (!learnt.empty()) d.learnt_members = std::move(learnt);
 }
 
+// JoinScene.resends: the client_seq ranges of the pending requests (strokes, undos) this join
+// is about to resend, oldest first, so the server lets them pass its rate limits without
+// tokens. Strokes and undos share one counter, so each stream's range spans the other's
+// sequences too; the ranges together stay within what the server allows a connection
+// (limits.stroke_burst + 5 s of strokes; the client knows the rate from Welcome only, so
+// 5 s of that). Pending requests past the bound are resent all the same, and charged.
+void DeclareResendsLocked(const Client::Impl& d, v1::JoinScene* join) {
+  const double rate = d.welcome.max_strokes_per_second();
+  if (!(rate > 0) || d.pending.empty()) return;
+  const uint64_t cap = static_cast<uint64_t>(std::min(kDeclaredResendSeconds * rate, 1e9));
+  std::array<v1::ResendRange*, 2> ranges{};  // strokes, undos
+  uint64_t declared = 0;
+  for (const auto& [seq, p] : d.pending) {
+    v1::ResendRange*& r = ranges[p.undo ? 1 : 0];
+    const uint64_t cost = r ? seq - r->last_seq() : 1;
+    if (declared + cost > cap) break;
+    declared += cost;
+    if (!r) {
+      r = join->add_resends();
+      r->set_stream(p.undo ? v1::EDIT_STREAM_UNDOS : v1::EDIT_STREAM_STROKES);
+      r->set_first_seq(seq);
+    }
+    r->set_last_seq(seq);
+  }
+}
+
 StatusOr<JoinedScene> JoinHere(Client::Impl& d, const std::string& scene) {
   std::unique_lock<std::mutex> lock(d.mu);
   if (d.phase == Client::Impl::Phase::kJoined) {
@@ -894,6 +923,7 @@ StatusOr<JoinedScene> JoinHere(Client::Impl& d, const std::string& scene) {
   v1::ClientMessage m;
   m.mutable_join()->set_scene(scene);
   m.mutable_join()->set_skip_state(d.options.skip_state);
+  DeclareResendsLocked(d, m.mutable_join());
   d.phase = Client::Impl::Phase::kAwaitJoin;
   d.QueueLocked(Client::Impl::Frame(m), 0);
   const bool settled = d.cv.wait_for(lock, d.options.timeout, [&] {
@@ -926,10 +956,11 @@ StatusOr<JoinedScene> JoinHere(Client::Impl& d, const std::string& scene) {
   d.scene_info = d.join.info;
   LearnMembersLocked(d, d.join.info);
   // Resends go out before new strokes, so every stroke reaches the server in client_seq order
-  // (see the class comment). After a failover they are seconds of strokes: a burst, then paced
-  // at 3/4 of the rate the server's Welcome allows, so its stroke limits (per connection, and
-  // shared by the clients behind one address) do not refuse them; requests made meanwhile
-  // queue behind them.
+  // (see the class comment). After a failover they are seconds of strokes. Those declared in the
+  // JoinScene (DeclareResendsLocked) take none of the server's tokens, however the server reads
+  // them; they still go out as a burst, then paced at 3/4 of the rate the server's Welcome
+  // allows, so those past the declaration and the new owner's compute thread are not flooded;
+  // requests made meanwhile queue behind them.
   for (auto& [seq, p] : d.pending) {
     if (p.written) ++(p.undo ? d.stats.undos_resent : d.stats.strokes_resent);
     p.written = false;

@@ -164,6 +164,19 @@ export class Connection extends EventTarget {
   get isOpen() { return !!this.ws && this.ws.readyState === WebSocket.OPEN; }
 }
 
+// Seconds of Welcome.max_strokes_per_second a JoinScene declares as resends at most.
+export const kDeclaredResendSeconds = 5;
+
+// The ClientMessage body of each kind of edit the outbox keeps -> its EditStream.
+const kEditStreams = {
+  stroke: v1.EditStream.EDIT_STREAM_STROKES,
+  paint: v1.EditStream.EDIT_STREAM_PAINTS,
+  modelIntent: v1.EditStream.EDIT_STREAM_MODELS,
+  skinBallEdit: v1.EditStream.EDIT_STREAM_BALL_EDITS,
+  skinSweep: v1.EditStream.EDIT_STREAM_SWEEPS,
+  undo: v1.EditStream.EDIT_STREAM_UNDOS,
+};
+
 /**
  * The edits this page sent that the server has not answered yet (strokes, paints, undos: each
  * kept with its message until its ack or a final refusal), in the order they were made, and
@@ -272,6 +285,31 @@ export class Outbox {
     this.refilledAt = t;
     this.strokeTokens = Math.min(this.rate.strokeBurst, this.strokeTokens + dt * this.rate.strokesPerSecond);
     this.poseTokens = Math.min(this.rate.poseBurst, this.poseTokens + dt * this.rate.posesPerSecond);
+  }
+
+  /**
+   * JoinScene.resends: the client_seq ranges of the unanswered requests `resume` will write,
+   * oldest first, one range per stream ({ stream, firstSeq, lastSeq }), so the server lets them
+   * through its rate limits without tokens (proto/README.md, "Declared resends"). Strokes,
+   * paints and undos share this page's counter, so a stream's range spans the others'
+   * sequences; all ranges together stay within `max` sequences (the server allows a connection
+   * stroke_burst + 5 s of strokes; the page knows the rate only, so 5 s of it). Requests past
+   * the bound are resent all the same, and charged.
+   */
+  resendRanges(max) {
+    const ranges = new Map();  // stream -> range
+    let declared = 0;
+    for (const seq of [...this.entries.keys()].sort((a, b) => a - b)) {
+      const stream = kEditStreams[this.entries.get(seq).body];
+      if (!stream) break;  // a kind the server has no resend stream for: keep the order simple
+      const r = ranges.get(stream);
+      const cost = r ? seq - r.lastSeq : 1;
+      if (declared + cost > max) break;
+      declared += cost;
+      if (r) r.lastSeq = seq;
+      else ranges.set(stream, { stream, firstSeq: seq, lastSeq: seq });
+    }
+    return [...ranges.values()];
   }
 
   /** The requests not yet answered, by kind: { stroke: 3, undo: 1 }. */

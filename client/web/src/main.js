@@ -5,7 +5,7 @@
 // contour_codec.js), undo.js (undo and redo); this file is the page and its state.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
-import { Connection, Outbox, clusterHttpAddresses, describeError, num, v1 } from './connection.js';
+import { Connection, Outbox, clusterHttpAddresses, describeError, kDeclaredResendSeconds, num, v1 } from './connection.js';
 import { ChunkMeshes } from './meshes.js';
 import { Sculpting, Presence, isUnavailable } from './tools.js';
 import { Contours } from './contours.js';
@@ -204,7 +204,11 @@ class App {
     conn.send('hello', { protocolVersion: 1, token: token || '', role: wantRole,
       clientName: (name || 'browser').slice(0, 64), clientId });
     const welcome = await conn.next('welcome');
-    conn.send('join', { scene, skipState: true });
+    // After a reconnection, the unanswered edits about to be resent (Outbox.resendRanges).
+    const resends = this.outbox
+      ? this.outbox.resendRanges(Math.floor(kDeclaredResendSeconds * (welcome.maxStrokesPerSecond || 0)))
+      : [];
+    conn.send('join', { scene, skipState: true, resends });
     const answer = await conn.nextOf(['sceneInfo', 'redirect']);
     if (answer.type === 'redirect') {
       // The Bye that follows is not an error to show: this socket is closed and forgotten.

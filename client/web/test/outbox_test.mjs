@@ -84,5 +84,26 @@ const stroke = (seq) => ({ clientSeq: seq });
   expect('written after the reconnection, not counted as resent', [t.box.resume(), t.wire], [0, ['stroke1', 'stroke2']]);
 }
 
+{
+  // JoinScene.resends: one range per stream over the unanswered requests, oldest first, all
+  // ranges within the bound (a stream's range counts the other streams' sequences it spans).
+  const t = rig();
+  t.box.add('stroke', stroke(3), 1);
+  t.box.add('paint', stroke(4));
+  t.box.add('stroke', stroke(5), 1);
+  t.box.add('undo', stroke(6));
+  t.box.add('stroke', stroke(7), 1);
+  const S = 1, P = 2, U = 6;  // EditStream values
+  expect('ranges of every unanswered request', t.box.resendRanges(100), [
+    { stream: S, firstSeq: 3, lastSeq: 7 }, { stream: P, firstSeq: 4, lastSeq: 4 },
+    { stream: U, firstSeq: 6, lastSeq: 6 }]);
+  expect('bounded: stops at the first request past the bound', t.box.resendRanges(4), [
+    { stream: S, firstSeq: 3, lastSeq: 5 }, { stream: P, firstSeq: 4, lastSeq: 4 }]);
+  expect('nothing with a bound of 0', t.box.resendRanges(0), []);
+  t.box.settle(3);
+  expect('answered ones are not declared', t.box.resendRanges(100).find((r) => r.stream === S),
+    { stream: S, firstSeq: 5, lastSeq: 7 });
+}
+
 console.log(failures === 0 ? 'outbox test: all passed' : `outbox test: ${failures} failed`);
 process.exit(failures === 0 ? 0 : 1);

@@ -36,9 +36,6 @@ constexpr size_t kStateAllowanceBytes = 64u << 20;
 constexpr auto kByeGrace = std::chrono::milliseconds(500);
 // How long a client being disconnected for violations waits for its accepted strokes' acks.
 constexpr auto kDrainLimit = std::chrono::seconds(5);
-// Resends of committed requests a connection may send without tokens: a stroke burst and this
-// many seconds of strokes at limits.strokes_per_second (Session::FreeResend).
-constexpr double kFreeResendSeconds = 5.0;
 
 // Whose share of the scene's compute thread a session's requests take (Scene::RequesterScope):
 // a named user's, wherever it connects from, else its source address's, like the rate budgets.
@@ -356,10 +353,7 @@ void Session::OnJoinState(StatusOr<JoinState> js) {
     joined_flag_ = false;
     return SendStatus(js.status());
   }
-  committed_at_join_ = js->committed_up_to;
-  const LimitsConfig& limits = server_.config().limits;
-  free_resends_left_ = static_cast<uint64_t>(
-      std::max(0.0, limits.stroke_burst + limits.strokes_per_second * kFreeResendSeconds));
+  resends_.SetCommitted(js->committed_up_to);
   v1::ServerMessage info;
   *info.mutable_scene_info() = ToWireSceneInfo(js->info);
   if (const cluster::SceneRouter* router = server_.router()) {
@@ -651,6 +645,12 @@ void Session::OnJoin(const v1::JoinScene& j) {
                             "once per connection", "already joined"));
     return Violation();
   }
+  const uint64_t allowance = ResendAllowance::AllowanceFor(server_.config().limits);
+  auto declared = ResendAllowance::Decode(j, allowance);
+  if (!declared.ok()) {
+    SendStatus(declared.status());
+    return Violation();
+  }
   const Server::Seats seats = server_.JoinedSeats();
   const uint32_t max_clients = server_.config().limits.max_clients_per_scene;
   if (seats.joined >= max_clients) {
@@ -674,6 +674,7 @@ void Session::OnJoin(const v1::JoinScene& j) {
   }
   joined_ = true;
   joined_flag_ = true;
+  resends_.Declare(*declared, allowance);
   if (const int idle = server_.config().limits.idle_timeout_ms; idle > 0) {
     last_message_ = Clock::now();
     ArmIdleTimer(last_message_ + std::chrono::milliseconds(idle));
@@ -911,28 +912,13 @@ bool Session::MayEdit(const char* what, ResendStream stream, uint64_t seq) {
   return TakeEditTokens(0, Clock::now(), stream, seq);
 }
 
-// A client that reconnects (to a restarted server, or to a new owner after a failover) resends
-// everything it has not seen acknowledged, at once. Those the scene had committed are answered as
-// duplicates and cost it next to nothing, so they take no tokens: charged, the burst ran into the
-// stroke bucket, and a refused resend reads to the client as a refused stroke although it was
-// applied. Free only in increasing order and up to an allowance per connection (a burst and
-// kFreeResendSeconds of strokes), so replaying old sequences is no way around the limits.
-bool Session::FreeResend(ResendStream stream, uint64_t seq) {
-  const size_t i = static_cast<size_t>(stream);
-  if (i >= kResendStreams || free_resends_left_ == 0) return false;
-  if (seq > committed_at_join_[i] || seq <= last_free_resend_[i]) return false;
-  last_free_resend_[i] = seq;
-  --free_resends_left_;
-  return true;
-}
-
 // The connection's own bucket first, then the ones it shares: a refusal names the one that
 // ran out. Tokens taken from an earlier bucket of a refused edit are not given back (the
 // refusal itself was work).
 bool Session::TakeEditTokens(double poses, Clock::time_point now, ResendStream stream,
                              uint64_t seq) {
   using Kind = SharedBudget::Kind;
-  if (FreeResend(stream, seq)) return true;
+  if (resends_.Take(stream, seq)) return true;
   struct Shared {
     SharedBudget* budget;
     const char* scope;

@@ -18,6 +18,7 @@
 #include "net/budget_pool.h"
 #include "net/net.h"
 #include "net/rate_limiter.h"
+#include "net/resend_allowance.h"
 #include "net/transport.h"
 #include "net/users.h"
 #include "scene/scene.h"
@@ -129,14 +130,10 @@ class Session : public std::enable_shared_from_this<Session> {
   bool MayEdit(const char* what, ResendStream stream, uint64_t client_seq);
   // Takes one stroke and `poses` poses from this connection's, the source's and the user's
   // buckets; false, with the refusal sent and counted as a violation, when one has too few.
-  // A resend of a request the scene had committed when this client joined takes nothing (see
-  // FreeResend).
+  // A resend the client declared at join, or of a request the scene had committed when it
+  // joined, takes nothing (ResendAllowance).
   bool TakeEditTokens(double poses, Clock::time_point now, ResendStream stream,
                       uint64_t client_seq);
-  // True for a request the scene will answer as a duplicate without applying: at or below the
-  // client's committed sequence at join, above the last such request of its stream, and within
-  // the connection's allowance of free resends.
-  bool FreeResend(ResendStream stream, uint64_t client_seq);
   // Takes `cost` from the request buckets; false, refused as above, when one has too few.
   bool Charge(const char* what, double cost, Clock::time_point now);
   // Timeouts after authentication: join (armed at Welcome), idle (armed at join), an
@@ -200,11 +197,9 @@ class Session : public std::enable_shared_from_this<Session> {
   RateLimiter strokes_;  // strokes and every other edit message
   RateLimiter poses_;    // each pose is an edit: bounds the work one client queues
   RateLimiter requests_;  // every request that is not an edit, by its cost
-  // Resends after a reconnect (FreeResend): what the scene had committed of this client's
-  // streams when it joined, the last free resend per stream, and how many may still go free.
-  std::array<uint64_t, kResendStreams> committed_at_join_{};
-  std::array<uint64_t, kResendStreams> last_free_resend_{};
-  uint64_t free_resends_left_ = 0;
+  // Resends after a reconnect that take no tokens: those declared in JoinScene.resends and
+  // those of requests the scene had committed when this client joined.
+  ResendAllowance resends_;
   int violations_ = 0;
   // Strokes handed to the scene and not yet answered. A client disconnected for its violations
   // first gets the acks of these (draining_), so no applied stroke is reported as lost.

@@ -157,6 +157,8 @@ struct ClientStats {
 /// any newer stroke: the server recognises the ones it already applied (Ack.duplicate) by the
 /// highest client_seq it logged for the client_id, so a newer stroke overtaking an older resend
 /// would make the older one look applied. Strokes sent while disconnected wait for the resend.
+/// The JoinScene declares the pending requests' client_seq ranges (JoinScene.resends, at most
+/// 5 s of Welcome.max_strokes_per_second), so the server takes no rate-limit tokens for them.
 ///
 /// Undo and redo: SendUndo numbers its request from the same counter as strokes (the server
 /// de-duplicates undos on their own sequence, so gaps are harmless, and an Error naming a
