@@ -125,6 +125,7 @@ class MeshFeedTest : public ::testing::Test {
     };
     source.seq = [this] { return seq_; };
     source.on_failure = [this] { ++failures_; };
+    if (warm_) source.objects = [] { return std::vector<std::string>{"clay"}; };
     feed_ = std::make_unique<MeshFeed>(options_, std::move(source));
     feed_->Start();
   }
@@ -179,6 +180,7 @@ class MeshFeedTest : public ::testing::Test {
   std::vector<std::function<void()>> held_;
   int posted_ = 0;  // guarded by compute_mu_
   std::atomic<int> failures_{0};
+  bool warm_ = false;  // the source lists its objects: the feed warms its cache at Start
 };
 
 TEST_F(MeshFeedTest, ViewerGetsTheChunksOfDirtyLeavesOncePerPeriod) {
@@ -335,6 +337,93 @@ TEST_F(MeshFeedTest, StopJoinsTheMesherEvenWhileItWaitsForTheComputeThread) {
   std::lock_guard<std::mutex> lock(compute_mu_);
   EXPECT_EQ(posted_, posted);
   feed_->Stop();  // idempotent
+}
+
+TEST_F(MeshFeedTest, WarmUpCachesEveryChunkSoTheFirstViewerNeedsNoMeshing) {
+  // As after a restart: the feed meshes the object before anyone watches; the first viewer is
+  // sent the cached chunks and nothing is meshed for it.
+  warm_ = true;
+  MakeFeed();
+  const size_t surface = SurfaceChunks();
+  ASSERT_GT(surface, 1u);
+  ASSERT_TRUE(WaitFor([&] { return feed_->stats().warmed.load(); }));
+  EXPECT_EQ(feed_->stats().warm_chunks.load(), surface);
+  EXPECT_EQ(feed_->stats().chunks_encoded.load(), surface);
+  EXPECT_EQ(feed_->stats().updates.load(), 0u);
+  FakeViewer& v = NewViewer(1);
+  ASSERT_TRUE(AddViewer(v).ok());
+  ASSERT_TRUE(WaitFor([&] { return v.size() >= surface; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));  // three more periods
+  EXPECT_EQ(v.size(), surface);
+  EXPECT_EQ(feed_->stats().chunks_encoded.load(), surface);
+  std::set<Key> expected;
+  {
+    std::lock_guard<std::mutex> lock(compute_mu_);
+    for (const mesh::ChunkKey& k : mesh::AllChunks(sculpture_, options_.chunk)) {
+      expected.insert({k.x, k.y, k.z});
+    }
+  }
+  std::set<Key> got;
+  for (const auto& [key, count] : v.Keys(0)) {
+    got.insert(key);
+    EXPECT_EQ(count, 1);
+  }
+  EXPECT_EQ(got, expected);
+}
+
+TEST_F(MeshFeedTest, EditsWhileNobodyWatchesAreMeshedForTheNextViewerOnly) {
+  // Edits after the warm-up leave their chunks dirty; the next viewer gets the untouched chunks
+  // from the cache and only the touched ones meshed again, at the edits' sequence, each once.
+  warm_ = true;
+  {
+    // A larger sphere: one press touches a few of its chunks.
+    levelset::SculptureOptions o;
+    o.voxel_size = 1.0;
+    o.half_width = 4;
+    o.name = "clay";
+    sculpture_ = std::move(levelset::Sculpture::MakeSphere(o, {0, 0, 0}, 40)).value();
+  }
+  MakeFeed();
+  const size_t surface = SurfaceChunks();
+  ASSERT_TRUE(WaitFor([&] { return feed_->stats().warmed.load(); }));
+  ASSERT_EQ(feed_->stats().warm_chunks.load(), surface);
+  std::set<Key> touched;
+  for (const mesh::ChunkKey& k : mesh::ChunksTouchedBy(Edits({{40, 0, 0}}), options_.chunk)) {
+    touched.insert({k.x, k.y, k.z});
+  }
+  ASSERT_FALSE(touched.empty());
+  ASSERT_LT(touched.size(), surface);
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  EXPECT_EQ(feed_->stats().chunks_encoded.load(), surface);  // nothing meshed while unwatched
+  std::set<Key> expected = touched;
+  {
+    std::lock_guard<std::mutex> lock(compute_mu_);
+    for (const mesh::ChunkKey& k : mesh::AllChunks(sculpture_, options_.chunk)) {
+      expected.insert({k.x, k.y, k.z});
+    }
+  }
+  FakeViewer& v = NewViewer(1);
+  ASSERT_TRUE(AddViewer(v).ok());
+  ASSERT_TRUE(WaitFor([&] { return v.size() >= expected.size(); }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  EXPECT_EQ(v.size(), expected.size());
+  EXPECT_EQ(feed_->stats().chunks_encoded.load(), surface + touched.size());
+  std::set<Key> got;
+  std::set<uint64_t> versions;
+  for (const auto& [key, count] : v.Keys(0, &versions)) {
+    got.insert(key);
+    EXPECT_EQ(count, 1);
+  }
+  EXPECT_EQ(got, expected);
+  EXPECT_EQ(versions, (std::set<uint64_t>{0u, 1u}));  // the warm-up's and the edit's
+}
+
+TEST_F(MeshFeedTest, WithoutObjectListNothingIsWarmed) {
+  MakeFeed();
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  EXPECT_TRUE(feed_->stats().warmed.load());
+  EXPECT_EQ(feed_->stats().warm_chunks.load(), 0u);
+  EXPECT_EQ(feed_->stats().chunks_encoded.load(), 0u);
 }
 
 }  // namespace
