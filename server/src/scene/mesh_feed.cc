@@ -287,8 +287,12 @@ void MeshFeed::Mesh(Work& w) {
     c.encode_ms =
         static_cast<float>(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
     codec::SharedFrame f = codec::EncodeMeshChunk(std::move(c));
-    stats_.chunks_encoded++;
-    stats_.chunk_bytes += f->size();
+    if (w.warm) {
+      stats_.warm_chunks++;
+    } else {
+      stats_.chunks_encoded++;
+      stats_.chunk_bytes += f->size();
+    }
     return f;
   };
   // The mesher's exception boundary (OpenVDB and Draco may throw): a chunk that throws is
@@ -308,14 +312,12 @@ void MeshFeed::Mesh(Work& w) {
                   w.object, what);
     return nullptr;
   };
-  // New viewers get what is cached at once, before anything is meshed (after a warm-up that is
-  // all but the chunks edited since): a cached chunk that is dirty is left out, its new mesh
-  // follows with the other viewers'.
+  // New viewers get everything cached at once, before anything is meshed (after a warm-up that
+  // is the whole object): a chunk edited since it was cached shows its older mesh until its new
+  // one follows below with the other viewers', rather than a hole while the mesher, behind
+  // sculptors' edits, gets to it.
   for (const ReplicaSink& s : w.full) {
-    for (const auto& [key, f] : cache) {
-      if (std::binary_search(w.dirty.begin(), w.dirty.end(), key)) continue;
-      s.send(f);
-    }
+    for (const auto& [key, f] : cache) s.send(f);
   }
   // Changed chunks go to every viewer; an emptied chunk is sent once (empty bytes) so
   // viewers drop it, then forgotten.
@@ -346,7 +348,6 @@ void MeshFeed::Mesh(Work& w) {
         auto f = encode(missing[i]);
         if (!f) continue;
         for (const ReplicaSink& s : w.full) s.send(f);
-        if (w.warm) stats_.warm_chunks++;
         std::lock_guard<std::mutex> lock(cache_mu);
         cache[missing[i]] = f;
       }

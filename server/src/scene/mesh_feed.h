@@ -70,7 +70,7 @@ class MeshFeed {
     std::function<std::vector<std::string>()> objects;
   };
   struct Stats {
-    std::atomic<uint64_t> chunks_encoded{0};
+    std::atomic<uint64_t> chunks_encoded{0};  // for viewers' updates (the warm-up's apart)
     std::atomic<uint64_t> chunk_bytes{0};
     std::atomic<uint64_t> updates{0};
     std::atomic<uint64_t> snapshot_us{0};  // compute-thread time spent copying for the mesher

@@ -72,6 +72,20 @@ class FakeViewer {
     }
     return keys;
   }
+  // Every chunk's versions in the order they were sent.
+  std::map<Key, std::vector<uint64_t>> Versions() {
+    std::map<Key, std::vector<uint64_t>> out;
+    for (const auto& f : frames()) {
+      codec::FrameReader reader;
+      reader.Feed(f->data(), f->size());
+      auto payload = reader.Next();
+      v1::ServerMessage m;
+      EXPECT_TRUE(payload.ok() && *payload && m.ParseFromString(**payload));
+      const v1::MeshChunk& c = m.mesh_chunk();
+      if (c.key_size() == 3) out[{c.key(0), c.key(1), c.key(2)}].push_back(c.version());
+    }
+    return out;
+  }
 
  private:
   uint64_t session_id_;
@@ -348,14 +362,14 @@ TEST_F(MeshFeedTest, WarmUpCachesEveryChunkSoTheFirstViewerNeedsNoMeshing) {
   ASSERT_GT(surface, 1u);
   ASSERT_TRUE(WaitFor([&] { return feed_->stats().warmed.load(); }));
   EXPECT_EQ(feed_->stats().warm_chunks.load(), surface);
-  EXPECT_EQ(feed_->stats().chunks_encoded.load(), surface);
+  EXPECT_EQ(feed_->stats().chunks_encoded.load(), 0u);
   EXPECT_EQ(feed_->stats().updates.load(), 0u);
   FakeViewer& v = NewViewer(1);
   ASSERT_TRUE(AddViewer(v).ok());
   ASSERT_TRUE(WaitFor([&] { return v.size() >= surface; }));
   std::this_thread::sleep_for(std::chrono::milliseconds(150));  // three more periods
   EXPECT_EQ(v.size(), surface);
-  EXPECT_EQ(feed_->stats().chunks_encoded.load(), surface);
+  EXPECT_EQ(feed_->stats().chunks_encoded.load(), 0u);  // nothing meshed for the viewer
   std::set<Key> expected;
   {
     std::lock_guard<std::mutex> lock(compute_mu_);
@@ -372,8 +386,9 @@ TEST_F(MeshFeedTest, WarmUpCachesEveryChunkSoTheFirstViewerNeedsNoMeshing) {
 }
 
 TEST_F(MeshFeedTest, EditsWhileNobodyWatchesAreMeshedForTheNextViewerOnly) {
-  // Edits after the warm-up leave their chunks dirty; the next viewer gets the untouched chunks
-  // from the cache and only the touched ones meshed again, at the edits' sequence, each once.
+  // Edits after the warm-up leave their chunks dirty. The next viewer is sent the whole cache at
+  // once (an edited chunk's older mesh included), then only the touched chunks meshed again, at
+  // the edit's sequence.
   warm_ = true;
   {
     // A larger sphere: one press touches a few of its chunks.
@@ -384,38 +399,47 @@ TEST_F(MeshFeedTest, EditsWhileNobodyWatchesAreMeshedForTheNextViewerOnly) {
     sculpture_ = std::move(levelset::Sculpture::MakeSphere(o, {0, 0, 0}, 40)).value();
   }
   MakeFeed();
-  const size_t surface = SurfaceChunks();
+  std::set<Key> cached;
+  {
+    std::lock_guard<std::mutex> lock(compute_mu_);
+    for (const mesh::ChunkKey& k : mesh::AllChunks(sculpture_, options_.chunk)) {
+      cached.insert({k.x, k.y, k.z});
+    }
+  }
   ASSERT_TRUE(WaitFor([&] { return feed_->stats().warmed.load(); }));
-  ASSERT_EQ(feed_->stats().warm_chunks.load(), surface);
+  ASSERT_EQ(feed_->stats().warm_chunks.load(), cached.size());
   std::set<Key> touched;
   for (const mesh::ChunkKey& k : mesh::ChunksTouchedBy(Edits({{40, 0, 0}}), options_.chunk)) {
     touched.insert({k.x, k.y, k.z});
   }
   ASSERT_FALSE(touched.empty());
-  ASSERT_LT(touched.size(), surface);
+  ASSERT_LT(touched.size(), cached.size());
   std::this_thread::sleep_for(std::chrono::milliseconds(150));
-  EXPECT_EQ(feed_->stats().chunks_encoded.load(), surface);  // nothing meshed while unwatched
-  std::set<Key> expected = touched;
-  {
-    std::lock_guard<std::mutex> lock(compute_mu_);
-    for (const mesh::ChunkKey& k : mesh::AllChunks(sculpture_, options_.chunk)) {
-      expected.insert({k.x, k.y, k.z});
-    }
-  }
+  // Nothing meshed while unwatched.
+  EXPECT_EQ(feed_->stats().chunks_encoded.load(), 0u);
   FakeViewer& v = NewViewer(1);
   ASSERT_TRUE(AddViewer(v).ok());
-  ASSERT_TRUE(WaitFor([&] { return v.size() >= expected.size(); }));
+  ASSERT_TRUE(WaitFor([&] { return feed_->stats().updates.load() >= 1; }));
   std::this_thread::sleep_for(std::chrono::milliseconds(150));
-  EXPECT_EQ(v.size(), expected.size());
-  EXPECT_EQ(feed_->stats().chunks_encoded.load(), surface + touched.size());
+  EXPECT_EQ(feed_->stats().updates.load(), 1u);
+  EXPECT_EQ(feed_->stats().chunks_encoded.load(), touched.size());
+  std::set<Key> expected = cached;
+  expected.insert(touched.begin(), touched.end());
   std::set<Key> got;
-  std::set<uint64_t> versions;
-  for (const auto& [key, count] : v.Keys(0, &versions)) {
+  for (const auto& [key, versions] : v.Versions()) {
     got.insert(key);
-    EXPECT_EQ(count, 1);
+    std::vector<uint64_t> want;
+    if (cached.count(key)) want.push_back(0);  // the warm-up's, at once
+    if (touched.count(key)) want.push_back(1);  // the edit's, meshed for this viewer
+    EXPECT_EQ(versions, want);
   }
   EXPECT_EQ(got, expected);
-  EXPECT_EQ(versions, (std::set<uint64_t>{0u, 1u}));  // the warm-up's and the edit's
+  // The whole cache came first: what follows it is the touched chunks, meshed anew.
+  std::set<uint64_t> late_versions;
+  std::set<Key> late;
+  for (const auto& [key, count] : v.Keys(cached.size(), &late_versions)) late.insert(key);
+  EXPECT_EQ(late, touched);
+  EXPECT_EQ(late_versions, std::set<uint64_t>{1u});
 }
 
 TEST_F(MeshFeedTest, WithoutObjectListNothingIsWarmed) {
