@@ -320,7 +320,13 @@ void MeshFeed::Mesh(Work& w) {
     for (const auto& [key, f] : cache) s.send(f);
   }
   // Changed chunks go to every viewer; an emptied chunk is sent once (empty bytes) so
-  // viewers drop it, then forgotten.
+  // viewers drop it, then forgotten. With a new viewer, chunks it holds nothing of yet (the
+  // surface edits moved into new chunks) come first: they are holes, the others show an older
+  // mesh meanwhile.
+  if (!w.full.empty()) {
+    std::stable_partition(w.dirty.begin(), w.dirty.end(),
+                          [&](const mesh::ChunkKey& key) { return !cache.count(key); });
+  }
   for (const mesh::ChunkKey& key : w.dirty) {
     if (stopping()) return;
     auto f = encode(key);
