@@ -199,14 +199,15 @@ void MeshFeed::Warm() {
     if (stopping()) return;
   }
   std::vector<Work> jobs = fut.get();
+  const double wait_ms = Micros(Clock::now() - t0) / 1000;
   for (Work& w : jobs) {
     if (stopping() || viewer_count_.load() > 0) break;
     Mesh(w);
   }
   if (jobs.empty() || stopping()) return;
-  spdlog::info("mesher: cache {}, {} chunks of {} object(s) in {:.0f} ms",
+  spdlog::info("mesher: cache {}, {} chunks of {} object(s) in {:.0f} ms ({:.0f} ms to copy)",
                viewer_count_.load() > 0 ? "warm-up cut short by a viewer" : "warmed",
-               stats_.warm_chunks.load(), jobs.size(), Micros(Clock::now() - t0) / 1000);
+               stats_.warm_chunks.load(), jobs.size(), Micros(Clock::now() - t0) / 1000, wait_ms);
 }
 
 void MeshFeed::Loop() {
@@ -346,7 +347,7 @@ void MeshFeed::Mesh(Work& w) {
     std::mutex cache_mu;
     std::atomic<size_t> next{0};
     auto worker = [&] {
-      RunInBackground(options_.nice);
+      RunInBackground(w.warm ? options_.warm_nice : options_.nice);
       // A warm-up gives way to a viewer that subscribes meanwhile: its first update sends what
       // is cached and meshes the rest for it, chunk by chunk.
       auto cut = [&] { return stopping() || (w.warm && viewer_count_.load() > 0); };
@@ -359,9 +360,12 @@ void MeshFeed::Mesh(Work& w) {
       }
     };
     const size_t threads = std::clamp<size_t>(std::thread::hardware_concurrency(), 1, 4);
+    // The warm-up runs on helpers only: the mesher thread keeps its nice value for viewers.
     std::vector<std::thread> helpers;
-    for (size_t t = 1; t < std::min(threads, missing.size()); ++t) helpers.emplace_back(worker);
-    worker();
+    for (size_t t = w.warm ? 0 : 1; t < std::min(threads, missing.size()); ++t) {
+      helpers.emplace_back(worker);
+    }
+    if (!w.warm) worker();
     for (std::thread& t : helpers) t.join();
   }
   if (!w.warm) stats_.updates++;

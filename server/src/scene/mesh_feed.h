@@ -53,6 +53,9 @@ class MeshFeed {
     /// The mesher threads' nice value, at least (a process already further back stays so):
     /// viewers' meshes yield the core to sculptors' edits where both compete for it.
     int nice = 10;
+    /// The warm-up threads' nice value, at least: the warm-up only prefetches, so it takes what
+    /// sculptors' edits, joins and viewers' meshes leave of a contended core.
+    int warm_nice = 19;
   };
   /// What the feed needs of its scene.
   struct Source {

@@ -10,6 +10,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
+#include <functional>
 #include <future>
 #include <map>
 #include <memory>
@@ -19,6 +20,7 @@
 #include <string>
 #include <thread>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "sculpt/codec/frame.h"
@@ -126,7 +128,9 @@ class MeshFeedTest : public ::testing::Test {
   // The feed with the stand-in compute thread: tasks run at once on the mesher's thread,
   // under compute_mu_ (unless `hold_tasks_`, which drops them as a compute thread that never
   // gets to them would).
-  void MakeFeed() {
+  void MakeFeed() { MakeFeedWithHook(nullptr); }
+  // As MakeFeed, with `hook` injected before the feed starts.
+  void MakeFeedWithHook(std::function<void(const std::string&)> hook) {
     MeshFeed::Source source;
     source.post = [this](std::function<void()> run, std::function<void(const Status&)>) {
       std::lock_guard<std::mutex> lock(compute_mu_);
@@ -141,6 +145,7 @@ class MeshFeedTest : public ::testing::Test {
     source.on_failure = [this] { ++failures_; };
     if (warm_) source.objects = [] { return std::vector<std::string>{"clay"}; };
     feed_ = std::make_unique<MeshFeed>(options_, std::move(source));
+    if (hook) feed_->InjectFaultForTesting(std::move(hook));
     feed_->Start();
   }
   Status AddViewer(FakeViewer& v, double rate_hz = 20) {
@@ -357,10 +362,24 @@ TEST_F(MeshFeedTest, WarmUpCachesEveryChunkSoTheFirstViewerNeedsNoMeshing) {
   // As after a restart: the feed meshes the object before anyone watches; the first viewer is
   // sent the cached chunks and nothing is meshed for it.
   warm_ = true;
-  MakeFeed();
+  const int process_nice = ThreadNice();
+  options_.warm_nice = 19;
+  // Created before Start, so the warm-up cannot outrun it; records each encoding thread's nice.
+  auto nices = std::make_shared<std::pair<std::mutex, std::set<int>>>();
+  MakeFeedWithHook([nices](const std::string& op) {
+    if (op != "mesh chunk") return;
+    std::lock_guard<std::mutex> lock(nices->first);
+    nices->second.insert(ThreadNice());
+  });
   const size_t surface = SurfaceChunks();
   ASSERT_GT(surface, 1u);
   ASSERT_TRUE(WaitFor([&] { return feed_->stats().warmed.load(); }));
+  {
+    // The warm-up yields to everything else: its threads run at warm_nice.
+    std::lock_guard<std::mutex> lock(nices->first);
+    EXPECT_EQ(nices->second, std::set<int>{std::max(process_nice, 19)});
+  }
+  EXPECT_EQ(ThreadNice(), process_nice);
   EXPECT_EQ(feed_->stats().warm_chunks.load(), surface);
   EXPECT_EQ(feed_->stats().chunks_encoded.load(), 0u);
   EXPECT_EQ(feed_->stats().updates.load(), 0u);
