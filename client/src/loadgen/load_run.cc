@@ -5,12 +5,14 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <thread>
 #include <vector>
 
@@ -21,6 +23,7 @@
 #include "sculpt/haptics/haptic_device.h"
 #include "sculpt/haptics/haptic_loop.h"
 #include "sculpt/haptics/sculpture_feed.h"
+#include "sculpt/mesh/chunk_mesher.h"
 
 namespace sculpt::client {
 namespace {
@@ -805,6 +808,121 @@ StatusOr<nlohmann::ordered_json> RunLateJoin(const LoadOptions& o) {
     r["bounds_max"] = {obj.bounds_max().x(), obj.bounds_max().y(), obj.bounds_max().z()};
   }
   (void)client.Close("late join measured");
+  return r;
+}
+
+StatusOr<nlohmann::ordered_json> RunMeshJoin(const LoadOptions& o, int chunk_voxels,
+                                             double timeout_s) {
+  std::string host;
+  uint16_t port = 0;
+  SCULPT_RETURN_IF_ERROR(ParseServerAddress(o.server, &host, &port));
+  mesh::ChunkMeshOptions mo;
+  mo.chunk_voxels = chunk_voxels;
+  SCULPT_RETURN_IF_ERROR(mesh::ValidateChunkMeshOptions(mo));
+  ClientOptions co;
+  co.tls = o.tls;
+  co.skip_state = true;
+  co.timeout = std::chrono::seconds(60);
+  co.max_frame_bytes = 256u << 20;  // a large object's region arrives as one load
+  std::atomic<uint64_t> join_retries{0};
+  // The chunks a complete mesh holds, from the object as a replica loads it.
+  std::string object = o.object;
+  std::set<std::array<int, 3>> expected;
+  double replica_ms = 0;
+  {
+    const auto t0 = Clock::now();
+    Client client(co);
+    auto joined = EnterScene(client, host, port, o.viewer_token, v1::ROLE_VIEWER,
+                             "mesh-join-replica", o.scene, &join_retries);
+    if (!joined.ok()) return joined.status();
+    if (object.empty() && joined->info.objects_size() > 0) object = joined->info.objects(0).name();
+    ReplicaOptions ro;
+    ro.object = object;
+    ro.snapshot_interval = std::chrono::milliseconds(10);
+    Replica replica(client, ro);
+    SCULPT_RETURN_IF_ERROR(replica.Start());
+    if (!replica.WaitLoaded(1, std::chrono::seconds(120))) {
+      return Status(Status::Code::kUnavailable, "mesh join: region not loaded within 120 s");
+    }
+    replica_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    auto snap = replica.Snapshot();
+    for (int i = 0; !snap && i < 500; ++i) {  // published on the replica's thread
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      snap = replica.Snapshot();
+    }
+    if (!snap) return Status(Status::Code::kUnavailable, "mesh join: replica has no snapshot");
+    for (const mesh::ChunkKey& k : mesh::AllChunks(*snap, mo)) expected.insert({k.x, k.y, k.z});
+    (void)client.Close("mesh join: chunks listed");
+  }
+  if (expected.empty()) return Status(Status::Code::kFailedPrecondition, "mesh join: no surface");
+  // The new viewer: every chunk key it receives, and when the expected set fills.
+  std::mutex mu;
+  std::set<std::array<int, 3>> got;
+  size_t hits = 0;
+  uint64_t frames = 0, bytes = 0, wrong_voxels = 0;
+  Client viewer(co);
+  const auto t_join = Clock::now();
+  auto joined = EnterScene(viewer, host, port, o.viewer_token, v1::ROLE_VIEWER, "mesh-join",
+                           o.scene, &join_retries);
+  if (!joined.ok()) return joined.status();
+  viewer.SetReplicationHandler([&](v1::ServerMessage&& m) {
+    if (!m.has_mesh_chunk() || m.mesh_chunk().object() != object) return;
+    const v1::MeshChunk& c = m.mesh_chunk();
+    if (c.key_size() != 3) return;
+    std::lock_guard<std::mutex> lock(mu);
+    ++frames;
+    bytes += c.draco().size();
+    if (static_cast<int>(c.chunk_voxels()) != chunk_voxels) ++wrong_voxels;
+    const std::array<int, 3> key{c.key(0), c.key(1), c.key(2)};
+    if (got.insert(key).second && expected.count(key)) ++hits;
+  });
+  const auto t_sub = Clock::now();
+  v1::ClientMessage sub;
+  sub.mutable_viewer_subscribe()->set_object(object);
+  sub.mutable_viewer_subscribe()->set_max_rate_hz(static_cast<float>(o.viewer_mesh_hz));
+  SCULPT_RETURN_IF_ERROR(viewer.SendMessage(sub));
+  const size_t n = expected.size();
+  const size_t at50 = (n + 1) / 2, at99 = std::max<size_t>(1, (n * 99 + 99) / 100);
+  double ms50 = -1, ms99 = -1, ms100 = -1;
+  auto ms = [&](Clock::time_point from) {
+    return Round3(std::chrono::duration<double, std::milli>(Clock::now() - from).count());
+  };
+  const auto deadline = t_sub + std::chrono::duration_cast<Clock::duration>(
+                                    std::chrono::duration<double>(timeout_s));
+  size_t reached = 0;
+  while (Clock::now() < deadline) {
+    {
+      std::lock_guard<std::mutex> lock(mu);
+      reached = hits;
+    }
+    if (ms50 < 0 && reached >= at50) ms50 = ms(t_sub);
+    if (ms99 < 0 && reached >= at99) ms99 = ms(t_sub);
+    if (reached >= n) {
+      ms100 = ms(t_sub);
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  const double join_ms = std::chrono::duration<double, std::milli>(t_sub - t_join).count();
+  viewer.SetReplicationHandler(nullptr);
+  std::lock_guard<std::mutex> lock(mu);
+  json r = {{"object", object},
+            {"chunk_voxels", chunk_voxels},
+            {"expected_chunks", n},
+            {"received_expected_chunks", reached},
+            {"complete", reached >= n},
+            {"join_ms", Round3(join_ms)},
+            {"subscribe_to_50pct_ms", ms50},
+            {"subscribe_to_99pct_ms", ms99},
+            {"subscribe_to_complete_ms", ms100},
+            {"join_to_complete_ms", ms100 < 0 ? -1.0 : Round3(join_ms + ms100)},
+            {"chunk_frames", frames},
+            {"chunk_draco_bytes", bytes},
+            {"chunks_with_other_chunk_voxels", wrong_voxels},
+            {"replica_load_ms", Round3(replica_ms)},
+            {"timeout_s", timeout_s},
+            {"server", o.server}};
+  (void)viewer.Close("mesh join measured");
   return r;
 }
 

@@ -52,6 +52,14 @@ struct LoadOptions {
 /// region is loaded.
 StatusOr<nlohmann::ordered_json> RunLateJoin(const LoadOptions& options);
 
+/// Mesh join: a replica client loads the object and lists the chunks holding surface
+/// (mesh::AllChunks at chunk_voxels), then a new viewer subscribes to the mesh; the time from its
+/// join (and from its subscription) until it holds every one of those chunks, and until 50% and
+/// 99% of them. Under concurrent edits a listed chunk may be emptied before it is meshed; the run
+/// then ends at `timeout_s` with `complete` false and the fractions reached.
+StatusOr<nlohmann::ordered_json> RunMeshJoin(const LoadOptions& options, int chunk_voxels,
+                                             double timeout_s);
+
 /// Connects every client, runs the sending phase, waits for the acks and returns the report.
 /// InvalidArgument for bad options; the connection's error when a client cannot join.
 StatusOr<nlohmann::ordered_json> RunLoad(const LoadOptions& options);

@@ -75,6 +75,18 @@ int main(int argc, char** argv) {
   bool late_join = false;
   app.add_flag("--late-join", late_join,
                "Only measure a late join: one replica loads the whole object (bytes, ms)");
+  bool mesh_join = false;
+  int mesh_chunk_voxels = 32;
+  double mesh_join_timeout_s = 120;
+  app.add_flag("--mesh-join", mesh_join,
+               "Only measure a mesh join: time until a new viewer holds every surface chunk "
+               "(subscribing at --viewer-mesh-hz)");
+  app.add_option("--mesh-chunk-voxels", mesh_chunk_voxels,
+                 "--mesh-join: the server's scene.mesh_chunk_voxels")
+      ->capture_default_str();
+  app.add_option("--mesh-join-timeout", mesh_join_timeout_s,
+                 "--mesh-join: give up after this many seconds")
+      ->capture_default_str();
   app.add_option("--undo-every", o.undo_every,
                  "Add one sculptor that undoes its own last stroke every N-th turn (0: none)")
       ->capture_default_str();
@@ -88,6 +100,23 @@ int main(int argc, char** argv) {
       return 2;
     }
     *token = *t;
+  }
+
+  if (mesh_join) {
+    auto mj = sculpt::client::RunMeshJoin(o, mesh_chunk_voxels, mesh_join_timeout_s);
+    if (!mj.ok()) {
+      spdlog::error("mesh join failed: {}", mj.status().ToString());
+      return 1;
+    }
+    if (as_json) {
+      std::printf("%s\n", mj->dump(2).c_str());
+    } else {
+      std::printf("mesh join: %zu of %zu chunks, complete %.1f ms after subscribing\n",
+                  (*mj)["received_expected_chunks"].get<size_t>(),
+                  (*mj)["expected_chunks"].get<size_t>(),
+                  (*mj)["subscribe_to_complete_ms"].get<double>());
+    }
+    return (*mj)["complete"].get<bool>() ? 0 : 3;
   }
 
   if (late_join) {

@@ -40,6 +40,7 @@ struct MeshFeed::Work {
   std::vector<ReplicaSink> all;   // every viewer of the object
   std::vector<ReplicaSink> full;  // viewers that need every chunk (new ones)
   mesh::QuantizationFrame frame;
+  bool warm = false;  // mesh every missing chunk into the cache, with or without viewers
 };
 
 MeshFeed::MeshFeed(Options options, Source source)
@@ -57,6 +58,7 @@ void MeshFeed::Stop() {
   {
     std::lock_guard<std::mutex> lock(mu_);
     stop_ = true;
+    stopping_ = true;
   }
   cv_.notify_all();
   if (thread_.joinable()) thread_.join();
@@ -78,13 +80,7 @@ Status MeshFeed::AddViewer(ReplicaSink sink, const codec::ViewerSubscription& re
   double rate = req.max_rate_hz;
   if (rate == 0) rate = std::min(10.0, max_rate);
   rate = std::min(rate, max_rate);
-  if (!frames_.count(req.object)) {
-    // One quantisation frame per object for as long as the server runs, wide enough for
-    // every edit the bounds margin allows, so chunk seams quantise identically.
-    auto frame = mesh::FrameAround(*sculpture, options_.frame_pad_voxels);
-    if (!frame.ok()) return frame.status();
-    frames_[req.object] = *frame;
-  }
+  if (auto frame = FrameOf(req.object, *sculpture); !frame.ok()) return frame.status();
   Viewer v;
   v.sink = std::move(sink);
   v.object = req.object;
@@ -94,18 +90,40 @@ Status MeshFeed::AddViewer(ReplicaSink sink, const codec::ViewerSubscription& re
   for (const auto& [id, viewer] : viewers_) period = std::min(period, viewer.period_s);
   period_s_ = period;
   viewer_count_ = static_cast<int>(viewers_.size());
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    woken_ = true;  // a new viewer is sent the cache at once, not a period later
+  }
   cv_.notify_all();
   return Status::Ok();
+}
+
+StatusOr<mesh::QuantizationFrame> MeshFeed::FrameOf(const std::string& object,
+                                                    const levelset::Sculpture& sculpture) {
+  auto it = frames_.find(object);
+  if (it != frames_.end()) return it->second;
+  // One quantisation frame per object for as long as the server runs, wide enough for every
+  // edit the bounds margin allows, so chunk seams quantise identically.
+  auto frame = mesh::FrameAround(sculpture, options_.frame_pad_voxels);
+  if (!frame.ok()) return frame.status();
+  frames_[object] = *frame;
+  return *frame;
 }
 
 void MeshFeed::RemoveViewer(uint64_t session_id) {
   viewers_.erase(session_id);
   viewer_count_ = static_cast<int>(viewers_.size());
-  if (viewers_.empty()) dirty_.clear();  // no meshing while nobody watches
+  if (viewers_.empty()) {
+    // No meshing while nobody watches; the dirty chunks of cached objects stay marked so the
+    // cache is brought up to date for the next viewer.
+    for (auto it = dirty_.begin(); it != dirty_.end();) {
+      it = cached_objects_.count(it->first) ? std::next(it) : dirty_.erase(it);
+    }
+  }
 }
 
 void MeshFeed::MarkDirty(const std::string& object, const std::vector<levelset::Int3>& leaves) {
-  if (viewers_.empty()) return;
+  if (viewers_.empty() && !cached_objects_.count(object)) return;
   std::set<mesh::ChunkKey>& d = dirty_[object];
   for (const mesh::ChunkKey& k : mesh::ChunksTouchedBy(leaves, options_.chunk)) d.insert(k);
 }
@@ -135,24 +153,80 @@ std::vector<MeshFeed::Work> MeshFeed::TakeWork() {
     w.copy = std::make_shared<const levelset::Sculpture>(sculpture->Clone());
     w.version = source_.seq();
     w.frame = frames_.at(name);
+    if (source_.objects) cached_objects_.insert(name);  // the cache outlives its viewers
     out.push_back(std::move(w));
   }
   stats_.snapshot_us += static_cast<uint64_t>(Micros(Clock::now() - t0));
   return out;
 }
 
+std::vector<MeshFeed::Work> MeshFeed::TakeWarmWork() {
+  const auto t0 = Clock::now();
+  std::vector<Work> out;
+  for (const std::string& name : source_.objects()) {
+    const levelset::Sculpture* sculpture = source_.find(name);
+    if (!sculpture) continue;
+    auto frame = FrameOf(name, *sculpture);
+    if (!frame.ok()) {
+      spdlog::warn("mesher: {} not warmed: {}", name, frame.status().ToString());
+      continue;
+    }
+    Work w;
+    w.object = name;
+    w.warm = true;
+    w.copy = std::make_shared<const levelset::Sculpture>(sculpture->Clone());
+    w.version = source_.seq();
+    w.frame = *frame;
+    // Edits from here on are marked dirty for the next viewer's first update.
+    dirty_.erase(name);
+    cached_objects_.insert(name);
+    out.push_back(std::move(w));
+  }
+  stats_.snapshot_us += static_cast<uint64_t>(Micros(Clock::now() - t0));
+  return out;
+}
+
+void MeshFeed::Warm() {
+  const auto t0 = Clock::now();
+  auto work = std::make_shared<std::promise<std::vector<Work>>>();
+  auto fut = work->get_future();
+  source_.post([this, work] { work->set_value(TakeWarmWork()); },
+               [work](const Status& s) {
+                 spdlog::warn("mesher: warm-up not taken: {}", s.ToString());
+                 work->set_value({});
+               });
+  while (fut.wait_for(std::chrono::milliseconds(50)) != std::future_status::ready) {
+    if (stopping()) return;
+  }
+  std::vector<Work> jobs = fut.get();
+  const double wait_ms = Micros(Clock::now() - t0) / 1000;
+  for (Work& w : jobs) {
+    if (stopping() || viewer_count_.load() > 0) break;
+    Mesh(w);
+  }
+  if (jobs.empty() || stopping()) return;
+  spdlog::info("mesher: cache {}, {} chunks of {} object(s) in {:.0f} ms ({:.0f} ms to copy)",
+               viewer_count_.load() > 0 ? "warm-up cut short by a viewer" : "warmed",
+               stats_.warm_chunks.load(), jobs.size(), Micros(Clock::now() - t0) / 1000, wait_ms);
+}
+
 void MeshFeed::Loop() {
   RunInBackground(options_.nice);
+  if (source_.objects) Warm();
+  stats_.warmed = true;
   for (;;) {
     {
       std::unique_lock<std::mutex> lock(mu_);
       const auto period = std::chrono::duration<double>(period_s_.load());
       cv_.wait_for(lock, std::chrono::duration_cast<Clock::duration>(period),
-                   [&] { return stop_; });
+                   [&] { return stop_ || woken_; });
+      woken_ = false;
       if (stop_) return;
       if (viewer_count_.load() == 0) {
-        cache_.clear();
+        // A cache that edits keep marked dirty stays; without a warm-up it is dropped.
+        if (!source_.objects) cache_.clear();
         cv_.wait(lock, [&] { return stop_ || viewer_count_.load() > 0; });
+        woken_ = false;
         if (stop_) return;
       }
     }
@@ -214,8 +288,12 @@ void MeshFeed::Mesh(Work& w) {
     c.encode_ms =
         static_cast<float>(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
     codec::SharedFrame f = codec::EncodeMeshChunk(std::move(c));
-    stats_.chunks_encoded++;
-    stats_.chunk_bytes += f->size();
+    if (w.warm) {
+      stats_.warm_chunks++;
+    } else {
+      stats_.chunks_encoded++;
+      stats_.chunk_bytes += f->size();
+    }
     return f;
   };
   // The mesher's exception boundary (OpenVDB and Draco may throw): a chunk that throws is
@@ -235,29 +313,33 @@ void MeshFeed::Mesh(Work& w) {
                   w.object, what);
     return nullptr;
   };
+  // New viewers get everything cached at once, before anything is meshed (after a warm-up that
+  // is the whole object): a chunk edited since it was cached shows its older mesh until its new
+  // one follows below with the other viewers', rather than a hole while the mesher, behind
+  // sculptors' edits, gets to it.
+  for (const ReplicaSink& s : w.full) {
+    for (const auto& [key, f] : cache) s.send(f);
+  }
   // Changed chunks go to every viewer; an emptied chunk is sent once (empty bytes) so
-  // viewers drop it, then forgotten.
+  // viewers drop it, then forgotten. With a new viewer, chunks it holds nothing of yet (the
+  // surface edits moved into new chunks) come first: they are holes, the others show an older
+  // mesh meanwhile.
+  if (!w.full.empty()) {
+    std::stable_partition(w.dirty.begin(), w.dirty.end(),
+                          [&](const mesh::ChunkKey& key) { return !cache.count(key); });
+  }
   for (const mesh::ChunkKey& key : w.dirty) {
+    if (stopping()) return;
     auto f = encode(key);
     if (!f) continue;
     for (const ReplicaSink& s : w.all) s.send(f);
     cache[key] = f;
   }
-  if (!w.full.empty()) {
-    // New viewers get what is cached at once, then every missing chunk as soon as it is
-    // encoded (not after the last one): the first pieces of a large object show while the
-    // rest is meshed. Missing chunks are meshed on up to hardware_concurrency threads, each
-    // reading the same immutable copy.
-    const bool dirty_sent_to_new = !w.dirty.empty();
-    for (const ReplicaSink& s : w.full) {
-      for (const auto& [key, f] : cache) {
-        // New viewers already got this update's dirty chunks above.
-        if (dirty_sent_to_new && std::binary_search(w.dirty.begin(), w.dirty.end(), key)) {
-          continue;
-        }
-        s.send(f);
-      }
-    }
+  if (!w.full.empty() || w.warm) {
+    // Every chunk not cached yet goes to the new viewers as soon as it is encoded (not after
+    // the last one): the first pieces of a large object show while the rest is meshed. Missing
+    // chunks are meshed on up to hardware_concurrency threads, each reading the same immutable
+    // copy.
     std::vector<mesh::ChunkKey> missing;
     for (const mesh::ChunkKey& key : mesh::AllChunks(*w.copy, mo)) {
       if (!cache.count(key)) missing.push_back(key);
@@ -265,8 +347,11 @@ void MeshFeed::Mesh(Work& w) {
     std::mutex cache_mu;
     std::atomic<size_t> next{0};
     auto worker = [&] {
-      RunInBackground(options_.nice);
-      for (size_t i; (i = next.fetch_add(1)) < missing.size();) {
+      RunInBackground(w.warm ? options_.warm_nice : options_.nice);
+      // A warm-up gives way to a viewer that subscribes meanwhile: its first update sends what
+      // is cached and meshes the rest for it, chunk by chunk.
+      auto cut = [&] { return stopping() || (w.warm && viewer_count_.load() > 0); };
+      for (size_t i; !cut() && (i = next.fetch_add(1)) < missing.size();) {
         auto f = encode(missing[i]);
         if (!f) continue;
         for (const ReplicaSink& s : w.full) s.send(f);
@@ -275,12 +360,15 @@ void MeshFeed::Mesh(Work& w) {
       }
     };
     const size_t threads = std::clamp<size_t>(std::thread::hardware_concurrency(), 1, 4);
+    // The warm-up runs on helpers only: the mesher thread keeps its nice value for viewers.
     std::vector<std::thread> helpers;
-    for (size_t t = 1; t < std::min(threads, missing.size()); ++t) helpers.emplace_back(worker);
-    worker();
+    for (size_t t = w.warm ? 0 : 1; t < std::min(threads, missing.size()); ++t) {
+      helpers.emplace_back(worker);
+    }
+    if (!w.warm) worker();
     for (std::thread& t : helpers) t.join();
   }
-  stats_.updates++;
+  if (!w.warm) stats_.updates++;
 }
 
 }  // namespace sculpt::server

@@ -126,7 +126,14 @@ Scene::Scene(const ServerConfig& config)
                        return it == sculptures_.end() ? nullptr : &it->second;
                      },
                      [this] { return applied_seq_.load(); },
-                     [this] { task_stats_.failures++; }}),
+                     [this] { task_stats_.failures++; },
+                     // Warm the viewers' chunk cache at open: the first viewer after a restart
+                     // is sent cached chunks while sculptors hold the core.
+                     [this] {
+                       std::vector<std::string> names;
+                       for (const auto& [name, sculpture] : sculptures_) names.push_back(name);
+                       return names;
+                     }}),
       config_(config) {
   settings_ = EditSettingsFor(config.scene);
 }

@@ -10,6 +10,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
+#include <functional>
 #include <future>
 #include <map>
 #include <memory>
@@ -19,6 +20,7 @@
 #include <string>
 #include <thread>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "sculpt/codec/frame.h"
@@ -72,6 +74,20 @@ class FakeViewer {
     }
     return keys;
   }
+  // Every chunk's versions in the order they were sent.
+  std::map<Key, std::vector<uint64_t>> Versions() {
+    std::map<Key, std::vector<uint64_t>> out;
+    for (const auto& f : frames()) {
+      codec::FrameReader reader;
+      reader.Feed(f->data(), f->size());
+      auto payload = reader.Next();
+      v1::ServerMessage m;
+      EXPECT_TRUE(payload.ok() && *payload && m.ParseFromString(**payload));
+      const v1::MeshChunk& c = m.mesh_chunk();
+      if (c.key_size() == 3) out[{c.key(0), c.key(1), c.key(2)}].push_back(c.version());
+    }
+    return out;
+  }
 
  private:
   uint64_t session_id_;
@@ -112,7 +128,9 @@ class MeshFeedTest : public ::testing::Test {
   // The feed with the stand-in compute thread: tasks run at once on the mesher's thread,
   // under compute_mu_ (unless `hold_tasks_`, which drops them as a compute thread that never
   // gets to them would).
-  void MakeFeed() {
+  void MakeFeed() { MakeFeedWithHook(nullptr); }
+  // As MakeFeed, with `hook` injected before the feed starts.
+  void MakeFeedWithHook(std::function<void(const std::string&)> hook) {
     MeshFeed::Source source;
     source.post = [this](std::function<void()> run, std::function<void(const Status&)>) {
       std::lock_guard<std::mutex> lock(compute_mu_);
@@ -125,7 +143,9 @@ class MeshFeedTest : public ::testing::Test {
     };
     source.seq = [this] { return seq_; };
     source.on_failure = [this] { ++failures_; };
+    if (warm_) source.objects = [] { return std::vector<std::string>{"clay"}; };
     feed_ = std::make_unique<MeshFeed>(options_, std::move(source));
+    if (hook) feed_->InjectFaultForTesting(std::move(hook));
     feed_->Start();
   }
   Status AddViewer(FakeViewer& v, double rate_hz = 20) {
@@ -179,6 +199,7 @@ class MeshFeedTest : public ::testing::Test {
   std::vector<std::function<void()>> held_;
   int posted_ = 0;  // guarded by compute_mu_
   std::atomic<int> failures_{0};
+  bool warm_ = false;  // the source lists its objects: the feed warms its cache at Start
 };
 
 TEST_F(MeshFeedTest, ViewerGetsTheChunksOfDirtyLeavesOncePerPeriod) {
@@ -335,6 +356,117 @@ TEST_F(MeshFeedTest, StopJoinsTheMesherEvenWhileItWaitsForTheComputeThread) {
   std::lock_guard<std::mutex> lock(compute_mu_);
   EXPECT_EQ(posted_, posted);
   feed_->Stop();  // idempotent
+}
+
+TEST_F(MeshFeedTest, WarmUpCachesEveryChunkSoTheFirstViewerNeedsNoMeshing) {
+  // As after a restart: the feed meshes the object before anyone watches; the first viewer is
+  // sent the cached chunks and nothing is meshed for it.
+  warm_ = true;
+  const int process_nice = ThreadNice();
+  options_.warm_nice = 19;
+  // Created before Start, so the warm-up cannot outrun it; records each encoding thread's nice.
+  auto nices = std::make_shared<std::pair<std::mutex, std::set<int>>>();
+  MakeFeedWithHook([nices](const std::string& op) {
+    if (op != "mesh chunk") return;
+    std::lock_guard<std::mutex> lock(nices->first);
+    nices->second.insert(ThreadNice());
+  });
+  const size_t surface = SurfaceChunks();
+  ASSERT_GT(surface, 1u);
+  ASSERT_TRUE(WaitFor([&] { return feed_->stats().warmed.load(); }));
+  {
+    // The warm-up yields to everything else: its threads run at warm_nice.
+    std::lock_guard<std::mutex> lock(nices->first);
+    EXPECT_EQ(nices->second, std::set<int>{std::max(process_nice, 19)});
+  }
+  EXPECT_EQ(ThreadNice(), process_nice);
+  EXPECT_EQ(feed_->stats().warm_chunks.load(), surface);
+  EXPECT_EQ(feed_->stats().chunks_encoded.load(), 0u);
+  EXPECT_EQ(feed_->stats().updates.load(), 0u);
+  FakeViewer& v = NewViewer(1);
+  ASSERT_TRUE(AddViewer(v).ok());
+  ASSERT_TRUE(WaitFor([&] { return v.size() >= surface; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));  // three more periods
+  EXPECT_EQ(v.size(), surface);
+  EXPECT_EQ(feed_->stats().chunks_encoded.load(), 0u);  // nothing meshed for the viewer
+  std::set<Key> expected;
+  {
+    std::lock_guard<std::mutex> lock(compute_mu_);
+    for (const mesh::ChunkKey& k : mesh::AllChunks(sculpture_, options_.chunk)) {
+      expected.insert({k.x, k.y, k.z});
+    }
+  }
+  std::set<Key> got;
+  for (const auto& [key, count] : v.Keys(0)) {
+    got.insert(key);
+    EXPECT_EQ(count, 1);
+  }
+  EXPECT_EQ(got, expected);
+}
+
+TEST_F(MeshFeedTest, EditsWhileNobodyWatchesAreMeshedForTheNextViewerOnly) {
+  // Edits after the warm-up leave their chunks dirty. The next viewer is sent the whole cache at
+  // once (an edited chunk's older mesh included), then only the touched chunks meshed again, at
+  // the edit's sequence.
+  warm_ = true;
+  {
+    // A larger sphere: one press touches a few of its chunks.
+    levelset::SculptureOptions o;
+    o.voxel_size = 1.0;
+    o.half_width = 4;
+    o.name = "clay";
+    sculpture_ = std::move(levelset::Sculpture::MakeSphere(o, {0, 0, 0}, 40)).value();
+  }
+  MakeFeed();
+  std::set<Key> cached;
+  {
+    std::lock_guard<std::mutex> lock(compute_mu_);
+    for (const mesh::ChunkKey& k : mesh::AllChunks(sculpture_, options_.chunk)) {
+      cached.insert({k.x, k.y, k.z});
+    }
+  }
+  ASSERT_TRUE(WaitFor([&] { return feed_->stats().warmed.load(); }));
+  ASSERT_EQ(feed_->stats().warm_chunks.load(), cached.size());
+  std::set<Key> touched;
+  for (const mesh::ChunkKey& k : mesh::ChunksTouchedBy(Edits({{40, 0, 0}}), options_.chunk)) {
+    touched.insert({k.x, k.y, k.z});
+  }
+  ASSERT_FALSE(touched.empty());
+  ASSERT_LT(touched.size(), cached.size());
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  // Nothing meshed while unwatched.
+  EXPECT_EQ(feed_->stats().chunks_encoded.load(), 0u);
+  FakeViewer& v = NewViewer(1);
+  ASSERT_TRUE(AddViewer(v).ok());
+  ASSERT_TRUE(WaitFor([&] { return feed_->stats().updates.load() >= 1; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  EXPECT_EQ(feed_->stats().updates.load(), 1u);
+  EXPECT_EQ(feed_->stats().chunks_encoded.load(), touched.size());
+  std::set<Key> expected = cached;
+  expected.insert(touched.begin(), touched.end());
+  std::set<Key> got;
+  for (const auto& [key, versions] : v.Versions()) {
+    got.insert(key);
+    std::vector<uint64_t> want;
+    if (cached.count(key)) want.push_back(0);  // the warm-up's, at once
+    if (touched.count(key)) want.push_back(1);  // the edit's, meshed for this viewer
+    EXPECT_EQ(versions, want);
+  }
+  EXPECT_EQ(got, expected);
+  // The whole cache came first: what follows it is the touched chunks, meshed anew.
+  std::set<uint64_t> late_versions;
+  std::set<Key> late;
+  for (const auto& [key, count] : v.Keys(cached.size(), &late_versions)) late.insert(key);
+  EXPECT_EQ(late, touched);
+  EXPECT_EQ(late_versions, std::set<uint64_t>{1u});
+}
+
+TEST_F(MeshFeedTest, WithoutObjectListNothingIsWarmed) {
+  MakeFeed();
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  EXPECT_TRUE(feed_->stats().warmed.load());
+  EXPECT_EQ(feed_->stats().warm_chunks.load(), 0u);
+  EXPECT_EQ(feed_->stats().chunks_encoded.load(), 0u);
 }
 
 }  // namespace
