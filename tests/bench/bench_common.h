@@ -102,6 +102,7 @@ struct EditBenchOptions {
   uint64_t seed = 20240601;
   bool skip_strokes = false;
   std::vector<std::string> kinds;  // edit kinds to run (press, add, ...); empty: all
+  bool repair_band_every_edit = false;  // EditSettings::repair_band_every_edit
 };
 
 /// Options of `sculpt-bench accuracy`.

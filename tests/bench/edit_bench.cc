@@ -212,7 +212,9 @@ Json RunRadius(double R, const EditBenchOptions& o, Json* naive_out) {
     *naive_out = RunNaive(*s.impl().grid, R, o.naive_edits, o.seed ^ 0x9e3779b97f4a7c15ULL, o);
   }
 
-  const EditSettings settings{};
+  EditSettings settings{};
+  settings.repair_band_every_edit = o.repair_band_every_edit;
+  out["repair_band_every_edit"] = settings.repair_band_every_edit;
   std::mt19937_64 rng(o.seed + static_cast<uint64_t>(R) + 1);
 
   // What validation costs on its own (ApplyEdit validates before its own clock starts).

@@ -105,6 +105,9 @@ int main(int argc, char** argv) {
   edit->add_option("--tool-radius", eo.tool_radius, "tool radius in voxels");
   edit->add_option("--penetration", eo.penetration, "tool penetration in voxels");
   edit->add_option("--seed", eo.seed, "random seed");
+  edit->add_flag("--repair-band-every-edit", eo.repair_band_every_edit,
+                 "scan every edit's block for slivers and a torn band and rebuild it "
+                 "(EditSettings::repair_band_every_edit)");
 
   sculpt::bench::AccuracyBenchOptions ao;
   CLI::App* acc = app.add_subcommand(

@@ -252,11 +252,14 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   b.ClampToBand();
   lap(res.stage_ms.operators);
   const bool offset_kind = kind == EditKind::kInflate || kind == EditKind::kDeflate;
-  // Slivers come from offsets that rewrite the band and from the box's sharp edges (ribs). A
-  // smooth tool's press, smooth or CSG edit leaves none the reinitialisation does not
-  // straighten, and scanning for them doubled a press's cost (and halved the server's edit
-  // throughput), so those skip the sliver and band-repair passes.
-  bool resolve = offset_kind;
+  // Slivers come from offsets that rewrite the band and from the box's sharp edges (ribs).
+  // Presses with smooth tools, smooths and CSG edits leave slivers and torn bands too (the
+  // random-edit property test finds them after about one edit in five), but scanning for them
+  // doubled a press's cost (and halved the server's edit throughput), so by default those skip
+  // the sliver and band-repair passes; repair_band_every_edit runs both for every edit. The band
+  // repair scans the whole block for a torn band only for these (Resolve's always_repair).
+  const bool repair_all = offset_kind || s.repair_band_every_edit;
+  bool resolve = repair_all;
   for (const EditRequest& req : reqs) resolve = resolve || req.tool.kind == ToolKind::kBox;
   const bool resolve_slivers = touched && resolve;
   // Slivers the operators left are emptied now. After an inflate or deflate the band repair
@@ -326,7 +329,7 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   // Slivers emptied and the band rebuilt where the operators, the islands policy, the
   // compensation or the reinitialisation left it broken, before the last compensation restores
   // the volume that took.
-  if (resolve_slivers) Resolve(b, repair, offset_kind);
+  if (resolve_slivers) Resolve(b, repair, repair_all);
   lap(res.stage_ms.resolve);
 
   // Compensation once more: the reinitialisation moved the interface slightly (by far less
@@ -345,7 +348,7 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   // slivers that regrows along the tool's sharp edges (it would regrow them again) are emptied
   // without a band repair, and like removed islands that clay is gone on purpose: the
   // reference volume is re-baselined by it.
-  if (resolve_slivers && Resolve(b, repair, offset_kind) && compensate &&
+  if (resolve_slivers && Resolve(b, repair, repair_all) && compensate &&
       s.compensation == CompensationRegion::kShell) {
     CompensationOutcome c = CompensateShell(b, reference, base_volume, shell_outer, s, shell_cache);
     res.compensation_iterations += c.iterations;

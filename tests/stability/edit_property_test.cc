@@ -1,0 +1,48 @@
+// Issue 11, part 1: the random-edit property test (stability/edit_property.h) at the server's
+// settings, with and without the band repair on every edit. A longer run is in
+// tests/soak/edit_property_soak_test.cc.
+#include "stability/edit_property.h"
+
+#include <gtest/gtest.h>
+
+namespace sculpt::levelset {
+namespace {
+
+using testing::Counts;
+using testing::RunSeeds;
+using testing::ServerSettings;
+
+// Under the sanitizers an edit costs about ten times as much: fewer edits, the same checks.
+#if defined(__SANITIZE_ADDRESS__)
+constexpr int kEditsPerSeed = 40;
+#else
+constexpr int kEditsPerSeed = 150;
+#endif
+
+// At the server's defaults every random edit leaves a closed, outward mesh; the band checks and
+// the volume bound do not hold yet (docs/benchmarks.md, "Invariants under random edits"): the
+// counts are printed and recorded, and asserted by the test below with the band repair on.
+TEST(EditProperty, RandomEditsLeaveAClosedMeshAtTheDefaults) {
+  const Counts c = RunSeeds({1, 2, 3, 4}, kEditsPerSeed, ServerSettings());
+  EXPECT_EQ(c.edits, 4 * kEditsPerSeed);
+  EXPECT_EQ(c.mesh_open, 0) << c.summary;
+}
+
+// With the band repair on every edit, no edit leaves a sliver, the zero crossing at the band's
+// edge, or a piece or pocket below min_island_volume. Two invariants of issue 11 still fail on
+// a few edits (|grad phi| outside [0.5, 1.5]; mesh volume more than 1% from the tracked volume
+// on this small clay): counted, not asserted, until they hold.
+TEST(EditProperty, RandomEditsWithTheBandRepairLeaveNoSliversOrSpecks) {
+  EditSettings set = ServerSettings();
+  set.repair_band_every_edit = true;
+  const Counts c = RunSeeds({1, 2, 3, 4}, kEditsPerSeed, set);
+  EXPECT_EQ(c.edits, 4 * kEditsPerSeed);
+  EXPECT_EQ(c.mesh_open, 0) << c.summary;
+  EXPECT_EQ(c.thin, 0) << c.summary;
+  EXPECT_EQ(c.band_edge, 0) << c.summary;
+  EXPECT_EQ(c.small_pieces, 0) << c.summary;
+  EXPECT_EQ(c.small_voids, 0) << c.summary;
+}
+
+}  // namespace
+}  // namespace sculpt::levelset
