@@ -114,6 +114,36 @@ std::string StateOf(const SceneView& s) {
   return "no owner";
 }
 
+const cluster::MemberRecord* MemberNamed(const ClusterView& v, const std::string& name) {
+  for (const cluster::MemberRecord& m : v.members) {
+    if (m.name == name) return &m;
+  }
+  return nullptr;
+}
+
+// How far the scene's standby is behind its owner, in edits, from the two members' records
+// (each as of its last refresh, every TTL/4): nullopt when either is missing or the standby's
+// copy is still loading.
+std::optional<uint64_t> StandbyLag(const ClusterView& v, const std::string& name,
+                                   const SceneView& s) {
+  if (!s.owner || !s.standby) return std::nullopt;
+  const cluster::MemberRecord* owner = MemberNamed(v, s.owner->member);
+  const cluster::MemberRecord* standby = MemberNamed(v, StandbyMember(*s.standby));
+  if (!owner || !standby || standby->follows != name ||
+      std::find(owner->owns.begin(), owner->owns.end(), name) == owner->owns.end()) {
+    return std::nullopt;
+  }
+  return owner->scene_seq > standby->follow_seq ? owner->scene_seq - standby->follow_seq : 0;
+}
+
+// StateOf, and whether the owner's synchronous acks have fallen back to async.
+std::string FullStateOf(const ClusterView& v, const SceneView& s) {
+  std::string state = StateOf(s);
+  const cluster::MemberRecord* owner = s.owner ? MemberNamed(v, s.owner->member) : nullptr;
+  if (owner && owner->acks_async) state += ", acks async (the standby is not confirming)";
+  return state;
+}
+
 void PrintTable(const ClusterView& v, const ClusterStatusOptions& o) {
   std::printf("cluster %s at %s: %zu member%s, %zu scene%s\n", o.prefix.c_str(),
               Join(o.etcd).c_str(), v.members.size(), v.members.size() == 1 ? "" : "s",
@@ -125,13 +155,15 @@ void PrintTable(const ClusterView& v, const ClusterStatusOptions& o) {
                 m.http.empty() ? "-" : m.http.c_str(), m.sessions, Join(m.owns).c_str());
   }
   for (const std::string& u : v.unreadable_members) std::printf("unreadable %s\n", u.c_str());
-  std::printf("\nscenes:\n%-16s  %-16s  %6s  %-16s  %s\n", "scene", "owner", "epoch", "standby",
-              "state");
+  std::printf("\nscenes:\n%-16s  %-16s  %6s  %-16s  %8s  %s\n", "scene", "owner", "epoch",
+              "standby", "lag", "state");
   for (const auto& [name, s] : v.scenes) {
-    std::printf("%-16s  %-16s  %6llu  %-16s  %s\n", name.c_str(),
+    const std::optional<uint64_t> lag = StandbyLag(v, name, s);
+    std::printf("%-16s  %-16s  %6llu  %-16s  %8s  %s\n", name.c_str(),
                 s.owner ? s.owner->member.c_str() : "-",
                 static_cast<unsigned long long>(EpochOf(s)),
-                s.standby ? StandbyMember(*s.standby).c_str() : "-", StateOf(s).c_str());
+                s.standby ? StandbyMember(*s.standby).c_str() : "-",
+                lag ? std::to_string(*lag).c_str() : "-", FullStateOf(v, s).c_str());
     for (const std::string& u : s.unreadable) std::printf("  unreadable %s\n", u.c_str());
   }
 }
@@ -144,7 +176,11 @@ json ToJson(const ClusterView& v, const ClusterStatusOptions& o) {
                        {"http", m.http},
                        {"offers", m.offers},
                        {"owns", m.owns},
-                       {"sessions", m.sessions}});
+                       {"sessions", m.sessions},
+                       {"follows", m.follows},
+                       {"follow_seq", m.follow_seq},
+                       {"scene_seq", m.scene_seq},
+                       {"acks_async", m.acks_async}});
   }
   json scenes = json::array();
   for (const auto& [name, s] : v.scenes) {
@@ -155,7 +191,8 @@ json ToJson(const ClusterView& v, const ClusterStatusOptions& o) {
               {"epoch", EpochOf(s)},
               {"last_owner", s.epoch ? json(s.epoch->member) : json()},
               {"standby", s.standby ? json(StandbyMember(*s.standby)) : json()},
-              {"state", StateOf(s)},
+              {"state", FullStateOf(v, s)},
+              {"standby_lag", StandbyLag(v, name, s) ? json(*StandbyLag(v, name, s)) : json()},
               {"unreadable", s.unreadable}};
     if (s.standby) {
       const json raw = json::parse(*s.standby, nullptr, /*allow_exceptions=*/false);

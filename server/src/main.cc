@@ -392,6 +392,7 @@ int main(int argc, char** argv) {
         [&server] { return static_cast<uint32_t>(server.JoinedSeats().joined); });
     (*scene)->set_ownership_fence(cluster->fence());
     cluster->set_scene_seq([sc = scene->get()] { return sc->global_seq(); });
+    cluster->set_acks_async([sc = scene->get()] { return sc->acks().fallen_back(); });
     server.set_router(cluster.get());
     // A standby follows another owner's scene and, on failover, restarts on its copy.
     sculpt::server::cluster::StandbyOptions standby{config.data_dir, config.viewer_token,

@@ -116,6 +116,24 @@ TEST_F(ClusterStatusTest, ListsBothMembersAndTheOwnerAndEpochOfTheScene) {
       Sculpt("cluster status --etcd " + etcd_->endpoint() + " --prefix t/ --json");
   ASSERT_EQ(with_standby.exit_code, 0) << with_standby.output;
   EXPECT_EQ(JsonOf(with_standby.output)["scenes"][0]["standby"], "b") << with_standby.output;
+  // Once b's copy is loaded, the scene's row says how far b is behind a: nothing, since nobody
+  // sculpted. a's synchronous acks (async here) have not fallen back.
+  json lagged;
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        const RunResult r =
+            Sculpt("cluster status --etcd " + etcd_->endpoint() + " --prefix t/ --json");
+        lagged = JsonOf(r.output);
+        return lagged.is_object() && lagged["scenes"][0]["standby_lag"].is_number();
+      },
+      milliseconds(15000)))
+      << "no standby lag in the status; see " << dir_.path() / "b.log" << "\n" << lagged.dump();
+  EXPECT_EQ(lagged["scenes"][0]["standby_lag"], 0) << lagged.dump();
+  EXPECT_EQ(lagged["scenes"][0]["state"], "owned") << lagged.dump();
+  for (const json& m : lagged["members"]) {
+    EXPECT_EQ(m["acks_async"], false) << lagged.dump();
+    if (m["name"] == "b") EXPECT_EQ(m["follows"], "default") << lagged.dump();
+  }
 
   // The table names the same.
   const RunResult table = Sculpt("cluster status --etcd " + etcd_->endpoint() + " --prefix t/");

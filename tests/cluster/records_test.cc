@@ -41,15 +41,23 @@ TEST(ClusterRecordsTest, StandbyAndFollowRoundTrip) {
   MemberRecord m{"a", "h:1", "", {"default"}, {}, 0};
   m.follows = "default";
   m.follow_seq = 42;
+  m.scene_seq = 57;
+  m.acks_async = true;
   auto back = DecodeMember(EncodeMember(m));
   ASSERT_TRUE(back.ok()) << back.status();
   EXPECT_TRUE(back->standby);
   EXPECT_EQ(back->follows, "default");
   EXPECT_EQ(back->follow_seq, 42u);
+  EXPECT_EQ(back->scene_seq, 57u);
+  EXPECT_TRUE(back->acks_async);
+  EXPECT_FALSE(
+      DecodeMember(R"({"name":"a","tcp":"h:1","sessions":0,"acks_async":"yes"})").ok());
   // A record without the field (an older member) may not follow; a wrong type is refused.
   auto old = DecodeMember(R"({"name":"a","tcp":"h:1","sessions":0})");
   ASSERT_TRUE(old.ok()) << old.status();
   EXPECT_FALSE(old->standby);
+  EXPECT_EQ(old->scene_seq, 0u);
+  EXPECT_FALSE(old->acks_async);
   EXPECT_FALSE(DecodeMember(R"({"name":"a","tcp":"h:1","sessions":0,"standby":1})").ok());
   const Keys k{"p/"};
   std::string scene, kind;

@@ -76,7 +76,11 @@ MemberRecord ClusterAgent::SelfRecord() const {
   m.tcp = tcp_;
   m.http = http_;
   m.offers = {scene_};
-  if (owned_) m.owns = {scene_};
+  if (owned_) {
+    m.owns = {scene_};
+    m.scene_seq = scene_seq_ ? scene_seq_() : 0;
+    m.acks_async = acks_async_ && acks_async_();
+  }
   m.sessions = sessions_ ? sessions_() : 0;
   m.standby = standby_.has_value();
   if (follower_ && follower_->ready()) {

@@ -74,6 +74,11 @@ class ClusterAgent : public SceneRouter {
   void set_scene_seq(std::function<uint64_t()> scene_seq) {
     if (!started_) scene_seq_ = std::move(scene_seq);
   }
+  /// Whether the scene's synchronous acks have fallen back to async (AckGate::fallen_back), for
+  /// the member record; call before Start.
+  void set_acks_async(std::function<bool()> acks_async) {
+    if (!started_) acks_async_ = std::move(acks_async);
+  }
   /// Revokes the lease (this member's keys and its scene's owner key go at once), stops the
   /// loop and fences the scene. Idempotent.
   void Stop();
@@ -143,6 +148,7 @@ class ClusterAgent : public SceneRouter {
   std::vector<Retired> retired_;  // followers being stopped (a stop may wait on a connect)
   std::atomic<uint64_t> follow_seq_{0};
   std::function<uint64_t()> scene_seq_;  // set before Start
+  std::function<bool()> acks_async_;
   // The move in progress (agent's thread): fenced for it since move_fenced_at_; the owner's
   // sequence when the target was first seen following (its copy must reach it before the fence).
   bool move_fenced_ = false;

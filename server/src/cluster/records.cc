@@ -64,7 +64,8 @@ Status List(const Json& j, const std::string& field, std::vector<std::string>* o
 std::string EncodeMember(const MemberRecord& m) {
   return Json{{"name", m.name},     {"tcp", m.tcp},   {"http", m.http},
               {"offers", m.offers}, {"owns", m.owns}, {"sessions", m.sessions},
-              {"standby", m.standby}, {"follows", m.follows}, {"follow_seq", m.follow_seq}}
+              {"standby", m.standby}, {"follows", m.follows}, {"follow_seq", m.follow_seq},
+              {"scene_seq", m.scene_seq}, {"acks_async", m.acks_async}}
       .dump();
 }
 
@@ -124,6 +125,12 @@ StatusOr<MemberRecord> DecodeMember(const std::string& text) {
   }
   SCULPT_RETURN_IF_ERROR(Text(j, "follows", false, &m.follows));
   if (j.contains("follow_seq")) SCULPT_RETURN_IF_ERROR(Count(j, "follow_seq", &m.follow_seq));
+  // Written by members since the eleventh session (absent: 0 and false).
+  if (j.contains("scene_seq")) SCULPT_RETURN_IF_ERROR(Count(j, "scene_seq", &m.scene_seq));
+  if (const auto it = j.find("acks_async"); it != j.end()) {
+    if (!it->is_boolean()) return Outside("acks_async", it->dump().substr(0, 64), "true or false");
+    m.acks_async = it->get<bool>();
+  }
   return m;
 }
 

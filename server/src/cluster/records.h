@@ -22,6 +22,10 @@ struct MemberRecord {
   bool standby = true;              // may follow another owner's scene (cluster.standby)
   std::string follows = {};         // the scene it follows as standby now, empty when none
   uint64_t follow_seq = 0;          // the last sequence of it logged durably in its standby copy
+  uint64_t scene_seq = 0;   // the last sequence of the scene it owns (its standbys' lag: this
+                            // minus their follow_seq), at the record's refresh; 0 when none
+  bool acks_async = false;  // it owns a sync scene that has fallen back to async (its standby
+                            // confirmed nothing within sync_fallback_ms)
 };
 
 /// `scenes/<scene>/owner`, under the owner's lease.
