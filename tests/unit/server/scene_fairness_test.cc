@@ -39,6 +39,12 @@ class SceneFairnessTest : public ::testing::Test {
     auto s = Scene::Open(c);
     ASSERT_TRUE(s.ok()) << s.status();
     scene_ = std::move(s).value();
+    // The viewers' mesh cache is warmed at open by one job on the compute thread: let it pass,
+    // so the queues below hold the test's jobs only.
+    for (int i = 0; i < 2000 && !scene_->mesh_stats().warmed.load(); ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    ASSERT_TRUE(scene_->mesh_stats().warmed.load()) << "the mesh cache's warm-up did not end";
     // The first stroke holds the compute thread until released, so the queue behind it is
     // built deterministically.
     scene_->InjectTaskFaultForTesting([this](const std::string& op) {
