@@ -42,6 +42,19 @@ bool ExactDistance(const ToolShape& t) {
   return t.kind == ToolKind::kSphere || t.kind == ToolKind::kCapsule;
 }
 
+// The bounds of every tool of a batch.
+Aabb BatchBounds(const std::vector<EditRequest>& reqs) {
+  Aabb tb = ToolBounds(reqs.front().tool);
+  for (const EditRequest& r : reqs) {
+    const Aabb a = ToolBounds(r.tool);
+    tb.min = {std::min(tb.min.x, a.min.x), std::min(tb.min.y, a.min.y),
+              std::min(tb.min.z, a.min.z)};
+    tb.max = {std::max(tb.max.x, a.max.x), std::max(tb.max.y, a.max.y),
+              std::max(tb.max.z, a.max.z)};
+  }
+  return tb;
+}
+
 }  // namespace
 
 // Spheres and capsules, the tools strokes use, skip the generic dispatch: this loop is a hot
@@ -115,14 +128,7 @@ BlockPlan PlanBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>&
 
 internal::IndexBox BlockBox(const Sculpture::Impl& impl, const std::vector<EditRequest>& reqs,
                             double reach) {
-  Aabb tb = ToolBounds(reqs.front().tool);
-  for (const EditRequest& r : reqs) {
-    const Aabb a = ToolBounds(r.tool);
-    tb.min = {std::min(tb.min.x, a.min.x), std::min(tb.min.y, a.min.y),
-              std::min(tb.min.z, a.min.z)};
-    tb.max = {std::max(tb.max.x, a.max.x), std::max(tb.max.y, a.max.y),
-              std::max(tb.max.z, a.max.z)};
-  }
+  const Aabb tb = BatchBounds(reqs);
   const Vec3 r{reach, reach, reach};
   return internal::WorldToIndexBox(tb.min - r, tb.max + r, impl.dx(), kBlockPad);
 }
@@ -157,14 +163,7 @@ Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& req
     // the nearest centre minus the radius, one square root per voxel instead of one per pose.
     b.tool_sdf.assign(b.phi.size(), std::numeric_limits<float>::max());
     const Int3 o = b.box.min;
-    Aabb tb = ToolBounds(reqs.front().tool);
-    for (const EditRequest& q : reqs) {
-      const Aabb a = ToolBounds(q.tool);
-      tb.min = {std::min(tb.min.x, a.min.x), std::min(tb.min.y, a.min.y),
-                std::min(tb.min.z, a.min.z)};
-      tb.max = {std::max(tb.max.x, a.max.x), std::max(tb.max.y, a.max.y),
-                std::max(tb.max.z, a.max.z)};
-    }
+    const Aabb tb = BatchBounds(reqs);
     int lo[3], hi[3];
     RangeNear(b, tb, margin, lo, hi);
     const double r = reqs.front().tool.size.x;

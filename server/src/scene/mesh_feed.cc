@@ -58,7 +58,6 @@ void MeshFeed::Stop() {
   {
     std::lock_guard<std::mutex> lock(mu_);
     stop_ = true;
-    stopping_ = true;
   }
   cv_.notify_all();
   if (thread_.joinable()) thread_.join();

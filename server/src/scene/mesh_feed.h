@@ -130,7 +130,7 @@ class MeshFeed {
   StatusOr<mesh::QuantizationFrame> FrameOf(const std::string& object,
                                             const levelset::Sculpture& sculpture);
   void Mesh(Work& w);
-  bool stopping() const { return stopping_.load(std::memory_order_relaxed); }
+  bool stopping() const { return stop_.load(std::memory_order_relaxed); }
 
   const Options options_;
   const Source source_;
@@ -148,9 +148,9 @@ class MeshFeed {
   std::atomic<double> period_s_{0.1};
   std::mutex mu_;
   std::condition_variable cv_;
-  bool stop_ = false;                              // guarded by mu_
+  // Set under mu_ (the waits below test it); read without the lock between chunks.
+  std::atomic<bool> stop_{false};
   bool woken_ = false;  // guarded by mu_: a new viewer, take work without waiting a period
-  std::atomic<bool> stopping_{false};  // stop_, read between chunks
   std::function<void(const std::string&)> fault_;  // guarded by mu_
   std::thread thread_;
 };
