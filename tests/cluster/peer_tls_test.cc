@@ -8,9 +8,7 @@
 
 #include <fstream>
 #include <iterator>
-#include <map>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <vector>
 
@@ -22,6 +20,7 @@
 namespace sculpt::server::cluster {
 namespace {
 
+using sculpt::testing::AckLog;
 using sculpt::testing::EtcdTest;
 using sculpt::testing::Member;
 using sculpt::testing::Pki;
@@ -93,13 +92,7 @@ TEST_F(PeerTlsTest, TlsClusterFollowsSyncsAndFailsOver) {
       << "b's copy over TLS never completed; see " << dir_.path() / "b.log";
 
   sculpt::client::Client client(TlsClient());
-  std::mutex mu;
-  std::map<uint64_t, uint64_t> acked;  // client_seq -> last global seq of the stroke
-  client.SetEventHandler([&](const sculpt::client::Event& e) {
-    if (e.type != sculpt::client::Event::Type::kAck) return;
-    std::lock_guard<std::mutex> lock(mu);
-    acked[e.ack.client_seq()] = e.ack.global_seq_first() + e.ack.edits() - 1;
-  });
+  AckLog acks(client);
   ASSERT_TRUE(client.Connect("127.0.0.1", a.port()).ok());
   ASSERT_TRUE(client.Hello("sculpt-dev-sculptor", v1::ROLE_SCULPTOR, "tls-sculptor", 0).ok());
   ASSERT_TRUE(client.Join("").ok());
@@ -110,17 +103,11 @@ TEST_F(PeerTlsTest, TlsClusterFollowsSyncsAndFailsOver) {
     ASSERT_TRUE(client.SendStroke(stroke).ok());
   }
   // Each ack waited for b's progress, which reaches a only over b's TLS session.
-  ASSERT_TRUE(WaitFor(
-      [&] {
-        std::lock_guard<std::mutex> lock(mu);
-        return acked.size() == 12;
-      },
-      milliseconds(20000)))
+  ASSERT_TRUE(WaitFor([&] { return acks.size() == 12; }, milliseconds(20000)))
       << "a did not acknowledge the strokes; see " << dir_.path() / "a.log";
-  client.SetEventHandler(nullptr);
+  acks.Stop();
   client.DropConnection();
-  uint64_t highest = 0;
-  for (const auto& [cs, gs] : acked) highest = std::max(highest, gs);
+  const uint64_t highest = acks.highest();
   EXPECT_EQ(Log("a").find("acknowledging asynchronously"), std::string::npos)
       << "a fell back to async: b's word did not count";
 

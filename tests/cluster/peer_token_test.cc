@@ -327,13 +327,7 @@ TEST_F(PeerClusterTest, NamedUsersOnlyClusterFollowsSyncsAndFailsOver) {
   sculpt::client::ClientOptions options;
   options.timeout = milliseconds(10000);
   sculpt::client::Client client(options);
-  std::mutex mu;
-  std::map<uint64_t, uint64_t> acked;  // client_seq -> last global seq of the stroke
-  client.SetEventHandler([&](const sculpt::client::Event& e) {
-    if (e.type != sculpt::client::Event::Type::kAck) return;
-    std::lock_guard<std::mutex> lock(mu);
-    acked[e.ack.client_seq()] = e.ack.global_seq_first() + e.ack.edits() - 1;
-  });
+  sculpt::testing::AckLog acks(client);
   ASSERT_TRUE(client.Connect("127.0.0.1", a.port()).ok());
   auto welcome = client.Hello(alice, v1::ROLE_SCULPTOR, "alice", 0);
   ASSERT_TRUE(welcome.ok()) << welcome.status();
@@ -346,17 +340,11 @@ TEST_F(PeerClusterTest, NamedUsersOnlyClusterFollowsSyncsAndFailsOver) {
     ASSERT_TRUE(client.SendStroke(stroke).ok());
   }
   // Each ack waited for b's ReplicaProgress (no fall-back for a minute).
-  ASSERT_TRUE(WaitFor(
-      [&] {
-        std::lock_guard<std::mutex> lock(mu);
-        return acked.size() == 20;
-      },
-      milliseconds(20000)))
+  ASSERT_TRUE(WaitFor([&] { return acks.size() == 20; }, milliseconds(20000)))
       << "a did not acknowledge the strokes: b's progress was not taken; see "
       << dir_.path() / "a.log";
-  client.SetEventHandler(nullptr);
-  uint64_t highest = 0;
-  for (const auto& [cs, gs] : acked) highest = std::max(highest, gs);
+  acks.Stop();
+  const uint64_t highest = acks.highest();
   {
     const std::string log = Log("a");
     EXPECT_EQ(log.find("acknowledging asynchronously"), std::string::npos)

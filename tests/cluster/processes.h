@@ -18,7 +18,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <thread>
@@ -27,6 +29,7 @@
 #include "cluster/etcd_client.h"
 #include "cluster/records.h"
 #include "net/net.h"
+#include "sculpt/client/client.h"
 
 namespace sculpt::testing {
 
@@ -226,6 +229,40 @@ class Member {
   fs::path port_file_;
   uint16_t port_ = 0;
   std::unique_ptr<ChildProcess> process_;
+};
+
+/// A sculptor's acknowledgements, as its client's event handler receives them: client_seq ->
+/// the last global sequence of the stroke, to check that every acknowledged stroke survived.
+/// Installs itself as the client's handler until Stop (or destruction).
+class AckLog {
+ public:
+  explicit AckLog(client::Client& c) : client_(c) {
+    c.SetEventHandler([this](const client::Event& e) {
+      if (e.type != client::Event::Type::kAck) return;
+      std::lock_guard<std::mutex> lock(mu_);
+      acked_[e.ack.client_seq()] = e.ack.global_seq_first() + e.ack.edits() - 1;
+    });
+  }
+  ~AckLog() { Stop(); }
+  AckLog(const AckLog&) = delete;
+  AckLog& operator=(const AckLog&) = delete;
+  void Stop() { client_.SetEventHandler(nullptr); }
+  size_t size() const {
+    std::lock_guard<std::mutex> lock(mu_);
+    return acked_.size();
+  }
+  // The highest global sequence acknowledged.
+  uint64_t highest() const {
+    std::lock_guard<std::mutex> lock(mu_);
+    uint64_t h = 0;
+    for (const auto& [cs, gs] : acked_) h = std::max(h, gs);
+    return h;
+  }
+
+ private:
+  client::Client& client_;
+  mutable std::mutex mu_;
+  std::map<uint64_t, uint64_t> acked_;
 };
 
 /// A test with its own etcd and a client of it (skipped without etcd). A fixture that starts

@@ -11,6 +11,7 @@ namespace sculpt::levelset {
 namespace {
 
 using testing::Counts;
+using testing::ExpectEveryInvariant;
 using testing::RunSeeds;
 using testing::ServerSettings;
 
@@ -20,13 +21,7 @@ TEST(EditPropertySoak, FiveThousandRandomEdits) {
     set.repair_band_every_edit = repair;
     const Counts c = RunSeeds({11, 12, 13, 14, 15, 16, 17, 18, 19, 20}, 500, set);
     EXPECT_EQ(c.edits, 5000);
-    EXPECT_EQ(c.mesh_open, 0) << c.summary;
-    EXPECT_EQ(c.volume_off, 0) << c.summary;
-    EXPECT_EQ(c.small_pieces, 0) << c.summary;
-    EXPECT_EQ(c.small_voids, 0) << c.summary;
-    EXPECT_EQ(c.band_edge, 0) << c.summary;
-    EXPECT_EQ(c.gradient, 0) << c.summary;
-    EXPECT_EQ(c.thin, 0) << c.summary;
+    ExpectEveryInvariant(c);
   }
 }
 

@@ -226,4 +226,21 @@ inline Counts RunSeeds(const std::vector<uint64_t>& seeds, int edits, const Edit
   return all;
 }
 
+// What the band repair on every edit guarantees today: no open mesh, sliver, band edge, or piece
+// or pocket below min_island_volume (|grad phi| and the volume bound are counted, not asserted).
+inline void ExpectRepairedInvariants(const Counts& c) {
+  EXPECT_EQ(c.mesh_open, 0) << c.summary;
+  EXPECT_EQ(c.thin, 0) << c.summary;
+  EXPECT_EQ(c.band_edge, 0) << c.summary;
+  EXPECT_EQ(c.small_pieces, 0) << c.summary;
+  EXPECT_EQ(c.small_voids, 0) << c.summary;
+}
+
+// Every invariant issue 11 lists.
+inline void ExpectEveryInvariant(const Counts& c) {
+  ExpectRepairedInvariants(c);
+  EXPECT_EQ(c.volume_off, 0) << c.summary;
+  EXPECT_EQ(c.gradient, 0) << c.summary;
+}
+
 }  // namespace sculpt::levelset::testing

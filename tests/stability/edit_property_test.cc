@@ -9,6 +9,7 @@ namespace sculpt::levelset {
 namespace {
 
 using testing::Counts;
+using testing::ExpectRepairedInvariants;
 using testing::RunSeeds;
 using testing::ServerSettings;
 
@@ -37,11 +38,7 @@ TEST(EditProperty, RandomEditsWithTheBandRepairLeaveNoSliversOrSpecks) {
   set.repair_band_every_edit = true;
   const Counts c = RunSeeds({1, 2, 3, 4}, kEditsPerSeed, set);
   EXPECT_EQ(c.edits, 4 * kEditsPerSeed);
-  EXPECT_EQ(c.mesh_open, 0) << c.summary;
-  EXPECT_EQ(c.thin, 0) << c.summary;
-  EXPECT_EQ(c.band_edge, 0) << c.summary;
-  EXPECT_EQ(c.small_pieces, 0) << c.summary;
-  EXPECT_EQ(c.small_voids, 0) << c.summary;
+  ExpectRepairedInvariants(c);
 }
 
 }  // namespace
