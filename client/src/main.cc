@@ -74,7 +74,8 @@ int RemoteInfo(const std::string& server, const std::string& token, const std::s
                      {{"volume_preservation", e.volume_preservation()},
                       {"smoothing", e.smoothing()},
                       {"islands", e.islands()},
-                      {"min_island_volume", e.min_island_volume()}}},
+                      {"min_island_volume", e.min_island_volume()},
+                      {"band_repair", e.band_repair()}}},
                     {"objects", objects}};
   std::printf("%s\n", out.dump(2).c_str());
   return 0;

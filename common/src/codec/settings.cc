@@ -38,6 +38,7 @@ v1::EditSettingsMsg SettingsToProto(const levelset::EditSettings& s) {
   m.set_max_tool_voxels(s.max_tool_voxels);
   m.set_max_speed_voxels(s.max_speed_voxels);
   m.set_max_amount_voxels(s.max_amount_voxels);
+  m.set_repair_band_every_edit(s.repair_band_every_edit);
   return m;
 }
 
@@ -74,6 +75,7 @@ StatusOr<levelset::EditSettings> SettingsFromProto(const v1::EditSettingsMsg& m)
   s.max_tool_voxels = m.max_tool_voxels();
   s.max_speed_voxels = m.max_speed_voxels();
   s.max_amount_voxels = m.max_amount_voxels();
+  s.repair_band_every_edit = m.repair_band_every_edit();
   SCULPT_RETURN_IF_ERROR(ValidateEditSettings(s));
   return s;
 }

@@ -359,12 +359,14 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     if (const toml::table* e = (*s)["effects"].as_table()) {
       SCULPT_RETURN_IF_ERROR(CheckKeys(path, *e, "scene.effects",
                                        {"volume_preservation", "smoothing", "islands",
-                                        "min_island_volume", "contours", "materials"}));
+                                        "min_island_volume", "contours", "materials",
+                                        "band_repair"}));
       Get(*e, "volume_preservation", &sc.effects.volume_preservation);
       Get(*e, "smoothing", &sc.effects.smoothing);
       Get(*e, "islands", &sc.effects.islands);
       Get(*e, "min_island_volume", &sc.effects.min_island_volume);
       Get(*e, "contours", &sc.effects.contours);
+      Get(*e, "band_repair", &sc.effects.band_repair);
       if (const toml::array* m = (*e)["materials"].as_array()) {
         sc.effects.materials.clear();
         for (const auto& x : *m) sc.effects.materials.push_back(x.value_or(std::string()));
@@ -573,6 +575,8 @@ Status ValidateConfig(const ServerConfig& c) {
       OneOf("scene.effects.islands", s.effects.islands, {"keep", "remove_small"}));
   SCULPT_RETURN_IF_ERROR(
       Range("scene.effects.min_island_volume", s.effects.min_island_volume, 0, 1e30));
+  SCULPT_RETURN_IF_ERROR(OneOf("scene.effects.band_repair", s.effects.band_repair,
+                               {"where_needed", "every_edit"}));
   if (!s.effects.materials.empty()) {
     return InvalidArgument(
         "scene.effects.materials is replaced by [scene] materials = [{name = \"...\", colour = "
@@ -628,6 +632,7 @@ levelset::EditSettings EditSettingsFor(const SceneConfig& s) {
   e.islands = s.effects.islands == "keep" ? levelset::IslandPolicy::kKeep
                                           : levelset::IslandPolicy::kRemoveSmall;
   e.min_island_volume = s.effects.min_island_volume;
+  e.repair_band_every_edit = s.effects.band_repair == "every_edit";
   e.min_tool_voxels = s.min_tool_size / s.voxel_size;
   e.max_tool_voxels = s.max_tool_size / s.voxel_size;
   e.max_speed_voxels = std::max(1.0, s.max_speed / s.voxel_size);

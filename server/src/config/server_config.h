@@ -56,6 +56,10 @@ struct EffectsConfig {
   double min_island_volume = 8.0;             // world units^3
   std::vector<std::string> materials;         // use SceneConfig::materials: must be empty
   bool contours = false;                      // serve skin contours and object slices
+  /// where_needed: the sliver and band repair run after inflate, deflate and box edits only;
+  /// every_edit: after every edit (EditSettings::repair_band_every_edit: fewer band defects,
+  /// about 5x a press's kernel cost; docs/benchmarks.md "Invariants under random edits").
+  std::string band_repair = "where_needed";
 };
 
 struct SceneConfig {

@@ -22,6 +22,7 @@ v1::SceneInfo ToWireSceneInfo(const SceneSummary& s) {
   e->set_islands(s.effects.islands);
   e->set_min_island_volume(s.effects.min_island_volume);
   e->set_contours(s.effects.contours);
+  e->set_band_repair(s.effects.band_repair);
   for (const levelset::MaterialDecl& m : s.materials) {
     e->add_materials(m.name);
     for (double c : m.colour) e->add_material_colours(static_cast<float>(c));

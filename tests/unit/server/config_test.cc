@@ -142,6 +142,18 @@ TEST(ConfigTest, EffectsSelectKernelSettings) {
   const auto e = EditSettingsFor(s);
   EXPECT_EQ(e.compensation, levelset::CompensationRegion::kNone);
   EXPECT_EQ(e.islands, levelset::IslandPolicy::kKeep);
+  EXPECT_FALSE(e.repair_band_every_edit);  // where_needed, the default
+  s.effects.band_repair = "every_edit";
+  EXPECT_TRUE(EditSettingsFor(s).repair_band_every_edit);
+}
+
+TEST(ConfigTest, RejectsAnUnknownBandRepair) {
+  ServerConfig c;
+  c.scene.effects.band_repair = "always";
+  const Status st = ValidateConfig(c);
+  ASSERT_FALSE(st.ok());
+  EXPECT_NE(st.message().find("scene.effects.band_repair"), std::string::npos) << st;
+  EXPECT_NE(st.message().find("always"), std::string::npos) << st;
 }
 
 }  // namespace

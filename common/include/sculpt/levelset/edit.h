@@ -81,8 +81,8 @@ struct EditSettings {
   /// (tests/stability/edit_property_test.cc; docs/benchmarks.md, "Invariants under random
   /// edits") measures what it buys: with it no sliver, band edge, speck or small pocket is left
   /// in 600 random edits, without it about one edit in five leaves a |grad phi| or sliver
-  /// violation. Library level only: the server does not expose it, nor does the settings codec
-  /// carry it to replicas, yet.
+  /// violation. A scene sets it with `[scene.effects] band_repair = "every_edit"`; the settings
+  /// codec carries it to replicas (EditSettingsMsg.repair_band_every_edit).
   bool repair_band_every_edit = false;
   IslandPolicy islands = IslandPolicy::kKeep;
   /// Pieces of material below this volume (world units^3) are removed under kRemoveSmall, and
