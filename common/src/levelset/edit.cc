@@ -254,10 +254,11 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
   const bool offset_kind = kind == EditKind::kInflate || kind == EditKind::kDeflate;
   // Slivers come from offsets that rewrite the band and from the box's sharp edges (ribs).
   // Presses with smooth tools, smooths and CSG edits leave slivers and torn bands too (the
-  // random-edit property test finds them after about one edit in five), but scanning for them
-  // doubled a press's cost (and halved the server's edit throughput), so by default those skip
-  // the sliver and band-repair passes; repair_band_every_edit runs both for every edit. The band
-  // repair scans the whole block for a torn band only for these (Resolve's always_repair).
+  // random-edit property test finds them after about one edit in five), but repairing them
+  // costs about 3.6 times a press (docs/benchmarks.md, "Invariants under random edits"), so by
+  // default those skip the sliver and band-repair passes; repair_band_every_edit runs both for
+  // every edit. The band repair looks for a torn band (rather than only around what the sliver
+  // pass emptied) only for these (Resolve's always_repair).
   const bool repair_all = offset_kind || s.repair_band_every_edit;
   bool resolve = repair_all;
   for (const EditRequest& req : reqs) resolve = resolve || req.tool.kind == ToolKind::kBox;

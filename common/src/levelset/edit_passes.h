@@ -33,8 +33,9 @@ bool ApplyOperator(Block& b, const EditRequest& req, bool batch, const EditSetti
 /// face diagonal or a body diagonal): a sheet or fibre the grid cannot resolve, which the next
 /// edit or the mesher turns into holes, tunnels and open edges, and around which no band has a
 /// unit gradient. Such voxels are emptied (repeatedly: emptying one can thin its neighbour) on
-/// the block's written interior. Returns the voxels emptied; `touched` marks them for the band
-/// repair.
+/// the block's written interior, looked for where the edit changed a voxel or its neighbour (the
+/// rest of the block is as the previous edit left it). Returns the voxels emptied; `touched`
+/// marks them for the band repair.
 size_t RemoveThinMaterial(Block& b, std::vector<uint8_t>& touched);
 
 /// Empties material thinner than a voxel and repairs the band where it is broken, so that
@@ -46,8 +47,9 @@ size_t RemoveThinMaterial(Block& b, std::vector<uint8_t>& touched);
 /// empties what the last repair thinned, so no sliver survives either way. Unless
 /// `always_repair` (inflate and deflate, which rewrite the band wholesale), the band is repaired
 /// only where something was emptied or marked in `repair`: after a press, a smooth or a CSG
-/// edit the reinitialisation has already straightened it, and scanning the block for a torn
-/// band would cost more than the edit. Returns whether anything changed.
+/// edit the reinitialisation has already straightened it, and looking for a torn band and
+/// rebuilding it would cost more than the edit. Both passes look only at the voxels the edit
+/// changed and their neighbours. Returns whether anything changed.
 bool Resolve(Block& b, std::vector<uint8_t>& repair, bool always_repair);
 
 // ---- Volume compensation (edit_compensation.cc) ----

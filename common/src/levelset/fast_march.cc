@@ -30,8 +30,15 @@ struct Dims {
 }  // namespace
 
 size_t MarchDistance(DenseField& phi, std::vector<MarchState>& state, double dx, double limit) {
+  return MarchDistance(phi, state, dx, limit, Int3{0, 0, 0}, phi.dims());
+}
+
+size_t MarchDistance(DenseField& phi, std::vector<MarchState>& state, double dx, double limit,
+                     Int3 lo, Int3 hi) {
   if (state.size() != phi.size() || !(dx > 0.0) || !(limit > 0.0)) return 0;
   const Dims g(phi);
+  const int box_lo[3] = {std::max(0, lo.x), std::max(0, lo.y), std::max(0, lo.z)};
+  const int box_hi[3] = {std::min(g.n[0], hi.x), std::min(g.n[1], hi.y), std::min(g.n[2], hi.z)};
   float* p = phi.data().data();
   const float flimit = static_cast<float>(limit);
   // Min-heap of (distance, index) packed in 64 bits: a non-negative float's bits order as the
@@ -79,11 +86,16 @@ size_t MarchDistance(DenseField& phi, std::vector<MarchState>& state, double dx,
     }
     return t;
   };
-  auto visit_free_neighbours = [&](size_t idx, auto&& fn) {
-    const int c0 = static_cast<int>(idx % static_cast<size_t>(g.n[0]));
-    const int c1 =
-        static_cast<int>((idx / static_cast<size_t>(g.n[0])) % static_cast<size_t>(g.n[1]));
-    const int c2 = static_cast<int>(idx / static_cast<size_t>(g.stride[2]));
+  // Indices fit 32 bits (the heap key holds them so), whose division costs a fraction of a
+  // 64-bit one.
+  const uint32_t n0 = static_cast<uint32_t>(g.n[0]), n1 = static_cast<uint32_t>(g.n[1]);
+  auto visit_free_neighbours = [&](size_t index, auto&& fn) {
+    const uint32_t idx32 = static_cast<uint32_t>(index);
+    const uint32_t row = idx32 / n0;
+    const int c0 = static_cast<int>(idx32 - row * n0);
+    const int c2 = static_cast<int>(row / n1);
+    const int c1 = static_cast<int>(row - static_cast<uint32_t>(c2) * n1);
+    const size_t idx = index;
     const int c[3] = {c0, c1, c2};
     for (int ax = 0; ax < 3; ++ax) {
       for (int side = -1; side <= 1; side += 2) {
@@ -106,9 +118,9 @@ size_t MarchDistance(DenseField& phi, std::vector<MarchState>& state, double dx,
   // Seed: every free voxel next to a known one (its first tentative distance depends only on
   // the known voxels, so the order of seeding does not change the result).
   size_t free_count = 0;
-  for (int c2 = 0; c2 < g.n[2]; ++c2) {
-    for (int c1 = 0; c1 < g.n[1]; ++c1) {
-      for (int c0 = 0; c0 < g.n[0]; ++c0) {
+  for (int c2 = box_lo[2]; c2 < box_hi[2]; ++c2) {
+    for (int c1 = box_lo[1]; c1 < box_hi[1]; ++c1) {
+      for (int c0 = box_lo[0]; c0 < box_hi[0]; ++c0) {
         const size_t idx = phi.Index(c0, c1, c2);
         if (state[idx] != MarchState::kFree) continue;
         ++free_count;
@@ -129,10 +141,15 @@ size_t MarchDistance(DenseField& phi, std::vector<MarchState>& state, double dx,
     visit_free_neighbours(idx, update);
   }
   if (computed < free_count) {
-    for (size_t idx = 0; idx < state.size(); ++idx) {
-      if (state[idx] != MarchState::kFree) continue;
-      p[idx] = p[idx] < 0.f ? -flimit : flimit;
-      state[idx] = MarchState::kKnown;
+    for (int c2 = box_lo[2]; c2 < box_hi[2]; ++c2) {
+      for (int c1 = box_lo[1]; c1 < box_hi[1]; ++c1) {
+        for (int c0 = box_lo[0]; c0 < box_hi[0]; ++c0) {
+          const size_t idx = phi.Index(c0, c1, c2);
+          if (state[idx] != MarchState::kFree) continue;
+          p[idx] = p[idx] < 0.f ? -flimit : flimit;
+          state[idx] = MarchState::kKnown;
+        }
+      }
     }
   }
   return free_count;

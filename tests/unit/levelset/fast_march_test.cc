@@ -60,6 +60,40 @@ TEST(FastMarchTest, IgnoredVoxelsAreNeitherReadNorWritten) {
   EXPECT_NEAR(f.at(1, 1, 5), 0.875, 1e-5);
 }
 
+// A march told the box its free voxels lie in gives the whole-field march's values bit for bit,
+// and leaves the voxels outside the box alone.
+TEST(FastMarchTest, AMarchInABoxMatchesTheWholeFieldMarch) {
+  std::vector<MarchState> whole_state, box_state;
+  DenseField whole = Plane(&whole_state);
+  DenseField boxed = Plane(&box_state);
+  // Free voxels only in i, j in [1, 4), k in [0, 9); the rest known at their distance to the
+  // plane, except one voxel left free-looking at a placeholder to show nothing writes it.
+  for (int k = 0; k < 12; ++k) {
+    for (int j = 0; j < 5; ++j) {
+      for (int i = 0; i < 6; ++i) {
+        if (i >= 1 && i < 4 && j >= 1 && j < 4 && k < 9) continue;
+        const size_t idx = whole.Index(i, j, k);
+        whole_state[idx] = box_state[idx] = MarchState::kKnown;
+        const float d = i == 5 && j == 4 && k == 11 ? 1e-3f : static_cast<float>(0.5 * (k - 3.25));
+        whole.data()[idx] = boxed.data()[idx] = d;
+      }
+    }
+  }
+  const size_t n_whole = MarchDistance(whole, whole_state, 0.5, 1.5);
+  const size_t n_box = MarchDistance(boxed, box_state, 0.5, 1.5, Int3{1, 1, 0}, Int3{4, 4, 9});
+  EXPECT_EQ(n_whole, 3u * 3 * 7);  // k = 3 and 4 are known
+  EXPECT_EQ(n_box, n_whole);
+  for (size_t idx = 0; idx < whole.size(); ++idx) {
+    EXPECT_EQ(whole.data()[idx], boxed.data()[idx]) << idx;
+    EXPECT_EQ(box_state[idx], MarchState::kKnown) << idx;
+  }
+  // The plane's distances inside, up to the limit (k = 0 is 1.625 from the plane).
+  EXPECT_FLOAT_EQ(boxed.at(2, 2, 0), -1.5f);
+  EXPECT_NEAR(boxed.at(2, 2, 6), 1.375, 1e-5);
+  // Outside the box nothing was written.
+  EXPECT_FLOAT_EQ(boxed.at(5, 4, 11), 1e-3f);
+}
+
 TEST(FastMarchTest, InterfaceDistanceKeepsAnAxisCrossingWhereItIs) {
   std::vector<MarchState> state;
   const DenseField f = Plane(&state);

@@ -28,6 +28,12 @@ enum class MarchState : uint8_t {
 /// arguments (a state of another size, dx or limit not positive) change nothing and return 0.
 size_t MarchDistance(DenseField& phi, std::vector<MarchState>& state, double dx, double limit);
 
+/// MarchDistance for a field whose free voxels all lie in the index box [lo, hi): the seeding
+/// scan visits that box alone, so a rebuild of a small part of a large field costs what the
+/// part does. The result is the whole-field march's.
+size_t MarchDistance(DenseField& phi, std::vector<MarchState>& state, double dx, double limit,
+                     Int3 lo, Int3 hi);
+
 /// The distance to the surface of an interface voxel (one with a 6-neighbour of the other sign),
 /// signed as phi: along each axis with a sign change the crossing is placed by linear
 /// interpolation on the edge to the nearer such neighbour (as volumeToMesh places its vertices),
