@@ -226,12 +226,15 @@ inline Counts RunSeeds(const std::vector<uint64_t>& seeds, int edits, const Edit
   return all;
 }
 
-// What the band repair on every edit guarantees today: no open mesh, sliver, band edge, or piece
-// or pocket below min_island_volume (|grad phi| and the volume bound are counted, not asserted).
+// What the band repair on every edit guarantees on the `make test` sequences: no open mesh,
+// sliver, band edge, |grad phi| outside [0.5, 1.5], or piece or pocket below min_island_volume
+// (the volume bound is counted, not asserted; the soak's longer run still finds a few of each:
+// docs/benchmarks.md, "Invariants under random edits").
 inline void ExpectRepairedInvariants(const Counts& c) {
   EXPECT_EQ(c.mesh_open, 0) << c.summary;
   EXPECT_EQ(c.thin, 0) << c.summary;
   EXPECT_EQ(c.band_edge, 0) << c.summary;
+  EXPECT_EQ(c.gradient, 0) << c.summary;
   EXPECT_EQ(c.small_pieces, 0) << c.summary;
   EXPECT_EQ(c.small_voids, 0) << c.summary;
 }

@@ -217,6 +217,25 @@ float SteepestSlope(const float* p, size_t idx, const ptrdiff_t offsets[26],
   return g;
 }
 
+// SteepestSlope over the neighbours the edit may write (the block's interior): next to the
+// stencil margin, a slope to a margin voxel that an earlier edit left is no cliff a rebuild here
+// can level (it would find it again every round).
+float SteepestWritableSlope(const Block& b, int i, int j, int k) {
+  const float v = b.phi.at(i, j, k);
+  float g = 0.f;
+  for (int dk = -1; dk <= 1; ++dk) {
+    for (int dj = -1; dj <= 1; ++dj) {
+      for (int di = -1; di <= 1; ++di) {
+        if ((!di && !dj && !dk) || !b.Interior(i + di, j + dj, k + dk)) continue;
+        const float length =
+            static_cast<float>(b.dx * std::sqrt(static_cast<double>(di * di + dj * dj + dk * dk)));
+        g = std::max(g, std::abs(b.phi.at(i + di, j + dj, k + dk) - v) / length);
+      }
+    }
+  }
+  return g;
+}
+
 // Keeps the narrow band valid where the edit left it broken. Among the voxels `near` marks (the
 // edit's changes and their neighbours: the band elsewhere is as the previous edit left it), an
 // interface voxel with a voxel at the band's edge among its 26 neighbours (the zero crossing
@@ -274,7 +293,11 @@ size_t RepairBand(Block& b, const BoxMask& near, const std::vector<uint8_t>& tou
         }
         if (!broken && std::abs(v) < band_inner) {
           const float g = SteepestSlope(p, idx, offsets, inv_lengths);
-          broken = g < 0.6f || g > 1.4f;
+          bool steep = g > 1.4f;
+          const bool at_margin =
+              !b.Interior(i - 1, j - 1, k - 1) || !b.Interior(i + 1, j + 1, k + 1);
+          if (steep && at_margin) steep = SteepestWritableSlope(b, i, j, k) > 1.4f;
+          broken = g < 0.6f || steep;
         }
         if (broken) bad.push_back({i, j, k});
       }
