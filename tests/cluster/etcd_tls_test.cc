@@ -3,7 +3,8 @@
 // (chain and host name) and presenting its own; a wrong CA, a wrong host name and a missing
 // client certificate fail as Unavailable saying TLS and why; bad files are refused when the
 // client is made. A sculptd member configured with https:// endpoints and the etcd_* files
-// registers, owns its scene and acknowledges a client's stroke.
+// registers, owns its scene and acknowledges a client's stroke, and `sculpt cluster status`
+// reads it with --etcd-ca, --etcd-cert and --etcd-key.
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -167,6 +168,23 @@ TEST_F(EtcdTlsTest, MemberOverTlsOwnsItsSceneAndServesAClient) {
       milliseconds(5000)));
   EXPECT_EQ(owner->member, "a");
   EXPECT_EQ(owner->epoch, 1u);
+
+  // The operator's view over the same TLS: with the CA and the client certificate it lists a;
+  // without the client certificate it says why it could not read.
+  const std::string status = "cluster status --etcd " + etcd_->endpoint() + " --prefix t/ --json";
+  const sculpt::testing::RunResult listed =
+      sculpt::testing::Sculpt(status + " --etcd-ca " + pki.File("ca.pem") + " --etcd-cert " +
+                              pki.File("client.pem") + " --etcd-key " + pki.File("client.key"));
+  EXPECT_EQ(listed.exit_code, 0) << listed.output;
+  EXPECT_NE(listed.output.find("\"a\""), std::string::npos) << listed.output;
+  const sculpt::testing::RunResult refused =
+      sculpt::testing::Sculpt(status + " --etcd-ca " + pki.File("ca.pem"));
+  EXPECT_EQ(refused.exit_code, 1) << refused.output;
+  EXPECT_NE(refused.output.find("TLS"), std::string::npos) << refused.output;
+  const sculpt::testing::RunResult half =
+      sculpt::testing::Sculpt(status + " --etcd-cert " + pki.File("client.pem"));
+  EXPECT_NE(half.exit_code, 0) << half.output;
+  EXPECT_NE(half.output.find("--etcd-key"), std::string::npos) << half.output;
 
   sculpt::client::ClientOptions options;
   options.timeout = milliseconds(5000);

@@ -1,6 +1,7 @@
 /// @brief EtcdClient over etcd's v3 HTTP/JSON gateway: base64 keys and values, int64 as strings.
 #include "cluster/etcd_client.h"
 
+#include <openssl/err.h>
 #include <openssl/ssl.h>
 #include <openssl/x509.h>
 #include <openssl/x509v3.h>
@@ -297,13 +298,24 @@ StatusOr<std::shared_ptr<ssl::context>> MakeEtcdTlsContext(const EtcdClient::Opt
 }
 
 // Why a TLS operation failed: the certificate check's own reason when that was it (wrong CA,
-// wrong host name, expired), else OpenSSL's reason ("tlsv13 alert certificate required").
+// wrong host name, expired), else OpenSSL's reason ("sslv3 alert bad certificate": etcd refused
+// this client's certificate or its absence).
 std::string TlsFailure(const boost::system::error_code& ec, SSL* ssl) {
   const long verify = ssl ? SSL_get_verify_result(ssl) : X509_V_OK;
   std::string text = "TLS: " + ec.message();
   if (verify != X509_V_OK) text += std::string(": ") + X509_verify_cert_error_string(verify);
+  if (ec.category() == asio::error::get_ssl_category()) {
+    const int reason = ERR_GET_REASON(static_cast<unsigned long>(ec.value()));
+    if (reason == SSL_R_SSLV3_ALERT_BAD_CERTIFICATE || reason == SSL_R_TLSV1_ALERT_UNKNOWN_CA ||
+        reason == SSL_R_TLSV13_ALERT_CERTIFICATE_REQUIRED) {
+      text += " (etcd refused the client certificate: with --client-cert-auth it needs one "
+              "of its --trusted-ca-file, cluster.etcd_cert_file and etcd_key_file)";
+    } else if (reason == SSL_R_WRONG_VERSION_NUMBER) {
+      text += " (does etcd listen with TLS on this port? if not, use http://)";
+    }
+  }
   if (ec == asio::error::eof || ec == ssl::error::stream_truncated) {
-    text += " (does etcd listen with TLS on this port? is a client certificate required?)";
+    text += " (does etcd listen with TLS on this port?)";
   }
   return text;
 }
@@ -340,9 +352,9 @@ StatusOr<std::unique_ptr<EtcdClient>> EtcdClient::Create(Options options) {
     if (is_https) rest = rest.substr(8);
     if (rest.rfind("http://", 0) == 0) rest = rest.substr(7);
     if (https.has_value() && *https != is_https) {
-      return Outside("cluster.etcd", text,
-                     std::string("the scheme of the other endpoints (") +
-                         (*https ? "https" : "http") + "://): every endpoint is TLS or none is");
+      return InvalidArgument("cluster.etcd=" + text + ": not the scheme of the other endpoints (" +
+                             (*https ? "https" : "http") +
+                             "://): every endpoint is TLS or none is");
     }
     https = is_https;
     while (!rest.empty() && rest.back() == '/') rest.pop_back();
@@ -434,7 +446,10 @@ asio::awaitable<StatusOr<std::string>> EtcdClient::CallOne(Endpoint e, std::stri
     co_await stream.async_connect(results, token);
     if (ec) co_return Status(Status::Code::kUnavailable, where + ": " + ec.message());
     auto exchange_call = Exchange(stream, req, where, [](const boost::system::error_code& ec) {
-      return ec.message();
+      // etcd's TLS-only client port closes a plaintext request without an answer.
+      return ec == http::error::end_of_stream || ec == asio::error::eof
+                 ? ec.message() + " (does etcd's client port speak TLS? then use https://)"
+                 : ec.message();
     });
     res = co_await std::move(exchange_call);
     stream.socket().shutdown(tcp::socket::shutdown_both, ec);
