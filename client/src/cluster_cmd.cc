@@ -224,10 +224,9 @@ void AddEtcdTlsFlags(CLI::App* cmd, EtcdTlsFlags& f) {
 }
 
 StatusOr<std::unique_ptr<cluster::EtcdClient>> MakeEtcdClient(const std::vector<std::string>& etcd,
-                                                               std::chrono::milliseconds timeout,
-                                                               const EtcdTlsFlags& tls) {
-  return cluster::EtcdClient::Create(
-      {etcd, timeout, tls.ca_file, tls.cert_file, tls.key_file});
+                                                              std::chrono::milliseconds timeout,
+                                                              const EtcdTlsFlags& tls) {
+  return cluster::EtcdClient::Create({etcd, timeout, tls.ca_file, tls.cert_file, tls.key_file});
 }
 
 }  // namespace

@@ -22,7 +22,7 @@ struct EtcdTlsFlags {
 };
 
 struct ClusterStatusOptions {
-  std::vector<std::string> etcd;   // http://HOST:PORT or https://HOST:PORT, tried in turn
+  std::vector<std::string> etcd;  // http://HOST:PORT or https://HOST:PORT, tried in turn
   EtcdTlsFlags etcd_tls;
   std::string prefix = "sculpt/";  // cluster.prefix of the members
   double timeout_s = 2;            // per etcd endpoint

@@ -188,8 +188,9 @@ TEST_F(ClusterConfigTest, RejectsBadEtcdTlsFiles) {
   EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);
   EXPECT_NE(s.message().find("cluster.etcd_key_file is empty"), std::string::npos) << s;
   // TLS files with http:// endpoints, and without a cluster.
-  s = Load("[cluster]\netcd = [\"http://127.0.0.1:2379\"]\nmember = \"a\"\n"
-           "etcd_cert_file = \"client.pem\"\netcd_key_file = \"client.pem\"\n");
+  s = Load(
+      "[cluster]\netcd = [\"http://127.0.0.1:2379\"]\nmember = \"a\"\n"
+      "etcd_cert_file = \"client.pem\"\netcd_key_file = \"client.pem\"\n");
   EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);
   EXPECT_NE(s.message().find("cluster.etcd_cert_file"), std::string::npos) << s;
   EXPECT_NE(s.message().find("https://"), std::string::npos) << s;

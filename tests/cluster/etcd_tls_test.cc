@@ -51,8 +51,8 @@ class EtcdTlsTest : public ::testing::Test {
     if (!sculpt::testing::HaveEtcd()) GTEST_SKIP() << sculpt::testing::kNoEtcd;
     const Pki& pki = Pki::Get();
     ASSERT_TRUE(pki.ok) << "openssl could not make the test certificates";
-    etcd_ = std::make_unique<EtcdProcess>(EtcdTlsFiles{
-        pki.File("server.pem"), pki.File("server.key"), pki.File("ca.pem"), true});
+    etcd_ = std::make_unique<EtcdProcess>(
+        EtcdTlsFiles{pki.File("server.pem"), pki.File("server.key"), pki.File("ca.pem"), true});
     auto c = sculpt::testing::ConnectWhenReady(
         *etcd_, Tls("", pki.File("ca.pem"), pki.File("client.pem"), pki.File("client.key")));
     ASSERT_TRUE(c.ok()) << c.status();
@@ -105,9 +105,9 @@ TEST_F(EtcdTlsTest, PutGetTxnAndLeaseOverTls) {
 
   // By host name: the certificate names localhost too (SNI and DNS-name verification).
   const Pki& pki = Pki::Get();
-  auto by_name = EtcdClient::Create(
-      Tls("https://localhost:" + std::to_string(etcd_->client_port()), pki.File("ca.pem"),
-          pki.File("client.pem"), pki.File("client.key")));
+  auto by_name =
+      EtcdClient::Create(Tls("https://localhost:" + std::to_string(etcd_->client_port()),
+                             pki.File("ca.pem"), pki.File("client.pem"), pki.File("client.key")));
   ASSERT_TRUE(by_name.ok()) << by_name.status();
   auto prefix = (*by_name)->Sync((*by_name)->GetPrefix("tls/"));
   ASSERT_TRUE(prefix.ok()) << prefix.status();

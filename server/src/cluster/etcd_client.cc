@@ -7,15 +7,14 @@
 #include <openssl/x509v3.h>
 #include <sodium.h>
 
-#include <cstdio>
-#include <filesystem>
-
 #include <boost/asio/redirect_error.hpp>
 #include <boost/asio/ssl.hpp>
 #include <boost/asio/ssl/host_name_verification.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/ssl.hpp>
+#include <cstdio>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 
 #include "net/tls.h"
@@ -282,8 +281,8 @@ StatusOr<std::shared_ptr<ssl::context>> MakeEtcdTlsContext(const EtcdClient::Opt
   }
   if (!o.cert_file.empty()) {
     if (SSL_CTX_use_certificate_chain_file(native, o.cert_file.c_str()) != 1) {
-      return InvalidArgument("cluster.etcd_cert_file=" + o.cert_file +
-                             ": not a PEM certificate (" + TakeOpenSslError("unreadable") + ")");
+      return InvalidArgument("cluster.etcd_cert_file=" + o.cert_file + ": not a PEM certificate (" +
+                             TakeOpenSslError("unreadable") + ")");
     }
     if (SSL_CTX_use_PrivateKey_file(native, o.key_file.c_str(), SSL_FILETYPE_PEM) != 1 ||
         SSL_CTX_check_private_key(native) != 1) {
@@ -308,8 +307,9 @@ std::string TlsFailure(const boost::system::error_code& ec, SSL* ssl) {
     const int reason = ERR_GET_REASON(static_cast<unsigned long>(ec.value()));
     if (reason == SSL_R_SSLV3_ALERT_BAD_CERTIFICATE || reason == SSL_R_TLSV1_ALERT_UNKNOWN_CA ||
         reason == SSL_R_TLSV13_ALERT_CERTIFICATE_REQUIRED) {
-      text += " (etcd refused the client certificate: with --client-cert-auth it needs one "
-              "of its --trusted-ca-file, cluster.etcd_cert_file and etcd_key_file)";
+      text +=
+          " (etcd refused the client certificate: with --client-cert-auth it needs one "
+          "of its --trusted-ca-file, cluster.etcd_cert_file and etcd_key_file)";
     } else if (reason == SSL_R_WRONG_VERSION_NUMBER) {
       text += " (does etcd listen with TLS on this port? if not, use http://)";
     }
@@ -463,8 +463,8 @@ asio::awaitable<StatusOr<std::string>> EtcdClient::CallOne(Endpoint e, std::stri
     // reported as such rather than as OpenSSL's "unspecified" verification error.
     const int mismatch = not_ip ? X509_V_ERR_HOSTNAME_MISMATCH : X509_V_ERR_IP_ADDRESS_MISMATCH;
     stream.set_verify_callback(
-        [check = ssl::host_name_verification(e.host), mismatch](
-            bool preverified, ssl::verify_context& ctx) mutable {
+        [check = ssl::host_name_verification(e.host), mismatch](bool preverified,
+                                                                ssl::verify_context& ctx) mutable {
           const bool ok = check(preverified, ctx);
           if (preverified && !ok) X509_STORE_CTX_set_error(ctx.native_handle(), mismatch);
           return ok;
@@ -490,7 +490,8 @@ asio::awaitable<StatusOr<std::string>> EtcdClient::CallOne(Endpoint e, std::stri
     beast::get_lowest_layer(stream).socket().shutdown(tcp::socket::shutdown_both, ec);
   }
   if (!res.ok()) co_return res.status();
-  if (res->result() != http::status::ok) co_return ErrorAnswer(where, res->result_int(), res->body());
+  if (res->result() != http::status::ok)
+    co_return ErrorAnswer(where, res->result_int(), res->body());
   co_return std::move(res->body());
 }
 

@@ -172,7 +172,8 @@ class EtcdClient {
 
   Options options_;
   std::vector<Endpoint> endpoints_;
-  std::shared_ptr<boost::asio::ssl::context> tls_;  // null: http://
+  // The context of every https:// call, built once by Create; null for http://.
+  std::shared_ptr<boost::asio::ssl::context> tls_;
   size_t preferred_ = 0;  // io() only: the endpoint that answered last
   asio::io_context io_;
   asio::executor_work_guard<asio::io_context::executor_type> work_;
