@@ -207,6 +207,28 @@ json ToJson(const ClusterView& v, const ClusterStatusOptions& o) {
           {"scenes", scenes}};
 }
 
+// --etcd-ca, --etcd-cert and --etcd-key on `cmd`.
+void AddEtcdTlsFlags(CLI::App* cmd, EtcdTlsFlags& f) {
+  cmd->add_option("--etcd-ca", f.ca_file,
+                  "PEM CA certificates etcd's certificate must chain to (https:// endpoints; "
+                  "default: the system's store)")
+      ->check(CLI::ExistingFile);
+  CLI::Option* cert = cmd->add_option("--etcd-cert", f.cert_file,
+                                      "PEM client certificate for an etcd with --client-cert-auth")
+                          ->check(CLI::ExistingFile);
+  CLI::Option* key =
+      cmd->add_option("--etcd-key", f.key_file, "The unencrypted PEM key of --etcd-cert")
+          ->check(CLI::ExistingFile);
+  cert->needs(key);
+  key->needs(cert);
+}
+
+StatusOr<std::unique_ptr<cluster::EtcdClient>> MakeEtcdClient(const std::vector<std::string>& etcd,
+                                                              std::chrono::milliseconds timeout,
+                                                              const EtcdTlsFlags& tls) {
+  return cluster::EtcdClient::Create({etcd, timeout, tls.ca_file, tls.cert_file, tls.key_file});
+}
+
 }  // namespace
 
 ClusterCommands AddClusterCommand(CLI::App& app, ClusterStatusOptions& o, ClusterMoveOptions& mo) {
@@ -225,7 +247,8 @@ ClusterCommands AddClusterCommand(CLI::App& app, ClusterStatusOptions& o, Cluste
       "when etcd did not answer, 2 for bad options.");
   status
       ->add_option("--etcd", o.etcd,
-                   "etcd endpoint http://HOST:PORT (repeatable, or comma-separated)")
+                   "etcd endpoint http://HOST:PORT or https://HOST:PORT (repeatable, or "
+                   "comma-separated)")
       ->required()
       ->delimiter(',');
   status->add_option("--prefix", o.prefix, "The cluster's key prefix (cluster.prefix)")
@@ -234,6 +257,7 @@ ClusterCommands AddClusterCommand(CLI::App& app, ClusterStatusOptions& o, Cluste
       ->check(CLI::Range(0.1, 600.0))
       ->capture_default_str();
   status->add_flag("--json", o.json, "Print the status as JSON");
+  AddEtcdTlsFlags(status, o.etcd_tls);
 
   CLI::App* move = cluster_cmd->add_subcommand(
       "move",
@@ -250,7 +274,8 @@ ClusterCommands AddClusterCommand(CLI::App& app, ClusterStatusOptions& o, Cluste
   move->add_option("scene", mo.scene, "The scene to move")->required();
   move->add_option("member", mo.member, "The member that takes it over")->required();
   move->add_option("--etcd", mo.etcd,
-                   "etcd endpoint http://HOST:PORT (repeatable, or comma-separated)")
+                   "etcd endpoint http://HOST:PORT or https://HOST:PORT (repeatable, or "
+                   "comma-separated)")
       ->required()
       ->delimiter(',');
   move->add_option("--prefix", mo.prefix, "The cluster's key prefix (cluster.prefix)")
@@ -258,12 +283,13 @@ ClusterCommands AddClusterCommand(CLI::App& app, ClusterStatusOptions& o, Cluste
   move->add_option("--timeout-ms", mo.timeout_ms, "Milliseconds to wait for the move")
       ->check(CLI::Range(int64_t{100}, int64_t{3600000}))
       ->capture_default_str();
+  AddEtcdTlsFlags(move, mo.etcd_tls);
   return {status, move};
 }
 
 int RunClusterStatus(const ClusterStatusOptions& o) {
-  auto client = cluster::EtcdClient::Create(
-      {o.etcd, std::chrono::milliseconds(static_cast<int64_t>(o.timeout_s * 1000))});
+  auto client = MakeEtcdClient(
+      o.etcd, std::chrono::milliseconds(static_cast<int64_t>(o.timeout_s * 1000)), o.etcd_tls);
   if (!client.ok()) {
     spdlog::error("cluster status: {}", client.status().ToString());
     return 2;
@@ -379,8 +405,8 @@ std::pair<std::string, std::string> Progress(const ClusterView& v, const Cluster
 int RunClusterMove(const ClusterMoveOptions& o) {
   const auto start = Clock::now();
   const auto deadline = start + std::chrono::milliseconds(o.timeout_ms);
-  auto client = cluster::EtcdClient::Create(
-      {o.etcd, std::chrono::milliseconds(std::clamp<int64_t>(o.timeout_ms, 100, 2000))});
+  auto client = MakeEtcdClient(
+      o.etcd, std::chrono::milliseconds(std::clamp<int64_t>(o.timeout_ms, 100, 2000)), o.etcd_tls);
   if (!client.ok()) {
     spdlog::error("cluster move: {}", client.status().ToString());
     return 2;

@@ -13,8 +13,17 @@ class App;
 
 namespace sculpt::client {
 
+/// TLS to etcd (https:// endpoints): --etcd-ca, --etcd-cert, --etcd-key, as the members'
+/// cluster.etcd_ca_file, etcd_cert_file and etcd_key_file.
+struct EtcdTlsFlags {
+  std::string ca_file;  // empty: the system's CA store
+  std::string cert_file;
+  std::string key_file;
+};
+
 struct ClusterStatusOptions {
-  std::vector<std::string> etcd;   // http://HOST:PORT, tried in turn
+  std::vector<std::string> etcd;  // http://HOST:PORT or https://HOST:PORT, tried in turn
+  EtcdTlsFlags etcd_tls;
   std::string prefix = "sculpt/";  // cluster.prefix of the members
   double timeout_s = 2;            // per etcd endpoint
   bool json = false;
@@ -22,6 +31,7 @@ struct ClusterStatusOptions {
 
 struct ClusterMoveOptions {
   std::vector<std::string> etcd;
+  EtcdTlsFlags etcd_tls;
   std::string prefix = "sculpt/";
   std::string scene;
   std::string member;

@@ -127,7 +127,7 @@ TEST_F(ClusterConfigTest, RejectsLeaseTtlOutOfRange) {
 }
 
 TEST_F(ClusterConfigTest, RejectsMalformedEtcdEndpoint) {
-  for (const char* e : {"https://127.0.0.1:2379", "http://127.0.0.1", "http://127.0.0.1:0",
+  for (const char* e : {"ftp://127.0.0.1:2379", "http://127.0.0.1", "https://127.0.0.1:0",
                         "http://127.0.0.1:2379/v3"}) {
     const Status s = Load(std::string("[cluster]\netcd = [\"") + e + "\"]\nmember = \"a\"\n");
     EXPECT_EQ(s.code(), Status::Code::kInvalidArgument) << e;
@@ -141,6 +141,63 @@ TEST_F(ClusterConfigTest, RejectsPlaintextEtcdBeyondLoopback) {
   const Status s = Load("[cluster]\netcd = [\"http://10.1.2.3:2379\"]\nmember = \"a\"\n");
   EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);
   EXPECT_NE(s.message().find("tls.allow_plaintext"), std::string::npos) << s;
+}
+
+TEST_F(ClusterConfigTest, ReadsTheEtcdTlsFilesRelativeToTheConfigFile) {
+  for (const char* f : {"ca.pem", "client.pem", "client.key"}) std::ofstream(dir_.path() / f) << f;
+  ServerConfig c;
+  const Status s = Load(R"([cluster]
+etcd = ["https://10.1.2.3:2379", "https://etcd.example:2379"]
+member = "a"
+etcd_ca_file = "ca.pem"
+etcd_cert_file = "client.pem"
+etcd_key_file = "client.key"
+)",
+                        &c);
+  ASSERT_TRUE(s.ok()) << s;  // beyond loopback is fine over TLS
+  EXPECT_EQ(c.cluster.etcd_ca_file, (dir_.path() / "ca.pem").string());
+  EXPECT_EQ(c.cluster.etcd_cert_file, (dir_.path() / "client.pem").string());
+  EXPECT_EQ(c.cluster.etcd_key_file, (dir_.path() / "client.key").string());
+  // No CA file: the system's store.
+  EXPECT_TRUE(Load("[cluster]\netcd = [\"https://10.1.2.3:2379\"]\nmember = \"a\"\n").ok());
+}
+
+TEST_F(ClusterConfigTest, RejectsMixedEtcdSchemes) {
+  const Status s = Load(
+      "[cluster]\netcd = [\"https://127.0.0.1:2379\", \"http://127.0.0.1:22379\"]\n"
+      "member = \"a\"\n");
+  EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);
+  ASSERT_NE(s.violation(), nullptr) << s;
+  EXPECT_EQ(s.violation()->field, "cluster.etcd[1]");
+  EXPECT_NE(s.message().find("http://127.0.0.1:22379"), std::string::npos) << s;
+  EXPECT_NE(s.message().find("https://HOST:PORT"), std::string::npos) << s;
+}
+
+TEST_F(ClusterConfigTest, RejectsBadEtcdTlsFiles) {
+  std::ofstream(dir_.path() / "client.pem") << "x";
+  const std::string https = "[cluster]\netcd = [\"https://127.0.0.1:2379\"]\nmember = \"a\"\n";
+  // A file that is not there, named with its key and path.
+  Status s = Load(https + "etcd_ca_file = \"missing.pem\"\n");
+  EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);
+  EXPECT_NE(s.message().find("cluster.etcd_ca_file=" + (dir_.path() / "missing.pem").string()),
+            std::string::npos)
+      << s;
+  EXPECT_NE(s.message().find("not a readable file"), std::string::npos) << s;
+  // Half a client certificate.
+  s = Load(https + "etcd_cert_file = \"client.pem\"\n");
+  EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);
+  EXPECT_NE(s.message().find("cluster.etcd_key_file is empty"), std::string::npos) << s;
+  // TLS files with http:// endpoints, and without a cluster.
+  s = Load(
+      "[cluster]\netcd = [\"http://127.0.0.1:2379\"]\nmember = \"a\"\n"
+      "etcd_cert_file = \"client.pem\"\netcd_key_file = \"client.pem\"\n");
+  EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);
+  EXPECT_NE(s.message().find("cluster.etcd_cert_file"), std::string::npos) << s;
+  EXPECT_NE(s.message().find("https://"), std::string::npos) << s;
+  s = Load("[cluster]\netcd_ca_file = \"client.pem\"\n");
+  EXPECT_EQ(s.code(), Status::Code::kInvalidArgument);
+  EXPECT_NE(s.message().find("cluster.etcd_ca_file"), std::string::npos) << s;
+  EXPECT_NE(s.message().find("cluster.etcd is empty"), std::string::npos) << s;
 }
 
 TEST_F(ClusterConfigTest, RejectsWildcardListenWithoutAdvertise) {

@@ -132,7 +132,7 @@ TEST(EtcdClientNoServer, RejectsUnreachableEndpointAsUnavailable) {
 }
 
 TEST(EtcdClientNoServer, RejectsMalformedEndpoints) {
-  for (const char* bad : {"", "localhost", "http://h:0", "http://h:99999", "https://h:2379",
+  for (const char* bad : {"", "localhost", "http://h:0", "http://h:99999", "https://h:0",
                           "http://h:2379/path", "http://:2379"}) {
     auto c = EtcdClient::Create({{bad}, std::chrono::milliseconds(300)});
     EXPECT_EQ(c.status().code(), Status::Code::kInvalidArgument) << bad;

@@ -130,31 +130,50 @@ class ChildProcess {
   pid_t pid_ = -1;
 };
 
-/// One etcd member on free loopback ports; endpoint() is its client URL.
+/// An etcd's client-port TLS: its certificate and key, the CA its clients' certificates must
+/// chain to, and whether it requires one (--client-cert-auth).
+struct EtcdTlsFiles {
+  std::string cert_file;
+  std::string key_file;
+  std::string trusted_ca_file;
+  bool client_cert_auth = false;
+};
+
+/// One etcd member on free loopback ports; endpoint() is its client URL (https:// with `tls`;
+/// the peer port stays plain, a one-member cluster has no peer).
 class EtcdProcess {
  public:
-  EtcdProcess() : dir_("sculpt-etcd") {
+  explicit EtcdProcess(std::optional<EtcdTlsFiles> tls = std::nullopt) : dir_("sculpt-etcd") {
     client_port_ = FreePort();
+    scheme_ = tls ? "https://" : "http://";
     const uint16_t peer = FreePort();
-    const std::string client = "http://127.0.0.1:" + std::to_string(client_port_);
+    const std::string client = endpoint();
     const std::string peer_url = "http://127.0.0.1:" + std::to_string(peer);
-    process_ = std::make_unique<ChildProcess>(
-        std::vector<std::string>{kEtcdBinary, "--name", "t", "--data-dir",
-                                 (dir_.path() / "data").string(), "--listen-client-urls", client,
-                                 "--advertise-client-urls", client, "--listen-peer-urls", peer_url,
-                                 "--initial-advertise-peer-urls", peer_url, "--initial-cluster",
-                                 "t=" + peer_url},
-        dir_.path() / "etcd.log");
+    std::vector<std::string> args{kEtcdBinary, "--name", "t", "--data-dir",
+                                  (dir_.path() / "data").string(), "--listen-client-urls", client,
+                                  "--advertise-client-urls", client, "--listen-peer-urls", peer_url,
+                                  "--initial-advertise-peer-urls", peer_url, "--initial-cluster",
+                                  "t=" + peer_url};
+    if (tls) {
+      args.insert(args.end(), {"--cert-file", tls->cert_file, "--key-file", tls->key_file});
+      if (!tls->trusted_ca_file.empty()) {
+        args.insert(args.end(), {"--trusted-ca-file", tls->trusted_ca_file});
+      }
+      if (tls->client_cert_auth) args.push_back("--client-cert-auth");
+    }
+    process_ = std::make_unique<ChildProcess>(std::move(args), dir_.path() / "etcd.log");
   }
   ~EtcdProcess() { process_.reset(); }
 
-  std::string endpoint() const { return "http://127.0.0.1:" + std::to_string(client_port_); }
+  std::string endpoint() const { return scheme_ + "127.0.0.1:" + std::to_string(client_port_); }
+  uint16_t client_port() const { return client_port_; }
   const fs::path& dir() const { return dir_.path(); }
   ChildProcess& process() { return *process_; }
 
  private:
   TempDir dir_;  // first: outlives the process
   uint16_t client_port_ = 0;
+  std::string scheme_;
   std::unique_ptr<ChildProcess> process_;
 };
 
@@ -174,10 +193,13 @@ inline constexpr const char* kNoEtcd =
     "/usr/bin/etcd is missing: install Debian's etcd-server (deploy/install-deps.sh)";
 
 /// A client of `etcd` once it answers (it takes about a second to elect itself); Unavailable,
-/// naming its log, when it did not within 15 s.
+/// naming its log, when it did not within 15 s. `tls`: the client's CA and certificate files
+/// (its endpoints and timeout are set here).
 inline StatusOr<std::unique_ptr<server::cluster::EtcdClient>> ConnectWhenReady(
-    const EtcdProcess& etcd) {
-  auto c = server::cluster::EtcdClient::Create({{etcd.endpoint()}, std::chrono::milliseconds(500)});
+    const EtcdProcess& etcd, server::cluster::EtcdClient::Options tls = {}) {
+  tls.endpoints = {etcd.endpoint()};
+  tls.timeout = std::chrono::milliseconds(500);
+  auto c = server::cluster::EtcdClient::Create(std::move(tls));
   if (!c.ok()) return c.status();
   server::cluster::EtcdClient& client = **c;
   if (!WaitFor([&] { return client.Sync(client.Get("ping")).ok(); }, std::chrono::seconds(15))) {

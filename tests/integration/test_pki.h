@@ -12,7 +12,8 @@
 namespace sculpt::testing {
 
 // A throw-away PKI: a CA; a server certificate for localhost and 127.0.0.1; an expired one; a
-// client certificate; and a second CA that signed nothing the server presents.
+// client certificate; a second CA that signed nothing the server presents; and a certificate
+// of the first CA for another host only (elsewhere.pem: elsewhere.invalid).
 class Pki {
  public:
   static Pki& Get() {
@@ -60,7 +61,13 @@ class Pki {
         ec +
         "-keyout client.key -out client.csr -subj /CN=replica-1 && "
         "openssl x509 -req -in client.csr -CA ca.pem -CAkey ca.key -CAcreateserial "
-        "-out client.pem -days 2";
+        "-out client.pem -days 2 && "
+        "echo subjectAltName=DNS:elsewhere.invalid > elsewhere.ext && "
+        "openssl req" +
+        ec +
+        "-keyout elsewhere.key -out elsewhere.csr -subj /CN=elsewhere.invalid && "
+        "openssl x509 -req -in elsewhere.csr -CA ca.pem -CAkey ca.key -CAcreateserial "
+        "-out elsewhere.pem -days 2 -extfile elsewhere.ext";
     ok = std::system(("(" + script + ") > openssl.log 2>&1").c_str()) == 0;
     if (!ok) std::system(("cat '" + dir.string() + "/openssl.log'").c_str());
   }

@@ -93,7 +93,9 @@ MemberRecord ClusterAgent::SelfRecord() const {
 
 Status ClusterAgent::Start(const std::string& tcp, const std::string& http) {
   if (started_) return FailedPrecondition("ClusterAgent started twice");
-  auto client = EtcdClient::Create({config_.etcd, std::max(std::chrono::milliseconds(100), tick_)});
+  auto client = EtcdClient::Create({config_.etcd, std::max(std::chrono::milliseconds(100), tick_),
+                                    config_.etcd_ca_file, config_.etcd_cert_file,
+                                    config_.etcd_key_file});
   if (!client.ok()) return client.status();
   etcd_ = std::move(client).value();
   tcp_ = tcp;

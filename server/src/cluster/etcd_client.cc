@@ -1,12 +1,23 @@
 /// @brief EtcdClient over etcd's v3 HTTP/JSON gateway: base64 keys and values, int64 as strings.
 #include "cluster/etcd_client.h"
 
+#include <openssl/err.h>
+#include <openssl/ssl.h>
+#include <openssl/x509.h>
+#include <openssl/x509v3.h>
 #include <sodium.h>
 
 #include <boost/asio/redirect_error.hpp>
+#include <boost/asio/ssl.hpp>
+#include <boost/asio/ssl/host_name_verification.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <boost/beast/ssl.hpp>
+#include <cstdio>
+#include <filesystem>
 #include <nlohmann/json.hpp>
+
+#include "net/tls.h"
 
 // Every call of a coroutine is made in its own statement and its awaitable then awaited
 // (`auto x_call = F(args); auto x = co_await std::move(x_call);`): g++ 12 destroys temporaries
@@ -221,6 +232,112 @@ Status ErrorAnswer(const std::string& where, unsigned status, const std::string&
   return Internal(where + ": HTTP " + std::to_string(status) + ": " + body.substr(0, 200));
 }
 
+// Exists, is a file and opens for reading; InvalidArgument naming the field and the path.
+Status CheckReadable(const char* field, const std::string& file) {
+  std::error_code ec;
+  if (!std::filesystem::exists(file, ec)) {
+    return InvalidArgument(std::string(field) + "=" + file + ": no such file");
+  }
+  if (std::filesystem::is_directory(file, ec)) {
+    return InvalidArgument(std::string(field) + "=" + file + ": is a directory, not a PEM file");
+  }
+  FILE* f = std::fopen(file.c_str(), "rb");
+  if (!f) return InvalidArgument(std::string(field) + "=" + file + ": not readable");
+  std::fclose(f);
+  return Status::Ok();
+}
+
+// The client context of every https:// call: TLS 1.2+ with the suites sculptd's own ports allow,
+// etcd's certificate verified against `ca_file` (or the system's store), and the client
+// certificate when one is given.
+StatusOr<std::shared_ptr<ssl::context>> MakeEtcdTlsContext(const EtcdClient::Options& o) {
+  if (o.cert_file.empty() != o.key_file.empty()) {
+    const char* missing = o.cert_file.empty() ? "cluster.etcd_cert_file" : "cluster.etcd_key_file";
+    return InvalidArgument(std::string(missing) +
+                           " is empty: a client certificate for etcd needs both "
+                           "cluster.etcd_cert_file and cluster.etcd_key_file");
+  }
+  if (!o.ca_file.empty()) SCULPT_RETURN_IF_ERROR(CheckReadable("cluster.etcd_ca_file", o.ca_file));
+  if (!o.cert_file.empty()) {
+    SCULPT_RETURN_IF_ERROR(CheckReadable("cluster.etcd_cert_file", o.cert_file));
+    SCULPT_RETURN_IF_ERROR(CheckReadable("cluster.etcd_key_file", o.key_file));
+  }
+  ERR_clear_error();
+  auto ctx = std::make_shared<ssl::context>(ssl::context::tls_client);
+  SSL_CTX* native = ctx->native_handle();
+  SSL_CTX_set_min_proto_version(native, TLS1_2_VERSION);
+  SSL_CTX_set_options(native, SSL_OP_NO_COMPRESSION | SSL_OP_NO_RENEGOTIATION);
+  if (SSL_CTX_set_cipher_list(native, kTls12Ciphers) != 1 ||
+      SSL_CTX_set_ciphersuites(native, kTls13Suites) != 1) {
+    return Internal("OpenSSL refused the cipher list: " + TakeOpenSslError("unknown"));
+  }
+  if (o.ca_file.empty()) {
+    boost::system::error_code ec;
+    ctx->set_default_verify_paths(ec);
+    if (ec) return Internal("OpenSSL: no default verify paths: " + ec.message());
+  } else if (SSL_CTX_load_verify_locations(native, o.ca_file.c_str(), nullptr) != 1) {
+    return InvalidArgument("cluster.etcd_ca_file=" + o.ca_file + ": not a PEM CA certificate (" +
+                           TakeOpenSslError("unreadable") + ")");
+  }
+  if (!o.cert_file.empty()) {
+    if (SSL_CTX_use_certificate_chain_file(native, o.cert_file.c_str()) != 1) {
+      return InvalidArgument("cluster.etcd_cert_file=" + o.cert_file + ": not a PEM certificate (" +
+                             TakeOpenSslError("unreadable") + ")");
+    }
+    if (SSL_CTX_use_PrivateKey_file(native, o.key_file.c_str(), SSL_FILETYPE_PEM) != 1 ||
+        SSL_CTX_check_private_key(native) != 1) {
+      return InvalidArgument("cluster.etcd_key_file=" + o.key_file +
+                             ": not the unencrypted PEM key of cluster.etcd_cert_file=" +
+                             o.cert_file + " (" + TakeOpenSslError("unreadable") + ")");
+    }
+  }
+  ctx->set_verify_mode(ssl::verify_peer);
+  ERR_clear_error();
+  return ctx;
+}
+
+// Why a TLS operation failed: the certificate check's own reason when that was it (wrong CA,
+// wrong host name, expired), else OpenSSL's reason ("sslv3 alert bad certificate": etcd refused
+// this client's certificate or its absence).
+std::string TlsFailure(const boost::system::error_code& ec, SSL* ssl) {
+  const long verify = ssl ? SSL_get_verify_result(ssl) : X509_V_OK;
+  std::string text = "TLS: " + ec.message();
+  if (verify != X509_V_OK) text += std::string(": ") + X509_verify_cert_error_string(verify);
+  if (ec.category() == asio::error::get_ssl_category()) {
+    const int reason = ERR_GET_REASON(static_cast<unsigned long>(ec.value()));
+    if (reason == SSL_R_SSLV3_ALERT_BAD_CERTIFICATE || reason == SSL_R_TLSV1_ALERT_UNKNOWN_CA ||
+        reason == SSL_R_TLSV13_ALERT_CERTIFICATE_REQUIRED) {
+      text +=
+          " (etcd refused the client certificate: with --client-cert-auth it needs one "
+          "of its --trusted-ca-file, cluster.etcd_cert_file and etcd_key_file)";
+    } else if (reason == SSL_R_WRONG_VERSION_NUMBER) {
+      text += " (does etcd listen with TLS on this port? if not, use http://)";
+    }
+  }
+  if (ec == asio::error::eof || ec == ssl::error::stream_truncated) {
+    text += " (does etcd listen with TLS on this port?)";
+  }
+  return text;
+}
+
+// Writes `req` and reads the answer on a connected (and for TLS, handshaken) stream; `describe`
+// turns an error into text.
+template <typename Stream, typename Describe>
+asio::awaitable<StatusOr<http::response<http::string_body>>> Exchange(
+    Stream& stream, http::request<http::string_body>& req, const std::string& where,
+    Describe describe) {
+  boost::system::error_code ec;
+  auto token = asio::redirect_error(asio::use_awaitable, ec);
+  co_await http::async_write(stream, req, token);
+  if (ec) co_return Status(Status::Code::kUnavailable, where + ": write: " + describe(ec));
+  beast::flat_buffer buffer;
+  http::response_parser<http::string_body> parser;
+  parser.body_limit(kMaxAnswerBytes);
+  co_await http::async_read(stream, buffer, parser, token);
+  if (ec) co_return Status(Status::Code::kUnavailable, where + ": read: " + describe(ec));
+  co_return parser.release();
+}
+
 }  // namespace
 
 StatusOr<std::unique_ptr<EtcdClient>> EtcdClient::Create(Options options) {
@@ -228,17 +345,23 @@ StatusOr<std::unique_ptr<EtcdClient>> EtcdClient::Create(Options options) {
     return Outside("cluster.etcd", "[]", "1 or more http://HOST:PORT endpoints");
   }
   std::vector<Endpoint> endpoints;
+  std::optional<bool> https;  // the first endpoint's scheme
   for (const std::string& text : options.endpoints) {
     std::string rest = text;
-    if (rest.rfind("https://", 0) == 0) {
-      return Outside("cluster.etcd", text, "http://HOST:PORT (https is not supported yet)");
-    }
+    const bool is_https = rest.rfind("https://", 0) == 0;
+    if (is_https) rest = rest.substr(8);
     if (rest.rfind("http://", 0) == 0) rest = rest.substr(7);
+    if (https.has_value() && *https != is_https) {
+      return InvalidArgument("cluster.etcd=" + text + ": not the scheme of the other endpoints (" +
+                             (*https ? "https" : "http") +
+                             "://): every endpoint is TLS or none is");
+    }
+    https = is_https;
     while (!rest.empty() && rest.back() == '/') rest.pop_back();
     const size_t colon = rest.rfind(':');
     if (colon == std::string::npos || colon == 0 || colon + 1 == rest.size() ||
         rest.find('/') != std::string::npos) {
-      return Outside("cluster.etcd", text, "http://HOST:PORT");
+      return Outside("cluster.etcd", text, "http://HOST:PORT or https://HOST:PORT");
     }
     Endpoint e{rest.substr(0, colon), rest.substr(colon + 1)};
     if (e.host.size() > 2 && e.host.front() == '[' && e.host.back() == ']') {
@@ -246,19 +369,36 @@ StatusOr<std::unique_ptr<EtcdClient>> EtcdClient::Create(Options options) {
     }
     if (e.port.find_first_not_of("0123456789") != std::string::npos || e.port.size() > 5 ||
         std::stoi(e.port) == 0 || std::stoi(e.port) > 65535) {
-      return Outside("cluster.etcd", text, "http://HOST:PORT with PORT in [1, 65535]");
+      return Outside("cluster.etcd", text, "http(s)://HOST:PORT with PORT in [1, 65535]");
     }
     endpoints.push_back(std::move(e));
   }
   if (options.timeout <= std::chrono::milliseconds(0)) {
     return Outside("EtcdClient timeout", std::to_string(options.timeout.count()), "> 0 ms");
   }
-  return std::unique_ptr<EtcdClient>(new EtcdClient(std::move(options), std::move(endpoints)));
+  std::shared_ptr<ssl::context> tls;
+  if (*https) {
+    SCULPT_ASSIGN_OR_RETURN(tls, MakeEtcdTlsContext(options));
+  } else {
+    for (auto [field, value] : {std::pair{"cluster.etcd_ca_file", &options.ca_file},
+                                std::pair{"cluster.etcd_cert_file", &options.cert_file},
+                                std::pair{"cluster.etcd_key_file", &options.key_file}}) {
+      if (!value->empty()) {
+        return InvalidArgument(std::string(field) + "=" + *value +
+                               " is set but the etcd endpoints are http://: TLS files are for "
+                               "https:// endpoints");
+      }
+    }
+  }
+  return std::unique_ptr<EtcdClient>(
+      new EtcdClient(std::move(options), std::move(endpoints), std::move(tls)));
 }
 
-EtcdClient::EtcdClient(Options options, std::vector<Endpoint> endpoints)
+EtcdClient::EtcdClient(Options options, std::vector<Endpoint> endpoints,
+                       std::shared_ptr<ssl::context> tls)
     : options_(std::move(options)),
       endpoints_(std::move(endpoints)),
+      tls_(std::move(tls)),
       work_(asio::make_work_guard(io_)) {
   thread_ = std::thread([this] { io_.run(); });
 }
@@ -288,31 +428,71 @@ asio::awaitable<StatusOr<std::string>> EtcdClient::CallOne(Endpoint e, std::stri
   boost::system::error_code ec;
   auto token = asio::redirect_error(asio::use_awaitable, ec);
   const auto executor = co_await asio::this_coro::executor;
-  const std::string where = "etcd http://" + e.host + ":" + e.port + target;
+  const std::string where =
+      std::string("etcd ") + (tls_ ? "https://" : "http://") + e.host + ":" + e.port + target;
   tcp::resolver resolver(executor);
   // The resolver has no timeout of its own; endpoints are addresses or local names.
   const auto results = co_await resolver.async_resolve(e.host, e.port, token);
-  if (ec) co_return Status(Status::Code::kUnavailable, where + ": " + ec.message());
-  beast::tcp_stream stream(executor);
-  stream.expires_after(options_.timeout);
-  co_await stream.async_connect(results, token);
   if (ec) co_return Status(Status::Code::kUnavailable, where + ": " + ec.message());
   http::request<http::string_body> req{http::verb::post, target, 11};
   req.set(http::field::host, e.host + ":" + e.port);
   req.set(http::field::content_type, "application/json");
   req.body() = std::move(body);
   req.prepare_payload();
-  co_await http::async_write(stream, req, token);
-  if (ec) co_return Status(Status::Code::kUnavailable, where + ": write: " + ec.message());
-  beast::flat_buffer buffer;
-  http::response_parser<http::string_body> parser;
-  parser.body_limit(kMaxAnswerBytes);
-  co_await http::async_read(stream, buffer, parser, token);
-  if (ec) co_return Status(Status::Code::kUnavailable, where + ": read: " + ec.message());
-  stream.socket().shutdown(tcp::socket::shutdown_both, ec);
-  const auto& res = parser.get();
-  if (res.result() != http::status::ok) co_return ErrorAnswer(where, res.result_int(), res.body());
-  co_return res.body();
+  StatusOr<http::response<http::string_body>> res = Internal("unreached");
+  if (!tls_) {
+    beast::tcp_stream stream(executor);
+    stream.expires_after(options_.timeout);
+    co_await stream.async_connect(results, token);
+    if (ec) co_return Status(Status::Code::kUnavailable, where + ": " + ec.message());
+    auto exchange_call = Exchange(stream, req, where, [](const boost::system::error_code& ec) {
+      // etcd's TLS-only client port closes a plaintext request without an answer.
+      return ec == http::error::end_of_stream || ec == asio::error::eof
+                 ? ec.message() + " (does etcd's client port speak TLS? then use https://)"
+                 : ec.message();
+    });
+    res = co_await std::move(exchange_call);
+    stream.socket().shutdown(tcp::socket::shutdown_both, ec);
+  } else {
+    beast::ssl_stream<beast::tcp_stream> stream(executor, *tls_);
+    SSL* native = stream.native_handle();
+    boost::system::error_code not_ip;
+    asio::ip::make_address(e.host, not_ip);
+    if (not_ip) SSL_set_tlsext_host_name(native, e.host.c_str());  // SNI takes names only
+    // The certificate must name the endpoint's host (DNS name or IP address); a mismatch is
+    // reported as such rather than as OpenSSL's "unspecified" verification error.
+    const int mismatch = not_ip ? X509_V_ERR_HOSTNAME_MISMATCH : X509_V_ERR_IP_ADDRESS_MISMATCH;
+    stream.set_verify_callback(
+        [check = ssl::host_name_verification(e.host), mismatch](bool preverified,
+                                                                ssl::verify_context& ctx) mutable {
+          const bool ok = check(preverified, ctx);
+          if (preverified && !ok) X509_STORE_CTX_set_error(ctx.native_handle(), mismatch);
+          return ok;
+        },
+        ec);
+    beast::get_lowest_layer(stream).expires_after(options_.timeout);
+    co_await beast::get_lowest_layer(stream).async_connect(results, token);
+    if (ec) co_return Status(Status::Code::kUnavailable, where + ": " + ec.message());
+    co_await stream.async_handshake(ssl::stream_base::client, token);
+    if (ec) {
+      co_return Status(Status::Code::kUnavailable,
+                       where + ": handshake failed: " + TlsFailure(ec, native));
+    }
+    auto exchange_call =
+        Exchange(stream, req, where, [native](const boost::system::error_code& ec) {
+          return ec.category() == asio::error::get_ssl_category() ||
+                         ec == ssl::error::stream_truncated || ec == asio::error::eof
+                     ? TlsFailure(ec, native)
+                     : ec.message();
+        });
+    res = co_await std::move(exchange_call);
+    // No close_notify round trip: the answer is complete, and etcd keeps nothing per connection.
+    beast::get_lowest_layer(stream).socket().shutdown(tcp::socket::shutdown_both, ec);
+  }
+  if (!res.ok()) co_return res.status();
+  if (res->result() != http::status::ok)
+    co_return ErrorAnswer(where, res->result_int(), res->body());
+  co_return std::move(res->body());
 }
 
 asio::awaitable<StatusOr<std::string>> EtcdClient::Call(std::string target, std::string body) {

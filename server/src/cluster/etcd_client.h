@@ -1,5 +1,5 @@
 /// @brief EtcdClient: the few etcd v3 calls a sculptd member needs (leases, put, range, txn,
-/// delete), over etcd's HTTP/JSON gateway with Boost.Beast, on a thread of its own.
+/// delete), over etcd's HTTP/JSON gateway with Boost.Beast (plain or TLS), on a thread of its own.
 #ifndef SCULPT_SERVER_CLUSTER_ETCD_CLIENT_H_
 #define SCULPT_SERVER_CLUSTER_ETCD_CLIENT_H_
 
@@ -22,6 +22,11 @@
 #include <vector>
 
 #include "sculpt/core/status.h"
+
+// The TLS context is only pointed to here: OpenSSL and Beast's SSL stay out of this header.
+namespace boost::asio::ssl {
+class context;
+}  // namespace boost::asio::ssl
 
 namespace sculpt::server::cluster {
 
@@ -76,19 +81,32 @@ struct TxnResult {
 /// per call, endpoints tried in order until one answers). Each call is an awaitable run on the
 /// client's own io_context and thread, so a slow or absent etcd never blocks a session's strand
 /// or the compute thread; Sync() runs one from any other thread and waits.
-/// Errors: Unavailable when no endpoint answers within the timeout, NotFound for an unknown
-/// lease, Internal for an answer that does not parse, and etcd's other errors by their gRPC code.
+/// Over https:// the client verifies etcd's certificate (chain to `ca_file`, or the system's
+/// store, and the endpoint's host name) and may present a client certificate.
+/// Errors: Unavailable when no endpoint answers within the timeout or its TLS handshake fails
+/// (the message says "TLS" and OpenSSL's reason), NotFound for an unknown lease, Internal for an
+/// answer that does not parse, and etcd's other errors by their gRPC code.
 /// Thread safety: the awaitables run only on io(); Sync() from any thread but io()'s.
 class EtcdClient {
  public:
   struct Options {
-    /// "http://HOST:PORT" (the scheme may be left out); https is not supported yet.
+    /// "http://HOST:PORT" (the scheme may be left out: http) or "https://HOST:PORT"; every
+    /// endpoint of one client has the same scheme.
     std::vector<std::string> endpoints;
-    /// Bound of one call (connect, write, read), per endpoint tried.
+    /// Bound of one call (connect, TLS handshake, write, read), per endpoint tried.
     std::chrono::milliseconds timeout{1000};
+    /// https only. PEM CA certificates etcd's certificate must chain to; empty: the system's
+    /// default verify paths.
+    std::string ca_file{};
+    /// https only, both or neither: the PEM client certificate (and its unencrypted PEM key)
+    /// presented to an etcd started with --client-cert-auth.
+    std::string cert_file{};
+    std::string key_file{};
   };
 
-  /// InvalidArgument naming the endpoint that is not http://HOST:PORT.
+  /// InvalidArgument naming the endpoint that is not http(s)://HOST:PORT or whose scheme differs
+  /// from the others', and naming the field and the path of a TLS file that is missing,
+  /// unreadable or not PEM (the files are read here, once).
   static StatusOr<std::unique_ptr<EtcdClient>> Create(Options options);
   ~EtcdClient();
   EtcdClient(const EtcdClient&) = delete;
@@ -145,7 +163,8 @@ class EtcdClient {
     std::string host;
     std::string port;
   };
-  EtcdClient(Options options, std::vector<Endpoint> endpoints);
+  EtcdClient(Options options, std::vector<Endpoint> endpoints,
+             std::shared_ptr<boost::asio::ssl::context> tls);
   // POSTs `body` (JSON text) to `target` on the first endpoint that answers; the parsed JSON
   // answer as text is returned for the caller to parse (keeps the JSON type out of this header).
   asio::awaitable<StatusOr<std::string>> Call(std::string target, std::string body);
@@ -153,6 +172,8 @@ class EtcdClient {
 
   Options options_;
   std::vector<Endpoint> endpoints_;
+  // The context of every https:// call, built once by Create; null for http://.
+  std::shared_ptr<boost::asio::ssl::context> tls_;
   size_t preferred_ = 0;  // io() only: the endpoint that answered last
   asio::io_context io_;
   asio::executor_work_guard<asio::io_context::executor_type> work_;

@@ -140,30 +140,70 @@ Status ValidateClusterConfig(const ServerConfig& c) {
           " is set: cluster mode needs etcd endpoints (etcd = [\"http://HOST:PORT\"]); leave "
           "out the [cluster] section for a single process");
     }
+    for (auto [key, value] : {std::pair{"cluster.etcd_ca_file", &k.etcd_ca_file},
+                              std::pair{"cluster.etcd_cert_file", &k.etcd_cert_file},
+                              std::pair{"cluster.etcd_key_file", &k.etcd_key_file}}) {
+      if (!value->empty()) {
+        return InvalidArgument(std::string(key) + "=" + *value +
+                               " is set but cluster.etcd is empty: it is for TLS to etcd in "
+                               "cluster mode; leave out the [cluster] section for a single "
+                               "process");
+      }
+    }
     return Status::Ok();
   }
   if (k.etcd.size() > 16) {
     return Outside("cluster.etcd.size", std::to_string(k.etcd.size()), "[1, 16]");
   }
+  const bool etcd_https = k.etcd.front().rfind("https://", 0) == 0;
   for (size_t i = 0; i < k.etcd.size(); ++i) {
     const std::string key = "cluster.etcd[" + std::to_string(i) + "]";
     std::string rest = k.etcd[i];
-    if (rest.rfind("https://", 0) == 0) {
-      return Outside(key, k.etcd[i], "http://HOST:PORT (TLS to etcd is not supported yet)");
+    const bool https = rest.rfind("https://", 0) == 0;
+    if (https != etcd_https) {
+      return Outside(key, k.etcd[i],
+                     std::string(etcd_https ? "https" : "http") +
+                         "://HOST:PORT as cluster.etcd[0]: every endpoint is TLS or none is");
     }
+    if (https) rest = rest.substr(8);
     if (rest.rfind("http://", 0) == 0) rest = rest.substr(7);
     while (!rest.empty() && rest.back() == '/') rest.pop_back();
     std::string host;
     uint16_t port = 0;
     if (rest.find('/') != std::string::npos || !ParseHostPort(rest, &host, &port).ok() ||
         port == 0 || host.empty()) {
-      return Outside(key, k.etcd[i], "http://HOST:PORT with PORT in [1, 65535]");
+      return Outside(key, k.etcd[i], "http(s)://HOST:PORT with PORT in [1, 65535]");
     }
-    if (!IsLoopbackListen(rest) && !c.tls.allow_plaintext) {
+    if (!https && !IsLoopbackListen(rest) && !c.tls.allow_plaintext) {
       return InvalidArgument(key + "=" + k.etcd[i] +
-                             " is beyond loopback and etcd is reached in plaintext (TLS to etcd is "
-                             "not supported yet): set tls.allow_plaintext = true to accept that");
+                             " is beyond loopback and etcd is reached in plaintext: use "
+                             "https:// (cluster.etcd_ca_file) or set tls.allow_plaintext = true "
+                             "to accept that");
     }
+  }
+  for (auto [key, value] : {std::pair{"cluster.etcd_ca_file", &k.etcd_ca_file},
+                            std::pair{"cluster.etcd_cert_file", &k.etcd_cert_file},
+                            std::pair{"cluster.etcd_key_file", &k.etcd_key_file}}) {
+    if (value->empty()) continue;
+    if (!etcd_https) {
+      return InvalidArgument(std::string(key) + "=" + *value +
+                             " is set but cluster.etcd[0]=" + k.etcd.front() +
+                             " is http://: the etcd TLS files are for https:// endpoints");
+    }
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(*value, ec)) {
+      return InvalidArgument(std::string(key) + "=" + *value +
+                             " is not a readable file (a PEM file: CA certificates for "
+                             "etcd_ca_file, the client certificate and its key for "
+                             "etcd_cert_file and etcd_key_file)");
+    }
+  }
+  if (k.etcd_cert_file.empty() != k.etcd_key_file.empty()) {
+    const char* missing =
+        k.etcd_cert_file.empty() ? "cluster.etcd_cert_file" : "cluster.etcd_key_file";
+    return InvalidArgument(std::string(missing) +
+                           " is empty: a client certificate for etcd needs both "
+                           "cluster.etcd_cert_file and cluster.etcd_key_file");
   }
   constexpr const char* kNameChars =
       "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789._-";
@@ -218,7 +258,7 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
         CheckKeys(path, *t, "cluster",
                   {"etcd", "member", "advertise", "advertise_http", "lease_ttl_ms", "prefix",
                    "standby", "replication", "sync_fallback_ms", "peer_token",
-                   "peer_ca_file"}));
+                   "peer_ca_file", "etcd_ca_file", "etcd_cert_file", "etcd_key_file"}));
     if (const toml::node* e = t->get("etcd")) {
       const toml::array* a = e->as_array();
       if (!a) return Outside("cluster.etcd", "not an array", "arrays of \"http://HOST:PORT\"");
@@ -238,10 +278,15 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
     Get(*t, "sync_fallback_ms", &c->cluster.sync_fallback_ms);
     Get(*t, "peer_token", &c->cluster.peer_token);
     Get(*t, "peer_ca_file", &c->cluster.peer_ca_file);
+    Get(*t, "etcd_ca_file", &c->cluster.etcd_ca_file);
+    Get(*t, "etcd_cert_file", &c->cluster.etcd_cert_file);
+    Get(*t, "etcd_key_file", &c->cluster.etcd_key_file);
     // Relative to the config file's folder, as the [tls] files are.
-    std::string& ca = c->cluster.peer_ca_file;
-    if (!ca.empty() && std::filesystem::path(ca).is_relative()) {
-      ca = (std::filesystem::path(path).parent_path() / ca).lexically_normal().string();
+    for (std::string* file : {&c->cluster.peer_ca_file, &c->cluster.etcd_ca_file,
+                              &c->cluster.etcd_cert_file, &c->cluster.etcd_key_file}) {
+      if (!file->empty() && std::filesystem::path(*file).is_relative()) {
+        *file = (std::filesystem::path(path).parent_path() / *file).lexically_normal().string();
+      }
     }
   }
   if (const toml::table* t = root["tls"].as_table()) {

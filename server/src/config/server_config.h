@@ -148,7 +148,14 @@ struct TlsConfig {
 /// Cluster mode (issue 17, docs/cluster.md): off while `etcd` is empty, and then sculptd is the
 /// single process it always was.
 struct ClusterConfig {
-  std::vector<std::string> etcd;  // etcd client URLs, http://HOST:PORT
+  std::vector<std::string> etcd;  // etcd client URLs, all http://HOST:PORT or all https://
+  /// https:// endpoints only: PEM CAs etcd's certificate must chain to (empty: the system's
+  /// store); the certificate must also name the endpoint's host.
+  std::string etcd_ca_file;
+  /// https:// endpoints only, both or neither: the client certificate and its unencrypted key
+  /// presented to an etcd started with --client-cert-auth.
+  std::string etcd_cert_file;
+  std::string etcd_key_file;
   std::string member;             // this member's name, unique in the cluster
   /// HOST:PORT clients are sent to for this member's TCP port; empty: listen's host with the
   /// bound port (listen must then name a host, not a wildcard).
