@@ -132,7 +132,9 @@ TEST_F(ClusterStatusTest, ListsBothMembersAndTheOwnerAndEpochOfTheScene) {
   EXPECT_EQ(lagged["scenes"][0]["state"], "owned") << lagged.dump();
   for (const json& m : lagged["members"]) {
     EXPECT_EQ(m["acks_async"], false) << lagged.dump();
-    if (m["name"] == "b") EXPECT_EQ(m["follows"], "default") << lagged.dump();
+    if (m["name"] == "b") {
+      EXPECT_EQ(m["follows"], "default") << lagged.dump();
+    }
   }
 
   // The table names the same.
