@@ -284,7 +284,13 @@ int main(int argc, char** argv) {
       sculpt::client::AddClusterCommand(app, cluster_opts, cluster_move_opts);
 #endif
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help and --version exit 0 after printing; a refused option exits 2, as each command's
+    // help says (CLI11's own codes, 105 for a failed check and so on, say nothing more).
+    return app.exit(e) == 0 ? 0 : 2;
+  }
 
   // Secrets come from a file or the environment; a token flag stops here with directions.
   for (auto [cmd, flags, token] : {std::tuple{info_cmd, &info_token_flags, &info_token},

@@ -255,6 +255,18 @@ TEST(ClusterStatusNoEtcd, RejectsAMalformedEndpoint) {
   EXPECT_EQ(r.exit_code, 2) << r.output;
 }
 
+// A check CLI11 refuses (a missing file, a value out of range) exits 2 like every bad option,
+// not with CLI11's own code, and names the option.
+TEST(ClusterStatusNoEtcd, RefusedOptionsExitTwo) {
+  const RunResult missing =
+      Sculpt("cluster status --etcd http://127.0.0.1:1 --etcd-ca /nonexistent/ca.pem");
+  EXPECT_EQ(missing.exit_code, 2) << missing.output;
+  EXPECT_NE(missing.output.find("--etcd-ca"), std::string::npos) << missing.output;
+  const RunResult range = Sculpt("cluster status --etcd http://127.0.0.1:1 --timeout 0");
+  EXPECT_EQ(range.exit_code, 2) << range.output;
+  EXPECT_NE(range.output.find("--timeout"), std::string::npos) << range.output;
+}
+
 TEST(ClusterStatusNoEtcd, HelpNamesTheOptions) {
   const RunResult r = Sculpt("cluster status --help");
   EXPECT_EQ(r.exit_code, 0) << r.output;

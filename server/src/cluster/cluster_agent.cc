@@ -105,9 +105,15 @@ Status ClusterAgent::Start(const std::string& tcp, const std::string& http) {
   if (!registered.ok()) {
     std::string list;
     for (const std::string& e : config_.etcd) list += (list.empty() ? "" : ", ") + e;
+    // The check to try, with the TLS files this member uses (etcdctl needs them too).
+    std::string etcdctl = "etcdctl --endpoints " + list;
+    if (!config_.etcd_ca_file.empty()) etcdctl += " --cacert " + config_.etcd_ca_file;
+    if (!config_.etcd_cert_file.empty()) {
+      etcdctl += " --cert " + config_.etcd_cert_file + " --key " + config_.etcd_key_file;
+    }
     return Status(registered.code(), "cluster: cannot register member " + config_.member +
                                          " with etcd at " + list + ": " + registered.message() +
-                                         " (is etcd running? `etcdctl --endpoints " + list +
+                                         " (is etcd running? `" + etcdctl +
                                          " endpoint health`)");
   }
   spdlog::info("cluster: member {} registered (tcp {}, http {}), lease TTL {} ms", config_.member,
