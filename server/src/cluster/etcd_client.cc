@@ -232,21 +232,6 @@ Status ErrorAnswer(const std::string& where, unsigned status, const std::string&
   return Internal(where + ": HTTP " + std::to_string(status) + ": " + body.substr(0, 200));
 }
 
-// Exists, is a file and opens for reading; InvalidArgument naming the field and the path.
-Status CheckReadable(const char* field, const std::string& file) {
-  std::error_code ec;
-  if (!std::filesystem::exists(file, ec)) {
-    return InvalidArgument(std::string(field) + "=" + file + ": no such file");
-  }
-  if (std::filesystem::is_directory(file, ec)) {
-    return InvalidArgument(std::string(field) + "=" + file + ": is a directory, not a PEM file");
-  }
-  FILE* f = std::fopen(file.c_str(), "rb");
-  if (!f) return InvalidArgument(std::string(field) + "=" + file + ": not readable");
-  std::fclose(f);
-  return Status::Ok();
-}
-
 // The client context of every https:// call: TLS 1.2+ with the suites sculptd's own ports allow,
 // etcd's certificate verified against `ca_file` (or the system's store), and the client
 // certificate when one is given.

@@ -10,9 +10,7 @@
 #include <filesystem>
 
 namespace sculpt::server {
-namespace {
 
-// Exists and opens for reading; InvalidArgument naming the key and the file otherwise.
 Status CheckReadable(const char* key, const std::string& file) {
   std::error_code ec;
   if (!std::filesystem::exists(file, ec)) {
@@ -26,8 +24,6 @@ Status CheckReadable(const char* key, const std::string& file) {
   std::fclose(f);
   return Status::Ok();
 }
-
-}  // namespace
 
 std::string TakeOpenSslError(const std::string& fallback) {
   unsigned long last = 0;

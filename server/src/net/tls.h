@@ -35,6 +35,10 @@ StatusOr<std::shared_ptr<ssl::context>> MakeServerTlsContext(const TlsConfig& tl
 /// `fallback` when there is none.
 std::string TakeOpenSslError(const std::string& fallback);
 
+/// Whether a PEM file a TLS context will load exists and opens for reading: InvalidArgument
+/// naming `key` (the setting) and the file otherwise.
+Status CheckReadable(const char* key, const std::string& file);
+
 /// A TLS handshake failure as a log line says it ("wrong version number (plaintext on the TLS
 /// port?)").
 std::string DescribeHandshakeError(const boost::system::error_code& ec);

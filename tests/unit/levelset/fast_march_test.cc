@@ -67,7 +67,7 @@ TEST(FastMarchTest, AMarchInABoxMatchesTheWholeFieldMarch) {
   DenseField whole = Plane(&whole_state);
   DenseField boxed = Plane(&box_state);
   // Free voxels only in i, j in [1, 4), k in [0, 9); the rest known at their distance to the
-  // plane, except one voxel left free-looking at a placeholder to show nothing writes it.
+  // plane, except one voxel holding a sentinel value, to show nothing writes it.
   for (int k = 0; k < 12; ++k) {
     for (int j = 0; j < 5; ++j) {
       for (int i = 0; i < 6; ++i) {
