@@ -9,6 +9,8 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <memory>
 #include <string>
 #include <variant>
@@ -455,6 +457,38 @@ TEST_F(EpochFenceClusterTest, PausedOwnersStaleStrokesAreLoggedNowhereAndEpochsA
   }
   EXPECT_EQ(b_at1, static_cast<size_t>(2 * kBefore)) << "a's strokes, as b's copy logged them";
   EXPECT_EQ(b_at2, static_cast<size_t>(2 * kDuring)) << "the resent strokes, once, at epoch 2";
+}
+
+// The member's agent: once etcd's epoch for the scene moves past the one its standby follows,
+// the follow ends at its next tick (here the epoch record is rewritten behind the owner's back,
+// so no new owner is honoured and the standby waits instead of following anyone).
+TEST_F(EpochFenceClusterTest, StandbyStopsFollowingWhenEtcdsEpochMovesOn) {
+  auto& a = Start("a");
+  ASSERT_NE(a.WaitPort(), 0) << "see " << dir_.path() / "a.log";
+  ASSERT_TRUE(WaitFor([&] { return OwnerOf("default").has_value(); }, milliseconds(5000)));
+  auto& b = Start("b");
+  ASSERT_NE(b.WaitPort(), 0) << "see " << dir_.path() / "b.log";
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto m = MemberOf("b");
+        return m && m->follows == "default";
+      },
+      milliseconds(15000)))
+      << "b did not follow a; see " << dir_.path() / "b.log";
+  const std::string b_log = (dir_.path() / "b.log").string();
+  auto logged = [&](const std::string& text) {
+    std::ifstream in(b_log);
+    const std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    return all.find(text) != std::string::npos;
+  };
+  EXPECT_FALSE(logged("etcd names epoch 2"));
+  const Keys keys{"t/"};
+  auto put = etcd_client_->Sync(
+      etcd_client_->Put({keys.Epoch("default"), EncodeEpoch({2, "x"}), 0}));
+  ASSERT_TRUE(put.ok()) << put.status();
+  EXPECT_TRUE(WaitFor([&] { return logged("etcd names epoch 2 for its owner now, not epoch 1"); },
+                      milliseconds(5000)))
+      << "b went on following the owner of epoch 1; see " << b_log;
 }
 
 }  // namespace
