@@ -195,8 +195,8 @@ TEST_F(EpochFenceTest, OwnerAndStandbyCopyLogEveryStrokeRecordWithTheOwnersEpoch
   ASSERT_TRUE(load.has_value());
   EXPECT_EQ(load->leaf_delta().epoch(), 7u) << "the region load does not carry the epoch";
   auto follower = Follow(7);
-  ASSERT_TRUE(WaitFor([&] { return follower->ready() || follower->finished(); },
-                      milliseconds(10000)));
+  ASSERT_TRUE(
+      WaitFor([&] { return follower->ready() || follower->finished(); }, milliseconds(10000)));
   ASSERT_TRUE(follower->ready()) << follower->failure();
   uint64_t seq = 0;
   constexpr int kStrokes = 3, kPoses = 3;
@@ -281,8 +281,8 @@ TEST_F(EpochFenceTest, RejectsARegionLoadOfAnotherEpochThanEtcdNames) {
 TEST_F(EpochFenceTest, RejectsAStaleOwnersBroadcastAndKeepsNothingOfIt) {
   StartOwner(7);
   auto follower = Follow(7);
-  ASSERT_TRUE(WaitFor([&] { return follower->ready() || follower->finished(); },
-                      milliseconds(10000)));
+  ASSERT_TRUE(
+      WaitFor([&] { return follower->ready() || follower->finished(); }, milliseconds(10000)));
   ASSERT_TRUE(follower->ready()) << follower->failure();
   const uint64_t before = Sculpt(1);
   ASSERT_TRUE(WaitFor([&] { return follower->durable_seq() >= before; }, milliseconds(10000)));
@@ -323,8 +323,8 @@ TEST_F(EpochFenceTest, RejectsAStaleOwnersBroadcastAndKeepsNothingOfIt) {
 TEST_F(EpochFenceTest, StopsTakingTheOwnersStreamOnceEtcdNamesAnotherEpoch) {
   StartOwner(7);
   auto follower = Follow(7);
-  ASSERT_TRUE(WaitFor([&] { return follower->ready() || follower->finished(); },
-                      milliseconds(10000)));
+  ASSERT_TRUE(
+      WaitFor([&] { return follower->ready() || follower->finished(); }, milliseconds(10000)));
   ASSERT_TRUE(follower->ready()) << follower->failure();
   const uint64_t before = Sculpt(1);
   ASSERT_TRUE(WaitFor([&] { return follower->durable_seq() >= before; }, milliseconds(10000)));
@@ -483,8 +483,8 @@ TEST_F(EpochFenceClusterTest, StandbyStopsFollowingWhenEtcdsEpochMovesOn) {
   };
   EXPECT_FALSE(logged("etcd names epoch 2"));
   const Keys keys{"t/"};
-  auto put = etcd_client_->Sync(
-      etcd_client_->Put({keys.Epoch("default"), EncodeEpoch({2, "x"}), 0}));
+  auto put =
+      etcd_client_->Sync(etcd_client_->Put({keys.Epoch("default"), EncodeEpoch({2, "x"}), 0}));
   ASSERT_TRUE(put.ok()) << put.status();
   EXPECT_TRUE(WaitFor([&] { return logged("etcd names epoch 2 for its owner now, not epoch 1"); },
                       milliseconds(5000)))

@@ -351,8 +351,8 @@ void StandbyFollower::Run() {
     const uint64_t seq = delta ? m.leaf_delta().global_seq() : m.edit().global_seq_first();
     const std::string why = "scene " + o.scene + ": refused " +
                             (delta ? "a LeafDelta" : "an EditBroadcast") + " at seq " +
-                            std::to_string(seq) + " of epoch " + std::to_string(got) +
-                            " from " + o.owner_tcp + ": the owner etcd names holds epoch " +
+                            std::to_string(seq) + " of epoch " + std::to_string(got) + " from " +
+                            o.owner_tcp + ": the owner etcd names holds epoch " +
                             std::to_string(want) + " (nothing of it applied or logged)";
     spdlog::warn("cluster: standby {}; ending the connection, the owner is read from etcd again",
                  why);
