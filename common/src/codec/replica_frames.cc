@@ -30,6 +30,7 @@ SharedFrame EncodeLeafDelta(LeafDeltaFrame delta) {
     e->set_client_id(key.second);
     e->set_client_seq(client_seq);
   }
+  d->set_epoch(delta.epoch);
   return EncodeSharedFrame(m);
 }
 
@@ -49,6 +50,7 @@ SharedFrame EncodeEditBroadcast(const EditBroadcastFrame& broadcast) {
   b->set_edits_since_reinit(broadcast.before.edits_since_reinit);
   b->set_leaves_hash(broadcast.leaves_hash);
   b->set_dirty_leaves(broadcast.dirty_leaves);
+  b->set_epoch(broadcast.epoch);
   return EncodeSharedFrame(m);
 }
 

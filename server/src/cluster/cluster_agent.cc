@@ -212,6 +212,12 @@ asio::awaitable<void> ClusterAgent::Loop() {
       auto owner_call = etcd_->Get(keys_.Owner(scene_));
       auto owner = co_await std::move(owner_call);
       if (owner.ok() && !owner->has_value()) break;  // gone: the full tick takes it over now
+      if (owner.ok()) {
+        // A newer epoch than the one followed (epochs only grow): a new owner. The full tick reads the scene's keys
+        // (checked against each other), stops the old follow and follows the new owner now.
+        auto o = DecodeOwner((*owner)->value);
+        if (o.ok() && follower_ && o->epoch > follower_->expected_epoch()) break;
+      }
     }
     if (stopping_) co_return;
     if (Clock::now() < next_full && !(follower_ && !owned_)) {
@@ -474,6 +480,12 @@ asio::awaitable<void> ClusterAgent::TendStandby() {
     }
     co_return;
   }
+  // Fencing: the follow takes only the epoch etcd names. Once the scene's epoch moved on (a new
+  // owner, or none yet), the old owner's stream is refused at once, also while this member waits
+  // for the new owner or stops following.
+  if (follower_ && st.epoch && st.epoch->epoch != follower_->options().owner_epoch) {
+    follower_->Supersede(st.epoch->epoch);
+  }
   const bool named = standby_ && st.standby && st.standby->member == config_.member;
   if (!named) {
     RetireFollower();
@@ -505,6 +517,7 @@ asio::awaitable<void> ClusterAgent::TendStandby() {
       fo.owner_tcp = st.owner->tcp;
       fo.tls = standby_->tls;
       fo.owner_epoch = st.owner->epoch;
+      fo.stale_epoch_refusals = stale_epoch_refusals_;
       fo.snapshot_every_records = standby_->snapshot_every_edits;
       follower_ = std::make_unique<StandbyFollower>(std::move(fo));
     }

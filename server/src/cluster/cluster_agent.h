@@ -176,6 +176,9 @@ class ClusterAgent : public SceneRouter {
   std::atomic<uint64_t> owned_epoch_{0};
   std::atomic<uint64_t> etcd_failures_{0};     // keep-alives and refreshes etcd did not answer
   std::atomic<uint64_t> ownership_losses_{0};  // times this member stopped owning its scene
+  // Frames its followers refused for their epoch (shared with each StandbyFollower).
+  std::shared_ptr<std::atomic<uint64_t>> stale_epoch_refusals_ =
+      std::make_shared<std::atomic<uint64_t>>(0);
 };
 
 }  // namespace sculpt::server::cluster

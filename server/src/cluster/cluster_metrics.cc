@@ -49,6 +49,10 @@ void ClusterAgent::WriteMetrics(MetricsWriter& w, uint64_t scene_seq) const {
   w.Counter("sculpt_cluster_ownership_losses_total",
             "Times this member stopped owning its scene (lease expired, or its owner key gone)",
             static_cast<double>(ownership_losses_.load()), {{"member", config_.member}});
+  w.Counter("sculpt_cluster_stale_epoch_refusals_total",
+            "As a standby: edit broadcasts and leaf deltas refused because their epoch was not "
+            "that of the owner etcd names (each ends the follow)",
+            static_cast<double>(stale_epoch_refusals_->load()), {{"member", config_.member}});
 }
 
 }  // namespace sculpt::server::cluster

@@ -138,6 +138,7 @@ struct StandbyFollower::Impl {
 
 StandbyFollower::StandbyFollower(FollowerOptions options)
     : options_(std::move(options)), impl_(std::make_shared<Impl>()) {
+  expected_epoch_ = options_.owner_epoch;
   thread_ = std::thread([this] { Run(); });
 }
 
@@ -164,6 +165,20 @@ uint64_t StandbyFollower::durable_seq() const {
   if (!ready_ || !impl_->log) return 0;
   // Everything up to the snapshot is durable with it; the log holds what came since.
   return std::max(impl_->log->durable_seq(), impl_->snapshot_seq.load());
+}
+
+void StandbyFollower::Supersede(uint64_t epoch) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (epoch == expected_epoch_.load()) return;
+    spdlog::warn(
+        "cluster: standby of scene {}: etcd names epoch {} for its owner now, not epoch {} of the "
+        "owner at {}: its stream is no longer taken",
+        options_.scene, epoch, expected_epoch_.load(), options_.owner_tcp);
+    expected_epoch_ = epoch;
+    superseded_ = true;
+  }
+  cv_.notify_all();
 }
 
 void StandbyFollower::Run() {
@@ -322,7 +337,30 @@ void StandbyFollower::Run() {
     return Status::Ok();
   };
 
+  // Fencing: only the epoch of the owner etcd names is taken. Anything else (an owner that lost
+  // the scene and has not noticed, a new owner on the old address) is refused before it touches
+  // the copy, and the follow ends.
+  auto check_epoch = [&](const v1::ServerMessage& m) -> Status {
+    const bool delta = m.has_leaf_delta();
+    if (!delta && !m.has_edit()) return Status::Ok();
+    const uint64_t got = delta ? m.leaf_delta().epoch() : m.edit().epoch();
+    const uint64_t want = expected_epoch_.load();
+    if (got == want) return Status::Ok();
+    ++refusals_;
+    if (o.stale_epoch_refusals) ++*o.stale_epoch_refusals;
+    const uint64_t seq = delta ? m.leaf_delta().global_seq() : m.edit().global_seq_first();
+    const std::string why = "scene " + o.scene + ": refused " +
+                            (delta ? "a LeafDelta" : "an EditBroadcast") + " at seq " +
+                            std::to_string(seq) + " of epoch " + std::to_string(got) + " from " +
+                            o.owner_tcp + ": the owner etcd names holds epoch " +
+                            std::to_string(want) + " (nothing of it applied or logged)";
+    spdlog::warn("cluster: standby {}; ending the connection, the owner is read from etcd again",
+                 why);
+    return Status(Status::Code::kFailedPrecondition, why);
+  };
+
   auto apply = [&](v1::ServerMessage& m) -> Status {
+    SCULPT_RETURN_IF_ERROR(check_epoch(m));
     if (m.has_leaf_delta()) {
       const v1::LeafDelta& d = m.leaf_delta();
       if (d.object() != im.object) return Status::Ok();
@@ -385,6 +423,7 @@ void StandbyFollower::Run() {
         reqs.push_back(p.edit);
         std::string payload = codec::EncodeLogRecord(p);
         codec::AppendRecordUser(&payload, p.user);
+        AppendRecordEpoch(&payload, b.epoch());  // the epoch the owner sequenced it under
         payloads.push_back(std::move(payload));
       }
     } else {
@@ -414,7 +453,9 @@ void StandbyFollower::Run() {
         if (i + 1 == n) p.commit_ms = now_ms;
         p.edit = decoded->edits[i];
         reqs.push_back(codec::AsLogged(p.edit));
-        payloads.push_back(codec::EncodeLogRecord(p));
+        std::string payload = codec::EncodeLogRecord(p);
+        AppendRecordEpoch(&payload, b.epoch());  // the epoch the owner sequenced it under
+        payloads.push_back(std::move(payload));
       }
     }
     if (reqs.empty()) return Status::Ok();
@@ -457,9 +498,18 @@ void StandbyFollower::Run() {
 
   std::unique_lock<std::mutex> lock(mu_);
   while (!stop_) {
-    cv_.wait_for(lock, std::chrono::milliseconds(100), [&] { return stop_ || !queue_.empty(); });
+    cv_.wait_for(lock, std::chrono::milliseconds(100),
+                 [&] { return stop_ || !queue_.empty() || superseded_; });
     if (stop_) break;
     if (queue_.empty()) {
+      if (superseded_) {
+        lock.unlock();
+        fail("etcd names epoch " + std::to_string(expected_epoch_.load()) + " for scene " +
+             o.scene + "'s owner, not the epoch " + std::to_string(o.owner_epoch) +
+             " followed at " + o.owner_tcp);
+        lock.lock();
+        break;
+      }
       if (!im.client->connected()) {
         lock.unlock();
         fail("the connection to the owner at " + o.owner_tcp + " ended");

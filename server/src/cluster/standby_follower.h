@@ -62,7 +62,12 @@ struct FollowerOptions {
   std::string token;   // cluster.peer_token, or (none configured) a viewer token the owner accepts
   std::string owner_tcp;  // HOST:PORT; over TLS the certificate must name HOST
   PeerTlsOptions tls;
+  /// The ownership epoch of the owner etcd names (scenes/<scene>/owner): every EditBroadcast and
+  /// LeafDelta must carry it, else it is refused (fencing, docs/cluster.md).
   uint64_t owner_epoch = 0;
+  /// Counts the frames refused for another epoch (the member's
+  /// sculpt_cluster_stale_epoch_refusals_total); may be null.
+  std::shared_ptr<std::atomic<uint64_t>> stale_epoch_refusals;
   /// The copy snapshots its object after this many logged records and drops the log before the
   /// previous snapshot (as the owner does with snapshot_every_edits), so a failover replays a
   /// bounded tail; 0: only at region loads.
@@ -77,6 +82,11 @@ struct FollowerOptions {
 /// paint, sweep, model, undo) is applied and the object snapshotted at its sequence, so the copy
 /// never depends on a record it could not write. The follow ends when the connection does;
 /// the copy stays for promotion.
+/// Fencing: a broadcast or delta whose epoch is not the expected one (options().owner_epoch, or
+/// the one Supersede gave) is neither applied nor logged: it is counted, logged with both
+/// epochs, and the follow ends (the connection dropped), so the member reads the owner from
+/// etcd again before it follows anew. The copy logs each stroke record with the broadcast's
+/// epoch.
 /// Limits: a scene of one object (several objects would need one connection each and a merge by
 /// sequence); the owner's authenticated user names and resend table are not carried (see
 /// docs/cluster.md). Thread safety: every method from any thread.
@@ -97,6 +107,14 @@ class StandbyFollower {
   bool ready() const { return ready_.load(); }
   /// The last sequence the copy holds durably (0 before ready).
   uint64_t durable_seq() const;
+  /// etcd names `epoch` for the scene's owner now, not the epoch this follow began with: from
+  /// now on nothing of another epoch is taken, and the follow ends once the frames already
+  /// received are refused (a new owner is followed by a new StandbyFollower).
+  void Supersede(uint64_t epoch);
+  /// The epoch frames must carry to be taken.
+  uint64_t expected_epoch() const { return expected_epoch_.load(); }
+  /// Frames this follow refused for their epoch.
+  uint64_t stale_epoch_refusals() const { return refusals_.load(); }
 
  private:
   struct Impl;
@@ -107,6 +125,9 @@ class StandbyFollower {
   std::atomic<bool> stop_{false};
   std::atomic<bool> finished_{false};
   std::atomic<bool> ready_{false};
+  std::atomic<uint64_t> expected_epoch_{0};
+  std::atomic<bool> superseded_{false};
+  std::atomic<uint64_t> refusals_{0};
   mutable std::mutex mu_;
   std::condition_variable cv_;
   std::deque<std::unique_ptr<v1::ServerMessage>> queue_;  // guarded by mu_

@@ -7,6 +7,7 @@
 #include <optional>
 #include <utility>
 
+#include "cluster/ownership_fence.h"
 #include "sculpt/codec/replica_frames.h"
 #include "sculpt/core/check.h"
 
@@ -43,6 +44,8 @@ StatusOr<levelset::VoxelBox> HeldBox(const levelset::Sculpture& s,
 
 }  // namespace
 
+uint64_t ReplicationHub::epoch() const { return fence_ ? fence_->epoch() : 0; }
+
 void ReplicationHub::SendRegion(Sub& sub, const levelset::Sculpture& sculpture, uint64_t seq,
                                 uint64_t have_seq, bool replace) {
   levelset::VoxelBox box = sub.held;
@@ -64,6 +67,7 @@ void ReplicationHub::SendRegion(Sub& sub, const levelset::Sculpture& sculpture, 
   d.region = box;
   d.state = levelset::CaptureReplayState(sculpture);
   if (replace && sub.sink.standby && resend_table_) d.resend_table = *resend_table_;
+  d.epoch = epoch();
   codec::SharedFrame frame = codec::EncodeLeafDelta(std::move(d));
   stats_.resyncs++;
   stats_.leaf_delta_bytes += frame->size();
@@ -151,6 +155,7 @@ void ReplicationHub::Replicate(const std::string& object, const levelset::Sculpt
     d.state = after;
     d.client_id = client_id;
     d.client_seq = client_seq;
+    d.epoch = epoch();
     codec::SharedFrame f = codec::EncodeLeafDelta(std::move(d));
     stats_.leaf_deltas++;
     stats_.leaf_delta_bytes += f->size();
@@ -178,6 +183,7 @@ void ReplicationHub::Replicate(const std::string& object, const levelset::Sculpt
         b.before = replay->before;
         b.leaves_hash = levelset::LeavesHash(sculpture, dirty);
         b.dirty_leaves = static_cast<uint32_t>(dirty.size());
+        b.epoch = epoch();
         broadcast = codec::EncodeEditBroadcast(b);
         stats_.broadcasts++;
         stats_.broadcast_bytes += broadcast->size();

@@ -21,6 +21,10 @@
 
 namespace sculpt::server {
 
+namespace cluster {
+class OwnershipFence;
+}  // namespace cluster
+
 /// Replication counters since start.
 struct ReplicationStats {
   std::atomic<uint64_t> broadcasts{0};   // EditBroadcast frames built
@@ -64,6 +68,10 @@ class ReplicationHub {
   /// inside the load is recognised after a failover.
   using ResendEntries = std::map<std::pair<uint8_t, uint64_t>, uint64_t>;
   void set_resend_table(const ResendEntries* table) { resend_table_ = table; }
+  /// Cluster mode: every frame sent carries this fence's epoch (EditBroadcast.epoch,
+  /// LeafDelta.epoch), so a standby can refuse a stream of another epoch than etcd names. Null
+  /// (a single process): epoch 0, absent from the bytes.
+  void set_fence(const cluster::OwnershipFence* fence) { fence_ = fence; }
 
   /// Registers `sink`'s replica of `object` (`sculpture`, null when the scene has no such
   /// object) at the scene's sequence `seq`, replacing the session's earlier subscription, and
@@ -111,6 +119,8 @@ class ReplicationHub {
     bool whole = true;
     levelset::VoxelBox held;  // interest dilated by the halo (when !whole)
   };
+  // The fence's epoch (0 without one).
+  uint64_t epoch() const;
   void SendRegion(Sub& sub, const levelset::Sculpture& sculpture, uint64_t seq, uint64_t have_seq,
                   bool replace);
 
@@ -118,6 +128,7 @@ class ReplicationHub {
   std::map<std::string, levelset::LeafVersions> versions_;
   uint64_t versions_floor_ = 0;
   const ResendEntries* resend_table_ = nullptr;
+  const cluster::OwnershipFence* fence_ = nullptr;
   ReplicationStats stats_;
 };
 

@@ -115,6 +115,7 @@ class Scene {
   /// default, a single process): always. Set before the scene serves anyone.
   void set_ownership_fence(std::shared_ptr<const cluster::OwnershipFence> fence) {
     fence_ = std::move(fence);
+    replication_.set_fence(fence_.get());  // frames to replicas carry its epoch
   }
 
   /// Cluster mode, `replication = "sync"` (docs/cluster.md): the scene's standby says its copy

@@ -33,6 +33,7 @@ struct LeafDeltaFrame {
   uint64_t client_seq = 0;
   /// To the scene's standby with a region load: (stream, client id) -> newest client_seq.
   std::map<std::pair<uint8_t, uint64_t>, uint64_t> resend_table;
+  uint64_t epoch = 0;  // the sender's ownership epoch (cluster mode), else 0
 };
 
 /// An EditBroadcast: an edit replay replicas apply with the same kernel. `stroke` is the
@@ -46,6 +47,7 @@ struct EditBroadcastFrame {
   levelset::ReplayState before;  // the tracked volumes the replica replays from
   uint64_t leaves_hash = 0;      // levelset::LeavesHash over the changed leaves
   uint32_t dirty_leaves = 0;
+  uint64_t epoch = 0;  // the sender's ownership epoch (cluster mode), else 0
 };
 
 /// A MeshChunk: one chunk's Draco mesh at `version` (empty draco: the chunk holds no surface).

@@ -1,0 +1,495 @@
+// Fencing by epoch (issue 17, docs/cluster.md "Fencing"): the owner writes its ownership epoch
+// into every stroke record it logs and stamps every EditBroadcast and LeafDelta it sends; a
+// standby takes only frames of the epoch etcd names for the owner it follows and logs them with
+// that epoch. The first tests run the real server in-process with a fence granted by the test
+// (no etcd) and a real StandbyFollower on loopback, so each epoch is chosen, not raced for; the
+// last runs two sculptd members and etcd through a paused owner's failover.
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <memory>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "cluster/ownership_fence.h"
+#include "cluster/processes.h"
+#include "cluster/records.h"
+#include "cluster/scene_router.h"
+#include "cluster/standby_follower.h"
+#include "integration/in_process_server.h"
+#include "integration/raw_client.h"
+#include "scene/commit.h"
+#include "sculpt/v1/sculpt.pb.h"
+#include "store/edit_log.h"
+#include "store/recovery.h"
+
+namespace sculpt::server::cluster {
+namespace {
+
+namespace fs = std::filesystem;
+using sculpt::testing::RawClient;
+using sculpt::testing::WaitFor;
+using std::chrono::milliseconds;
+
+struct Logged {
+  uint64_t seq = 0;
+  uint64_t epoch = 0;
+  bool stroke = false;
+  std::string payload;
+};
+
+// Every record of the edit log of `data_dir`, read back with the store's reader, with the epoch
+// each carries.
+std::vector<Logged> ReadLog(const fs::path& data_dir) {
+  store::RecoveryReport report;
+  auto log =
+      store::EditLog::Open((data_dir / store::kLogSubdir).string(), store::FsyncPolicy{}, &report);
+  EXPECT_TRUE(log.ok()) << log.status();
+  if (!log.ok()) return {};
+  auto records = (*log)->ReadFrom(0);
+  EXPECT_TRUE(records.ok()) << records.status();
+  if (!records.ok()) return {};
+  std::vector<Logged> out;
+  for (const store::LogRecord& r : *records) {
+    auto decoded = DecodeLogRecord(r.seq, r.payload);
+    EXPECT_TRUE(decoded.ok()) << decoded.status();
+    Logged l;
+    l.seq = r.seq;
+    l.epoch = RecordEpoch(r.payload);
+    l.stroke = decoded.ok() && std::holds_alternative<codec::StrokePoseRecord>(decoded->record);
+    l.payload = r.payload;
+    out.push_back(std::move(l));
+  }
+  return out;
+}
+
+// Snapshot sequences in a data directory (snap-<20-digit seq>...).
+std::vector<uint64_t> SnapshotSeqs(const fs::path& data_dir) {
+  std::vector<uint64_t> seqs;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(data_dir / store::kSnapshotSubdir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind("snap-", 0) == 0 && name.size() >= 25) {
+      seqs.push_back(std::stoull(name.substr(5, 20)));
+    }
+  }
+  return seqs;
+}
+
+TEST(RecordEpochTest, OnlyStrokeRecordsCarryTheEpochAndZeroAddsNothing) {
+  codec::StrokePoseRecord pose;
+  pose.global_seq = 5;
+  pose.client_id = 9;
+  pose.client_seq = 2;
+  pose.object = "clay";
+  pose.pose_count = 1;
+  const std::string plain = codec::EncodeLogRecord(pose);
+  std::string with = plain;
+  AppendRecordEpoch(&with, 0);
+  EXPECT_EQ(with, plain) << "epoch 0 must leave the bytes as they were";
+  codec::AppendRecordUser(&with, "ada");
+  AppendRecordEpoch(&with, 12);
+  EXPECT_EQ(RecordEpoch(with), 12u);
+  EXPECT_EQ(RecordEpoch(plain), 0u);
+  auto decoded = DecodeLogRecord(5, with);
+  ASSERT_TRUE(decoded.ok()) << decoded.status();
+  const auto& back = std::get<codec::StrokePoseRecord>(decoded->record);
+  EXPECT_EQ(back.user, "ada");
+  EXPECT_EQ(back.client_seq, 2u);
+
+  codec::UndoRecord undo;
+  undo.global_seq = 6;
+  undo.client_id = 9;
+  const std::string tagged = codec::EncodeLogRecord(undo);
+  std::string tagged_with = tagged;
+  AppendRecordEpoch(&tagged_with, 12);
+  EXPECT_EQ(tagged_with, tagged) << "a tagged record has no epoch field";
+  EXPECT_EQ(RecordEpoch(tagged), 0u);
+}
+
+// This member ("a") owns the scene and names "b" its standby.
+class FixedRouter : public SceneRouter {
+ public:
+  Route RouteScene(const std::string& scene) const override {
+    Route r;
+    r.kind = Route::Kind::kLocal;
+    r.scene = scene;
+    r.member = "a";
+    r.epoch = 7;
+    r.standby = "b";
+    return r;
+  }
+};
+
+class EpochFenceTest : public ::testing::Test {
+ protected:
+  // The owner in cluster mode (no agent: the test grants its fence at `epoch`), or a single
+  // process (epoch 0: no cluster settings, no fence).
+  void StartOwner(uint64_t epoch) {
+    if (epoch != 0) {
+      auto& c = server_.config().cluster;
+      c.etcd = {"http://127.0.0.1:9"};  // read by nobody: no agent runs here
+      c.member = "a";
+    }
+    ASSERT_TRUE(server_.Start());
+    if (epoch == 0) return;
+    server_.server().set_router(&router_);
+    fence_->Grant(epoch, OwnershipFence::Clock::now() + std::chrono::hours(1));
+    server_.scene().set_ownership_fence(fence_);
+  }
+  // A standby "b" following the owner, told by "etcd" that the owner holds `epoch`.
+  std::unique_ptr<StandbyFollower> Follow(uint64_t epoch) {
+    FollowerOptions fo;
+    fo.data_dir = standby_data_.string();
+    fo.scene = "default";
+    fo.member = "b";
+    fo.token = server_.config().viewer_token;
+    fo.owner_tcp = "127.0.0.1:" + std::to_string(server_.port());
+    fo.owner_epoch = epoch;
+    fo.stale_epoch_refusals = refusals_;
+    return std::make_unique<StandbyFollower>(std::move(fo));
+  }
+  // One acknowledged stroke of `poses` poses; returns the scene's sequence after it.
+  uint64_t Sculpt(uint64_t client_seq, int poses = 3) {
+    if (!sculptor_) {
+      sculptor_ = std::make_unique<RawClient>(server_.port());
+      EXPECT_TRUE(sculptor_->Enter("sculpt-dev-sculptor", v1::ROLE_SCULPTOR, 77));
+    }
+    EXPECT_TRUE(
+        sculptor_->Send(RawClient::PressStroke(client_seq, {-3.0 + client_seq, 0, 22.5}, poses)));
+    auto ack = sculptor_->ReadUntil(v1::ServerMessage::kAck);
+    EXPECT_TRUE(ack.has_value()) << "no ack for stroke " << client_seq;
+    return ack ? ack->ack().global_seq_first() + ack->ack().edits() - 1 : 0;
+  }
+  // A replay replica (a viewer), subscribed to the object; returns its region load.
+  std::optional<v1::ServerMessage> Subscribe(RawClient& c) {
+    EXPECT_TRUE(c.Enter("sculpt-dev-viewer", v1::ROLE_VIEWER));
+    v1::ClientMessage s;
+    s.mutable_subscribe()->set_object("clay");
+    s.mutable_subscribe()->set_mode(v1::REPLICA_MODE_REPLAY);
+    EXPECT_TRUE(c.Send(s));
+    return c.ReadUntil(v1::ServerMessage::kLeafDelta);
+  }
+  fs::path Copy() {
+    auto copy = CurrentStandbyCopy(standby_data_.string(), "default");
+    return copy ? fs::path(*copy) : fs::path();
+  }
+
+  sculpt::testing_support::InProcessServer server_{"epoch_fence"};
+  FixedRouter router_;
+  std::shared_ptr<OwnershipFence> fence_ = std::make_shared<OwnershipFence>("default");
+  std::shared_ptr<std::atomic<uint64_t>> refusals_ = std::make_shared<std::atomic<uint64_t>>(0);
+  std::unique_ptr<RawClient> sculptor_;
+  fs::path standby_data_ = server_.dir() / "b-data";
+};
+
+TEST_F(EpochFenceTest, OwnerAndStandbyCopyLogEveryStrokeRecordWithTheOwnersEpoch) {
+  StartOwner(7);
+  RawClient replica(server_.port());
+  auto load = Subscribe(replica);
+  ASSERT_TRUE(load.has_value());
+  EXPECT_EQ(load->leaf_delta().epoch(), 7u) << "the region load does not carry the epoch";
+  auto follower = Follow(7);
+  ASSERT_TRUE(
+      WaitFor([&] { return follower->ready() || follower->finished(); }, milliseconds(10000)));
+  ASSERT_TRUE(follower->ready()) << follower->failure();
+  uint64_t seq = 0;
+  constexpr int kStrokes = 3, kPoses = 3;
+  for (int i = 1; i <= kStrokes; ++i) seq = Sculpt(i, kPoses);
+  ASSERT_GT(seq, 0u);
+  auto broadcast = replica.ReadUntil(v1::ServerMessage::kEdit);
+  ASSERT_TRUE(broadcast.has_value());
+  EXPECT_EQ(broadcast->edit().epoch(), 7u) << "the broadcast does not carry the epoch";
+  ASSERT_TRUE(WaitFor([&] { return follower->durable_seq() >= seq; }, milliseconds(10000)))
+      << "the copy holds seq " << follower->durable_seq() << " of " << seq << "; "
+      << follower->failure();
+  EXPECT_EQ(follower->stale_epoch_refusals(), 0u);
+  follower.reset();
+
+  uint64_t copy_epoch = 0;
+  ASSERT_TRUE(CurrentStandbyCopy(standby_data_.string(), "default", &copy_epoch).has_value());
+  EXPECT_EQ(copy_epoch, 7u);
+  const std::vector<Logged> copied = ReadLog(Copy());
+  ASSERT_EQ(copied.size(), static_cast<size_t>(kStrokes * kPoses));
+  for (const Logged& l : copied) {
+    EXPECT_TRUE(l.stroke) << "seq " << l.seq;
+    EXPECT_EQ(l.epoch, 7u) << "the copy logged seq " << l.seq << " without the owner's epoch";
+  }
+  EXPECT_EQ(copied.back().seq, seq);
+
+  server_.Stop();
+  const std::vector<Logged> owned = ReadLog(server_.config().data_dir);
+  size_t strokes = 0;
+  for (const Logged& l : owned) {
+    if (!l.stroke) continue;
+    ++strokes;
+    EXPECT_EQ(l.epoch, 7u) << "the owner logged seq " << l.seq << " without its epoch";
+  }
+  EXPECT_EQ(strokes, static_cast<size_t>(kStrokes * kPoses));
+}
+
+TEST_F(EpochFenceTest, SingleProcessLogsAndSendsNoEpoch) {
+  StartOwner(0);
+  RawClient replica(server_.port());
+  auto load = Subscribe(replica);
+  ASSERT_TRUE(load.has_value());
+  EXPECT_EQ(load->leaf_delta().epoch(), 0u);
+  const uint64_t seq = Sculpt(1, 3);
+  ASSERT_GT(seq, 0u);
+  auto broadcast = replica.ReadUntil(v1::ServerMessage::kEdit);
+  ASSERT_TRUE(broadcast.has_value());
+  EXPECT_EQ(broadcast->edit().epoch(), 0u);
+  server_.Stop();
+  const std::vector<Logged> owned = ReadLog(server_.config().data_dir);
+  ASSERT_EQ(owned.size(), 3u);
+  for (const Logged& l : owned) {
+    EXPECT_TRUE(l.stroke);
+    EXPECT_EQ(l.epoch, 0u);
+    // Absent from the bytes, not written as 0: the record serializes back to the same bytes
+    // (a present field 16, even 0, would not survive the round trip).
+    v1::EditRecord r;
+    ASSERT_TRUE(r.ParseFromString(l.payload));
+    EXPECT_EQ(r.SerializeAsString(), l.payload) << "seq " << l.seq;
+    EXPECT_EQ(l.payload.find("\x80\x01"), std::string::npos) << "field 16's tag in seq " << l.seq;
+  }
+}
+
+TEST_F(EpochFenceTest, RejectsARegionLoadOfAnotherEpochThanEtcdNames) {
+  StartOwner(7);
+  Sculpt(1);
+  auto follower = Follow(6);  // etcd names epoch 6; the owner at the address sends epoch 7
+  ASSERT_TRUE(WaitFor([&] { return follower->finished(); }, milliseconds(10000)));
+  EXPECT_FALSE(follower->ready());
+  const std::string why = follower->failure();
+  EXPECT_NE(why.find("LeafDelta"), std::string::npos) << why;
+  EXPECT_NE(why.find("of epoch 7"), std::string::npos) << why;
+  EXPECT_NE(why.find("holds epoch 6"), std::string::npos) << why;
+  EXPECT_NE(why.find("scene default"), std::string::npos) << why;
+  EXPECT_EQ(follower->stale_epoch_refusals(), 1u);
+  EXPECT_EQ(refusals_->load(), 1u);
+  EXPECT_EQ(follower->durable_seq(), 0u);
+  follower.reset();
+  EXPECT_FALSE(CurrentStandbyCopy(standby_data_.string(), "default").has_value())
+      << "the refused load made a copy";
+}
+
+TEST_F(EpochFenceTest, RejectsAStaleOwnersBroadcastAndKeepsNothingOfIt) {
+  StartOwner(7);
+  auto follower = Follow(7);
+  ASSERT_TRUE(
+      WaitFor([&] { return follower->ready() || follower->finished(); }, milliseconds(10000)));
+  ASSERT_TRUE(follower->ready()) << follower->failure();
+  const uint64_t before = Sculpt(1);
+  ASSERT_TRUE(WaitFor([&] { return follower->durable_seq() >= before; }, milliseconds(10000)));
+  // The member at the address now sends under epoch 6 (stale: etcd still names 7 for the owner
+  // the standby follows).
+  fence_->Grant(6, OwnershipFence::Clock::now() + std::chrono::hours(1));
+  const uint64_t stale = Sculpt(2);
+  ASSERT_GT(stale, before);
+  ASSERT_TRUE(WaitFor([&] { return follower->finished(); }, milliseconds(10000)))
+      << "the standby kept following a stream of another epoch";
+  const std::string why = follower->failure();
+  EXPECT_NE(why.find("EditBroadcast at seq " + std::to_string(before + 1)), std::string::npos)
+      << why;
+  EXPECT_NE(why.find("of epoch 6"), std::string::npos) << why;
+  EXPECT_NE(why.find("holds epoch 7"), std::string::npos) << why;
+  EXPECT_EQ(follower->stale_epoch_refusals(), 1u);
+  EXPECT_EQ(refusals_->load(), 1u);
+  EXPECT_EQ(follower->durable_seq(), before);
+  follower.reset();
+
+  // Nothing of the refused stroke in the copy: its log ends before it, every record of epoch 7,
+  // and no snapshot (the copy's state on disk) past it.
+  const std::vector<Logged> copied = ReadLog(Copy());
+  ASSERT_FALSE(copied.empty());
+  EXPECT_EQ(copied.back().seq, before);
+  for (const Logged& l : copied) EXPECT_EQ(l.epoch, 7u) << "seq " << l.seq;
+  for (uint64_t s : SnapshotSeqs(Copy())) EXPECT_LE(s, before);
+  // The owner logged it, under the epoch it held then.
+  server_.Stop();
+  size_t at6 = 0;
+  for (const Logged& l : ReadLog(server_.config().data_dir)) {
+    EXPECT_EQ(l.epoch, l.seq > before ? 6u : 7u) << "seq " << l.seq;
+    at6 += l.seq > before ? 1 : 0;
+  }
+  EXPECT_EQ(at6, static_cast<size_t>(stale - before));
+}
+
+TEST_F(EpochFenceTest, StopsTakingTheOwnersStreamOnceEtcdNamesAnotherEpoch) {
+  StartOwner(7);
+  auto follower = Follow(7);
+  ASSERT_TRUE(
+      WaitFor([&] { return follower->ready() || follower->finished(); }, milliseconds(10000)));
+  ASSERT_TRUE(follower->ready()) << follower->failure();
+  const uint64_t before = Sculpt(1);
+  ASSERT_TRUE(WaitFor([&] { return follower->durable_seq() >= before; }, milliseconds(10000)));
+  follower->Supersede(8);  // what the member's agent does when etcd's epoch moves on
+  EXPECT_EQ(follower->expected_epoch(), 8u);
+  ASSERT_TRUE(WaitFor([&] { return follower->finished(); }, milliseconds(5000)));
+  EXPECT_NE(follower->failure().find("etcd names epoch 8"), std::string::npos)
+      << follower->failure();
+  Sculpt(2);  // the old owner goes on: nothing of it reaches the copy
+  EXPECT_EQ(follower->durable_seq(), before);
+  follower.reset();
+  const std::vector<Logged> copied = ReadLog(Copy());
+  ASSERT_FALSE(copied.empty());
+  EXPECT_EQ(copied.back().seq, before);
+}
+
+// Two members and etcd: a owns at epoch 1, b follows; a is paused past its TTL, b takes the
+// scene over at epoch 2 and a, resumed, refuses the strokes that waited for it. Every stroke
+// record a logged carries epoch 1 and a logged none of the waiting strokes; b's log (its copy,
+// promoted) holds a's strokes under epoch 1 and the resent ones once, under epoch 2.
+class EpochFenceClusterTest : public sculpt::testing::EtcdTest {
+ protected:
+  void TearDown() override {
+    members_.clear();
+    EtcdTest::TearDown();
+  }
+  sculpt::testing::Member& Start(const std::string& name) {
+    members_.push_back(
+        std::make_unique<sculpt::testing::Member>(name, etcd_->endpoint(), dir_.path()));
+    return *members_.back();
+  }
+  sculpt::testing::TempDir dir_{"sculpt-epoch-fence"};
+  std::vector<std::unique_ptr<sculpt::testing::Member>> members_;
+};
+
+TEST_F(EpochFenceClusterTest, PausedOwnersStaleStrokesAreLoggedNowhereAndEpochsAreInTheLogs) {
+  auto& a = Start("a");
+  ASSERT_NE(a.WaitPort(), 0) << "see " << dir_.path() / "a.log";
+  ASSERT_TRUE(WaitFor([&] { return OwnerOf("default").has_value(); }, milliseconds(5000)));
+  auto& b = Start("b");
+  ASSERT_NE(b.WaitPort(), 0) << "see " << dir_.path() / "b.log";
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto s = StandbyOf("default");
+        auto m = MemberOf("b");
+        return s && s->member == "b" && m && m->follows == "default";
+      },
+      milliseconds(15000)))
+      << "b did not follow a; see " << dir_.path() / "b.log";
+
+  sculpt::client::ClientOptions options;
+  options.timeout = milliseconds(5000);
+  sculpt::client::Client client(options);
+  ASSERT_TRUE(client.Connect("127.0.0.1", a.port()).ok());
+  ASSERT_TRUE(client.Hello("sculpt-dev-sculptor", v1::ROLE_SCULPTOR, "epoch-test", 0).ok());
+  auto joined = client.Join("");
+  ASSERT_TRUE(joined.ok()) << joined.status();
+  auto stroke_at = [](int i) {
+    sculpt::client::StrokeRequest stroke;
+    const double x = -4.0 + i;
+    stroke.poses = {{{x, 0, 22.5}, 0}, {{x, 0.5, 22.5}, 10}};
+    return stroke;
+  };
+  constexpr int kBefore = 4, kDuring = 3;
+  for (int i = 0; i < kBefore; ++i) ASSERT_TRUE(client.SendStroke(stroke_at(i)).ok());
+  ASSERT_TRUE(client.WaitAllAcked(milliseconds(10000)));
+  const uint64_t acked_seq = client.stats().last_global_seq;
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto m = MemberOf("b");
+        return m && m->follow_seq >= acked_seq;
+      },
+      milliseconds(10000)))
+      << "b's copy did not catch up; see " << dir_.path() / "b.log";
+  (void)client.DrainEvents();
+
+  ASSERT_EQ(kill(a.process().pid(), SIGSTOP), 0);
+  for (int i = kBefore; i < kBefore + kDuring; ++i) {
+    ASSERT_TRUE(client.SendStroke(stroke_at(i)).ok());
+  }
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto o = OwnerOf("default");
+        return o && o->member == "b";
+      },
+      milliseconds(15000)))
+      << "b did not take the scene over; see " << dir_.path() / "b.log";
+  EXPECT_EQ(OwnerOf("default")->epoch, 2u);
+  ASSERT_EQ(kill(a.process().pid(), SIGCONT), 0);
+  // a refuses the waiting strokes and closes; the client rejoins (redirected to b) and resends.
+  int acks_from_a = 0;
+  bool disconnected = false;
+  const auto until = std::chrono::steady_clock::now() + milliseconds(5000);
+  while (!disconnected && std::chrono::steady_clock::now() < until) {
+    auto e = client.NextEvent(milliseconds(100));
+    if (!e) continue;
+    acks_from_a += e->type == sculpt::client::Event::Type::kAck ? 1 : 0;
+    disconnected = e->type == sculpt::client::Event::Type::kDisconnected;
+  }
+  EXPECT_EQ(acks_from_a, 0) << "the paused owner acknowledged after its lease was gone";
+  ASSERT_TRUE(disconnected) << "the refusal did not close the connection";
+  Status again;
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        again = client.Reconnect();
+        return again.ok();
+      },
+      milliseconds(10000)))
+      << again;
+  ASSERT_TRUE(client.WaitAllAcked(milliseconds(10000)));
+  EXPECT_EQ(client.stats().acks, static_cast<uint64_t>(kBefore + kDuring));
+  const uint64_t final_seq = client.stats().last_global_seq;
+  EXPECT_EQ(final_seq, acked_seq + 2 * kDuring);
+
+  a.process().Kill(SIGTERM);
+  b.process().Kill(SIGTERM);
+  size_t a_strokes = 0;
+  for (const Logged& l : ReadLog(dir_.path() / "a-data")) {
+    if (!l.stroke) continue;
+    ++a_strokes;
+    EXPECT_EQ(l.epoch, 1u) << "a logged seq " << l.seq;
+    EXPECT_LE(l.seq, acked_seq) << "a logged a stroke after its lease was gone";
+  }
+  EXPECT_EQ(a_strokes, static_cast<size_t>(2 * kBefore));
+  size_t b_at1 = 0, b_at2 = 0;
+  for (const Logged& l : ReadLog(dir_.path() / "b-data")) {
+    if (!l.stroke) continue;
+    EXPECT_EQ(l.epoch, l.seq > acked_seq ? 2u : 1u) << "b logged seq " << l.seq;
+    (l.seq > acked_seq ? b_at2 : b_at1)++;
+  }
+  EXPECT_EQ(b_at1, static_cast<size_t>(2 * kBefore)) << "a's strokes, as b's copy logged them";
+  EXPECT_EQ(b_at2, static_cast<size_t>(2 * kDuring)) << "the resent strokes, once, at epoch 2";
+}
+
+// The member's agent: once etcd's epoch for the scene moves past the one its standby follows,
+// the follow ends at its next tick (here the epoch record is rewritten behind the owner's back,
+// so no new owner is honoured and the standby waits instead of following anyone).
+TEST_F(EpochFenceClusterTest, StandbyStopsFollowingWhenEtcdsEpochMovesOn) {
+  auto& a = Start("a");
+  ASSERT_NE(a.WaitPort(), 0) << "see " << dir_.path() / "a.log";
+  ASSERT_TRUE(WaitFor([&] { return OwnerOf("default").has_value(); }, milliseconds(5000)));
+  auto& b = Start("b");
+  ASSERT_NE(b.WaitPort(), 0) << "see " << dir_.path() / "b.log";
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto m = MemberOf("b");
+        return m && m->follows == "default";
+      },
+      milliseconds(15000)))
+      << "b did not follow a; see " << dir_.path() / "b.log";
+  const std::string b_log = (dir_.path() / "b.log").string();
+  auto logged = [&](const std::string& text) {
+    std::ifstream in(b_log);
+    const std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    return all.find(text) != std::string::npos;
+  };
+  EXPECT_FALSE(logged("etcd names epoch 2"));
+  const Keys keys{"t/"};
+  auto put =
+      etcd_client_->Sync(etcd_client_->Put({keys.Epoch("default"), EncodeEpoch({2, "x"}), 0}));
+  ASSERT_TRUE(put.ok()) << put.status();
+  EXPECT_TRUE(WaitFor([&] { return logged("etcd names epoch 2 for its owner now, not epoch 1"); },
+                      milliseconds(5000)))
+      << "b went on following the owner of epoch 1; see " << b_log;
+}
+
+}  // namespace
+}  // namespace sculpt::server::cluster
