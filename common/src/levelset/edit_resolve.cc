@@ -207,17 +207,7 @@ size_t RemoveThinMaterial(Block& b, std::vector<uint8_t>& touched) {
 
 namespace {
 
-// |grad phi| as the slope of steepest descent: the largest |phi(n) - phi(v)| / |n - v| over the
-// 26 neighbours (invariants.h explains why not a one-sided norm).
-float SteepestSlope(const float* p, size_t idx, const ptrdiff_t offsets[26],
-                    const float inv_lengths[26]) {
-  const float v = p[idx];
-  float g = 0.f;
-  for (int n = 0; n < 26; ++n) g = std::max(g, std::abs(p[idx + offsets[n]] - v) * inv_lengths[n]);
-  return g;
-}
-
-// SteepestSlope over the neighbours the edit may write (the block's interior): next to the
+// The steepest slope (below) over the neighbours the edit may write (the block's interior): next to the
 // stencil margin, a slope to a margin voxel that an earlier edit left is no cliff a rebuild here
 // can level (it would find it again every round).
 float SteepestWritableSlope(const Block& b, int i, int j, int k) {
@@ -269,22 +259,45 @@ size_t RepairBand(Block& b, const BoxMask& near, const std::vector<uint8_t>& tou
     }
   }
   std::vector<Int3> bad;
+  // |grad phi| is judged as the slope of steepest descent: the largest |phi(n) - phi(v)| /
+  // |n - v| over the 26 neighbours (invariants.h explains why not a one-sided norm). Per row of
+  // the mask's box, it and the interface test are computed for every voxel, one neighbour at a
+  // time along the row: loops the compiler vectorises, where a voxel at a time it could not.
+  const int width = near.Width(0);
+  std::vector<float> slope(static_cast<size_t>(width));
+  std::vector<uint8_t> flips(static_cast<size_t>(width));
   for (int k = near.lo[2]; k < near.hi[2]; ++k) {
     for (int j = near.lo[1]; j < near.hi[1]; ++j) {
       const uint8_t* marks = &near.m[near.Local(near.lo[0], j, k)] - near.lo[0];
+      if (std::find(marks + near.lo[0], marks + near.hi[0], uint8_t{1}) == marks + near.hi[0]) {
+        continue;
+      }
+      const size_t row = b.phi.Index(near.lo[0], j, k);
+      const float* c = p + row;
+      std::fill(slope.begin(), slope.end(), 0.f);
+      std::fill(flips.begin(), flips.end(), uint8_t{0});
+      for (int o = 0; o < 26; ++o) {
+        const float* q = c + offsets[o];
+        const float inv = inv_lengths[o];
+        for (int i = 0; i < width; ++i) slope[i] = std::max(slope[i], std::abs(q[i] - c[i]) * inv);
+      }
+      for (int a = 0; a < 3; ++a) {
+        const float* lo_side = c - stride[a];
+        const float* hi_side = c + stride[a];
+        for (int i = 0; i < width; ++i) {
+          const uint8_t in = c[i] < 0.f;
+          flips[i] |= static_cast<uint8_t>(((lo_side[i] < 0.f) != in) | ((hi_side[i] < 0.f) != in));
+        }
+      }
       for (int i = near.lo[0]; i < near.hi[0]; ++i) {
         if (!marks[i]) continue;
-        const size_t idx = b.phi.Index(i, j, k);
+        const size_t idx = row + static_cast<size_t>(i - near.lo[0]);
         if (touched[idx]) {
           bad.push_back({i, j, k});
           continue;
         }
         const float v = p[idx];
-        const bool inside = v < 0.f;
-        bool interface = false;
-        for (int a = 0; a < 3 && !interface; ++a) {
-          interface = (p[idx - stride[a]] < 0.f) != inside || (p[idx + stride[a]] < 0.f) != inside;
-        }
+        const bool interface = flips[i - near.lo[0]] != 0;
         if (!interface && !(std::abs(v) < band_inner)) continue;
         bool broken = false;
         if (interface) {  // a voxel at the band's edge in its 3x3x3 neighbourhood
@@ -292,7 +305,7 @@ size_t RepairBand(Block& b, const BoxMask& near, const std::vector<uint8_t>& tou
           for (int o = 0; o < 26 && !broken; ++o) broken = !(std::abs(p[idx + offsets[o]]) < bg);
         }
         if (!broken && std::abs(v) < band_inner) {
-          const float g = SteepestSlope(p, idx, offsets, inv_lengths);
+          const float g = slope[i - near.lo[0]];
           bool steep = g > 1.4f;
           const bool at_margin =
               !b.Interior(i - 1, j - 1, k - 1) || !b.Interior(i + 1, j + 1, k + 1);
