@@ -218,8 +218,11 @@ IslandReport FindPieces(Block& b, const EditSettings& s, const VoxelList& flippe
   // Distances (in 6-steps, capped) to the phase that stays and to the removed pieces: the band
   // of a removed piece is reset only where it is nearer to it than to what stays.
   const int hw = static_cast<int>(std::ceil(b.bg / b.dx)) + 1;
-  auto distance_from = [&](auto is_source) {
-    std::vector<int16_t> dist(n, static_cast<int16_t>(hw + 1));
+  // A band value of the removed surface lies within bg of it in Euclidean distance, which is up
+  // to sqrt(3) times as many 6-steps (along a diagonal): its band is found up to that many.
+  const int hw_removed = static_cast<int>(std::ceil(std::sqrt(3.0) * b.bg / b.dx)) + 1;
+  auto distance_from = [&](int cap, auto is_source) {
+    std::vector<int16_t> dist(n, static_cast<int16_t>(cap + 1));
     std::vector<uint32_t> queue;
     for (size_t idx = 0; idx < n; ++idx) {
       if (is_source(idx)) {
@@ -229,7 +232,7 @@ IslandReport FindPieces(Block& b, const EditSettings& s, const VoxelList& flippe
     }
     for (size_t q = 0; q < queue.size(); ++q) {
       const uint32_t idx = queue[q];
-      if (dist[idx] >= hw) continue;
+      if (dist[idx] >= cap) continue;
       int i, j, k;
       coords(idx, i, j, k);
       const int nb[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
@@ -246,9 +249,9 @@ IslandReport FindPieces(Block& b, const EditSettings& s, const VoxelList& flippe
     return dist;
   };
   const std::vector<int16_t> dist = distance_from(
-      [&](size_t idx) { return in(data[idx]) && (label[idx] < 0 || !remove[label[idx]]); });
+      hw, [&](size_t idx) { return in(data[idx]) && (label[idx] < 0 || !remove[label[idx]]); });
   const std::vector<int16_t> dist_removed = distance_from(
-      [&](size_t idx) { return in(data[idx]) && label[idx] >= 0 && remove[label[idx]]; });
+      hw_removed, [&](size_t idx) { return in(data[idx]) && label[idx] >= 0 && remove[label[idx]]; });
   const double inside_before = b.InsideChange();
   // A removed piece takes the other phase's sign: positive distances where material goes,
   // negative where a pocket is filled.
@@ -274,7 +277,7 @@ IslandReport FindPieces(Block& b, const EditSettings& s, const VoxelList& flippe
     for (int j = kStencilMargin; j < d.y - kStencilMargin; ++j) {
       for (int i = kStencilMargin; i < d.x - kStencilMargin; ++i) {
         const size_t idx = b.phi.Index(i, j, k);
-        if (dist_removed[idx] > hw || in(data[idx]) || !(std::abs(data[idx]) < b.bg)) continue;
+        if (dist_removed[idx] > hw_removed || in(data[idx]) || !(std::abs(data[idx]) < b.bg)) continue;
         if (dist[idx] > hw) {
           data[idx] = sign * b.bg;
         } else {
