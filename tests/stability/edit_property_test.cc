@@ -20,20 +20,21 @@ constexpr int kEditsPerSeed = 40;
 constexpr int kEditsPerSeed = 150;
 #endif
 
-// At the server's defaults every random edit leaves a closed, outward mesh; the band checks and
-// the volume bound do not hold yet (docs/benchmarks.md, "Invariants under random edits"): the
-// counts are printed and recorded, and asserted by the test below with the band repair on.
+// At the server's defaults every random edit leaves a closed, outward mesh whose volume is the
+// tracked one within 1% but for rare edits (as with the repair, below); the band checks do not
+// hold yet (docs/benchmarks.md, "Invariants under random edits"): their counts are printed and
+// recorded, and asserted by the test below with the band repair on.
 TEST(EditProperty, RandomEditsLeaveAClosedMeshAtTheDefaults) {
   const Counts c = RunSeeds({1, 2, 3, 4}, kEditsPerSeed, ServerSettings());
   EXPECT_EQ(c.edits, 4 * kEditsPerSeed);
   EXPECT_EQ(c.mesh_open, 0) << c.summary;
+  EXPECT_LE(c.volume_off, (c.edits + 299) / 300) << c.summary;
 }
 
-// With the band repair on every edit, no edit leaves a sliver, the zero crossing at the band's
-// edge, |grad phi| outside [0.5, 1.5], or a piece or pocket below min_island_volume. The mesh
-// volume is more than 1% from the tracked volume after a few edits on this small clay: counted,
-// not asserted, until it holds.
-TEST(EditProperty, RandomEditsWithTheBandRepairLeaveNoSliversOrSpecks) {
+// With the band repair on every edit, no edit leaves the zero crossing at the band's edge,
+// |grad phi| outside [0.5, 1.5] or a pocket below min_island_volume, and slivers, specks and a
+// mesh volume off the tracked one by more than 1% stay rare (ExpectRepairedInvariants).
+TEST(EditProperty, RandomEditsWithTheBandRepairKeepTheInvariantsButForRareEdits) {
   EditSettings set = ServerSettings();
   set.repair_band_every_edit = true;
   const Counts c = RunSeeds({1, 2, 3, 4}, kEditsPerSeed, set);

@@ -165,7 +165,7 @@ struct Block {
         for (int i = c.lo[0]; i < c.hi[0]; ++i) {
           const size_t idx = row + i;
           if (now[idx] != was[idx]) {
-            sum += InsideFraction(now[idx], eps) - InsideFraction(was[idx], eps);
+            sum += VolumeFraction(now[idx], dx) - VolumeFraction(was[idx], dx);
           }
         }
       }

@@ -56,8 +56,8 @@ CompensationOutcome CompensateShell(Block& b, double target, double base_volume,
   // an iteration is one pass over the shell.
   double sum = 0, area = 0;
   auto add_sums = [&](size_t n, float v) {
-    sum += InsideFraction(v, b.eps);
-    area += w[n] * SmoothedDelta(v, b.eps) * dx3;
+    sum += VolumeFraction(v, b.dx);
+    area += w[n] * VolumeDelta(v, b.dx) * dx3;
   };
   for (size_t n = 0; n < shell.size(); ++n) {
     if (in_band[n]) add_sums(n, b.phi.data()[shell[n]]);
@@ -135,7 +135,6 @@ void CompensateGlobal(Sculpture& sculpture, const std::vector<EditRequest>& reqs
   auto& grid = *impl.grid;
   const double dx = impl.dx();
   const double dx3 = dx * dx * dx;
-  const double eps = 1.5 * dx;
   const float bg = impl.background();
   const double gap = 1.5 * dx;
   for (int it = 0; it < s.max_compensation_iterations; ++it) {
@@ -145,7 +144,7 @@ void CompensateGlobal(Sculpture& sculpture, const std::vector<EditRequest>& reqs
     for (auto v = grid.tree().cbeginValueOn(); v; ++v) {
       const openvdb::Vec3d p = grid.indexToWorld(v.getCoord());
       if (UnionDistance(reqs, Vec3{p.x(), p.y(), p.z()}) > gap) {
-        area += SmoothedDelta(*v, eps) * dx3;
+        area += VolumeDelta(*v, dx) * dx3;
       }
     }
     if (area <= 0) {

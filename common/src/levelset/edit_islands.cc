@@ -186,7 +186,7 @@ IslandReport FindPieces(Block& b, const EditSettings& s, const VoxelList& flippe
     Piece p;
     for (uint32_t v : visited) {
       state[v] = kIsland;
-      const double f = InsideFraction(data[v], b.eps);
+      const double f = VolumeFraction(data[v], b.dx);
       p.volume += kAir ? 1.0 - f : f;
     }
     p.voxels = visited;

@@ -278,14 +278,9 @@ std::vector<double> MaterialVolumes(const Sculpture& sculpture) {
   std::vector<double> vol(n, 0.0);
   if (n == 0) return vol;
   const double dx = impl.dx();
-  const double eps = 1.5 * dx;
   std::vector<FloatGrid::ConstAccessor> acc;
   for (const auto& g : impl.fractions) acc.push_back(g->getConstAccessor());
-  auto heaviside = [eps](float v) {
-    if (v <= -eps) return 1.0;
-    if (v >= eps) return 0.0;
-    return InsideFraction(v, eps);
-  };
+  auto heaviside = [dx](float v) { return VolumeFraction(v, dx); };
   // Leaf cell by leaf cell over the SDF's bounds (which enclose the band, hence the inside):
   // walking the tree's tile slots instead would visit every empty slot of its internal nodes.
   const openvdb::CoordBBox& bb = impl.bounds;

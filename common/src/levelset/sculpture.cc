@@ -168,13 +168,13 @@ DenseField ExtractDense(const FloatGrid& grid, const IndexBox& box) {
   return f;
 }
 
-double DenseInsideSum(const DenseField& phi, double eps) {
+double DenseInsideSum(const DenseField& phi, double dx) {
   double sum = 0;
   for (float v : phi.data()) {
-    if (v <= -eps) {
+    if (v <= -2.0 * dx) {
       sum += 1.0;
-    } else if (v < eps) {
-      sum += InsideFraction(v, eps);
+    } else if (v < 2.0 * dx) {
+      sum += VolumeFraction(v, dx);
     }
   }
   return sum;
@@ -514,14 +514,13 @@ void Sculpture::set_reference_volume(double v) { impl_->reference_volume = v; }
 
 double Sculpture::ComputeVolume() const {
   const double dx = impl_->dx();
-  const double eps = 1.5 * dx;
   double sum = 0;
   for (auto it = impl_->grid->tree().cbeginValueAll(); it; ++it) {
     const float v = *it;
-    if (v <= -eps) {
+    if (v <= -2.0 * dx) {
       sum += static_cast<double>(it.getVoxelCount());
-    } else if (v < eps) {
-      sum += InsideFraction(v, eps) * static_cast<double>(it.getVoxelCount());
+    } else if (v < 2.0 * dx) {
+      sum += VolumeFraction(v, dx) * static_cast<double>(it.getVoxelCount());
     }
   }
   return sum * dx * dx * dx;

@@ -52,9 +52,9 @@ IndexBox WorldToIndexBox(const Vec3& lo, const Vec3& hi, double dx, int pad);
 /// Copies phi over `box` out of the grid (tile and background values included).
 DenseField ExtractDense(const openvdb::FloatGrid& grid, const IndexBox& box);
 
-/// Voxel-volume-weighted inside fraction summed over a dense field (seed 000 eq. 5.7, eps in
-/// world units); the summation order is fixed, so the result is deterministic.
-double DenseInsideSum(const DenseField& phi, double eps);
+/// VolumeFraction (kernels.h) summed over a dense field of voxel size `dx`, in voxels; the
+/// summation order is fixed, so the result is deterministic.
+double DenseInsideSum(const DenseField& phi, double dx);
 
 struct WriteBackResult {
   std::vector<Int3> dirty_leaves;  // sorted origins of leaves that changed

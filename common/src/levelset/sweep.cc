@@ -293,9 +293,8 @@ StatusOr<EditResult> ApplySweep(Sculpture& sculpture, const SweepRequest& r) {
   }
   EditResult res;
   res.volume_before = impl.volume;
-  const double eps = 1.5 * dx;
   const double change =
-      (internal::DenseInsideSum(phi, eps) - internal::DenseInsideSum(before, eps)) * dx * dx * dx;
+      (internal::DenseInsideSum(phi, dx) - internal::DenseInsideSum(before, dx)) * dx * dx * dx;
   internal::WriteBackResult wb = internal::WriteBack(*impl.grid, before, phi, 0);
   if (wb.changed_voxels > 0) {
     impl.bounds.expand(openvdb::CoordBBox(openvdb::Coord(box.min.x, box.min.y, box.min.z),

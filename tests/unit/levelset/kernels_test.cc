@@ -726,5 +726,44 @@ TEST(KernelsTest, CentralRk1AdiabaticIsTheThesisObjdef) {
   }
 }
 
+// Summed over the voxels of an exact sphere, eq. 5.7's fraction (eps = 1.5 voxels) measures the
+// curvature bias VolumeFraction removes: +1.4% at 8 voxels' radius, +0.35% at 16; VolumeFraction
+// gives the enclosed volume to 1e-4 at both, wherever the centre falls between samples; and its
+// delta is the derivative of the fraction (a central difference) and integrates to one.
+TEST(KernelsTest, VolumeFractionSumsToTheEnclosedVolumeOfASphere) {
+  const double dx = 1.0;
+  for (const double radius : {8.0, 16.0}) {
+    for (const double shift : {0.0, 0.25, 0.5}) {
+      const int n = static_cast<int>(radius) + 4;
+      double thesis = 0, unbiased = 0;
+      for (int k = -n; k <= n; ++k) {
+        for (int j = -n; j <= n; ++j) {
+          for (int i = -n; i <= n; ++i) {
+            const double x = i - shift, y = j - 0.5 * shift, z = k;
+            const double phi = std::sqrt(x * x + y * y + z * z) - radius;
+            thesis += InsideFraction(phi, 1.5 * dx);
+            unbiased += VolumeFraction(phi, dx);
+          }
+        }
+      }
+      const double exact = 4.0 / 3.0 * std::numbers::pi * radius * radius * radius;
+      SCOPED_TRACE("radius " + std::to_string(radius) + ", shift " + std::to_string(shift));
+      EXPECT_NEAR(unbiased / exact, 1.0, 1e-4);
+      EXPECT_GT(thesis / exact - 1.0, radius < 10 ? 0.012 : 0.003);
+    }
+  }
+  double integral = 0;
+  const double h = 1e-3;
+  for (double phi = -2.5; phi <= 2.5; phi += h) {
+    EXPECT_NEAR(VolumeDelta(phi, dx),
+                (VolumeFraction(phi - 1e-6, dx) - VolumeFraction(phi + 1e-6, dx)) / 2e-6, 1e-4)
+        << "phi " << phi;
+    integral += VolumeDelta(phi, dx) * h;
+  }
+  EXPECT_NEAR(integral, 1.0, 1e-3);
+  EXPECT_EQ(VolumeFraction(-2.0 * dx, dx), 1.0);
+  EXPECT_EQ(VolumeFraction(2.0 * dx, dx), 0.0);
+}
+
 }  // namespace
 }  // namespace sculpt::levelset

@@ -120,6 +120,28 @@ inline double SmoothedHeaviside(double phi, double eps) {
 /// Fraction of a voxel inside the material: 1 - SmoothedHeaviside(phi, eps).
 inline double InsideFraction(double phi, double eps) { return 1.0 - SmoothedHeaviside(phi, eps); }
 
+/// The tracked volume's inside fraction: (4 F(phi, dx) - F(phi, 2 dx)) / 3 with F =
+/// InsideFraction, 1 at phi <= -2 dx and 0 at phi >= 2 dx.
+///
+/// Summed over a grid, eq. 5.7's fraction at eps = 1.5 voxels measures more than the surface
+/// encloses: a smoothed step of second moment m2 = int t^2 delta(t) dt adds (m2 / 2) times the
+/// integral of the mean curvature sum over the surface, about 0.065 eps^2 per unit of
+/// int kappa dA (+0.35% on a sphere of 16 voxels' radius, +1.4% at 8 voxels). The second moment
+/// grows as eps^2, so four thirds of the step at eps = dx less a third of the step at 2 dx has
+/// none: the same sums then match the enclosed volume of a sphere of 8 voxels to 2e-5. Both
+/// widths are whole voxels, at which the raised cosine is a partition of unity along an axis,
+/// so a plane moving through the grid changes the sum linearly. Between |phi| = dx and 2 dx the
+/// fraction leaves [0, 1] by up to 1/6 (its delta is negative there); only its sums have meaning.
+inline double VolumeFraction(double phi, double dx) {
+  if (phi <= -2.0 * dx) return 1.0;
+  if (phi >= 2.0 * dx) return 0.0;
+  return (4.0 * InsideFraction(phi, dx) - InsideFraction(phi, 2.0 * dx)) / 3.0;
+}
+/// -d VolumeFraction / d phi: the area weight of a normal offset of the tracked volume.
+inline double VolumeDelta(double phi, double dx) {
+  return (4.0 * SmoothedDelta(phi, dx) - SmoothedDelta(phi, 2.0 * dx)) / 3.0;
+}
+
 /// |grad phi| at one voxel with central differences (one-sided at the box border), as the
 /// thesis's `normgrad`; with Boundary::kAdiabatic it returns 0 on border voxels.
 double CentralGradientNorm(const DenseField& phi, int i, int j, int k, double dx,
