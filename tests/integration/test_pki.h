@@ -68,7 +68,9 @@ class Pki {
         "-keyout elsewhere.key -out elsewhere.csr -subj /CN=elsewhere.invalid && "
         "openssl x509 -req -in elsewhere.csr -CA ca.pem -CAkey ca.key -CAcreateserial "
         "-out elsewhere.pem -days 2 -extfile elsewhere.ext";
-    ok = std::system(("(" + script + ") > openssl.log 2>&1").c_str()) == 0;
+    // The log goes beside the certificates (the script's cd is inside the subshell), not into
+    // the test's working directory.
+    ok = std::system(("(" + script + ") > '" + dir.string() + "/openssl.log' 2>&1").c_str()) == 0;
     if (!ok) std::system(("cat '" + dir.string() + "/openssl.log'").c_str());
   }
   ~Pki() { std::filesystem::remove_all(dir); }
