@@ -152,6 +152,41 @@ TEST(EditVoids, LidOverADimpleSealsAPocketThatRemoveSmallFills) {
   }
 }
 
+// An add in open air, well away from the clay (the random-edit test met one beside a clay cut
+// into several pieces): the block holds no material on its border, which used to mean "the
+// whole object is here", and the new speck, the block's largest piece, was kept as the object.
+// Under kRemoveSmall a speck below min_island_volume goes like any other; a blob above it stays.
+TEST(EditVoids, SpeckAddedInOpenAirBesideTheClayIsRemoved) {
+  for (const double size : {0.9, 1.6}) {
+    SCOPED_TRACE("ellipsoid of size " + std::to_string(size));
+    auto s = Sculpture::MakeSphere(ServerOpts(), {0, 0, 0}, kSphereRadius);
+    ASSERT_TRUE(s.ok());
+    const EditSettings set = ServerSettings();
+    ASSERT_EQ(set.islands, IslandPolicy::kRemoveSmall);
+    EditRequest add;
+    add.kind = EditKind::kAdd;
+    const Vec3 at{0, 0, kSphereRadius + 8.0};
+    add.tool = ToolShape::Ellipsoid(at, {size, 0.6 * size, size}, Quat{});
+    const double blob = 4.0 / 3.0 * 3.141592653589793 * size * 0.6 * size * size;
+    const double vol_before = s->volume();
+    auto r = ApplyEdit(*s, add, set);
+    ASSERT_TRUE(r.ok()) << r.status();
+    const Pieces p = CountPieces(*s, set.min_island_volume);
+    if (blob < set.min_island_volume) {
+      EXPECT_EQ(r->islands_removed, 1);
+      EXPECT_GT(s->SampleWorld(at), 0.0);
+      EXPECT_EQ(p.components, 1u) << p.ToString();
+      EXPECT_NEAR(s->volume(), vol_before, 1e-9 * vol_before);
+    } else {
+      EXPECT_EQ(r->islands_removed, 0);
+      EXPECT_LT(s->SampleWorld(at), 0.0);
+      EXPECT_EQ(p.components, 2u) << p.ToString();
+    }
+    EXPECT_EQ(p.specks, 0) << p.ToString();
+    EXPECT_NEAR(s->volume(), s->ComputeVolume(), 1e-6 * vol_before);
+  }
+}
+
 // The filled pockets and removed specks change the field in the same way on a replica replaying
 // the server's batches (ReplayEdits from the captured state) as live: bit-identical state.
 TEST(EditVoids, ReplayOfDemoPressesIsBitIdentical) {

@@ -139,6 +139,7 @@ Block MakeBlock(const Sculpture::Impl& impl, const std::vector<EditRequest>& req
   b.dx = impl.dx();
   b.bg = impl.background();
   b.eps = 1.5 * b.dx;
+  b.object_before = impl.volume / (b.dx * b.dx * b.dx);
   b.box = BlockBox(impl, reqs, reach);
   b.before = internal::ExtractDense(*impl.grid, b.box);
   b.phi = b.before;

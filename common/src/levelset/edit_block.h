@@ -61,6 +61,7 @@ struct Block {
   float bg = 1;
   double eps = 1.5;
   bool before_in_band = false;  // every extracted value within [-bg, bg]
+  double object_before = 0;     // the object's tracked volume at extraction, in voxels
 
   bool Interior(int i, int j, int k) const {
     const Int3 d = phi.dims();

@@ -201,9 +201,15 @@ IslandReport FindPieces(Block& b, const EditSettings& s, const VoxelList& flippe
   for (size_t i = 0; i < pieces.size(); ++i) {
     if (pieces[i].volume > pieces[largest].volume) largest = i;
   }
+  // No material on the border: the block holds the whole object, whose largest piece stays,
+  // unless the object holds more than twice that piece's volume elsewhere (material beyond the
+  // block that no piece here touches: an add in open air beside a scattered object made a
+  // speck of 6.5 units^3 that was kept as "the object").
+  const bool whole_object =
+      !any_border && 2 * pieces[largest].volume >= b.object_before + b.InsideChange();
   std::vector<uint8_t> remove(pieces.size(), 0);
   for (size_t i = 0; i < pieces.size(); ++i) {
-    if (!any_border && i == largest) continue;  // the whole object is in the block
+    if (whole_object && i == largest) continue;
     // Specks and pockets below one voxel are below the grid's resolution (sub-voxel debris a
     // press leaves on a ridge, a sample the bulge of the compensation shell sealed): handled
     // under kRemoveSmall like any small piece, not reported.
