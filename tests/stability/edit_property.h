@@ -231,7 +231,7 @@ inline Counts RunSeeds(const std::vector<uint64_t>& seeds, int edits, const Edit
 // yet): no open mesh, band edge, |grad phi| outside [0.5, 1.5] or sealed pocket below
 // min_island_volume, and slivers, pieces below min_island_volume and a mesh volume more than 1%
 // from the tracked one each after at most one edit in 300. Those three are rare events of a
-// rate the soak measures (docs/benchmarks.md, "Invariants under random edits": 9, 11 and 9 of
+// rate the soak measures (docs/benchmarks.md, "Invariants under random edits": 8, 1 and 14 of
 // 5,000 edits); which edits of a seed meet them moves with any change to the kernel, so a
 // bound of zero on 600 edits held or failed by the draw. The defaults, without the repair, leave
 // about one edit in five with a violation: far above the bound.
