@@ -256,8 +256,9 @@ IslandReport FindPieces(Block& b, const EditSettings& s, const VoxelList& flippe
   };
   const std::vector<int16_t> dist = distance_from(
       hw, [&](size_t idx) { return in(data[idx]) && (label[idx] < 0 || !remove[label[idx]]); });
-  const std::vector<int16_t> dist_removed = distance_from(
-      hw_removed, [&](size_t idx) { return in(data[idx]) && label[idx] >= 0 && remove[label[idx]]; });
+  const std::vector<int16_t> dist_removed = distance_from(hw_removed, [&](size_t idx) {
+    return in(data[idx]) && label[idx] >= 0 && remove[label[idx]];
+  });
   const double inside_before = b.InsideChange();
   // A removed piece takes the other phase's sign: positive distances where material goes,
   // negative where a pocket is filled.
@@ -283,7 +284,9 @@ IslandReport FindPieces(Block& b, const EditSettings& s, const VoxelList& flippe
     for (int j = kStencilMargin; j < d.y - kStencilMargin; ++j) {
       for (int i = kStencilMargin; i < d.x - kStencilMargin; ++i) {
         const size_t idx = b.phi.Index(i, j, k);
-        if (dist_removed[idx] > hw_removed || in(data[idx]) || !(std::abs(data[idx]) < b.bg)) continue;
+        if (dist_removed[idx] > hw_removed || in(data[idx]) || !(std::abs(data[idx]) < b.bg)) {
+          continue;
+        }
         if (dist[idx] > hw) {
           data[idx] = sign * b.bg;
         } else {

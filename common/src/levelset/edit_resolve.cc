@@ -207,9 +207,9 @@ size_t RemoveThinMaterial(Block& b, std::vector<uint8_t>& touched) {
 
 namespace {
 
-// The steepest slope (below) over the neighbours the edit may write (the block's interior): next to the
-// stencil margin, a slope to a margin voxel that an earlier edit left is no cliff a rebuild here
-// can level (it would find it again every round).
+// The steepest slope (below) over the neighbours the edit may write (the block's interior):
+// next to the stencil margin, a slope to a margin voxel that an earlier edit left is no cliff a
+// rebuild here can level (it would find it again every round).
 float SteepestWritableSlope(const Block& b, int i, int j, int k) {
   const float v = b.phi.at(i, j, k);
   float g = 0.f;
