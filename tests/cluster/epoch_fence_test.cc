@@ -43,6 +43,13 @@ struct Logged {
   std::string payload;
 };
 
+// The epoch a record carries: a stroke pose's EditRecord.epoch, 0 for any other kind.
+uint64_t EpochOf(const std::string& payload) {
+  auto decoded = codec::DecodeLogRecord(0, payload);
+  const auto* pose = decoded.ok() ? std::get_if<codec::StrokePoseRecord>(&*decoded) : nullptr;
+  return pose ? pose->epoch : 0;
+}
+
 // Every record of the edit log of `data_dir`, read back with the store's reader, with the epoch
 // each carries.
 std::vector<Logged> ReadLog(const fs::path& data_dir) {
@@ -60,7 +67,7 @@ std::vector<Logged> ReadLog(const fs::path& data_dir) {
     EXPECT_TRUE(decoded.ok()) << decoded.status();
     Logged l;
     l.seq = r.seq;
-    l.epoch = RecordEpoch(r.payload);
+    l.epoch = EpochOf(r.payload);
     l.stroke = decoded.ok() && std::holds_alternative<codec::StrokePoseRecord>(decoded->record);
     l.payload = r.payload;
     out.push_back(std::move(l));
@@ -90,12 +97,12 @@ TEST(RecordEpochTest, OnlyStrokeRecordsCarryTheEpochAndZeroAddsNothing) {
   pose.pose_count = 1;
   const std::string plain = codec::EncodeLogRecord(pose);
   std::string with = plain;
-  AppendRecordEpoch(&with, 0);
+  codec::AppendRecordEpoch(&with, 0);
   EXPECT_EQ(with, plain) << "epoch 0 must leave the bytes as they were";
   codec::AppendRecordUser(&with, "ada");
-  AppendRecordEpoch(&with, 12);
-  EXPECT_EQ(RecordEpoch(with), 12u);
-  EXPECT_EQ(RecordEpoch(plain), 0u);
+  codec::AppendRecordEpoch(&with, 12);
+  EXPECT_EQ(EpochOf(with), 12u);
+  EXPECT_EQ(EpochOf(plain), 0u);
   auto decoded = DecodeLogRecord(5, with);
   ASSERT_TRUE(decoded.ok()) << decoded.status();
   const auto& back = std::get<codec::StrokePoseRecord>(decoded->record);
@@ -107,9 +114,9 @@ TEST(RecordEpochTest, OnlyStrokeRecordsCarryTheEpochAndZeroAddsNothing) {
   undo.client_id = 9;
   const std::string tagged = codec::EncodeLogRecord(undo);
   std::string tagged_with = tagged;
-  AppendRecordEpoch(&tagged_with, 12);
+  codec::AppendRecordEpoch(&tagged_with, 12);
   EXPECT_EQ(tagged_with, tagged) << "a tagged record has no epoch field";
-  EXPECT_EQ(RecordEpoch(tagged), 0u);
+  EXPECT_EQ(EpochOf(tagged), 0u);
 }
 
 // This member ("a") owns the scene and names "b" its standby.

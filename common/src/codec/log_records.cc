@@ -21,6 +21,13 @@ Status DoesNotParse(uint64_t seq, const char* what) {
   return DataLoss("edit log record " + std::to_string(seq) + " (" + what + ") does not parse");
 }
 
+// A stroke pose is an untagged EditRecord: its first byte is a field tag, never a LogTag. An
+// empty payload is an EditRecord of default fields.
+bool IsStrokePose(std::string_view payload) {
+  return payload.empty() ||
+         static_cast<unsigned char>(payload[0]) > static_cast<unsigned char>(LogTag::kUndo);
+}
+
 template <typename Message>
 bool ParseTagged(std::string_view payload, Message* m) {
   return m->ParseFromArray(payload.data() + 1, static_cast<int>(payload.size() - 1));
@@ -147,6 +154,13 @@ void AppendRecordUser(std::string* payload, std::string_view user) {
   payload->append(field.SerializeAsString());
 }
 
+void AppendRecordEpoch(std::string* payload, uint64_t epoch) {
+  if (epoch == 0 || !IsStrokePose(*payload)) return;
+  v1::EditRecord field;
+  field.set_epoch(epoch);
+  payload->append(field.SerializeAsString());
+}
+
 // ---------------------------------------------------------------------------------------------
 // Decoding
 
@@ -234,6 +248,7 @@ StatusOr<EditLogRecord> DecodeLogRecord(uint64_t seq, std::string_view payload) 
   p.pose_count = r.pose_count();
   p.commit_ms = r.commit_ms();
   p.user = r.user();
+  p.epoch = r.epoch();
   p.edit = EditFromRecord(r);
   return EditLogRecord(std::move(p));
 }

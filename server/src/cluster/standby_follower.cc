@@ -423,7 +423,7 @@ void StandbyFollower::Run() {
         reqs.push_back(p.edit);
         std::string payload = codec::EncodeLogRecord(p);
         codec::AppendRecordUser(&payload, p.user);
-        AppendRecordEpoch(&payload, b.epoch());  // the epoch the owner sequenced it under
+        codec::AppendRecordEpoch(&payload, b.epoch());  // the epoch the owner sequenced it under
         payloads.push_back(std::move(payload));
       }
     } else {
@@ -454,7 +454,7 @@ void StandbyFollower::Run() {
         p.edit = decoded->edits[i];
         reqs.push_back(codec::AsLogged(p.edit));
         std::string payload = codec::EncodeLogRecord(p);
-        AppendRecordEpoch(&payload, b.epoch());  // the epoch the owner sequenced it under
+        codec::AppendRecordEpoch(&payload, b.epoch());  // the epoch the owner sequenced it under
         payloads.push_back(std::move(payload));
       }
     }

@@ -8,7 +8,6 @@
 
 #include "cluster/ownership_fence.h"
 #include "scene/scene.h"
-#include "sculpt/v1/sculpt.pb.h"
 #include "store/edit_log.h"
 
 namespace sculpt::server {
@@ -58,30 +57,6 @@ StatusOr<LoggedEdit> DecodeLogRecord(uint64_t seq, const std::string& payload) {
   }
   e.record = std::move(record);
   return e;
-}
-
-namespace {
-
-// A stroke pose is an untagged EditRecord: its first byte is a field tag (>= 0x08), never a
-// LogTag (0x00..0x04). An empty payload is an EditRecord of default fields.
-bool IsStrokePose(std::string_view payload) {
-  return payload.empty() || static_cast<unsigned char>(payload[0]) > 0x04;
-}
-
-}  // namespace
-
-void AppendRecordEpoch(std::string* payload, uint64_t epoch) {
-  if (epoch == 0 || !IsStrokePose(*payload)) return;
-  v1::EditRecord field;
-  field.set_epoch(epoch);
-  payload->append(field.SerializeAsString());
-}
-
-uint64_t RecordEpoch(std::string_view payload) {
-  if (!IsStrokePose(payload)) return 0;
-  v1::EditRecord r;
-  if (!r.ParseFromArray(payload.data(), static_cast<int>(payload.size()))) return 0;
-  return r.epoch();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -188,7 +163,7 @@ void Scene::RunCommit(const std::shared_ptr<EditOp>& op) {
   // above), so every stroke record says which ownership wrote it. None on a single process.
   if (fence_) {
     const uint64_t epoch = fence_->epoch();
-    for (std::string& r : records) AppendRecordEpoch(&r, epoch);
+    for (std::string& r : records) codec::AppendRecordEpoch(&r, epoch);
   }
   // One group: recovery sees the whole edit or none of it, so a crash between two of a stroke's
   // poses cannot leave part of it applied and its resend refused.

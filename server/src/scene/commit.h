@@ -16,7 +16,6 @@
 #include <map>
 #include <optional>
 #include <string>
-#include <string_view>
 #include <utility>
 #include <variant>
 #include <vector>
@@ -91,16 +90,6 @@ struct LoggedEdit {
 
 /// DataLoss naming the sequence when the payload does not parse.
 StatusOr<LoggedEdit> DecodeLogRecord(uint64_t seq, const std::string& payload);
-
-/// Cluster mode (issue 17): adds the ownership epoch under which the edit was sequenced to an
-/// encoded stroke-pose record (EditRecord.epoch, appended as codec::AppendRecordUser appends the
-/// user: a protobuf field may follow the others). Tagged records (paint, sweep, model, ball
-/// edit, undo) have no epoch field and are left as they are; epoch 0 adds nothing, so a single
-/// process writes the bytes it always wrote.
-void AppendRecordEpoch(std::string* payload, uint64_t epoch);
-/// The epoch an encoded record carries: EditRecord.epoch of a stroke pose, 0 when it has none
-/// (single process, older logs), for a tagged record, or when the bytes do not parse.
-uint64_t RecordEpoch(std::string_view payload);
 
 /// What the requester of an edit hears (besides its kind's own details).
 struct CommitOutcome {

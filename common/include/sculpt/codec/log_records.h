@@ -50,6 +50,9 @@ struct StrokePoseRecord {
   /// The last pose of its stroke (or a pose standing alone): the stroke is complete with it.
   bool completes() const { return pose_index + 1 >= pose_count; }
   std::string user = {};  // the authenticated user who made it (named users), else empty
+  /// Cluster mode: the ownership epoch under which the owner sequenced it (AppendRecordEpoch);
+  /// 0 on a single process and in older logs.
+  uint64_t epoch = 0;
 };
 
 /// A paint or fill (issue 7).
@@ -137,6 +140,12 @@ std::string EncodeLogRecord(const UndoRecord& record);
 /// message, appended: a protobuf field may follow the message's other fields), so the log names
 /// who made each edit. An empty name adds nothing.
 void AppendRecordUser(std::string* payload, std::string_view user);
+
+/// Cluster mode (issue 17): adds the ownership epoch under which the edit was sequenced to an
+/// encoded stroke pose (EditRecord.epoch, appended as AppendRecordUser appends the user). Tagged
+/// records (paint, sweep, model, ball edit, undo) have no epoch field and are left as they are;
+/// epoch 0 adds nothing, so a single process writes the bytes it always wrote.
+void AppendRecordEpoch(std::string* payload, uint64_t epoch);
 
 /// Tells the kinds apart by the first byte and decodes one payload. DataLoss naming `seq` (and
 /// the kind, for a tagged record) when the bytes do not parse.
