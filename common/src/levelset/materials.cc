@@ -280,7 +280,6 @@ std::vector<double> MaterialVolumes(const Sculpture& sculpture) {
   const double dx = impl.dx();
   std::vector<FloatGrid::ConstAccessor> acc;
   for (const auto& g : impl.fractions) acc.push_back(g->getConstAccessor());
-  auto heaviside = [dx](float v) { return VolumeFraction(v, dx); };
   // Leaf cell by leaf cell over the SDF's bounds (which enclose the band, hence the inside):
   // walking the tree's tile slots instead would visit every empty slot of its internal nodes.
   const openvdb::CoordBBox& bb = impl.bounds;
@@ -292,7 +291,7 @@ std::vector<double> MaterialVolumes(const Sculpture& sculpture) {
         const Coord c(x, y, z);
         if (const auto* leaf = phi.probeConstLeaf(c)) {
           for (auto v = leaf->cbeginValueAll(); v; ++v) {
-            const double h = heaviside(*v);
+            const double h = VolumeFraction(*v, dx);
             if (h == 0) continue;
             for (size_t m = 0; m < n; ++m) vol[m] += h * acc[m].getValue(v.getCoord());
           }
@@ -300,7 +299,7 @@ std::vector<double> MaterialVolumes(const Sculpture& sculpture) {
         }
         // A tile of the SDF (the deep inside): a leaf of a fraction grid is summed, a tile of it
         // (which covers the whole cell) counts 512 times.
-        const double h = heaviside(phi.getValue(c));
+        const double h = VolumeFraction(phi.getValue(c), dx);
         if (h == 0) continue;
         for (size_t m = 0; m < n; ++m) {
           double sum = 0;

@@ -170,13 +170,7 @@ DenseField ExtractDense(const FloatGrid& grid, const IndexBox& box) {
 
 double DenseInsideSum(const DenseField& phi, double dx) {
   double sum = 0;
-  for (float v : phi.data()) {
-    if (v <= -2.0 * dx) {
-      sum += 1.0;
-    } else if (v < 2.0 * dx) {
-      sum += VolumeFraction(v, dx);
-    }
-  }
+  for (float v : phi.data()) sum += VolumeFraction(v, dx);
   return sum;
 }
 
@@ -516,12 +510,7 @@ double Sculpture::ComputeVolume() const {
   const double dx = impl_->dx();
   double sum = 0;
   for (auto it = impl_->grid->tree().cbeginValueAll(); it; ++it) {
-    const float v = *it;
-    if (v <= -2.0 * dx) {
-      sum += static_cast<double>(it.getVoxelCount());
-    } else if (v < 2.0 * dx) {
-      sum += VolumeFraction(v, dx) * static_cast<double>(it.getVoxelCount());
-    }
+    sum += VolumeFraction(*it, dx) * static_cast<double>(it.getVoxelCount());
   }
   return sum * dx * dx * dx;
 }

@@ -213,8 +213,9 @@ asio::awaitable<void> ClusterAgent::Loop() {
       auto owner = co_await std::move(owner_call);
       if (owner.ok() && !owner->has_value()) break;  // gone: the full tick takes it over now
       if (owner.ok()) {
-        // A newer epoch than the one followed (epochs only grow): a new owner. The full tick reads the scene's keys
-        // (checked against each other), stops the old follow and follows the new owner now.
+        // A newer epoch than the one followed (epochs only grow): a new owner. The full tick
+        // reads the scene's keys (checked against each other), stops the old follow and follows
+        // the new owner now.
         auto o = DecodeOwner((*owner)->value);
         if (o.ok() && follower_ && o->epoch > follower_->expected_epoch()) break;
       }
