@@ -193,8 +193,12 @@ TEST_F(ClusterRoutingTest, RestartedOwnerTakesItsSceneBackWithTheNextEpoch) {
   // expires, then it acquires with epoch 2.
   Member& again = Start("a");
   ASSERT_NE(again.WaitPort(), 0);
-  ASSERT_TRUE(WaitFor([&] { return Owner().has_value() && Owner()->epoch == 2; },
-                      milliseconds(kLeaseTtlMs + 3000)));
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto o = Owner();
+        return o && o->epoch == 2;
+      },
+      milliseconds(kLeaseTtlMs + 3000)));
   EXPECT_EQ(Owner()->tcp, "127.0.0.1:" + std::to_string(again.port()));
   EXPECT_EQ(Epoch()->epoch, 2u);
   sculpt::client::ClientOptions options;
@@ -305,8 +309,12 @@ TEST_F(ClusterRoutingTest, StandbyTakesOverWithEveryReplicatedStrokeAfterTheOwne
 
   const auto killed = std::chrono::steady_clock::now();
   a.process().Kill(SIGKILL);
-  ASSERT_TRUE(WaitFor([&] { return Owner().has_value() && Owner()->member == "b"; },
-                      milliseconds(kLeaseTtlMs + 20000)))
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto o = Owner();
+        return o && o->member == "b";
+      },
+      milliseconds(kLeaseTtlMs + 20000)))
       << "b did not take the scene over; see " << dir_.path() / "b.log";
   const auto took_ms =
       std::chrono::duration_cast<milliseconds>(std::chrono::steady_clock::now() - killed).count();
@@ -483,8 +491,12 @@ TEST_F(ClusterRoutingTest, SyncStandbyHasEveryAcknowledgedStrokeWhenTheOwnerIsKi
             << since() << " ms after the first was sent), the last at seq " << highest_seq << ", "
             << client.unacked() << " unacknowledged\n";
 
-  ASSERT_TRUE(WaitFor([&] { return Owner().has_value() && Owner()->member == "b"; },
-                      milliseconds(kLeaseTtlMs + 20000)))
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto o = Owner();
+        return o && o->member == "b";
+      },
+      milliseconds(kLeaseTtlMs + 20000)))
       << "b did not take the scene over; see " << dir_.path() / "b.log";
   EXPECT_EQ(Owner()->epoch, 2u);
   // b's port after its restart (the same port file, rewritten).
@@ -834,8 +846,12 @@ TEST_F(ClusterRoutingTest, PausedOwnerAcknowledgesNothingAfterItsLeaseIsGone) {
   for (int i = kBefore; i < kBefore + kDuring; ++i) {
     ASSERT_TRUE(client.SendStroke(stroke_at(i)).ok());  // they wait in the paused owner's socket
   }
-  ASSERT_TRUE(WaitFor([&] { return Owner().has_value() && Owner()->member == "b"; },
-                      milliseconds(15000)))
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto o = Owner();
+        return o && o->member == "b";
+      },
+      milliseconds(15000)))
       << "b did not take the scene over; see " << dir_.path() / "b.log";
   EXPECT_EQ(Owner()->epoch, 2u);
   ASSERT_EQ(kill(a.process().pid(), SIGCONT), 0);

@@ -357,9 +357,12 @@ TEST_F(PeerClusterTest, NamedUsersOnlyClusterFollowsSyncsAndFailsOver) {
       << "b's region load came without a's resend table";
 
   a.process().Kill(SIGKILL);
-  ASSERT_TRUE(
-      WaitFor([&] { return OwnerOf("default").has_value() && OwnerOf("default")->member == "b"; },
-              milliseconds(25000)))
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto o = OwnerOf("default");
+        return o && o->member == "b";
+      },
+      milliseconds(25000)))
       << "b did not take the scene over; see " << dir_.path() / "b.log";
   EXPECT_EQ(OwnerOf("default")->epoch, 2u);
   // alice on b (restarted on its copy; the same port file, rewritten): every acknowledged
