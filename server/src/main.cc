@@ -395,9 +395,12 @@ int main(int argc, char** argv) {
     cluster->set_acks_async([sc = scene->get()] { return sc->acks().fallen_back(); });
     server.set_router(cluster.get());
     // A standby follows another owner's scene and, on failover, restarts on its copy.
-    sculpt::server::cluster::StandbyOptions standby{config.data_dir, config.viewer_token,
-                                                    std::vector<std::string>(argv, argv + argc),
-                                                    config.snapshot_every_edits};
+    sculpt::server::cluster::StandbyOptions standby{
+        .data_dir = config.data_dir,
+        .token = config.viewer_token,
+        .restart_argv = std::vector<std::string>(argv, argv + argc),
+        .snapshot_every_edits = config.snapshot_every_edits,
+        .tls = {}};
     // Over TLS when the cluster's ports speak it (one rule for every member: peer_ca_file).
     standby.tls.enabled = config.cluster.PeerTls(config.tls);
     standby.tls.ca_file = config.cluster.peer_ca_file;
