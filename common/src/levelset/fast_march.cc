@@ -33,12 +33,16 @@ size_t MarchDistance(DenseField& phi, std::vector<MarchState>& state, double dx,
   return MarchDistance(phi, state, dx, limit, Int3{0, 0, 0}, phi.dims());
 }
 
-size_t MarchDistance(DenseField& phi, std::vector<MarchState>& state, double dx, double limit,
-                     Int3 lo, Int3 hi) {
-  if (state.size() != phi.size() || !(dx > 0.0) || !(limit > 0.0)) return 0;
+namespace {
+
+// The march of MarchDistance over the box [box_lo, box_hi) of `phi`. `kInside`: the box keeps
+// one voxel from every face of the field, so no neighbour of a box voxel needs a bounds test.
+// The tentative distances are kept for the box alone (free voxels lie in it), so a rebuild of a
+// small part of a large block neither fills nor touches the rest of the block's size.
+template <bool kInside>
+size_t MarchBox(DenseField& phi, std::vector<MarchState>& state, double dx, double limit,
+                const int box_lo[3], const int box_hi[3]) {
   const Dims g(phi);
-  const int box_lo[3] = {std::max(0, lo.x), std::max(0, lo.y), std::max(0, lo.z)};
-  const int box_hi[3] = {std::min(g.n[0], hi.x), std::min(g.n[1], hi.y), std::min(g.n[2], hi.z)};
   float* p = phi.data().data();
   const float flimit = static_cast<float>(limit);
   // Min-heap of (distance, index) packed in 64 bits: a non-negative float's bits order as the
@@ -48,9 +52,18 @@ size_t MarchDistance(DenseField& phi, std::vector<MarchState>& state, double dx,
     std::memcpy(&bits, &t, sizeof bits);
     return (static_cast<uint64_t>(bits) << 32) | static_cast<uint64_t>(idx);
   };
+  const int w0 = box_hi[0] - box_lo[0], w1 = box_hi[1] - box_lo[1], w2 = box_hi[2] - box_lo[2];
+  if (w0 <= 0 || w1 <= 0 || w2 <= 0) return 0;
+  auto local = [&](int c0, int c1, int c2) {
+    return (static_cast<size_t>(c2 - box_lo[2]) * static_cast<size_t>(w1) +
+            static_cast<size_t>(c1 - box_lo[1])) *
+               static_cast<size_t>(w0) +
+           static_cast<size_t>(c0 - box_lo[0]);
+  };
   std::vector<uint64_t> heap;
-  std::vector<float> tentative;  // |phi| candidates of free voxels, +inf until reached
-  tentative.assign(phi.size(), std::numeric_limits<float>::infinity());
+  // |phi| candidates of the box's free voxels, +inf until reached.
+  std::vector<float> tentative(static_cast<size_t>(w0) * w1 * w2,
+                               std::numeric_limits<float>::infinity());
   const auto greater = std::greater<uint64_t>();
   const double dx2 = dx * dx;
   // The Godunov update of a free voxel from its known neighbours (smallest per axis).
@@ -61,8 +74,10 @@ size_t MarchDistance(DenseField& phi, std::vector<MarchState>& state, double dx,
     for (int ax = 0; ax < 3; ++ax) {
       double best = std::numeric_limits<double>::infinity();
       for (int side = -1; side <= 1; side += 2) {
-        const int cc = c[ax] + side;
-        if (cc < 0 || cc >= g.n[ax]) continue;
+        if constexpr (!kInside) {
+          const int cc = c[ax] + side;
+          if (cc < 0 || cc >= g.n[ax]) continue;
+        }
         const size_t nb = idx + side * g.stride[ax];
         if (state[nb] != MarchState::kKnown) continue;
         best = std::min(best, static_cast<double>(std::abs(p[nb])));
@@ -101,7 +116,9 @@ size_t MarchDistance(DenseField& phi, std::vector<MarchState>& state, double dx,
       for (int side = -1; side <= 1; side += 2) {
         int cc[3] = {c[0], c[1], c[2]};
         cc[ax] += side;
-        if (cc[ax] < 0 || cc[ax] >= g.n[ax]) continue;
+        if constexpr (!kInside) {
+          if (cc[ax] < 0 || cc[ax] >= g.n[ax]) continue;
+        }
         const size_t nb = idx + side * g.stride[ax];
         if (state[nb] == MarchState::kFree) fn(nb, cc[0], cc[1], cc[2]);
       }
@@ -109,9 +126,10 @@ size_t MarchDistance(DenseField& phi, std::vector<MarchState>& state, double dx,
   };
   auto update = [&](size_t nb, int c0, int c1, int c2) {
     const double t = solve(nb, c0, c1, c2);
-    if (t < tentative[nb] && t < limit) {
-      tentative[nb] = static_cast<float>(t);
-      heap.push_back(key(tentative[nb], nb));
+    float& tent = tentative[local(c0, c1, c2)];
+    if (t < tent && t < limit) {
+      tent = static_cast<float>(t);
+      heap.push_back(key(tent, nb));
       std::push_heap(heap.begin(), heap.end(), greater);
     }
   };
@@ -136,7 +154,10 @@ size_t MarchDistance(DenseField& phi, std::vector<MarchState>& state, double dx,
     const size_t idx = static_cast<size_t>(top & 0xffffffffu);
     if (state[idx] != MarchState::kFree) continue;  // a stale entry
     state[idx] = MarchState::kKnown;
-    p[idx] = p[idx] < 0.f ? -tentative[idx] : tentative[idx];
+    float t;
+    const uint32_t bits = static_cast<uint32_t>(top >> 32);
+    std::memcpy(&t, &bits, sizeof t);  // the tentative distance the entry was pushed with
+    p[idx] = p[idx] < 0.f ? -t : t;
     ++computed;
     visit_free_neighbours(idx, update);
   }
@@ -153,6 +174,20 @@ size_t MarchDistance(DenseField& phi, std::vector<MarchState>& state, double dx,
     }
   }
   return free_count;
+}
+
+}  // namespace
+
+size_t MarchDistance(DenseField& phi, std::vector<MarchState>& state, double dx, double limit,
+                     Int3 lo, Int3 hi) {
+  if (state.size() != phi.size() || !(dx > 0.0) || !(limit > 0.0)) return 0;
+  const Dims g(phi);
+  const int box_lo[3] = {std::max(0, lo.x), std::max(0, lo.y), std::max(0, lo.z)};
+  const int box_hi[3] = {std::min(g.n[0], hi.x), std::min(g.n[1], hi.y), std::min(g.n[2], hi.z)};
+  bool inside = true;
+  for (int a = 0; a < 3; ++a) inside = inside && box_lo[a] >= 1 && box_hi[a] <= g.n[a] - 1;
+  return inside ? MarchBox<true>(phi, state, dx, limit, box_lo, box_hi)
+                : MarchBox<false>(phi, state, dx, limit, box_lo, box_hi);
 }
 
 double InterfaceDistance(const DenseField& phi, int i, int j, int k, double dx) {
