@@ -344,6 +344,138 @@ void ReinitImpl(DenseField& phi, const std::vector<Voxel>& voxels, int iteration
   }
 }
 
+/// What the fused pass of the default reinitialisation measures and decides by; null when the
+/// caller reinitialises unconditionally.
+struct MeasureSpec {
+  double band;
+  double threshold;
+  bool force;
+};
+
+/// The default reinitialisation (first-order upwind, forward Euler, every stencil inside the box)
+/// with the arithmetic of ReinitImpl<kUpwind> and RkStep in the same order, so the results are the
+/// same bit for bit; it differs in the work around that arithmetic: the frozen data, the Eikonal
+/// measure and the first step's values come from one read of each stencil, the voxels beside the
+/// interface (which relax towards their frozen distance and read no neighbour) are kept apart
+/// from the rest, and the upwind side is chosen by a sign flip instead of a branch per axis.
+/// With `spec` it also measures as MeasureEikonal(phi, voxels, dx, spec->band) does into *stats,
+/// and leaves phi unchanged and returns false unless the mean error exceeds spec->threshold or
+/// spec->force holds (true otherwise, also when `iterations` <= 0 leaves phi as it is).
+/// Requires AllInterior(g, voxels, 1).
+bool UpwindReinitRk1(DenseField& phi, const Grid& g, const std::vector<Voxel>& voxels,
+                     int iterations, double dx, double cfl, const MeasureSpec* spec,
+                     EikonalStats* stats) {
+  float* p = phi.data().data();
+  const double inv_dx = 1.0 / dx;
+  const double dt = cfl * dx;
+  const double dx2 = dx * dx;
+  const double tiny = 1e-6 * dx;
+  const ptrdiff_t sy = g.stride[1];
+  const ptrdiff_t sz = g.stride[2];
+  // Voxels away from the interface: index and S(phi0).
+  struct Far {
+    ptrdiff_t index;
+    double sign;
+  };
+  // Voxels beside it: index, sgn(phi0) and the Russo-Smereka distance.
+  struct Near {
+    ptrdiff_t index;
+    double sgn0;
+    double distance;
+  };
+  std::vector<Far> far;
+  std::vector<Near> near;
+  far.reserve(voxels.size());
+  std::vector<float> next_far, next_near;
+  next_far.reserve(voxels.size());
+  double sum = 0.0;
+  for (const Voxel& v : voxels) {
+    const float* q = p + v.index;
+    const double p0 = q[0];
+    const double w[3][2] = {{q[-1], q[1]}, {q[-sy], q[sy]}, {q[-sz], q[sz]}};
+    // |grad phi|^2 by UpwindTerm with the side chosen by sign(phi0): for phi0 <= 0 the terms
+    // are those of the negated differences, whose squares are the same.
+    const bool positive = p0 > 0.0;
+    const double flip = positive ? 1.0 : -1.0;
+    double grad_sq = 0.0;
+    bool kink = false;
+    bool subcell = p0 == 0.0;
+    double central_sq = 0.0;
+    double across = 0.0;
+    for (int a = 0; a < 3; ++a) {
+      const double dm = (p0 - w[a][0]) * inv_dx;
+      const double dp = (w[a][1] - p0) * inv_dx;
+      kink = kink || (positive ? (dm > 0.0 && dp < 0.0) : (dm < 0.0 && dp > 0.0));
+      const double m = std::max(flip * dm, 0.0);
+      const double u = std::min(flip * dp, 0.0);
+      grad_sq += std::max(m * m, u * u);
+      const double c = 0.5 * (w[a][1] - w[a][0]);
+      central_sq += c * c;
+      for (int side = 0; side < 2; ++side) {
+        if (OppositeSigns(p0, w[a][side])) {
+          subcell = true;
+          across = std::max(across, std::abs(w[a][side] - p0));
+        }
+      }
+    }
+    if (spec && !kink && std::abs(p0) < spec->band) {
+      // MeasureEikonal stops summing at the first kinked axis and skips the voxel; the sum over
+      // the axes before it is then unused, so summing all three is the same.
+      const double err = std::abs(std::sqrt(grad_sq) - 1.0);
+      sum += err;
+      stats->max_abs_error = std::max(stats->max_abs_error, err);
+      ++stats->samples;
+    }
+    if (subcell) {
+      const double delta = std::max({std::sqrt(central_sq), across, tiny});
+      const double distance = dx * p0 / delta;
+      const double sgn0 = positive ? 1.0 : (p0 < 0.0 ? -1.0 : 0.0);
+      near.push_back({v.index, sgn0, distance});
+      next_near.push_back(
+          static_cast<float>(p0 + dt * (-(sgn0 * std::abs(p0) - distance) * inv_dx)));
+    } else {
+      const double sign = p0 / std::sqrt(p0 * p0 + dx2);
+      far.push_back({v.index, sign});
+      // The step's side is chosen by S(phi0) > 0, which is phi0 > 0 unless S underflows to 0,
+      // when the step is p0 + dt * (+-0) = p0 whatever the gradient.
+      next_far.push_back(static_cast<float>(p0 + dt * (-sign * (std::sqrt(grad_sq) - 1.0))));
+    }
+  }
+  if (spec) {
+    if (stats->samples > 0) stats->mean_abs_error = sum / static_cast<double>(stats->samples);
+    if (!(stats->mean_abs_error > spec->threshold || spec->force)) return false;
+  }
+  if (iterations <= 0) return true;
+  // Jacobi as in RkStep: every voxel's new value from the current field, then all written.
+  auto write = [&] {
+    for (size_t n = 0; n < far.size(); ++n) p[far[n].index] = next_far[n];
+    for (size_t n = 0; n < near.size(); ++n) p[near[n].index] = next_near[n];
+  };
+  write();
+  for (int it = 1; it < iterations; ++it) {
+    for (size_t n = 0; n < far.size(); ++n) {
+      const float* q = p + far[n].index;
+      const double c = q[0];
+      const double sign = far[n].sign;
+      const double flip = sign > 0.0 ? 1.0 : -1.0;
+      double grad_sq = 0.0;
+      for (ptrdiff_t s : {ptrdiff_t{1}, sy, sz}) {
+        const double m = std::max(flip * ((c - q[-s]) * inv_dx), 0.0);
+        const double u = std::min(flip * ((q[s] - c) * inv_dx), 0.0);
+        grad_sq += std::max(m * m, u * u);
+      }
+      next_far[n] = static_cast<float>(c + dt * (-sign * (std::sqrt(grad_sq) - 1.0)));
+    }
+    for (size_t n = 0; n < near.size(); ++n) {
+      const double c = p[near[n].index];
+      next_near[n] = static_cast<float>(
+          c + dt * (-(near[n].sgn0 * std::abs(c) - near[n].distance) * inv_dx));
+    }
+    write();
+  }
+  return true;
+}
+
 }  // namespace
 }  // namespace sculpt::levelset::internal
 
@@ -447,6 +579,11 @@ int Reinitialize(DenseField& phi, const VoxelList& active, int iterations, doubl
   // does would make eq. 4.9 push them by S(phi0) every step.
   const std::vector<Voxel> voxels =
       Collect(g, phi.size(), active, [&](const Voxel& v) { return adiabatic && g.IsBorder(v.c); });
+  if (settings.spatial == SpatialScheme::kUpwind && settings.temporal == TemporalScheme::kRk1 &&
+      internal::AllInterior(g, voxels, 1)) {
+    internal::UpwindReinitRk1(phi, g, voxels, iterations, dx, cfl, nullptr, nullptr);
+    return iterations;
+  }
   switch (settings.spatial) {
     case SpatialScheme::kCentral:
       internal::ReinitImpl<SpatialScheme::kCentral>(phi, voxels, iterations, dx, settings.temporal,
@@ -462,6 +599,32 @@ int Reinitialize(DenseField& phi, const VoxelList& active, int iterations, doubl
       break;
   }
   return iterations;
+}
+
+MeasuredReinit MeasureAndReinitialize(DenseField& phi, const VoxelList& active, int iterations,
+                                      double dx, const MotionSettings& settings, double cfl,
+                                      const ReinitTrigger& trigger) {
+  MeasuredReinit out;
+  if (!(dx > 0.0)) return out;
+  const Grid g(phi);
+  if (settings.spatial == SpatialScheme::kUpwind && settings.temporal == TemporalScheme::kRk1 &&
+      settings.boundary == Boundary::kClamp && cfl > 0.0) {
+    // With kClamp both passes take the same voxels (the measure drops border voxels and those
+    // beyond the band, which the fused pass tells apart); the fused pass needs them interior.
+    const std::vector<Voxel> voxels =
+        Collect(g, phi.size(), active, [](const Voxel&) { return false; });
+    if (internal::AllInterior(g, voxels, 1)) {
+      const internal::MeasureSpec spec{trigger.band, trigger.threshold, trigger.force};
+      out.triggered = internal::UpwindReinitRk1(phi, g, voxels, iterations, dx, cfl, &spec,
+                                                &out.before);
+      out.passes = out.triggered && iterations > 0 ? iterations : 0;
+      return out;
+    }
+  }
+  out.before = MeasureEikonal(phi, active, dx, trigger.band);
+  out.triggered = out.before.mean_abs_error > trigger.threshold || trigger.force;
+  if (out.triggered) out.passes = Reinitialize(phi, active, iterations, dx, settings, cfl);
+  return out;
 }
 
 EikonalStats MeasureEikonal(const DenseField& phi, const VoxelList& active, double dx,
