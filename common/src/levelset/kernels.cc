@@ -344,6 +344,39 @@ void ReinitImpl(DenseField& phi, const std::vector<Voxel>& voxels, int iteration
   }
 }
 
+/// The indices of `active` below `size` into `out`, in order, if each lies one voxel or more
+/// inside the box on every axis (as AllInterior(g, Collect(...), 1) asks); false otherwise.
+/// The lists are sorted, mostly runs along x, so a run's next voxel is decoded by a step of x
+/// rather than by divisions.
+bool InteriorIndices(const Grid& g, size_t size, const VoxelList& active,
+                     std::vector<ptrdiff_t>& out) {
+  for (int a = 0; a < 3; ++a) {
+    if (g.n[a] < 3) return false;
+  }
+  out.clear();
+  out.reserve(active.size());
+  const uint32_t nx = static_cast<uint32_t>(g.n[0]);
+  const uint32_t ny = static_cast<uint32_t>(g.n[1]);
+  const uint32_t nz = static_cast<uint32_t>(g.n[2]);
+  uint32_t last = 0;
+  uint32_t x = 0;  // coordinates of `last`; x = 0 also marks "none yet" (never interior)
+  for (uint32_t idx : active) {
+    if (idx >= size) continue;
+    if (x != 0 && idx == last + 1 && x + 2 < nx) {
+      ++x;  // same row, and still at most nx - 2
+    } else {
+      const uint32_t row = idx / nx;
+      x = idx - row * nx;
+      const uint32_t y = row % ny;
+      const uint32_t z = row / ny;
+      if (x < 1 || x + 1 >= nx || y < 1 || y + 1 >= ny || z < 1 || z + 1 >= nz) return false;
+    }
+    last = idx;
+    out.push_back(static_cast<ptrdiff_t>(idx));
+  }
+  return true;
+}
+
 /// What the fused pass of the default reinitialisation measures and decides by; null when the
 /// caller reinitialises unconditionally.
 struct MeasureSpec {
@@ -361,8 +394,8 @@ struct MeasureSpec {
 /// With `spec` it also measures as MeasureEikonal(phi, voxels, dx, spec->band) does into *stats,
 /// and leaves phi unchanged and returns false unless the mean error exceeds spec->threshold or
 /// spec->force holds (true otherwise, also when `iterations` <= 0 leaves phi as it is).
-/// Requires AllInterior(g, voxels, 1).
-bool UpwindReinitRk1(DenseField& phi, const Grid& g, const std::vector<Voxel>& voxels,
+/// `voxels` are linear indices one voxel or more inside the box (InteriorIndices).
+bool UpwindReinitRk1(DenseField& phi, const Grid& g, const std::vector<ptrdiff_t>& voxels,
                      int iterations, double dx, double cfl, const MeasureSpec* spec,
                      EikonalStats* stats) {
   float* p = phi.data().data();
@@ -389,8 +422,8 @@ bool UpwindReinitRk1(DenseField& phi, const Grid& g, const std::vector<Voxel>& v
   std::vector<float> next_far, next_near;
   next_far.reserve(voxels.size());
   double sum = 0.0;
-  for (const Voxel& v : voxels) {
-    const float* q = p + v.index;
+  for (const ptrdiff_t index : voxels) {
+    const float* q = p + index;
     const double p0 = q[0];
     const double w[3][2] = {{q[-1], q[1]}, {q[-sy], q[sy]}, {q[-sz], q[sz]}};
     // |grad phi|^2 by UpwindTerm with the side chosen by sign(phi0): for phi0 <= 0 the terms
@@ -430,12 +463,12 @@ bool UpwindReinitRk1(DenseField& phi, const Grid& g, const std::vector<Voxel>& v
       const double delta = std::max({std::sqrt(central_sq), across, tiny});
       const double distance = dx * p0 / delta;
       const double sgn0 = positive ? 1.0 : (p0 < 0.0 ? -1.0 : 0.0);
-      near.push_back({v.index, sgn0, distance});
+      near.push_back({index, sgn0, distance});
       next_near.push_back(
           static_cast<float>(p0 + dt * (-(sgn0 * std::abs(p0) - distance) * inv_dx)));
     } else {
       const double sign = p0 / std::sqrt(p0 * p0 + dx2);
-      far.push_back({v.index, sign});
+      far.push_back({index, sign});
       // The step's side is chosen by S(phi0) > 0, which is phi0 > 0 unless S underflows to 0,
       // when the step is p0 + dt * (+-0) = p0 whatever the gradient.
       next_far.push_back(static_cast<float>(p0 + dt * (-sign * (std::sqrt(grad_sq) - 1.0))));
@@ -581,7 +614,9 @@ int Reinitialize(DenseField& phi, const VoxelList& active, int iterations, doubl
       Collect(g, phi.size(), active, [&](const Voxel& v) { return adiabatic && g.IsBorder(v.c); });
   if (settings.spatial == SpatialScheme::kUpwind && settings.temporal == TemporalScheme::kRk1 &&
       internal::AllInterior(g, voxels, 1)) {
-    internal::UpwindReinitRk1(phi, g, voxels, iterations, dx, cfl, nullptr, nullptr);
+    std::vector<ptrdiff_t> indices(voxels.size());
+    for (size_t n = 0; n < voxels.size(); ++n) indices[n] = voxels[n].index;
+    internal::UpwindReinitRk1(phi, g, indices, iterations, dx, cfl, nullptr, nullptr);
     return iterations;
   }
   switch (settings.spatial) {
@@ -611,9 +646,8 @@ MeasuredReinit MeasureAndReinitialize(DenseField& phi, const VoxelList& active, 
       settings.boundary == Boundary::kClamp && cfl > 0.0) {
     // With kClamp both passes take the same voxels (the measure drops border voxels and those
     // beyond the band, which the fused pass tells apart); the fused pass needs them interior.
-    const std::vector<Voxel> voxels =
-        Collect(g, phi.size(), active, [](const Voxel&) { return false; });
-    if (internal::AllInterior(g, voxels, 1)) {
+    std::vector<ptrdiff_t> voxels;
+    if (internal::InteriorIndices(g, phi.size(), active, voxels)) {
       const internal::MeasureSpec spec{trigger.band, trigger.threshold, trigger.force};
       out.triggered = internal::UpwindReinitRk1(phi, g, voxels, iterations, dx, cfl, &spec,
                                                 &out.before);
