@@ -560,8 +560,8 @@ bool UpwindReinitRk1(DenseField& phi, const Grid& g, const std::vector<ptrdiff_t
     step_all();
     for (size_t n = 0; n < near.size(); ++n) {
       const double c = p[near[n].index];
-      next_near[n] = static_cast<float>(
-          c + dt * (-(near[n].sgn0 * std::abs(c) - near[n].distance) * inv_dx));
+      next_near[n] =
+          static_cast<float>(c + dt * (-(near[n].sgn0 * std::abs(c) - near[n].distance) * inv_dx));
     }
     write();
   }
@@ -708,8 +708,8 @@ MeasuredReinit MeasureAndReinitialize(DenseField& phi, const VoxelList& active, 
     std::vector<ptrdiff_t> voxels;
     if (internal::InteriorIndices(g, phi.size(), active, voxels)) {
       const internal::MeasureSpec spec{trigger.band, trigger.threshold, trigger.force};
-      out.triggered = internal::UpwindReinitRk1(phi, g, voxels, iterations, dx, cfl, &spec,
-                                                &out.before);
+      out.triggered =
+          internal::UpwindReinitRk1(phi, g, voxels, iterations, dx, cfl, &spec, &out.before);
       out.passes = out.triggered && iterations > 0 ? iterations : 0;
       return out;
     }
