@@ -311,16 +311,18 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
       std::sort(region.begin(), region.end());
       region.erase(std::unique(region.begin(), region.end()), region.end());
     }
-    const EikonalStats e = MeasureEikonal(b.phi, region, dx, 3 * dx);
-    res.eikonal_error_before_reinit = e.mean_abs_error;
     const bool due =
         s.reinit_every_k > 0 && impl.edits_since_reinit >= static_cast<uint64_t>(s.reinit_every_k);
-    if (s.reinit_iterations > 0 &&
-        (e.mean_abs_error > s.reinit_eikonal_threshold || due || !reinit_extra.empty())) {
-      MotionSettings m = s.motion;
-      m.spatial = s.reinit_spatial;
-      m.temporal = TemporalScheme::kRk1;  // pseudo-time: only the steady state matters
-      res.reinit_passes = Reinitialize(b.phi, region, s.reinit_iterations, dx, m, 0.5);
+    MotionSettings m = s.motion;
+    m.spatial = s.reinit_spatial;
+    m.temporal = TemporalScheme::kRk1;  // pseudo-time: only the steady state matters
+    // The measure and the first reinitialisation step read the same stencils: one pass.
+    const MeasuredReinit r = MeasureAndReinitialize(
+        b.phi, region, s.reinit_iterations, dx, m, 0.5,
+        ReinitTrigger{3 * dx, s.reinit_eikonal_threshold, due || !reinit_extra.empty()});
+    res.eikonal_error_before_reinit = r.before.mean_abs_error;
+    if (s.reinit_iterations > 0 && r.triggered) {
+      res.reinit_passes = r.passes;
       impl.edits_since_reinit = 0;
       b.ClampToBand();
     }

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstring>
 #include <limits>
 #include <type_traits>
 #include <vector>
@@ -344,6 +345,229 @@ void ReinitImpl(DenseField& phi, const std::vector<Voxel>& voxels, int iteration
   }
 }
 
+/// The indices of `active` below `size` into `out`, in order, if each lies one voxel or more
+/// inside the box on every axis (as AllInterior(g, Collect(...), 1) asks); false otherwise.
+/// The lists are sorted, mostly runs along x, so a run's next voxel is decoded by a step of x
+/// rather than by divisions.
+bool InteriorIndices(const Grid& g, size_t size, const VoxelList& active,
+                     std::vector<ptrdiff_t>& out) {
+  for (int a = 0; a < 3; ++a) {
+    if (g.n[a] < 3) return false;
+  }
+  out.clear();
+  out.reserve(active.size());
+  const uint32_t nx = static_cast<uint32_t>(g.n[0]);
+  const uint32_t ny = static_cast<uint32_t>(g.n[1]);
+  const uint32_t nz = static_cast<uint32_t>(g.n[2]);
+  uint32_t last = 0;
+  uint32_t x = 0;  // coordinates of `last`; x = 0 also marks "none yet" (never interior)
+  for (uint32_t idx : active) {
+    if (idx >= size) continue;
+    if (x != 0 && idx == last + 1 && x + 2 < nx) {
+      ++x;  // same row, and still at most nx - 2
+    } else {
+      const uint32_t row = idx / nx;
+      x = idx - row * nx;
+      const uint32_t y = row % ny;
+      const uint32_t z = row / ny;
+      if (x < 1 || x + 1 >= nx || y < 1 || y + 1 >= ny || z < 1 || z + 1 >= nz) return false;
+    }
+    last = idx;
+    out.push_back(static_cast<ptrdiff_t>(idx));
+  }
+  return true;
+}
+
+/// What the fused pass of the default reinitialisation measures and decides by; null when the
+/// caller reinitialises unconditionally.
+struct MeasureSpec {
+  double band;
+  double threshold;
+  bool force;
+};
+
+/// The default reinitialisation (first-order upwind, forward Euler, every stencil inside the box)
+/// with the arithmetic of ReinitImpl<kUpwind> and RkStep in the same order, so the results are the
+/// same bit for bit; it differs in the work around that arithmetic: the frozen data, the Eikonal
+/// measure and the first step's values come from one read of each stencil, the voxels beside the
+/// interface (which relax towards their frozen distance and read no neighbour) are kept apart
+/// from the rest, and the upwind side is chosen by a sign flip instead of a branch per axis.
+/// With `spec` it also measures as MeasureEikonal(phi, voxels, dx, spec->band) does into *stats,
+/// and leaves phi unchanged and returns false unless the mean error exceeds spec->threshold or
+/// spec->force holds (true otherwise, also when `iterations` <= 0 leaves phi as it is).
+/// `voxels` are linear indices one voxel or more inside the box (InteriorIndices).
+bool UpwindReinitRk1(DenseField& phi, const Grid& g, const std::vector<ptrdiff_t>& voxels,
+                     int iterations, double dx, double cfl, const MeasureSpec* spec,
+                     EikonalStats* stats) {
+  float* p = phi.data().data();
+  const double inv_dx = 1.0 / dx;
+  const double dt = cfl * dx;
+  const double dx2 = dx * dx;
+  const double tiny = 1e-6 * dx;
+  const ptrdiff_t sy = g.stride[1];
+  const ptrdiff_t sz = g.stride[2];
+  // Voxels away from the interface: index and S(phi0).
+  struct Far {
+    ptrdiff_t index;
+    double sign;
+  };
+  // Voxels beside it: index, sgn(phi0) and the Russo-Smereka distance.
+  struct Near {
+    ptrdiff_t index;
+    double sgn0;
+    double distance;
+  };
+  std::vector<Far> far;
+  std::vector<Near> near;
+  far.reserve(voxels.size());
+  std::vector<float> next_far, next_near;
+  next_far.reserve(voxels.size());
+  double sum = 0.0;
+  for (const ptrdiff_t index : voxels) {
+    const float* q = p + index;
+    const double p0 = q[0];
+    const double w[3][2] = {{q[-1], q[1]}, {q[-sy], q[sy]}, {q[-sz], q[sz]}};
+    // |grad phi|^2 by UpwindTerm with the side chosen by sign(phi0): for phi0 <= 0 the terms
+    // are those of the negated differences, whose squares are the same.
+    const bool positive = p0 > 0.0;
+    const double flip = positive ? 1.0 : -1.0;
+    double grad_sq = 0.0;
+    bool kink = false;
+    bool subcell = p0 == 0.0;
+    double central_sq = 0.0;
+    double across = 0.0;
+    for (int a = 0; a < 3; ++a) {
+      const double dm = (p0 - w[a][0]) * inv_dx;
+      const double dp = (w[a][1] - p0) * inv_dx;
+      kink = kink || (positive ? (dm > 0.0 && dp < 0.0) : (dm < 0.0 && dp > 0.0));
+      const double m = std::max(flip * dm, 0.0);
+      const double u = std::min(flip * dp, 0.0);
+      grad_sq += std::max(m * m, u * u);
+      const double c = 0.5 * (w[a][1] - w[a][0]);
+      central_sq += c * c;
+      for (int side = 0; side < 2; ++side) {
+        if (OppositeSigns(p0, w[a][side])) {
+          subcell = true;
+          across = std::max(across, std::abs(w[a][side] - p0));
+        }
+      }
+    }
+    if (spec && !kink && std::abs(p0) < spec->band) {
+      // MeasureEikonal stops summing at the first kinked axis and skips the voxel; the sum over
+      // the axes before it is then unused, so summing all three is the same.
+      const double err = std::abs(std::sqrt(grad_sq) - 1.0);
+      sum += err;
+      stats->max_abs_error = std::max(stats->max_abs_error, err);
+      ++stats->samples;
+    }
+    if (subcell) {
+      const double delta = std::max({std::sqrt(central_sq), across, tiny});
+      const double distance = dx * p0 / delta;
+      const double sgn0 = positive ? 1.0 : (p0 < 0.0 ? -1.0 : 0.0);
+      near.push_back({index, sgn0, distance});
+      next_near.push_back(
+          static_cast<float>(p0 + dt * (-(sgn0 * std::abs(p0) - distance) * inv_dx)));
+    } else {
+      const double sign = p0 / std::sqrt(p0 * p0 + dx2);
+      far.push_back({index, sign});
+      // The step's side is chosen by S(phi0) > 0, which is phi0 > 0 unless S underflows to 0,
+      // when the step is p0 + dt * (+-0) = p0 whatever the gradient.
+      next_far.push_back(static_cast<float>(p0 + dt * (-sign * (std::sqrt(grad_sq) - 1.0))));
+    }
+  }
+  if (spec) {
+    if (stats->samples > 0) stats->mean_abs_error = sum / static_cast<double>(stats->samples);
+    if (!(stats->mean_abs_error > spec->threshold || spec->force)) return false;
+  }
+  if (iterations <= 0) return true;
+  // Jacobi as in RkStep: every voxel's new value from the current field, then all written.
+  auto write = [&] {
+    for (size_t n = 0; n < far.size(); ++n) p[far[n].index] = next_far[n];
+    for (size_t n = 0; n < near.size(); ++n) p[near[n].index] = next_near[n];
+  };
+  write();
+  // One far voxel's step, the arithmetic of ReinitImpl<kUpwind> with the side chosen by a flip.
+  auto step = [&](size_t n) {
+    const float* q = p + far[n].index;
+    const double c = q[0];
+    const double sign = far[n].sign;
+    const double flip = sign > 0.0 ? 1.0 : -1.0;
+    double grad_sq = 0.0;
+    for (ptrdiff_t s : {ptrdiff_t{1}, sy, sz}) {
+      const double m = std::max(flip * ((c - q[-s]) * inv_dx), 0.0);
+      const double u = std::min(flip * ((q[s] - c) * inv_dx), 0.0);
+      grad_sq += std::max(m * m, u * u);
+    }
+    next_far[n] = static_cast<float>(c + dt * (-sign * (std::sqrt(grad_sq) - 1.0)));
+  };
+#if defined(__GNUC__) && !defined(__clang__)
+  // Runs of far voxels along x (the lists are sorted): two neighbours' stencils are two
+  // adjacent floats at each of the seven offsets, read and converted as pairs and stepped in
+  // GCC's two-lane vectors, lane by lane the operations of `step` in its order (the selects
+  // are std::max's and std::min's), so the values are the same bit for bit.
+  using V2 = double __attribute__((vector_size(16)));
+  using F2 = float __attribute__((vector_size(8)));
+  auto load2 = [](const float* a) {
+    F2 f;
+    std::memcpy(&f, a, sizeof f);
+    return __builtin_convertvector(f, V2);
+  };
+  std::vector<size_t> pairs;  // first of two far voxels adjacent along x
+  std::vector<size_t> singles;
+  for (size_t n = 0; n < far.size();) {
+    if (n + 1 < far.size() && far[n + 1].index == far[n].index + 1) {
+      pairs.push_back(n);
+      n += 2;
+    } else {
+      singles.push_back(n);
+      n += 1;
+    }
+  }
+  const V2 zero = {0.0, 0.0};
+  const V2 one = {1.0, 1.0};
+  const V2 inv = {inv_dx, inv_dx};
+  const V2 dtv = {dt, dt};
+  auto term = [&](V2 c, V2 flip, V2 lo, V2 hi) {
+    const V2 fm = flip * ((c - lo) * inv);
+    const V2 fp = flip * ((hi - c) * inv);
+    const V2 m = fm < zero ? zero : fm;
+    const V2 u = zero < fp ? zero : fp;
+    const V2 m2 = m * m;
+    const V2 u2 = u * u;
+    return m2 < u2 ? u2 : m2;
+  };
+  auto step_all = [&] {
+    for (size_t n : pairs) {
+      const float* q = p + far[n].index;
+      const V2 c = load2(q);
+      const V2 sign = {far[n].sign, far[n + 1].sign};
+      const V2 flip = sign > zero ? one : -one;
+      const V2 g2 = (term(c, flip, load2(q - 1), load2(q + 1)) +
+                     term(c, flip, load2(q - sy), load2(q + sy))) +
+                    term(c, flip, load2(q - sz), load2(q + sz));
+      const V2 norm = {std::sqrt(g2[0]), std::sqrt(g2[1])};
+      const F2 next = __builtin_convertvector(c + dtv * (-sign * (norm - one)), F2);
+      std::memcpy(&next_far[n], &next, sizeof next);
+    }
+    for (size_t n : singles) step(n);
+  };
+#else
+  auto step_all = [&] {
+    for (size_t n = 0; n < far.size(); ++n) step(n);
+  };
+#endif
+  for (int it = 1; it < iterations; ++it) {
+    step_all();
+    for (size_t n = 0; n < near.size(); ++n) {
+      const double c = p[near[n].index];
+      next_near[n] =
+          static_cast<float>(c + dt * (-(near[n].sgn0 * std::abs(c) - near[n].distance) * inv_dx));
+    }
+    write();
+  }
+  return true;
+}
+
 }  // namespace
 }  // namespace sculpt::levelset::internal
 
@@ -447,6 +671,13 @@ int Reinitialize(DenseField& phi, const VoxelList& active, int iterations, doubl
   // does would make eq. 4.9 push them by S(phi0) every step.
   const std::vector<Voxel> voxels =
       Collect(g, phi.size(), active, [&](const Voxel& v) { return adiabatic && g.IsBorder(v.c); });
+  if (settings.spatial == SpatialScheme::kUpwind && settings.temporal == TemporalScheme::kRk1 &&
+      internal::AllInterior(g, voxels, 1)) {
+    std::vector<ptrdiff_t> indices(voxels.size());
+    for (size_t n = 0; n < voxels.size(); ++n) indices[n] = voxels[n].index;
+    internal::UpwindReinitRk1(phi, g, indices, iterations, dx, cfl, nullptr, nullptr);
+    return iterations;
+  }
   switch (settings.spatial) {
     case SpatialScheme::kCentral:
       internal::ReinitImpl<SpatialScheme::kCentral>(phi, voxels, iterations, dx, settings.temporal,
@@ -462,6 +693,31 @@ int Reinitialize(DenseField& phi, const VoxelList& active, int iterations, doubl
       break;
   }
   return iterations;
+}
+
+MeasuredReinit MeasureAndReinitialize(DenseField& phi, const VoxelList& active, int iterations,
+                                      double dx, const MotionSettings& settings, double cfl,
+                                      const ReinitTrigger& trigger) {
+  MeasuredReinit out;
+  if (!(dx > 0.0)) return out;
+  const Grid g(phi);
+  if (settings.spatial == SpatialScheme::kUpwind && settings.temporal == TemporalScheme::kRk1 &&
+      settings.boundary == Boundary::kClamp && cfl > 0.0) {
+    // With kClamp both passes take the same voxels (the measure drops border voxels and those
+    // beyond the band, which the fused pass tells apart); the fused pass needs them interior.
+    std::vector<ptrdiff_t> voxels;
+    if (internal::InteriorIndices(g, phi.size(), active, voxels)) {
+      const internal::MeasureSpec spec{trigger.band, trigger.threshold, trigger.force};
+      out.triggered =
+          internal::UpwindReinitRk1(phi, g, voxels, iterations, dx, cfl, &spec, &out.before);
+      out.passes = out.triggered && iterations > 0 ? iterations : 0;
+      return out;
+    }
+  }
+  out.before = MeasureEikonal(phi, active, dx, trigger.band);
+  out.triggered = out.before.mean_abs_error > trigger.threshold || trigger.force;
+  if (out.triggered) out.passes = Reinitialize(phi, active, iterations, dx, settings, cfl);
+  return out;
 }
 
 EikonalStats MeasureEikonal(const DenseField& phi, const VoxelList& active, double dx,

@@ -519,6 +519,79 @@ TEST(KernelsTest, ReinitializeWithZeroIterationsDoesNothing) {
   EXPECT_EQ(phi.data(), before.data());
 }
 
+// The edits' reinitialisation (upwind, RK1, a list inside the box) takes a fused path that
+// measures, freezes and steps in one pass and steps adjacent voxels in pairs; its figures and
+// field must be those of MeasureEikonal and of the clamping path, which Reinitialize takes when
+// one voxel of the list lies on the box's border.
+TEST(KernelsTest, FusedMeasureAndReinitializeMatchesTheClampingPathBitForBit) {
+  const double dx = 0.5;
+  const Int3 dims{26, 23, 24};
+  // Not a distance: |grad| from about 1 to 2.5, a second blob, ridges between them.
+  DenseField field = MakeField(dims, dx, [](double x, double y, double z) {
+    const double a =
+        std::sqrt((x - 6.1) * (x - 6.1) + (y - 5.7) * (y - 5.7) + (z - 6.3) * (z - 6.3));
+    const double b =
+        std::sqrt((x - 8.2) * (x - 8.2) + (y - 6.4) * (y - 6.4) + (z - 5.1) * (z - 5.1));
+    return std::min(1.7 * (a - 3.2), 1.2 * (b - 1.4)) + 0.3 * std::sin(1.3 * x) * std::cos(0.9 * y);
+  });
+  VoxelList list;
+  for (int k = 2; k < dims.z - 2; ++k) {
+    for (int j = 2; j < dims.y - 2; ++j) {
+      for (int i = 2; i < dims.x - 2; ++i) {
+        if (std::abs(field.at(i, j, k)) < 4.0 * dx) {
+          list.push_back(static_cast<uint32_t>(field.Index(i, j, k)));
+        }
+      }
+    }
+  }
+  ASSERT_GT(list.size(), 2000u);
+  // Voxels exactly on the interface, and a repeated entry, take their own branches.
+  field.data()[list[list.size() / 3]] = 0.0f;
+  field.data()[list[list.size() / 2]] = 0.0f;
+  list.push_back(list[100]);
+  const double band = 3.0 * dx;
+  const MotionSettings upwind_rk1{SpatialScheme::kUpwind, TemporalScheme::kRk1};
+  // The corner voxel puts the clamping path's list on the border; no listed voxel reads it.
+  VoxelList with_corner = list;
+  with_corner.push_back(static_cast<uint32_t>(field.Index(0, 0, 0)));
+  DenseField clamped = field;
+  const EikonalStats measured = MeasureEikonal(clamped, list, dx, band);
+  ASSERT_GT(measured.mean_abs_error, 0.05);
+  EXPECT_EQ(Reinitialize(clamped, with_corner, 4, dx, upwind_rk1, 0.5), 4);
+  clamped.at(0, 0, 0) = field.at(0, 0, 0);
+  ASSERT_NE(clamped.data(), field.data());
+
+  DenseField fused = field;
+  const MeasuredReinit r =
+      MeasureAndReinitialize(fused, list, 4, dx, upwind_rk1, 0.5, ReinitTrigger{band, 0.05, false});
+  EXPECT_TRUE(r.triggered);
+  EXPECT_EQ(r.passes, 4);
+  EXPECT_EQ(r.before.samples, measured.samples);
+  EXPECT_EQ(r.before.mean_abs_error, measured.mean_abs_error);
+  EXPECT_EQ(r.before.max_abs_error, measured.max_abs_error);
+  EXPECT_EQ(std::memcmp(fused.data().data(), clamped.data().data(), fused.size() * sizeof(float)),
+            0);
+  DenseField plain = field;
+  EXPECT_EQ(Reinitialize(plain, list, 4, dx, upwind_rk1, 0.5), 4);
+  EXPECT_EQ(std::memcmp(plain.data().data(), clamped.data().data(), plain.size() * sizeof(float)),
+            0);
+
+  // Below the threshold and not forced: measured, nothing moved.
+  DenseField calm = field;
+  const MeasuredReinit skipped =
+      MeasureAndReinitialize(calm, list, 4, dx, upwind_rk1, 0.5, ReinitTrigger{band, 1e3, false});
+  EXPECT_FALSE(skipped.triggered);
+  EXPECT_EQ(skipped.passes, 0);
+  EXPECT_EQ(skipped.before.mean_abs_error, measured.mean_abs_error);
+  EXPECT_EQ(calm.data(), field.data());
+  // Forced: reinitialised whatever the error.
+  DenseField forced = field;
+  EXPECT_TRUE(
+      MeasureAndReinitialize(forced, list, 4, dx, upwind_rk1, 0.5, ReinitTrigger{band, 1e3, true})
+          .triggered);
+  EXPECT_EQ(forced.data(), fused.data());
+}
+
 TEST(KernelsTest, MeasureEikonalIsZeroOnSdfAndTwoOnTripledSdf) {
   const double dx = 0.5;
   const VoxelList active = AllVoxels(DenseField(Int3{0, 0, 0}, Int3{40, 40, 40}, 0.0f));

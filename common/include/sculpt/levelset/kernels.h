@@ -74,6 +74,27 @@ struct EikonalStats {
 EikonalStats MeasureEikonal(const DenseField& phi, const VoxelList& active, double dx,
                             double band);
 
+/// When MeasureAndReinitialize reinitialises: the measured mean error (over |phi| < band)
+/// exceeds `threshold`, or `force`.
+struct ReinitTrigger {
+  double band = 0;
+  double threshold = 0;
+  bool force = false;
+};
+struct MeasuredReinit {
+  EikonalStats before;     // MeasureEikonal's figures before any step
+  bool triggered = false;  // whether `trigger` asked for the reinitialisation
+  int passes = 0;          // Reinitialize's return value, 0 when not triggered
+};
+/// MeasureEikonal(phi, active, dx, trigger.band), then, when `trigger` holds,
+/// Reinitialize(phi, active, iterations, dx, settings, cfl): the same figures and field bit for
+/// bit. For the edits' scheme (upwind, RK1, kClamp, stencils inside the box) one pass reads each
+/// stencil for the measure, the frozen sign and distance and the first step. A non-positive dx
+/// measures nothing and changes nothing.
+MeasuredReinit MeasureAndReinitialize(DenseField& phi, const VoxelList& active, int iterations,
+                                      double dx, const MotionSettings& settings, double cfl,
+                                      const ReinitTrigger& trigger);
+
 namespace internal {
 /// sin(pi u) / pi for |u| <= 1/2, by its Taylor series to u^21 (the first term left out is below
 /// 1e-18). Plain double arithmetic in a fixed order instead of libm's sin and cos: the smoothed
