@@ -31,11 +31,18 @@ constexpr int kTables = kAlongTables + 9;
 /// |v| of a symbol's integer, capped at 2 (symbols 0, 1-2, 3+ are |v| 0, 1, 2+).
 inline int Mag3(int symbol) { return symbol == 0 ? 0 : symbol <= 2 ? 1 : 2; }
 
+/// The decoder's constant tables live in static storage rather than on the heap: their addresses
+/// are then link-time constants the point loop rematerialises where it needs them, instead of
+/// four more pointers competing for registers with the turtle's and the coders' state (GCC
+/// spilled the rANS state and the chord across each point). Each is filled once, by its
+/// accessor, which every caller (and PointContext) goes through before reading it.
+alignas(64) double cos_values[kAngles];
+
 /// The cosine of every angle i * 2 pi / kAngles, from a fixed Taylor series on the first octant
 /// and symmetry: + - * only, in an order the JS decoder repeats, so both hold the same doubles.
 const double* CosTable() {
-  static const std::unique_ptr<double[]> table = [] {
-    auto t = std::make_unique<double[]>(kAngles);
+  static const double* const table = [] {
+    double* t = cos_values;
     constexpr int kQuarter = kAngles / 4, kEighth = kAngles / 8;
     double cc[12], sc[12];  // Taylor coefficients: (-1)^k / (2k)!, (-1)^k / (2k+1)!
     cc[0] = 1;
@@ -65,7 +72,7 @@ const double* CosTable() {
     }
     return t;
   }();
-  return table.get();
+  return table;
 }
 
 /// floor(kTurnScale / L) for L in [1, kRecipMax]: a turn of e steps across a chord of L steps is
@@ -73,14 +80,15 @@ const double* CosTable() {
 constexpr int kRecipMax = 4096;
 // round(2^16 * 2^14 / (2 pi) * sqrt(3)/2): an across unit is sqrt(3)/2 of an along unit.
 constexpr int64_t kTurnScale = 147996223;
+alignas(64) int32_t turn_values[kRecipMax + 1];
 const int32_t* TurnTable() {
-  static const std::unique_ptr<int32_t[]> table = [] {
-    auto t = std::make_unique<int32_t[]>(kRecipMax + 1);
+  static const int32_t* const table = [] {
+    int32_t* t = turn_values;
     t[0] = static_cast<int32_t>(kTurnScale);
     for (int l = 1; l <= kRecipMax; ++l) t[l] = static_cast<int32_t>(kTurnScale / l);
     return t;
   }();
-  return table.get();
+  return table;
 }
 
 /// The turtle between two points of a line: the direction of the last chord (angle units), the
@@ -137,14 +145,15 @@ constexpr int64_t kRuleMaxHalf = int64_t{1} << 20;  // h above this counts as th
 }
 
 /// sqrt(kChordRule / w) for |omega| = w in [1, kMaxTurn]; 0 for w = 0 (RuleChord sets that aside).
+alignas(64) double root_values[kMaxTurn + 1];
 const double* RuleRootTable() {
-  static const std::unique_ptr<double[]> table = [] {
-    auto t = std::make_unique<double[]>(kMaxTurn + 1);
+  static const double* const table = [] {
+    double* t = root_values;
     t[0] = 0;
     for (int w = 1; w <= kMaxTurn; ++w) t[w] = std::sqrt(kChordRule / w);
     return t;
   }();
-  return table.get();
+  return table;
 }
 
 /// RuleChordDefinition, bit for bit, with a shorter dependency chain: sqrt(h) times a table entry
@@ -243,21 +252,18 @@ struct SymbolInfo {
   uint64_t base, mask;
   int bits;
 };
-const SymbolInfo* SymbolInfos() {
-  static const std::array<SymbolInfo, kRansAlphabet + 1> table = [] {
-    std::array<SymbolInfo, kRansAlphabet + 1> t{};
-    for (int s = 0; s < kRansAlphabet; ++s) {
-      const int bits = TokenExtraBits(s);
-      t[s] = {s < kTokenDirect
-                  ? static_cast<uint64_t>(s)
-                  : (uint64_t{2} | static_cast<uint64_t>((s - kTokenDirect) & 1)) << bits,
-              (uint64_t{1} << bits) - 1, bits};
-    }
-    t[kRansAlphabet] = {0, 0, 0};
-    return t;
-  }();
-  return table.data();
-}
+constexpr std::array<SymbolInfo, kRansAlphabet + 1> kSymbolInfos = [] {
+  std::array<SymbolInfo, kRansAlphabet + 1> t{};
+  for (int s = 0; s < kRansAlphabet; ++s) {
+    const int bits = TokenExtraBits(s);
+    t[s] = {s < kTokenDirect
+                ? static_cast<uint64_t>(s)
+                : (uint64_t{2} | static_cast<uint64_t>((s - kTokenDirect) & 1)) << bits,
+            (uint64_t{1} << bits) - 1, bits};
+  }
+  t[kRansAlphabet] = {0, 0, 0};
+  return t;
+}();
 
 /// Mag3 of every symbol, the tag of its rANS slots.
 const uint8_t* MagnitudeTags() {
@@ -279,7 +285,7 @@ struct PointContext {
   const RansSlot* tables;  // the message's kTables symbol tables
   double hs, vs;           // step * kHalfAlong, step * kAcross
   double lim;              // the plane: |x|, |y| <= lim
-  const SymbolInfo* info = SymbolInfos();
+  // The constant tables, filled by their accessors here; the point loop reads them by name.
   const double* cos_table = CosTable();
   const int32_t* turn = TurnTable();
   const double* root = RuleRootTable();
@@ -301,10 +307,11 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
   RansDecoder rans = *rans_at;
   BitReader raw = *raw_at;
   const RansSlot* tables = c.tables;
-  const SymbolInfo* info = c.info;
-  const double* cos_table = c.cos_table;
-  const int32_t* turn = c.turn;
-  const double* root = c.root;
+  // The static tables by name (PointContext filled them): their addresses are constants.
+  const SymbolInfo* info = kSymbolInfos.data();
+  const double* cos_table = cos_values;
+  const int32_t* turn = turn_values;
+  const double* root = root_values;
   const double hs = c.hs, vs = c.vs, lim = c.lim;
   int32_t theta = t->theta, omega = t->omega;
   int64_t lp = t->lp, l1 = t->l1;
