@@ -279,6 +279,15 @@ inline int64_t Unzig(uint64_t zz) {
   return static_cast<int64_t>(zz >> 1) ^ -static_cast<int64_t>(zz & 1);
 }
 
+/// The mark DecodeSkc3Body adds to every slot of an empty table (one whose every slot decodes
+/// kRansNoSymbol): the point loop ORs the slots it decodes and fails the line where the mark
+/// shows. The mark sits in the frequency's bits (an empty table's frequency is otherwise
+/// kRansScale, which leaves the state as it was): past a marked slot the state is garbage, which
+/// no longer matters, the line being refused. No slot of a table with symbols has it (frequencies
+/// are at most kRansScale = 2^10, bits 19-29).
+constexpr RansSlot kEmptySlot = RansSlot{1} << 31;
+static_assert(kSlotFreqShift + kRansScaleBits + 1 <= 31);
+
 /// What SKC3's point loop reads and does not change within a message (gathered once: a line is
 /// about 20 points, and the tables' accessors each check their guard).
 struct PointContext {
@@ -316,14 +325,17 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
   int32_t theta = t->theta, omega = t->omega;
   int64_t lp = t->lp, l1 = t->l1;
   int actx = t->actx, mag_e = t->mag_e;
-  bool fail = false;
+  // Every slot decoded, ORed, and bit 31 for a chord out of range: a bad symbol or chord shows
+  // as kEmptySlot, one OR a symbol rather than two compares and a flag (which GCC kept on the
+  // stack).
+  uint32_t seen = 0;
   // The largest |x| and |y| placed: two maxima a point rather than two compares. A NaN point
   // makes every point after it NaN (each is the last plus a step), so the last point shows it.
   Vec2 reach{0, 0};
   size_t k = 0;
   while (k < n) {
     // Branch-free: the symbols are what the data makes them. kRansNoSymbol (a slot of an empty
-    // table) reads as 0 and fails the line.
+    // table, marked kEmptySlot) reads as 0 and fails the line.
     // The slots carry each symbol's magnitude class as their tag: the next table is picked
     // without waiting for a second lookup.
     const RansSlot* atable = tables + static_cast<size_t>(actx) * kRansScale;
@@ -340,8 +352,8 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
     const int32_t th = (theta + omega) & (kAngles - 1);
     const int64_t len = lp + a;
     p = Place(p, cos_table, th, len, e, hs, vs);
-    fail |=
-        (asym == kRansNoSymbol) | (esym == kRansNoSymbol) | (len > kMaxChord) | (len < -kMaxChord);
+    const bool chord_out = static_cast<uint64_t>(len + kMaxChord) > uint64_t{2 * kMaxChord};
+    seen |= as | es | (static_cast<uint32_t>(chord_out) << 31);
     reach = {std::max(reach.x, std::abs(p.x)), std::max(reach.y, std::abs(p.y))};
     const int64_t lc = std::clamp<int64_t>(len, 1, kRecipMax);
     const int64_t ec = std::clamp<int64_t>(e, -lc, lc);
@@ -359,8 +371,9 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
     mag_e = static_cast<int>(SlotTag(es));
     out[k++] = p;
     // k is the index of the point just placed in its line (out starts at the line's second).
-    if (kChecked && (k & 63) == 0 && (fail || rans.overrun())) break;
+    if (kChecked && (k & 63) == 0 && ((seen & kEmptySlot) || rans.overrun())) break;
   }
+  bool fail = (seen & kEmptySlot) != 0;
   if (k > 0) {
     fail |=
         !(reach.x <= lim) | !(reach.y <= lim) | !(std::abs(p.x) <= lim) | !(std::abs(p.y) <= lim);
@@ -644,9 +657,13 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
       v = static_cast<uint32_t>(x);
     }
     if (!rc.ok()) return truncated("symbol tables");
-    if (!BuildRansSlots(f, &slots[static_cast<size_t>(t) * kRansScale], MagnitudeTags())) {
+    RansSlot* table = &slots[static_cast<size_t>(t) * kRansScale];
+    if (!BuildRansSlots(f, table, MagnitudeTags())) {
       return InvalidArgument("contour: symbol table " + std::to_string(t) +
                              " frequencies do not sum to " + std::to_string(kRansScale));
+    }
+    if (SlotSymbol(table[0]) == kRansNoSymbol) {
+      for (uint32_t i = 0; i < kRansScale; ++i) table[i] |= kEmptySlot;
     }
   }
   struct LineSide {
@@ -688,6 +705,13 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
   BitReader raw(raw_bytes);
   const PointContext context{slots.data(), step * kHalfAlong, step * kAcross, kMaxQuantised * step};
   lines->assign(nlines, {});
+  // Each line is decoded into `scratch` and copied into its polyline once whole (one memcpy):
+  // resizing the polyline first would zero-fill it (Vec2's members have initialisers), a store
+  // loop as long as the decoding's own stores. Uninitialised storage for the longest line, which
+  // the counts' cap above bounds as it bounded the polylines' allocations.
+  const uint64_t longest = counts.empty() ? 0 : *std::max_element(counts.begin(), counts.end());
+  const std::unique_ptr<std::byte[]> scratch_bytes(new std::byte[longest * sizeof(Vec2)]);
+  Vec2* const scratch = reinterpret_cast<Vec2*>(scratch_bytes.get());
   Turtle carried[2];  // the end turtle of the last line of each side (index j % stride)
   for (uint64_t j = 0; j < nlines; ++j) {
     Turtle& t = carried[j % stride];
@@ -696,8 +720,7 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
       continue;
     }
     const LineSide& ls = side[j];
-    Polyline2& out = (*lines)[j];
-    out.resize(counts[j]);
+    const size_t count = counts[j];
     Vec2 p;
     if (ls.join) {
       p = (*lines)[j - stride].back();
@@ -722,18 +745,18 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
       t.actx = kAlongStart;
       t.valid = true;
     }
-    out[0] = p;
-    const size_t coded = ls.closed ? out.size() - 1 : out.size();
+    scratch[0] = p;
+    const size_t coded = ls.closed ? count - 1 : count;
     if (coded >= 2) {
       const size_t n = coded - 1;
       bool bad = false;
       // Two symbols a point, at most a word each: unchecked where the words are there.
       if (rans.words_left() / 2 >= n) {
         (skc4 ? DecodePoints<false, true> : DecodePoints<false, false>)(context, &rans, &raw, n, p,
-                                                                        &t, &bad, &out[1]);
+                                                                        &t, &bad, scratch + 1);
       } else {
         (skc4 ? DecodePoints<true, true> : DecodePoints<true, false>)(context, &rans, &raw, n, p,
-                                                                      &t, &bad, &out[1]);
+                                                                      &t, &bad, scratch + 1);
       }
       if (bad) {
         return InvalidArgument(
@@ -742,7 +765,8 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
       }
       if (rans.overrun()) return truncated("points");
     }
-    if (ls.closed) out.back() = out.front();
+    if (ls.closed) scratch[count - 1] = scratch[0];
+    (*lines)[j].assign(scratch, scratch + count);
   }
   if (!rans.ok()) return DataLoss("contour: the SKC3 symbol stream does not end where it began");
   if (!raw.ok()) return DataLoss("contour: the SKC3 raw bits do not end with the last symbol");
