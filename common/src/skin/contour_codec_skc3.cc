@@ -342,13 +342,15 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
     const RansSlot as = kChecked ? rans.DecodeSlot(atable, 0) : rans.DecodeSlotUnchecked(atable, 0);
     const uint32_t asym = SlotSymbol(as);
     const SymbolInfo& ai = info[asym];
-    const int64_t a = Unzig(ai.base + raw.Get(ai.bits, ai.mask));
     const RansSlot* etable =
         tables + static_cast<size_t>(kAlongTables + 3 * mag_e + SlotTag(as)) * kRansScale;
     const RansSlot es = kChecked ? rans.DecodeSlot(etable, 1) : rans.DecodeSlotUnchecked(etable, 1);
     const uint32_t esym = SlotSymbol(es);
     const SymbolInfo& ei = info[esym];
-    const int64_t e = Unzig(ei.base + raw.Get(ei.bits, ei.mask));
+    uint64_t ax, ex;  // the raw bits of both symbols, a's first
+    raw.Get2(ai.bits, ai.mask, ei.bits, ei.mask, &ax, &ex);
+    const int64_t a = Unzig(ai.base + ax);
+    const int64_t e = Unzig(ei.base + ex);
     const int32_t th = (theta + omega) & (kAngles - 1);
     const int64_t len = lp + a;
     p = Place(p, cos_table, th, len, e, hs, vs);

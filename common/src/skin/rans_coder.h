@@ -223,6 +223,25 @@ class BitReader {
     n_ -= count;
     return v;
   }
+  /// Get(c1, m1) then Get(c2, m2), with one test for a refill where the two fit one (c1 + c2 <= 56,
+  /// so one refill of eight bytes covers both): the same bits, the same end-of-stream note.
+  [[gnu::always_inline]] void Get2(int c1, uint64_t m1, int c2, uint64_t m2, uint64_t* v1,
+                                   uint64_t* v2) {
+    const int c = c1 + c2;
+    if (n_ < c) [[unlikely]] {
+      if (c > 56) {
+        *v1 = Get(c1, m1);
+        *v2 = Get(c2, m2);
+        return;
+      }
+      Refill(c);
+    }
+    *v1 = acc_ & m1;
+    acc_ >>= c1;
+    *v2 = acc_ & m2;
+    acc_ >>= c2;
+    n_ -= c;
+  }
   /// True when no read went past the end and every whole byte was used (the unused bits of the
   /// last byte are zero).
   bool ok() const { return !overrun_ && p_ == end_ && n_ < 8 && acc_ == 0; }
