@@ -7,6 +7,9 @@
 #include <memory>
 #include <numbers>
 #include <optional>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "contour_codec_internal.h"
 #include "range_coder.h"
@@ -288,6 +291,26 @@ inline int64_t Unzig(uint64_t zz) {
 constexpr RansSlot kEmptySlot = RansSlot{1} << 31;
 static_assert(kSlotFreqShift + kRansScaleBits + 1 <= 31);
 
+/// The largest |x| and |y| of the points placed so far and `p`, both at once: one AND and one
+/// maximum of a pair where SSE2 has them (GCC kept two scalar maxima and their shuffles). A NaN
+/// coordinate leaves the running maximum as it was, as std::max(reach, |p|) does.
+struct Reach {
+#if defined(__SSE2__)
+  __m128d v = _mm_setzero_pd();
+  [[gnu::always_inline]] void Add(Vec2 p) {
+    const __m128d abs_mask = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffff));
+    v = _mm_max_pd(_mm_and_pd(_mm_set_pd(p.y, p.x), abs_mask), v);  // (|p| > v) ? |p| : v
+  }
+  bool Within(double lim) const {
+    return _mm_movemask_pd(_mm_cmple_pd(v, _mm_set1_pd(lim))) == 3;
+  }
+#else
+  Vec2 v{0, 0};
+  void Add(Vec2 p) { v = {std::max(v.x, std::abs(p.x)), std::max(v.y, std::abs(p.y))}; }
+  bool Within(double lim) const { return v.x <= lim && v.y <= lim; }
+#endif
+};
+
 /// What SKC3's point loop reads and does not change within a message (gathered once: a line is
 /// about 20 points, and the tables' accessors each check their guard).
 struct PointContext {
@@ -331,7 +354,7 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
   uint32_t seen = 0;
   // The largest |x| and |y| placed: two maxima a point rather than two compares. A NaN point
   // makes every point after it NaN (each is the last plus a step), so the last point shows it.
-  Vec2 reach{0, 0};
+  Reach reach;
   size_t k = 0;
   while (k < n) {
     // Branch-free: the symbols are what the data makes them. kRansNoSymbol (a slot of an empty
@@ -356,7 +379,7 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
     p = Place(p, cos_table, th, len, e, hs, vs);
     const bool chord_out = static_cast<uint64_t>(len + kMaxChord) > uint64_t{2 * kMaxChord};
     seen |= as | es | (static_cast<uint32_t>(chord_out) << 31);
-    reach = {std::max(reach.x, std::abs(p.x)), std::max(reach.y, std::abs(p.y))};
+    reach.Add(p);
     const int64_t lc = std::clamp<int64_t>(len, 1, kRecipMax);
     const int64_t ec = std::clamp<int64_t>(e, -lc, lc);
     const int32_t d = static_cast<int32_t>((ec * turn[lc]) >> 16);
@@ -378,7 +401,7 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
   bool fail = (seen & kEmptySlot) != 0;
   if (k > 0) {
     fail |=
-        !(reach.x <= lim) | !(reach.y <= lim) | !(std::abs(p.x) <= lim) | !(std::abs(p.y) <= lim);
+        !reach.Within(lim) | !(std::abs(p.x) <= lim) | !(std::abs(p.y) <= lim);
   }
   t->theta = theta;
   t->omega = omega;
