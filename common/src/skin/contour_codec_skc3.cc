@@ -355,8 +355,11 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
   // The largest |x| and |y| placed: two maxima a point rather than two compares. A NaN point
   // makes every point after it NaN (each is the last plus a step), so the last point shows it.
   Reach reach;
-  size_t k = 0;
-  while (k < n) {
+  // A moving pointer rather than an index and a count: one register fewer in the loop (GCC kept
+  // the index on the stack).
+  Vec2* o = out;
+  Vec2* const end = out + n;
+  while (o != end) {
     // Branch-free: the symbols are what the data makes them. kRansNoSymbol (a slot of an empty
     // table, marked kEmptySlot) reads as 0 and fails the line.
     // The slots carry each symbol's magnitude class as their tag: the next table is picked
@@ -394,11 +397,12 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
     l1 = h;
     actx = static_cast<int>(SlotTag(as));
     mag_e = static_cast<int>(SlotTag(es));
-    out[k++] = p;
-    // k is the index of the point just placed in its line (out starts at the line's second).
-    if (kChecked && (k & 63) == 0 && ((seen & kEmptySlot) || rans.overrun())) break;
+    *o++ = p;
+    // o - out: the points placed by this call (out starts at the line's second point).
+    if (kChecked && ((o - out) & 63) == 0 && ((seen & kEmptySlot) || rans.overrun())) break;
   }
   bool fail = (seen & kEmptySlot) != 0;
+  const size_t k = static_cast<size_t>(o - out);
   if (k > 0) {
     fail |=
         !reach.Within(lim) | !(std::abs(p.x) <= lim) | !(std::abs(p.y) <= lim);
