@@ -301,9 +301,7 @@ struct Reach {
     const __m128d abs_mask = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffff));
     v = _mm_max_pd(_mm_and_pd(_mm_set_pd(p.y, p.x), abs_mask), v);  // (|p| > v) ? |p| : v
   }
-  bool Within(double lim) const {
-    return _mm_movemask_pd(_mm_cmple_pd(v, _mm_set1_pd(lim))) == 3;
-  }
+  bool Within(double lim) const { return _mm_movemask_pd(_mm_cmple_pd(v, _mm_set1_pd(lim))) == 3; }
 #else
   Vec2 v{0, 0};
   void Add(Vec2 p) { v = {std::max(v.x, std::abs(p.x)), std::max(v.y, std::abs(p.y))}; }
@@ -404,8 +402,7 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
   bool fail = (seen & kEmptySlot) != 0;
   const size_t k = static_cast<size_t>(o - out);
   if (k > 0) {
-    fail |=
-        !reach.Within(lim) | !(std::abs(p.x) <= lim) | !(std::abs(p.y) <= lim);
+    fail |= !reach.Within(lim) | !(std::abs(p.x) <= lim) | !(std::abs(p.y) <= lim);
   }
   t->theta = theta;
   t->omega = omega;

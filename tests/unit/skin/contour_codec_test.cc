@@ -723,7 +723,7 @@ std::string EmptyTablesBody(int points, int extra_words) {
   rans.append(2 * static_cast<size_t>(extra_words), '\0');
   std::string body;
   for (const std::string* part : {&side, static_cast<const std::string*>(&rans)}) {
-    for (size_t n = part->size(); ; n >>= 7) {  // the length as a varint
+    for (size_t n = part->size();; n >>= 7) {  // the length as a varint
       body.push_back(static_cast<char>((n & 0x7f) | (n >= 0x80 ? 0x80 : 0)));
       if (n < 0x80) break;
     }
