@@ -7,6 +7,9 @@
 #include <memory>
 #include <numbers>
 #include <optional>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "contour_codec_internal.h"
 #include "range_coder.h"
@@ -31,11 +34,18 @@ constexpr int kTables = kAlongTables + 9;
 /// |v| of a symbol's integer, capped at 2 (symbols 0, 1-2, 3+ are |v| 0, 1, 2+).
 inline int Mag3(int symbol) { return symbol == 0 ? 0 : symbol <= 2 ? 1 : 2; }
 
+/// The decoder's constant tables live in static storage rather than on the heap: their addresses
+/// are then link-time constants the point loop rematerialises where it needs them, instead of
+/// four more pointers competing for registers with the turtle's and the coders' state (GCC
+/// spilled the rANS state and the chord across each point). Each is filled once, by its
+/// accessor, which every caller (and PointContext) goes through before reading it.
+alignas(64) double cos_values[kAngles];
+
 /// The cosine of every angle i * 2 pi / kAngles, from a fixed Taylor series on the first octant
 /// and symmetry: + - * only, in an order the JS decoder repeats, so both hold the same doubles.
 const double* CosTable() {
-  static const std::unique_ptr<double[]> table = [] {
-    auto t = std::make_unique<double[]>(kAngles);
+  static const double* const table = [] {
+    double* t = cos_values;
     constexpr int kQuarter = kAngles / 4, kEighth = kAngles / 8;
     double cc[12], sc[12];  // Taylor coefficients: (-1)^k / (2k)!, (-1)^k / (2k+1)!
     cc[0] = 1;
@@ -65,7 +75,7 @@ const double* CosTable() {
     }
     return t;
   }();
-  return table.get();
+  return table;
 }
 
 /// floor(kTurnScale / L) for L in [1, kRecipMax]: a turn of e steps across a chord of L steps is
@@ -73,14 +83,15 @@ const double* CosTable() {
 constexpr int kRecipMax = 4096;
 // round(2^16 * 2^14 / (2 pi) * sqrt(3)/2): an across unit is sqrt(3)/2 of an along unit.
 constexpr int64_t kTurnScale = 147996223;
+alignas(64) int32_t turn_values[kRecipMax + 1];
 const int32_t* TurnTable() {
-  static const std::unique_ptr<int32_t[]> table = [] {
-    auto t = std::make_unique<int32_t[]>(kRecipMax + 1);
+  static const int32_t* const table = [] {
+    int32_t* t = turn_values;
     t[0] = static_cast<int32_t>(kTurnScale);
     for (int l = 1; l <= kRecipMax; ++l) t[l] = static_cast<int32_t>(kTurnScale / l);
     return t;
   }();
-  return table.get();
+  return table;
 }
 
 /// The turtle between two points of a line: the direction of the last chord (angle units), the
@@ -137,14 +148,15 @@ constexpr int64_t kRuleMaxHalf = int64_t{1} << 20;  // h above this counts as th
 }
 
 /// sqrt(kChordRule / w) for |omega| = w in [1, kMaxTurn]; 0 for w = 0 (RuleChord sets that aside).
+alignas(64) double root_values[kMaxTurn + 1];
 const double* RuleRootTable() {
-  static const std::unique_ptr<double[]> table = [] {
-    auto t = std::make_unique<double[]>(kMaxTurn + 1);
+  static const double* const table = [] {
+    double* t = root_values;
     t[0] = 0;
     for (int w = 1; w <= kMaxTurn; ++w) t[w] = std::sqrt(kChordRule / w);
     return t;
   }();
-  return table.get();
+  return table;
 }
 
 /// RuleChordDefinition, bit for bit, with a shorter dependency chain: sqrt(h) times a table entry
@@ -243,21 +255,18 @@ struct SymbolInfo {
   uint64_t base, mask;
   int bits;
 };
-const SymbolInfo* SymbolInfos() {
-  static const std::array<SymbolInfo, kRansAlphabet + 1> table = [] {
-    std::array<SymbolInfo, kRansAlphabet + 1> t{};
-    for (int s = 0; s < kRansAlphabet; ++s) {
-      const int bits = TokenExtraBits(s);
-      t[s] = {s < kTokenDirect
-                  ? static_cast<uint64_t>(s)
-                  : (uint64_t{2} | static_cast<uint64_t>((s - kTokenDirect) & 1)) << bits,
-              (uint64_t{1} << bits) - 1, bits};
-    }
-    t[kRansAlphabet] = {0, 0, 0};
-    return t;
-  }();
-  return table.data();
-}
+constexpr std::array<SymbolInfo, kRansAlphabet + 1> kSymbolInfos = [] {
+  std::array<SymbolInfo, kRansAlphabet + 1> t{};
+  for (int s = 0; s < kRansAlphabet; ++s) {
+    const int bits = TokenExtraBits(s);
+    t[s] = {s < kTokenDirect
+                ? static_cast<uint64_t>(s)
+                : (uint64_t{2} | static_cast<uint64_t>((s - kTokenDirect) & 1)) << bits,
+            (uint64_t{1} << bits) - 1, bits};
+  }
+  t[kRansAlphabet] = {0, 0, 0};
+  return t;
+}();
 
 /// Mag3 of every symbol, the tag of its rANS slots.
 const uint8_t* MagnitudeTags() {
@@ -273,13 +282,40 @@ inline int64_t Unzig(uint64_t zz) {
   return static_cast<int64_t>(zz >> 1) ^ -static_cast<int64_t>(zz & 1);
 }
 
+/// The mark DecodeSkc3Body adds to every slot of an empty table (one whose every slot decodes
+/// kRansNoSymbol): the point loop ORs the slots it decodes and fails the line where the mark
+/// shows. The mark sits in the frequency's bits (an empty table's frequency is otherwise
+/// kRansScale, which leaves the state as it was): past a marked slot the state is garbage, which
+/// no longer matters, the line being refused. No slot of a table with symbols has it (frequencies
+/// are at most kRansScale = 2^10, bits 19-29).
+constexpr RansSlot kEmptySlot = RansSlot{1} << 31;
+static_assert(kSlotFreqShift + kRansScaleBits + 1 <= 31);
+
+/// The largest |x| and |y| of the points placed so far and `p`, both at once: one AND and one
+/// maximum of a pair where SSE2 has them (GCC kept two scalar maxima and their shuffles). A NaN
+/// coordinate leaves the running maximum as it was, as std::max(reach, |p|) does.
+struct Reach {
+#if defined(__SSE2__)
+  __m128d v = _mm_setzero_pd();
+  [[gnu::always_inline]] void Add(Vec2 p) {
+    const __m128d abs_mask = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffff));
+    v = _mm_max_pd(_mm_and_pd(_mm_set_pd(p.y, p.x), abs_mask), v);  // (|p| > v) ? |p| : v
+  }
+  bool Within(double lim) const { return _mm_movemask_pd(_mm_cmple_pd(v, _mm_set1_pd(lim))) == 3; }
+#else
+  Vec2 v{0, 0};
+  void Add(Vec2 p) { v = {std::max(v.x, std::abs(p.x)), std::max(v.y, std::abs(p.y))}; }
+  bool Within(double lim) const { return v.x <= lim && v.y <= lim; }
+#endif
+};
+
 /// What SKC3's point loop reads and does not change within a message (gathered once: a line is
 /// about 20 points, and the tables' accessors each check their guard).
 struct PointContext {
   const RansSlot* tables;  // the message's kTables symbol tables
   double hs, vs;           // step * kHalfAlong, step * kAcross
   double lim;              // the plane: |x|, |y| <= lim
-  const SymbolInfo* info = SymbolInfos();
+  // The constant tables, filled by their accessors here; the point loop reads them by name.
   const double* cos_table = CosTable();
   const int32_t* turn = TurnTable();
   const double* root = RuleRootTable();
@@ -301,41 +337,50 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
   RansDecoder rans = *rans_at;
   BitReader raw = *raw_at;
   const RansSlot* tables = c.tables;
-  const SymbolInfo* info = c.info;
-  const double* cos_table = c.cos_table;
-  const int32_t* turn = c.turn;
-  const double* root = c.root;
+  // The static tables by name (PointContext filled them): their addresses are constants.
+  const SymbolInfo* info = kSymbolInfos.data();
+  const double* cos_table = cos_values;
+  const int32_t* turn = turn_values;
+  const double* root = root_values;
   const double hs = c.hs, vs = c.vs, lim = c.lim;
   int32_t theta = t->theta, omega = t->omega;
   int64_t lp = t->lp, l1 = t->l1;
   int actx = t->actx, mag_e = t->mag_e;
-  bool fail = false;
+  // Every slot decoded, ORed, and bit 31 for a chord out of range: a bad symbol or chord shows
+  // as kEmptySlot, one OR a symbol rather than two compares and a flag (which GCC kept on the
+  // stack).
+  uint32_t seen = 0;
   // The largest |x| and |y| placed: two maxima a point rather than two compares. A NaN point
   // makes every point after it NaN (each is the last plus a step), so the last point shows it.
-  Vec2 reach{0, 0};
-  size_t k = 0;
-  while (k < n) {
+  Reach reach;
+  // A moving pointer rather than an index and a count: one register fewer in the loop (GCC kept
+  // the index on the stack).
+  Vec2* o = out;
+  Vec2* const end = out + n;
+  while (o != end) {
     // Branch-free: the symbols are what the data makes them. kRansNoSymbol (a slot of an empty
-    // table) reads as 0 and fails the line.
+    // table, marked kEmptySlot) reads as 0 and fails the line.
     // The slots carry each symbol's magnitude class as their tag: the next table is picked
     // without waiting for a second lookup.
     const RansSlot* atable = tables + static_cast<size_t>(actx) * kRansScale;
     const RansSlot as = kChecked ? rans.DecodeSlot(atable, 0) : rans.DecodeSlotUnchecked(atable, 0);
     const uint32_t asym = SlotSymbol(as);
     const SymbolInfo& ai = info[asym];
-    const int64_t a = Unzig(ai.base + raw.Get(ai.bits, ai.mask));
     const RansSlot* etable =
         tables + static_cast<size_t>(kAlongTables + 3 * mag_e + SlotTag(as)) * kRansScale;
     const RansSlot es = kChecked ? rans.DecodeSlot(etable, 1) : rans.DecodeSlotUnchecked(etable, 1);
     const uint32_t esym = SlotSymbol(es);
     const SymbolInfo& ei = info[esym];
-    const int64_t e = Unzig(ei.base + raw.Get(ei.bits, ei.mask));
+    uint64_t ax, ex;  // the raw bits of both symbols, a's first
+    raw.Get2(ai.bits, ai.mask, ei.bits, ei.mask, &ax, &ex);
+    const int64_t a = Unzig(ai.base + ax);
+    const int64_t e = Unzig(ei.base + ex);
     const int32_t th = (theta + omega) & (kAngles - 1);
     const int64_t len = lp + a;
     p = Place(p, cos_table, th, len, e, hs, vs);
-    fail |=
-        (asym == kRansNoSymbol) | (esym == kRansNoSymbol) | (len > kMaxChord) | (len < -kMaxChord);
-    reach = {std::max(reach.x, std::abs(p.x)), std::max(reach.y, std::abs(p.y))};
+    const bool chord_out = static_cast<uint64_t>(len + kMaxChord) > uint64_t{2 * kMaxChord};
+    seen |= as | es | (static_cast<uint32_t>(chord_out) << 31);
+    reach.Add(p);
     const int64_t lc = std::clamp<int64_t>(len, 1, kRecipMax);
     const int64_t ec = std::clamp<int64_t>(e, -lc, lc);
     const int32_t d = static_cast<int32_t>((ec * turn[lc]) >> 16);
@@ -350,13 +395,14 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
     l1 = h;
     actx = static_cast<int>(SlotTag(as));
     mag_e = static_cast<int>(SlotTag(es));
-    out[k++] = p;
-    // k is the index of the point just placed in its line (out starts at the line's second).
-    if (kChecked && (k & 63) == 0 && (fail || rans.overrun())) break;
+    *o++ = p;
+    // o - out: the points placed by this call (out starts at the line's second point).
+    if (kChecked && ((o - out) & 63) == 0 && ((seen & kEmptySlot) || rans.overrun())) break;
   }
+  bool fail = (seen & kEmptySlot) != 0;
+  const size_t k = static_cast<size_t>(o - out);
   if (k > 0) {
-    fail |=
-        !(reach.x <= lim) | !(reach.y <= lim) | !(std::abs(p.x) <= lim) | !(std::abs(p.y) <= lim);
+    fail |= !reach.Within(lim) | !(std::abs(p.x) <= lim) | !(std::abs(p.y) <= lim);
   }
   t->theta = theta;
   t->omega = omega;
@@ -637,9 +683,13 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
       v = static_cast<uint32_t>(x);
     }
     if (!rc.ok()) return truncated("symbol tables");
-    if (!BuildRansSlots(f, &slots[static_cast<size_t>(t) * kRansScale], MagnitudeTags())) {
+    RansSlot* table = &slots[static_cast<size_t>(t) * kRansScale];
+    if (!BuildRansSlots(f, table, MagnitudeTags())) {
       return InvalidArgument("contour: symbol table " + std::to_string(t) +
                              " frequencies do not sum to " + std::to_string(kRansScale));
+    }
+    if (SlotSymbol(table[0]) == kRansNoSymbol) {
+      for (uint32_t i = 0; i < kRansScale; ++i) table[i] |= kEmptySlot;
     }
   }
   struct LineSide {
@@ -681,6 +731,13 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
   BitReader raw(raw_bytes);
   const PointContext context{slots.data(), step * kHalfAlong, step * kAcross, kMaxQuantised * step};
   lines->assign(nlines, {});
+  // Each line is decoded into `scratch` and copied into its polyline once whole (one memcpy):
+  // resizing the polyline first would zero-fill it (Vec2's members have initialisers), a store
+  // loop as long as the decoding's own stores. Uninitialised storage for the longest line, which
+  // the counts' cap above bounds as it bounded the polylines' allocations.
+  const uint64_t longest = counts.empty() ? 0 : *std::max_element(counts.begin(), counts.end());
+  const std::unique_ptr<std::byte[]> scratch_bytes(new std::byte[longest * sizeof(Vec2)]);
+  Vec2* const scratch = reinterpret_cast<Vec2*>(scratch_bytes.get());
   Turtle carried[2];  // the end turtle of the last line of each side (index j % stride)
   for (uint64_t j = 0; j < nlines; ++j) {
     Turtle& t = carried[j % stride];
@@ -689,8 +746,7 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
       continue;
     }
     const LineSide& ls = side[j];
-    Polyline2& out = (*lines)[j];
-    out.resize(counts[j]);
+    const size_t count = counts[j];
     Vec2 p;
     if (ls.join) {
       p = (*lines)[j - stride].back();
@@ -715,18 +771,18 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
       t.actx = kAlongStart;
       t.valid = true;
     }
-    out[0] = p;
-    const size_t coded = ls.closed ? out.size() - 1 : out.size();
+    scratch[0] = p;
+    const size_t coded = ls.closed ? count - 1 : count;
     if (coded >= 2) {
       const size_t n = coded - 1;
       bool bad = false;
       // Two symbols a point, at most a word each: unchecked where the words are there.
       if (rans.words_left() / 2 >= n) {
         (skc4 ? DecodePoints<false, true> : DecodePoints<false, false>)(context, &rans, &raw, n, p,
-                                                                        &t, &bad, &out[1]);
+                                                                        &t, &bad, scratch + 1);
       } else {
         (skc4 ? DecodePoints<true, true> : DecodePoints<true, false>)(context, &rans, &raw, n, p,
-                                                                      &t, &bad, &out[1]);
+                                                                      &t, &bad, scratch + 1);
       }
       if (bad) {
         return InvalidArgument(
@@ -735,7 +791,8 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
       }
       if (rans.overrun()) return truncated("points");
     }
-    if (ls.closed) out.back() = out.front();
+    if (ls.closed) scratch[count - 1] = scratch[0];
+    (*lines)[j].assign(scratch, scratch + count);
   }
   if (!rans.ok()) return DataLoss("contour: the SKC3 symbol stream does not end where it began");
   if (!raw.ok()) return DataLoss("contour: the SKC3 raw bits do not end with the last symbol");

@@ -43,7 +43,7 @@ struct Token {
 };
 Token MakeToken(int64_t v);
 /// The extra bit count of a symbol (0 for the direct ones).
-inline int TokenExtraBits(int symbol) {
+constexpr int TokenExtraBits(int symbol) {
   return symbol < kTokenDirect ? 0 : (symbol - kTokenDirect) / 2 + kTokenDirectBits - 1;
 }
 /// The integer of a symbol and its extra bits.
@@ -156,11 +156,25 @@ class RansDecoder {
       p_ += (need & have) ? 2 : 0;
       x = need ? (x << 16) | w : x;
     } else {
-      // Masks and shifts rather than a select, which GCC turns into a branch here.
-      const uint32_t n = need;
+      // A select: GCC makes a branch of `need ? y : x` here (mispredicted about once in three
+      // symbols) and of any mask form a longer chain, so on x86-64 it is written as the cmov it
+      // should be; shifting by 16 * need cost a variable shift and four more instructions.
       w = static_cast<uint32_t>(p_[0]) | (static_cast<uint32_t>(p_[1]) << 8);
+      const uint32_t y = (x << 16) | w;
+#if defined(__x86_64__) && defined(__GNUC__)
+      uint32_t n;
+      asm("xorl %k[n], %k[n]\n\t"
+          "cmpl $0xffff, %[x]\n\t"
+          "cmovbe %[y], %[x]\n\t"
+          "setbe %b[n]"
+          : [x] "+r"(x), [n] "=&r"(n)
+          : [y] "r"(y)
+          : "cc");
       p_ += 2 * n;
-      x = (x << (16 * n)) | (w & (0u - n));
+#else
+      x ^= (y ^ x) & (0u - static_cast<uint32_t>(need));
+      p_ += need ? 2 : 0;
+#endif
     }
     state = x;
     return s;
@@ -208,6 +222,25 @@ class BitReader {
     acc_ >>= count;
     n_ -= count;
     return v;
+  }
+  /// Get(c1, m1) then Get(c2, m2), with one test for a refill where the two fit one (c1 + c2 <= 56,
+  /// so one refill of eight bytes covers both): the same bits, the same end-of-stream note.
+  [[gnu::always_inline]] void Get2(int c1, uint64_t m1, int c2, uint64_t m2, uint64_t* v1,
+                                   uint64_t* v2) {
+    const int c = c1 + c2;
+    if (n_ < c) [[unlikely]] {
+      if (c > 56) {
+        *v1 = Get(c1, m1);
+        *v2 = Get(c2, m2);
+        return;
+      }
+      Refill(c);
+    }
+    *v1 = acc_ & m1;
+    acc_ >>= c1;
+    *v2 = acc_ & m2;
+    acc_ >>= c2;
+    n_ -= c;
   }
   /// True when no read went past the end and every whole byte was used (the unused bits of the
   /// last byte are zero).

@@ -10,6 +10,8 @@
 #include <random>
 
 #include "skin/contour_codec_internal.h"
+#include "skin/range_coder.h"
+#include "skin/rans_coder.h"
 
 namespace sculpt::skin {
 namespace {
@@ -163,8 +165,6 @@ TEST(ContourCodecTest, RejectsPointCountThatWrapsTheTotal) {
   EXPECT_FALSE(decoded.ok());
 }
 
-}  // namespace
-}  // namespace sculpt::skin
 
 namespace sculpt::skin {
 namespace {
@@ -699,6 +699,61 @@ TEST(ContourCodecTest, RejectsPointsOutsideThePlane) {
   }
   EXPECT_GT(outside, 0);
   EXPECT_GT(accepted, 0);
+}
+
+}  // namespace
+}  // namespace sculpt::skin
+
+// An SKC3 body (a polyline set of one line of `points` points from the origin) whose thirteen
+// symbol tables are all empty, with `extra_words` 16-bit words after the rANS states.
+std::string EmptyTablesBody(int points, int extra_words) {
+  internal::RangeEncoder rc;
+  internal::IntModel count, first, nsym;
+  internal::BitModel closed;
+  rc.Int(count, points);
+  for (int t = 0; t < 13; ++t) rc.Int(nsym, 0);
+  rc.Int(first, 0);
+  rc.Int(first, 0);
+  if (points >= 2) {
+    rc.Bit(closed, 0);
+    rc.Raw(0, 14);  // the start angle
+  }
+  const std::string side = rc.Finish();
+  std::string rans = internal::RansEncoder().Finish();  // the two states, nothing coded
+  rans.append(2 * static_cast<size_t>(extra_words), '\0');
+  std::string body;
+  for (const std::string* part : {&side, static_cast<const std::string*>(&rans)}) {
+    for (size_t n = part->size();; n >>= 7) {  // the length as a varint
+      body.push_back(static_cast<char>((n & 0x7f) | (n >= 0x80 ? 0x80 : 0)));
+      if (n < 0x80) break;
+    }
+    body += *part;
+  }
+  return body;
+}
+
+// The decoder marks an empty table's slots and the point loop refuses a symbol drawn from one
+// (with the stream's end guarded, and unguarded where the words are there); a line that draws
+// nothing from the empty tables decodes.
+TEST(ContourCodecTest, RefusesASymbolFromAnEmptyTable) {
+  for (int extra_words : {0, 4, 200}) {
+    std::vector<internal::SectionEntry> entries;
+    std::vector<Polyline2> lines;
+    const std::string body = EmptyTablesBody(3, extra_words);
+    const Status st =
+        internal::DecodeSkc3Body(body, body.size() + 16, 0, 1.0, 1, 0, &entries, &lines);
+    EXPECT_EQ(st.code(), Status::Code::kInvalidArgument) << extra_words << ": " << st.ToString();
+    EXPECT_NE(st.ToString().find("empty table"), std::string::npos) << st.ToString();
+  }
+  std::vector<internal::SectionEntry> entries;
+  std::vector<Polyline2> lines;
+  const std::string one = EmptyTablesBody(1, 0);
+  const Status st = internal::DecodeSkc3Body(one, one.size() + 16, 0, 1.0, 1, 0, &entries, &lines);
+  ASSERT_TRUE(st.ok()) << st.ToString();
+  ASSERT_EQ(lines.size(), 1u);
+  ASSERT_EQ(lines[0].size(), 1u);
+  EXPECT_EQ(lines[0][0].x, 0.0);
+  EXPECT_EQ(lines[0][0].y, 0.0);
 }
 
 }  // namespace

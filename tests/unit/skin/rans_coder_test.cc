@@ -211,5 +211,42 @@ TEST(RansCoderTest, RawBitsRoundTripAndEndExactly) {
   EXPECT_FALSE(longer.ok());
 }
 
+// Get2 (the contour decoder's read of a point's two symbols' raw bits) reads what two Gets read
+// and ends alike: the same values past the end (zeros), the same ok() for a stream cut short by
+// each of its last bytes, exactly as long, and with a byte too many; pairs of every size, from
+// two direct symbols (0 + 0 bits) to pairs past one refill (41 + 41).
+TEST(RansCoderTest, PairedRawReadsMatchTwoReads) {
+  std::mt19937_64 rng(17);
+  BitWriter w;
+  std::vector<std::pair<int, int>> counts;
+  for (int i = 0; i < 4000; ++i) {
+    // Mostly short (as the codec's: most symbols are direct), some up to the token's 41 bits.
+    const int c1 = rng() % 4 == 0 ? static_cast<int>(rng() % 42) : static_cast<int>(rng() % 4);
+    const int c2 = rng() % 4 == 0 ? static_cast<int>(rng() % 42) : static_cast<int>(rng() % 4);
+    counts.push_back({c1, c2});
+    w.Put(c1 ? rng() & ((uint64_t{1} << c1) - 1) : 0, c1);
+    w.Put(c2 ? rng() & ((uint64_t{1} << c2) - 1) : 0, c2);
+  }
+  const std::string bytes = w.Finish();
+  auto mask = [](int c) { return (uint64_t{1} << c) - 1; };
+  int compared = 0;
+  for (size_t cut : {bytes.size() + 1, bytes.size(), bytes.size() - 1, bytes.size() - 7,
+                     bytes.size() / 2, size_t{0}}) {
+    std::string in = bytes.substr(0, std::min(cut, bytes.size()));
+    if (cut > bytes.size()) in += '\0';
+    BitReader one(in), two(in);
+    for (const auto& [c1, c2] : counts) {
+      uint64_t v1 = 0, v2 = 0;
+      two.Get2(c1, mask(c1), c2, mask(c2), &v1, &v2);
+      ASSERT_EQ(v1, one.Get(c1)) << cut;
+      ASSERT_EQ(v2, one.Get(c2)) << cut;
+      ++compared;
+    }
+    EXPECT_EQ(two.ok(), one.ok()) << cut;
+    EXPECT_EQ(two.ok(), cut == bytes.size()) << cut;
+  }
+  EXPECT_EQ(compared, 6 * 4000);
+}
+
 }  // namespace
 }  // namespace sculpt::skin::internal
