@@ -43,11 +43,11 @@ struct Logged {
   std::string payload;
 };
 
-// The epoch a record carries: a stroke pose's EditRecord.epoch, 0 for any other kind.
+// The epoch a record of any kind carries (field 16 of its message; 0 when absent).
 uint64_t EpochOf(const std::string& payload) {
   auto decoded = codec::DecodeLogRecord(0, payload);
-  const auto* pose = decoded.ok() ? std::get_if<codec::StrokePoseRecord>(&*decoded) : nullptr;
-  return pose ? pose->epoch : 0;
+  EXPECT_TRUE(decoded.ok()) << decoded.status();
+  return decoded.ok() ? codec::RecordEpoch(*decoded) : 0;
 }
 
 // Every record of the edit log of `data_dir`, read back with the store's reader, with the epoch
@@ -88,7 +88,7 @@ std::vector<uint64_t> SnapshotSeqs(const fs::path& data_dir) {
   return seqs;
 }
 
-TEST(RecordEpochTest, OnlyStrokeRecordsCarryTheEpochAndZeroAddsNothing) {
+TEST(RecordEpochTest, StrokeAndTaggedRecordsCarryTheEpochAndZeroAddsNothing) {
   codec::StrokePoseRecord pose;
   pose.global_seq = 5;
   pose.client_id = 9;
@@ -114,9 +114,12 @@ TEST(RecordEpochTest, OnlyStrokeRecordsCarryTheEpochAndZeroAddsNothing) {
   undo.client_id = 9;
   const std::string tagged = codec::EncodeLogRecord(undo);
   std::string tagged_with = tagged;
+  codec::AppendRecordEpoch(&tagged_with, 0);
+  EXPECT_EQ(tagged_with, tagged) << "epoch 0 must leave a tagged record as it was";
   codec::AppendRecordEpoch(&tagged_with, 12);
-  EXPECT_EQ(tagged_with, tagged) << "a tagged record has no epoch field";
+  EXPECT_EQ(EpochOf(tagged_with), 12u);
   EXPECT_EQ(EpochOf(tagged), 0u);
+  EXPECT_EQ(tagged_with[0], tagged[0]) << "still an undo";
 }
 
 // This member ("a") owns the scene and names "b" its standby.
