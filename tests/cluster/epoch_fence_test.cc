@@ -254,19 +254,56 @@ TEST_F(EpochFenceTest, SingleProcessLogsAndSendsNoEpoch) {
   auto broadcast = replica.ReadUntil(v1::ServerMessage::kEdit);
   ASSERT_TRUE(broadcast.has_value());
   EXPECT_EQ(broadcast->edit().epoch(), 0u);
+  v1::ClientMessage undo;  // a tagged record too
+  undo.mutable_undo()->set_client_seq(1);
+  undo.mutable_undo()->set_object("clay");
+  ASSERT_TRUE(sculptor_->Send(undo));
+  auto undone = sculptor_->ReadUntil(v1::ServerMessage::kUndoAck);
+  ASSERT_TRUE(undone.has_value());
+  ASSERT_TRUE(undone->undo_ack().accepted()) << undone->DebugString();
   server_.Stop();
   const std::vector<Logged> owned = ReadLog(server_.config().data_dir);
-  ASSERT_EQ(owned.size(), 3u);
+  ASSERT_EQ(owned.size(), 4u);
   for (const Logged& l : owned) {
-    EXPECT_TRUE(l.stroke);
+    EXPECT_EQ(l.stroke, l.seq <= 3) << "seq " << l.seq;
     EXPECT_EQ(l.epoch, 0u);
     // Absent from the bytes, not written as 0: the record serializes back to the same bytes
     // (a present field 16, even 0, would not survive the round trip).
-    v1::EditRecord r;
-    ASSERT_TRUE(r.ParseFromString(l.payload));
-    EXPECT_EQ(r.SerializeAsString(), l.payload) << "seq " << l.seq;
+    if (l.stroke) {
+      v1::EditRecord r;
+      ASSERT_TRUE(r.ParseFromString(l.payload));
+      EXPECT_EQ(r.SerializeAsString(), l.payload) << "seq " << l.seq;
+    } else {
+      ASSERT_EQ(l.payload[0], '\x04');
+      v1::UndoRecord r;
+      ASSERT_TRUE(r.ParseFromString(l.payload.substr(1)));
+      EXPECT_EQ('\x04' + r.SerializeAsString(), l.payload) << "seq " << l.seq;
+    }
     EXPECT_EQ(l.payload.find("\x80\x01"), std::string::npos) << "field 16's tag in seq " << l.seq;
   }
+}
+
+// A log in which a stale owner wrote after a newer ownership (epoch 6 after 7: here the fence is
+// granted a lower epoch, which the agent never does) is refused at start-up, naming the record;
+// nothing is cut off it.
+TEST_F(EpochFenceTest, RefusesToStartOnALogWhoseEpochsGoBackwards) {
+  StartOwner(7);
+  const uint64_t before = Sculpt(1);
+  fence_->Grant(6, OwnershipFence::Clock::now() + std::chrono::hours(1));
+  const uint64_t stale = Sculpt(2);
+  ASSERT_GT(stale, before);
+  sculptor_.reset();
+  server_.Stop();
+  const size_t logged = ReadLog(server_.config().data_dir).size();
+  const ::testing::AssertionResult restarted = server_.Start();
+  ASSERT_FALSE(restarted) << "started on a log whose epochs go backwards";
+  const std::string why = restarted.message();
+  EXPECT_NE(why.find("record seq " + std::to_string(before + 1) + " has epoch 6, lower than " +
+                     "epoch 7 of seq 1 before it"),
+            std::string::npos)
+      << why;
+  EXPECT_NE(why.find("stale owner"), std::string::npos) << why;
+  EXPECT_EQ(ReadLog(server_.config().data_dir).size(), logged) << "the refusal cut the log";
 }
 
 TEST_F(EpochFenceTest, RejectsARegionLoadOfAnotherEpochThanEtcdNames) {

@@ -218,6 +218,12 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   ro.on_loaded = [raw_scene](const std::string& object, uint64_t snapshot_seq) {
     raw_scene->LoadHistory(object, snapshot_seq);
   };
+  // Every record says the ownership epoch it was sequenced under (0 on a single process):
+  // recovery refuses a log in which a stale owner wrote after a newer one.
+  ro.epoch_of = [](const store::LogRecord& rec) -> StatusOr<uint64_t> {
+    SCULPT_ASSIGN_OR_RETURN(codec::EditLogRecord r, codec::DecodeLogRecord(rec.seq, rec.payload));
+    return codec::RecordEpoch(r);
+  };
   const double t0 = NowSeconds();
   SCULPT_ASSIGN_OR_RETURN(store::RecoveredScene rec,
                           store::Recover(config.data_dir, ro, make_initial, route, apply));
