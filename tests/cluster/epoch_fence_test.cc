@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
@@ -281,6 +283,75 @@ TEST_F(EpochFenceTest, SingleProcessLogsAndSendsNoEpoch) {
     }
     EXPECT_EQ(l.payload.find("\x80\x01"), std::string::npos) << "field 16's tag in seq " << l.seq;
   }
+}
+
+// Undo records (tagged, logged through the same commit pipeline as every kind but a stroke)
+// carry the epoch too, and the history view shows it, live and after a restart.
+TEST_F(EpochFenceTest, EveryRecordKindIsLoggedWithTheEpochAndTheHistoryShowsIt) {
+  StartOwner(7);
+  Sculpt(1);
+  Sculpt(2);
+  v1::ClientMessage undo;
+  undo.mutable_undo()->set_client_seq(1);
+  undo.mutable_undo()->set_object("clay");
+  ASSERT_TRUE(sculptor_->Send(undo));
+  auto undone = sculptor_->ReadUntil(v1::ServerMessage::kUndoAck);
+  ASSERT_TRUE(undone.has_value());
+  ASSERT_TRUE(undone->undo_ack().accepted()) << undone->DebugString();
+  const auto history = [this] {
+    RawClient c(server_.port());
+    EXPECT_TRUE(c.Enter("sculpt-dev-viewer", v1::ROLE_VIEWER));
+    v1::ClientMessage q;
+    q.mutable_history()->set_request_id(1);
+    q.mutable_history()->set_object("clay");
+    EXPECT_TRUE(c.Send(q));
+    auto a = c.ReadUntil(v1::ServerMessage::kHistory);
+    EXPECT_TRUE(a.has_value());
+    return a ? a->history() : v1::HistoryAnswer{};
+  };
+  const v1::HistoryAnswer live = history();
+  ASSERT_EQ(live.entries_size(), 2) << live.DebugString();
+  for (const v1::HistoryEntry& e : live.entries()) EXPECT_EQ(e.epoch(), 7u) << e.DebugString();
+
+  server_.Stop();
+  const std::vector<Logged> owned = ReadLog(server_.config().data_dir);
+  size_t undos = 0;
+  for (const Logged& l : owned) {
+    EXPECT_EQ(l.epoch, 7u) << "seq " << l.seq << " logged without the owner's epoch";
+    if (!l.stroke) {
+      ++undos;
+      EXPECT_EQ(l.payload[0], '\x04') << "seq " << l.seq << " is not an undo";
+    }
+  }
+  EXPECT_EQ(undos, 1u);
+
+  // Restarted under a newer ownership: the recovered entries keep the epoch they were logged
+  // under, and a new stroke shows the new one.
+  sculptor_.reset();
+  ASSERT_TRUE(server_.Start());
+  server_.server().set_router(&router_);
+  fence_->Grant(8, OwnershipFence::Clock::now() + std::chrono::hours(1));
+  server_.scene().set_ownership_fence(fence_);
+  const v1::HistoryAnswer recovered = history();
+  ASSERT_EQ(recovered.entries_size(), 2) << recovered.DebugString();
+  for (const v1::HistoryEntry& e : recovered.entries()) EXPECT_EQ(e.epoch(), 7u);
+  Sculpt(3);
+  const v1::HistoryAnswer after = history();
+  ASSERT_EQ(after.entries_size(), 3) << after.DebugString();
+  EXPECT_EQ(after.entries(0).epoch(), 8u) << "newest first";
+  EXPECT_EQ(after.entries(1).epoch(), 7u);
+
+  // `sculpt history` prints it: a JSON key and the end of the state column.
+  const std::string server = "--server 127.0.0.1:" + std::to_string(server_.port());
+  const auto json = sculpt::testing::Sculpt("history " + server + " --json");
+  ASSERT_EQ(json.exit_code, 0) << json.output;
+  const auto j = nlohmann::json::parse(json.output.substr(json.output.find('{')));
+  ASSERT_EQ(j["entries"].size(), 3u) << json.output;
+  EXPECT_EQ(j["entries"][0]["epoch"], 8) << json.output;
+  EXPECT_EQ(j["entries"][2]["epoch"], 7) << json.output;
+  const auto table = sculpt::testing::Sculpt("history " + server + " --limit 1");
+  ASSERT_EQ(table.exit_code, 0) << table.output;
+  EXPECT_NE(table.output.find("done, undoable, epoch 8\n"), std::string::npos) << table.output;
 }
 
 // A log in which a stale owner wrote after a newer ownership (epoch 6 after 7: here the fence is

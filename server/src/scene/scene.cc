@@ -231,6 +231,7 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   scene->log_ = std::move(rec.log);
   scene->snapshots_ = std::move(rec.snapshots);
   scene->next_seq_ = rec.last_seq + 1;
+  scene->epoch_runs_ = std::move(rec.epoch_runs);
   scene->applied_seq_ = rec.last_seq;
   scene->replication_.set_versions_floor(rec.last_seq);
   scene->replication_.set_resend_table(&scene->resend_.entries());
