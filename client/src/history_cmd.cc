@@ -46,9 +46,11 @@ std::string UtcTime(uint64_t ms) {
 }
 
 json EntryJson(const v1::HistoryEntry& e) {
-  return {{"seq", e.seq()},       {"author", e.author()},    {"kind", KindName(e)},
-          {"poses", e.poses()},   {"time_ms", e.time_ms()},  {"time", UtcTime(e.time_ms())},
-          {"undone", e.undone()}, {"undoable", e.undoable()}, {"user", e.user()}};
+  json j = {{"seq", e.seq()},       {"author", e.author()},    {"kind", KindName(e)},
+            {"poses", e.poses()},   {"time_ms", e.time_ms()},  {"time", UtcTime(e.time_ms())},
+            {"undone", e.undone()}, {"undoable", e.undoable()}, {"user", e.user()}};
+  if (e.epoch() != 0) j["epoch"] = e.epoch();  // cluster mode only: single-process output as before
+  return j;
 }
 
 void PrintTable(const v1::HistoryAnswer& a, const std::string& server) {
@@ -63,10 +65,12 @@ void PrintTable(const v1::HistoryAnswer& a, const std::string& server) {
               "poses", "state");
   for (const v1::HistoryEntry& e : a.entries()) {
     const char* state = e.undone() ? "undone" : e.undoable() ? "done, undoable" : "done";
-    std::printf("%10llu  %-24s  %-20s  %-14s  %5u  %s\n", static_cast<unsigned long long>(e.seq()),
-                UtcTime(e.time_ms()).c_str(), (e.user().empty() ? e.author() : e.user()).c_str(),
-                KindName(e).c_str(), e.poses(),
-                state);
+    // Cluster mode: the ownership epoch the edit was logged under, after the state.
+    const std::string epoch = e.epoch() != 0 ? ", epoch " + std::to_string(e.epoch()) : "";
+    std::printf("%10llu  %-24s  %-20s  %-14s  %5u  %s%s\n",
+                static_cast<unsigned long long>(e.seq()), UtcTime(e.time_ms()).c_str(),
+                (e.user().empty() ? e.author() : e.user()).c_str(), KindName(e).c_str(), e.poses(),
+                state, epoch.c_str());
   }
 }
 
@@ -85,7 +89,8 @@ CLI::App* AddHistoryCommand(CLI::App& app, HistoryCmdOptions& o) {
       "The list is the server's undo history of the object: every edit since the oldest one an "
       "author can still undo or redo (at most limits.undo_depth per author), newest first. "
       "Authors are named as undo files edits: by client id (`sculpt play` prints its "
-      "client_id). Times are the server's wall clock when the edit was committed, in UTC. "
+      "client_id). Times are the server's wall clock when the edit was committed, in UTC. In "
+      "cluster mode the state ends with the ownership epoch the edit was logged under. "
       "Viewers may read the history: the default role is viewer (token from --token-file or "
       "$SCULPT_TOKEN, else the development viewer token). Exit status: 0 when listed, 1 when "
       "the server refused the request or the connection failed, another non-zero code for bad "

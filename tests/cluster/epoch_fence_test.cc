@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
@@ -43,11 +45,11 @@ struct Logged {
   std::string payload;
 };
 
-// The epoch a record carries: a stroke pose's EditRecord.epoch, 0 for any other kind.
+// The epoch a record of any kind carries (field 16 of its message; 0 when absent).
 uint64_t EpochOf(const std::string& payload) {
   auto decoded = codec::DecodeLogRecord(0, payload);
-  const auto* pose = decoded.ok() ? std::get_if<codec::StrokePoseRecord>(&*decoded) : nullptr;
-  return pose ? pose->epoch : 0;
+  EXPECT_TRUE(decoded.ok()) << decoded.status();
+  return decoded.ok() ? codec::RecordEpoch(*decoded) : 0;
 }
 
 // Every record of the edit log of `data_dir`, read back with the store's reader, with the epoch
@@ -88,7 +90,7 @@ std::vector<uint64_t> SnapshotSeqs(const fs::path& data_dir) {
   return seqs;
 }
 
-TEST(RecordEpochTest, OnlyStrokeRecordsCarryTheEpochAndZeroAddsNothing) {
+TEST(RecordEpochTest, StrokeAndTaggedRecordsCarryTheEpochAndZeroAddsNothing) {
   codec::StrokePoseRecord pose;
   pose.global_seq = 5;
   pose.client_id = 9;
@@ -114,9 +116,12 @@ TEST(RecordEpochTest, OnlyStrokeRecordsCarryTheEpochAndZeroAddsNothing) {
   undo.client_id = 9;
   const std::string tagged = codec::EncodeLogRecord(undo);
   std::string tagged_with = tagged;
+  codec::AppendRecordEpoch(&tagged_with, 0);
+  EXPECT_EQ(tagged_with, tagged) << "epoch 0 must leave a tagged record as it was";
   codec::AppendRecordEpoch(&tagged_with, 12);
-  EXPECT_EQ(tagged_with, tagged) << "a tagged record has no epoch field";
+  EXPECT_EQ(EpochOf(tagged_with), 12u);
   EXPECT_EQ(EpochOf(tagged), 0u);
+  EXPECT_EQ(tagged_with[0], tagged[0]) << "still an undo";
 }
 
 // This member ("a") owns the scene and names "b" its standby.
@@ -251,19 +256,125 @@ TEST_F(EpochFenceTest, SingleProcessLogsAndSendsNoEpoch) {
   auto broadcast = replica.ReadUntil(v1::ServerMessage::kEdit);
   ASSERT_TRUE(broadcast.has_value());
   EXPECT_EQ(broadcast->edit().epoch(), 0u);
+  v1::ClientMessage undo;  // a tagged record too
+  undo.mutable_undo()->set_client_seq(1);
+  undo.mutable_undo()->set_object("clay");
+  ASSERT_TRUE(sculptor_->Send(undo));
+  auto undone = sculptor_->ReadUntil(v1::ServerMessage::kUndoAck);
+  ASSERT_TRUE(undone.has_value());
+  ASSERT_TRUE(undone->undo_ack().accepted()) << undone->DebugString();
   server_.Stop();
   const std::vector<Logged> owned = ReadLog(server_.config().data_dir);
-  ASSERT_EQ(owned.size(), 3u);
+  ASSERT_EQ(owned.size(), 4u);
   for (const Logged& l : owned) {
-    EXPECT_TRUE(l.stroke);
+    EXPECT_EQ(l.stroke, l.seq <= 3) << "seq " << l.seq;
     EXPECT_EQ(l.epoch, 0u);
     // Absent from the bytes, not written as 0: the record serializes back to the same bytes
     // (a present field 16, even 0, would not survive the round trip).
-    v1::EditRecord r;
-    ASSERT_TRUE(r.ParseFromString(l.payload));
-    EXPECT_EQ(r.SerializeAsString(), l.payload) << "seq " << l.seq;
+    if (l.stroke) {
+      v1::EditRecord r;
+      ASSERT_TRUE(r.ParseFromString(l.payload));
+      EXPECT_EQ(r.SerializeAsString(), l.payload) << "seq " << l.seq;
+    } else {
+      ASSERT_EQ(l.payload[0], '\x04');
+      v1::UndoRecord r;
+      ASSERT_TRUE(r.ParseFromString(l.payload.substr(1)));
+      EXPECT_EQ('\x04' + r.SerializeAsString(), l.payload) << "seq " << l.seq;
+    }
     EXPECT_EQ(l.payload.find("\x80\x01"), std::string::npos) << "field 16's tag in seq " << l.seq;
   }
+}
+
+// Undo records (tagged, logged through the same commit pipeline as every kind but a stroke)
+// carry the epoch too, and the history view shows it, live and after a restart.
+TEST_F(EpochFenceTest, EveryRecordKindIsLoggedWithTheEpochAndTheHistoryShowsIt) {
+  StartOwner(7);
+  Sculpt(1);
+  Sculpt(2);
+  v1::ClientMessage undo;
+  undo.mutable_undo()->set_client_seq(1);
+  undo.mutable_undo()->set_object("clay");
+  ASSERT_TRUE(sculptor_->Send(undo));
+  auto undone = sculptor_->ReadUntil(v1::ServerMessage::kUndoAck);
+  ASSERT_TRUE(undone.has_value());
+  ASSERT_TRUE(undone->undo_ack().accepted()) << undone->DebugString();
+  const auto history = [this] {
+    RawClient c(server_.port());
+    EXPECT_TRUE(c.Enter("sculpt-dev-viewer", v1::ROLE_VIEWER));
+    v1::ClientMessage q;
+    q.mutable_history()->set_request_id(1);
+    q.mutable_history()->set_object("clay");
+    EXPECT_TRUE(c.Send(q));
+    auto a = c.ReadUntil(v1::ServerMessage::kHistory);
+    EXPECT_TRUE(a.has_value());
+    return a ? a->history() : v1::HistoryAnswer{};
+  };
+  const v1::HistoryAnswer live = history();
+  ASSERT_EQ(live.entries_size(), 2) << live.DebugString();
+  for (const v1::HistoryEntry& e : live.entries()) EXPECT_EQ(e.epoch(), 7u) << e.DebugString();
+
+  server_.Stop();
+  const std::vector<Logged> owned = ReadLog(server_.config().data_dir);
+  size_t undos = 0;
+  for (const Logged& l : owned) {
+    EXPECT_EQ(l.epoch, 7u) << "seq " << l.seq << " logged without the owner's epoch";
+    if (!l.stroke) {
+      ++undos;
+      EXPECT_EQ(l.payload[0], '\x04') << "seq " << l.seq << " is not an undo";
+    }
+  }
+  EXPECT_EQ(undos, 1u);
+
+  // Restarted under a newer ownership: the recovered entries keep the epoch they were logged
+  // under, and a new stroke shows the new one.
+  sculptor_.reset();
+  ASSERT_TRUE(server_.Start());
+  server_.server().set_router(&router_);
+  fence_->Grant(8, OwnershipFence::Clock::now() + std::chrono::hours(1));
+  server_.scene().set_ownership_fence(fence_);
+  const v1::HistoryAnswer recovered = history();
+  ASSERT_EQ(recovered.entries_size(), 2) << recovered.DebugString();
+  for (const v1::HistoryEntry& e : recovered.entries()) EXPECT_EQ(e.epoch(), 7u);
+  Sculpt(3);
+  const v1::HistoryAnswer after = history();
+  ASSERT_EQ(after.entries_size(), 3) << after.DebugString();
+  EXPECT_EQ(after.entries(0).epoch(), 8u) << "newest first";
+  EXPECT_EQ(after.entries(1).epoch(), 7u);
+
+  // `sculpt history` prints it: a JSON key and the end of the state column.
+  const std::string server = "--server 127.0.0.1:" + std::to_string(server_.port());
+  const auto json = sculpt::testing::Sculpt("history " + server + " --json");
+  ASSERT_EQ(json.exit_code, 0) << json.output;
+  const auto j = nlohmann::json::parse(json.output.substr(json.output.find('{')));
+  ASSERT_EQ(j["entries"].size(), 3u) << json.output;
+  EXPECT_EQ(j["entries"][0]["epoch"], 8) << json.output;
+  EXPECT_EQ(j["entries"][2]["epoch"], 7) << json.output;
+  const auto table = sculpt::testing::Sculpt("history " + server + " --limit 1");
+  ASSERT_EQ(table.exit_code, 0) << table.output;
+  EXPECT_NE(table.output.find("done, undoable, epoch 8\n"), std::string::npos) << table.output;
+}
+
+// A log in which a stale owner wrote after a newer ownership (epoch 6 after 7: here the fence is
+// granted a lower epoch, which the agent never does) is refused at start-up, naming the record;
+// nothing is cut off it.
+TEST_F(EpochFenceTest, RefusesToStartOnALogWhoseEpochsGoBackwards) {
+  StartOwner(7);
+  const uint64_t before = Sculpt(1);
+  fence_->Grant(6, OwnershipFence::Clock::now() + std::chrono::hours(1));
+  const uint64_t stale = Sculpt(2);
+  ASSERT_GT(stale, before);
+  sculptor_.reset();
+  server_.Stop();
+  const size_t logged = ReadLog(server_.config().data_dir).size();
+  const ::testing::AssertionResult restarted = server_.Start();
+  ASSERT_FALSE(restarted) << "started on a log whose epochs go backwards";
+  const std::string why = restarted.message();
+  EXPECT_NE(why.find("record seq " + std::to_string(before + 1) + " has epoch 6, lower than " +
+                     "epoch 7 of seq 1 before it"),
+            std::string::npos)
+      << why;
+  EXPECT_NE(why.find("stale owner"), std::string::npos) << why;
+  EXPECT_EQ(ReadLog(server_.config().data_dir).size(), logged) << "the refusal cut the log";
 }
 
 TEST_F(EpochFenceTest, RejectsARegionLoadOfAnotherEpochThanEtcdNames) {

@@ -329,6 +329,8 @@ TEST_F(UndoClientTest, SculptHistoryCliListsRecentEditsWithAuthorKindTimeAndUndo
   EXPECT_EQ(j["entries"][1]["undone"], true);
   EXPECT_GT(j["entries"][1]["time_ms"].get<uint64_t>(), 0u);
   EXPECT_EQ(j["entries"][1]["time"].get<std::string>().back(), 'Z');
+  // A single process has no ownership epoch: the output is what it was before epochs.
+  EXPECT_FALSE(j["entries"][0].contains("epoch")) << json_text;
 
   const auto [by_code, by_a] =
       RunSculpt(srv_.dir(), "history " + server + " --author " + std::to_string(kA) + " --json");
@@ -343,6 +345,7 @@ TEST_F(UndoClientTest, SculptHistoryCliListsRecentEditsWithAuthorKindTimeAndUndo
   EXPECT_NE(table.find("1 shown, 2 matching"), std::string::npos) << table;
   EXPECT_NE(table.find(std::to_string(kB)), std::string::npos) << table;
   EXPECT_EQ(table.find(std::to_string(kA)), std::string::npos) << table;
+  EXPECT_EQ(table.find("epoch"), std::string::npos) << table;
 
   const auto [limit_code, limit_text] =
       RunSculpt(srv_.dir(), "history " + server + " --limit 5000");

@@ -21,13 +21,6 @@ Status DoesNotParse(uint64_t seq, const char* what) {
   return DataLoss("edit log record " + std::to_string(seq) + " (" + what + ") does not parse");
 }
 
-// A stroke pose is an untagged EditRecord: its first byte is a field tag, never a LogTag. An
-// empty payload is an EditRecord of default fields.
-bool IsStrokePose(std::string_view payload) {
-  return payload.empty() ||
-         static_cast<unsigned char>(payload[0]) > static_cast<unsigned char>(LogTag::kUndo);
-}
-
 template <typename Message>
 bool ParseTagged(std::string_view payload, Message* m) {
   return m->ParseFromArray(payload.data() + 1, static_cast<int>(payload.size() - 1));
@@ -155,7 +148,8 @@ void AppendRecordUser(std::string* payload, std::string_view user) {
 }
 
 void AppendRecordEpoch(std::string* payload, uint64_t epoch) {
-  if (epoch == 0 || !IsStrokePose(*payload)) return;
+  if (epoch == 0) return;
+  // Every record message declares `uint64 epoch = 16`: the same bytes serve every kind.
   v1::EditRecord field;
   field.set_epoch(epoch);
   payload->append(field.SerializeAsString());
@@ -177,6 +171,7 @@ StatusOr<EditLogRecord> DecodeLogRecord(uint64_t seq, std::string_view payload) 
       s.object = r.object();
       s.request_status = SweepFromRecord(r, &s.request);
       s.user = r.user();
+      s.epoch = r.epoch();
       return EditLogRecord(std::move(s));
     }
     case LogTag::kPaint: {
@@ -187,6 +182,7 @@ StatusOr<EditLogRecord> DecodeLogRecord(uint64_t seq, std::string_view payload) 
       p.client_id = r.client_id();
       p.paint = PaintFromRecord(r.edit());
       p.user = r.user();
+      p.epoch = r.epoch();
       return EditLogRecord(std::move(p));
     }
     case LogTag::kModel: {
@@ -198,6 +194,7 @@ StatusOr<EditLogRecord> DecodeLogRecord(uint64_t seq, std::string_view payload) 
       m.edit = ModelEditFromRecord(r.intent());
       m.model_version = r.model_version();
       m.user = r.user();
+      m.epoch = r.epoch();
       return EditLogRecord(std::move(m));
     }
     case LogTag::kSkinEdit: {
@@ -217,6 +214,7 @@ StatusOr<EditLogRecord> DecodeLogRecord(uint64_t seq, std::string_view payload) 
       }
       b.skin_version = r.skin_version();
       b.user = r.user();
+      b.epoch = r.epoch();
       return EditLogRecord(std::move(b));
     }
     case LogTag::kUndo: {
@@ -232,6 +230,7 @@ StatusOr<EditLogRecord> DecodeLogRecord(uint64_t seq, std::string_view payload) 
       u.target_book = r.target_book();
       u.target_seq = r.target_seq();
       u.user = r.user();
+      u.epoch = r.epoch();
       return EditLogRecord(std::move(u));
     }
   }

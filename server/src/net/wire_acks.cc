@@ -112,6 +112,7 @@ v1::HistoryAnswer ToWireAnswer(const HistoryOutcome& o) {
     e->set_undoable(in.undoable);
     e->set_kind_name(in.kind_name);
     e->set_user(in.user);
+    e->set_epoch(in.epoch);
   }
   return a;
 }

@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <iterator>
 
 #include "cluster/ownership_fence.h"
 #include "scene/scene.h"
@@ -94,6 +95,11 @@ void Scene::Observe(const char* step, const char* operation, uint64_t seq) {
   observer(e);
 }
 
+uint64_t Scene::EpochAt(uint64_t seq) const {
+  auto it = epoch_runs_.upper_bound(seq);
+  return it == epoch_runs_.begin() ? 0 : std::prev(it)->second;
+}
+
 void Scene::AnswerWhenDurable(uint64_t seq, std::function<void()> answer) {
   acks_->Hold(seq, std::move(answer));
   ReleaseDurable(log_->durable_seq());
@@ -160,11 +166,11 @@ void Scene::RunCommit(const std::shared_ptr<EditOp>& op) {
     for (std::string& r : records) codec::AppendRecordUser(&r, user);
   }
   // Cluster mode: the epoch under which this member sequenced the edit (the fence held just
-  // above), so every stroke record says which ownership wrote it. None on a single process.
-  if (fence_) {
-    const uint64_t epoch = fence_->epoch();
-    for (std::string& r : records) codec::AppendRecordEpoch(&r, epoch);
-  }
+  // above), so every record of every kind says which ownership wrote it, and recovery can
+  // refuse a log whose epochs go backwards. None on a single process (the bytes stay as they
+  // were).
+  const uint64_t epoch = fence_ ? fence_->epoch() : 0;
+  for (std::string& r : records) codec::AppendRecordEpoch(&r, epoch);
   // One group: recovery sees the whole edit or none of it, so a crash between two of a stroke's
   // poses cannot leave part of it applied and its resend refused.
   const Status a = records.size() == 1 ? log_->Append(first, records.front())
@@ -176,6 +182,9 @@ void Scene::RunCommit(const std::shared_ptr<EditOp>& op) {
   }
   const uint64_t last = first + records.size() - 1;
   next_seq_ = last + 1;
+  if (epoch_runs_.empty() ? epoch != 0 : epoch != epoch_runs_.rbegin()->second) {
+    epoch_runs_.emplace(first, epoch);
+  }
   resend_.Record(op->stream(), op->client_id(), op->client_seq());
   Observe("appended", op->operation(), last);
 

@@ -69,6 +69,7 @@ struct HistoryEntry {
   bool undoable = false;  // on its author's undo stack (within the depth)
   uint64_t wall_ms = 0;   // server wall clock at commit, ms since 1970 (0: unknown)
   std::string user;       // the authenticated user behind `author` (named users), else empty
+  uint64_t epoch = 0;     // cluster mode: the ownership epoch its record was logged under
 };
 
 /// What an edit is about to read and overwrite, taken by Prepare before it is applied.

@@ -218,6 +218,12 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   ro.on_loaded = [raw_scene](const std::string& object, uint64_t snapshot_seq) {
     raw_scene->LoadHistory(object, snapshot_seq);
   };
+  // Every record says the ownership epoch it was sequenced under (0 on a single process):
+  // recovery refuses a log in which a stale owner wrote after a newer one.
+  ro.epoch_of = [](const store::LogRecord& rec) -> StatusOr<uint64_t> {
+    SCULPT_ASSIGN_OR_RETURN(codec::EditLogRecord r, codec::DecodeLogRecord(rec.seq, rec.payload));
+    return codec::RecordEpoch(r);
+  };
   const double t0 = NowSeconds();
   SCULPT_ASSIGN_OR_RETURN(store::RecoveredScene rec,
                           store::Recover(config.data_dir, ro, make_initial, route, apply));
@@ -225,6 +231,7 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   scene->log_ = std::move(rec.log);
   scene->snapshots_ = std::move(rec.snapshots);
   scene->next_seq_ = rec.last_seq + 1;
+  scene->epoch_runs_ = std::move(rec.epoch_runs);
   scene->applied_seq_ = rec.last_seq;
   scene->replication_.set_versions_floor(rec.last_seq);
   scene->replication_.set_resend_table(&scene->resend_.entries());

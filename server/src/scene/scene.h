@@ -382,6 +382,11 @@ class Scene {
   std::map<uint64_t, std::string> author_users_;  // NameAuthor, at most kMaxNamedAuthors
   std::deque<uint64_t> author_order_;             // oldest naming first
   uint64_t next_seq_ = 1;                          // compute thread only
+  // Where each run of one ownership epoch begins in the log, first seq -> epoch (from recovery,
+  // then extended by the commit pipeline): the epoch the history view shows for an edit.
+  // Compute thread only.
+  std::map<uint64_t, uint64_t> epoch_runs_;
+  uint64_t EpochAt(uint64_t seq) const;
   uint64_t edits_since_snapshot_ = 0;
   double tail_apply_s_ = 0;  // stroke apply time since the last snapshot (compute thread)
   double last_snapshot_time_ = 0;

@@ -351,7 +351,10 @@ void Scene::History(codec::HistoryQuery query, std::function<void(HistoryOutcome
       if (Status s = gather(""); !s.ok()) return refuse(s);
       std::erase_if(entries, [&](const HistoryEntry& e) { return UserOf(e) != query.author; });
     }
-    for (HistoryEntry& e : entries) e.user = UserOf(e);
+    for (HistoryEntry& e : entries) {
+      e.user = UserOf(e);
+      e.epoch = EpochAt(e.seq);
+    }
     a.request_id = query.request_id;
     a.object = query.object;
     a.matching = static_cast<uint32_t>(entries.size());

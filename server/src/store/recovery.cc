@@ -111,7 +111,40 @@ StatusOr<RecoveredScene> Recover(const std::string& data_dir, const RecoveryOpti
   if (options.on_loaded) {
     for (const auto& [object, seq] : scene.snapshot_seq) options.on_loaded(object, seq);
   }
-  Status replay = log.ForEachFrom(replay_from, [&](const LogRecord& record) -> Status {
+  // Epochs are checked along the whole log: a stale owner's record before the snapshots is in
+  // their state already, and starting would serve it.
+  uint64_t highest_at = 0;  // the first seq of scene.highest_epoch
+  const uint64_t walk_from = options.epoch_of ? 0 : replay_from;
+  Status replay = log.ForEachFrom(walk_from, [&](const LogRecord& record) -> Status {
+    if (options.epoch_of) {
+      StatusOr<uint64_t> epoch = options.epoch_of(record);
+      if (!epoch.ok()) {
+        return WithContext(epoch.status(),
+                           "reading the epoch of edit log record seq " + std::to_string(record.seq));
+      }
+      // Epoch 0 is no ownership at all (a single process): a data directory may serve alone
+      // before and after it served in a cluster, and no stale owner writes epoch 0.
+      if (*epoch != 0 && *epoch < scene.highest_epoch) {
+        return DataLoss(
+            "edit log in " + (root / kLogSubdir).string() + ": record seq " +
+            std::to_string(record.seq) + " has epoch " + std::to_string(*epoch) +
+            ", lower than epoch " + std::to_string(scene.highest_epoch) + " of seq " +
+            std::to_string(highest_at) +
+            " before it: a stale owner wrote it after a newer owner had taken the scene over. "
+            "Nothing from seq " + std::to_string(record.seq) +
+            " on was replayed; compare with the scene's current owner, and move this data "
+            "directory aside (or cut its log before seq " + std::to_string(record.seq) +
+            ") to start from it");
+      }
+      if (scene.epoch_runs.empty() || *epoch != scene.epoch_runs.rbegin()->second) {
+        scene.epoch_runs.emplace(record.seq, *epoch);
+      }
+      if (*epoch > scene.highest_epoch) {
+        scene.highest_epoch = *epoch;
+        highest_at = record.seq;
+      }
+      if (record.seq <= replay_from) return Status::Ok();  // in every object's snapshot
+    }
     StatusOr<std::string> object = route(record);
     if (!object.ok()) {
       return WithContext(object.status(),

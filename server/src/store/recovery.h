@@ -42,6 +42,11 @@ struct RecoveryOptions {
   /// with seq 0) and before the log tail is replayed onto it: where side state kept beside a
   /// snapshot (the undo history) is loaded to match. Optional.
   std::function<void(const std::string& object, uint64_t snapshot_seq)> on_loaded;
+  /// The ownership epoch a record was written under (cluster mode, issue 17; 0 for none), or the
+  /// error of a payload that does not decode. Optional: when set, Recover reads every record the
+  /// log holds (not only the tail past the snapshots) and requires epochs that never go down
+  /// along it; see Recover.
+  std::function<StatusOr<uint64_t>(const LogRecord& record)> epoch_of;
 };
 
 /// A scene as it was after the last record in the log (or the newest snapshot, if later).
@@ -55,6 +60,12 @@ struct RecoveredScene {
   std::unique_ptr<EditLog> log;
   std::unique_ptr<SnapshotStore> snapshots;
   RecoveryReport report;
+  /// With RecoveryOptions::epoch_of: where each run of one epoch begins in the log, first seq ->
+  /// epoch (the first record's epoch at its seq, then an entry at each record whose epoch differs
+  /// from the one before it); empty for an empty log.
+  std::map<uint64_t, uint64_t> epoch_runs;
+  /// The highest epoch in the log (0: none, or no epoch_of).
+  uint64_t highest_epoch = 0;
 };
 
 /// Builds an object with no snapshot from the scene description.
@@ -78,6 +89,16 @@ using ApplyFn = std::function<Status(levelset::Sculpture& sculpture, const LogRe
 /// edits between them are gone) or no snapshot exists while the log was trimmed;
 /// FailedPrecondition when a record names an object the scene lacks; make_initial's, route's or
 /// apply's error with the object and seq prepended.
+///
+/// With options.epoch_of, a record whose epoch is lower than that of a record before it was
+/// written by an owner after a newer owner had taken the scene over (a stale owner): DataLoss
+/// naming the record's seq, its epoch, the highest epoch before it and the seq that carried it;
+/// nothing from that record on is applied. It is refused, not cut off like a torn tail: a torn
+/// tail was never durable, so never acknowledged, while this record (and any after it) is whole
+/// and durable and may have been acknowledged; only an operator can tell which copy of the scene
+/// is right. Epoch 0 (no ownership: a single process) is never refused and raises nothing, so
+/// a data directory may serve alone again after serving in a cluster. epoch_of's error is
+/// returned with the seq prepended.
 StatusOr<RecoveredScene> Recover(const std::string& data_dir, const RecoveryOptions& options,
                                  const MakeInitialFn& make_initial, const RouteFn& route,
                                  const ApplyFn& apply);

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <string>
 #include <variant>
+#include <vector>
 
 #include "sculpt/codec/stroke.h"
 #include "sculpt/v1/sculpt.pb.h"
@@ -376,6 +377,82 @@ TEST_F(LogRecordsTest, SavedSkinBytesAreTheServersSavedSkin) {
     b->set_theta(o.theta);
   }
   EXPECT_EQ(EncodeSavedSkin(s), saved.SerializeAsString());
+}
+
+// --- Ownership epochs (cluster mode) ----------------------------------------------------------
+
+// Every kind's encoded bytes, as the commit pipeline builds them before it appends the user and
+// the epoch.
+std::vector<std::string> EveryKind() {
+  PaintRecord paint;
+  paint.global_seq = 2;
+  paint.client_id = 3;
+  paint.paint = APaint();
+  ModelRecord model;
+  model.global_seq = 4;
+  model.client_id = 3;
+  model.edit = AModelEdit();
+  model.model_version = 6;
+  BallEditRecord ball;
+  ball.global_seq = 5;
+  ball.client_id = 3;
+  ball.edit = ABallEdit();
+  ball.skin_version = 2;
+  return {EncodeLogRecord(Pose()),      EncodeLogRecord(paint),
+          EncodeLogRecord(ARevolution()), EncodeLogRecord(model),
+          EncodeLogRecord(ball),        EncodeLogRecord(UndoRecord{7, 3, 2, "clay", true, "3"})};
+}
+
+TEST_F(LogRecordsTest, EveryKindCarriesTheEpochAppendedAfterTheUser) {
+  const std::vector<std::string> kinds = EveryKind();
+  ASSERT_EQ(kinds.size(), std::variant_size_v<EditLogRecord>) << "a kind is missing here";
+  for (size_t i = 0; i < kinds.size(); ++i) {
+    std::string bytes = kinds[i];
+    AppendRecordUser(&bytes, "ada");
+    AppendRecordEpoch(&bytes, 9);
+    auto d = DecodeLogRecord(50 + i, bytes);
+    ASSERT_TRUE(d.ok()) << "kind " << i << ": " << d.status();
+    EXPECT_EQ(d->index(), i) << "appending the epoch changed the kind";
+    EXPECT_EQ(RecordEpoch(*d), 9u) << "kind " << i;
+    EXPECT_EQ(std::visit([](const auto& r) { return r.user; }, *d), "ada") << "kind " << i;
+    // The rest of the record is what it was without the epoch.
+    auto plain = DecodeLogRecord(50 + i, kinds[i]);
+    ASSERT_TRUE(plain.ok()) << plain.status();
+    EXPECT_EQ(RecordEpoch(*plain), 0u) << "kind " << i;
+    EXPECT_EQ(std::visit([](const auto& r) { return r.global_seq; }, *d),
+              std::visit([](const auto& r) { return r.global_seq; }, *plain));
+    // A large epoch (a varint of ten bytes) reads back too.
+    std::string big = kinds[i];
+    AppendRecordEpoch(&big, UINT64_MAX);
+    auto b = DecodeLogRecord(1, big);
+    ASSERT_TRUE(b.ok()) << b.status();
+    EXPECT_EQ(RecordEpoch(*b), UINT64_MAX) << "kind " << i;
+  }
+}
+
+TEST_F(LogRecordsTest, EpochZeroLeavesEveryKindsBytesAsTheyWere) {
+  for (const std::string& bytes : EveryKind()) {
+    std::string with = bytes;
+    AppendRecordEpoch(&with, 0);
+    EXPECT_EQ(with, bytes) << "a single process must write the bytes it always wrote";
+  }
+}
+
+TEST_F(LogRecordsTest, TaggedEpochIsFieldSixteenOfTheKindsOwnMessage) {
+  // Other readers of the log (tools, older code) parse the message after the tag: the epoch is
+  // that message's own field, not bytes it does not know.
+  BallEditRecord ball;
+  ball.edit = ABallEdit();
+  std::string bytes = EncodeLogRecord(ball);
+  AppendRecordEpoch(&bytes, 4);
+  v1::SkinEditRecord r;
+  ASSERT_TRUE(r.ParseFromString(bytes.substr(1)));
+  EXPECT_EQ(r.epoch(), 4u);
+  v1::UndoRecord u;
+  std::string undo = EncodeLogRecord(UndoRecord{7, 3, 2, "clay", true, "3"});
+  AppendRecordEpoch(&undo, 5);
+  ASSERT_TRUE(u.ParseFromString(undo.substr(1)));
+  EXPECT_EQ(u.epoch(), 5u);
 }
 
 // --- Damaged bytes ----------------------------------------------------------------------------

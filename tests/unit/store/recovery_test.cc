@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
 #include <sstream>
 #include <string>
@@ -74,10 +75,31 @@ class RecoveryTest : public ::testing::Test {
     ASSERT_TRUE((*store)->Write(seq, object, s).ok());
   }
 
-  // Recover with a fake apply that records (object, seq) and leaves the sculpture alone.
-  StatusOr<RecoveredScene> RecoverRecording(const std::vector<std::string>& objects) {
+  // Appends records first.. to object "ball", record i with epochs[i] ("ball edit <seq> e<epoch>").
+  void WriteEpochLog(uint64_t first, const std::vector<uint64_t>& epochs) {
+    auto log = EditLog::Open(LogDir(), FsyncPolicy{}, nullptr);
+    ASSERT_TRUE(log.ok()) << log.status();
+    for (size_t i = 0; i < epochs.size(); ++i) {
+      ASSERT_TRUE(
+          (*log)->Append(first + i, Payload("ball", first + i) + " e" + std::to_string(epochs[i]))
+              .ok());
+    }
+  }
+
+  // Recover with a fake apply that records (object, seq) and leaves the sculpture alone; with
+  // `epochs`, every record's epoch is read from the number after " e" (0 without one).
+  StatusOr<RecoveredScene> RecoverRecording(const std::vector<std::string>& objects,
+                                            bool epochs = false) {
     RecoveryOptions options;
     options.objects = objects;
+    if (epochs) {
+      options.epoch_of = [](const LogRecord& record) -> StatusOr<uint64_t> {
+        const std::string last = record.payload.substr(record.payload.rfind(' ') + 1);
+        if (last.empty() || last[0] != 'e') return 0;
+        if (last == "ebad") return DataLoss("epoch does not parse");
+        return std::stoull(last.substr(1));
+      };
+    }
     return Recover(
         dir_, options,
         [&](const std::string& object) -> StatusOr<Sculpture> {
@@ -222,6 +244,92 @@ TEST_F(RecoveryTest, ApplyErrorStopsRecoveryNamingTheRecord) {
   ASSERT_FALSE(scene.ok());
   EXPECT_EQ(scene.status().code(), Status::Code::kDataLoss);
   EXPECT_NE(scene.status().message().find("seq 7 on object ball"), std::string::npos)
+      << scene.status();
+}
+
+TEST_F(RecoveryTest, RefusesALogWhoseEpochGoesBackwardsAndKeepsEveryRecord) {
+  // Epoch 2 took over at seq 3; seq 5 was written by the stale owner of epoch 1.
+  WriteEpochLog(1, {1, 1, 2, 2, 1, 2});
+  auto scene = RecoverRecording({"ball"}, /*epochs=*/true);
+  ASSERT_FALSE(scene.ok());
+  EXPECT_EQ(scene.status().code(), Status::Code::kDataLoss);
+  const std::string why(scene.status().message());
+  EXPECT_NE(why.find("record seq 5 has epoch 1, lower than epoch 2 of seq 3 before it"),
+            std::string::npos)
+      << why;
+  EXPECT_NE(why.find("stale owner"), std::string::npos) << why;
+  EXPECT_NE(why.find(LogDir()), std::string::npos) << why;
+  // Nothing from the stale record on was applied ...
+  ASSERT_EQ(applied_.size(), 4u);
+  EXPECT_EQ(applied_.back().second, 4u);
+  // ... and nothing was cut: every record, acknowledged or not, is still in the log.
+  RecoveryReport report;
+  auto log = EditLog::Open(LogDir(), FsyncPolicy{}, &report);
+  ASSERT_TRUE(log.ok()) << log.status();
+  EXPECT_EQ(report.records, 6u);
+  EXPECT_EQ((*log)->last_seq(), 6u);
+}
+
+TEST_F(RecoveryTest, RefusesABackwardEpochBeforeTheSnapshotsToo) {
+  WriteSnapshot(8, "ball", SmallSphere());
+  WriteEpochLog(1, {3, 3, 4, 3, 4, 4, 4, 4, 4, 4});
+  auto scene = RecoverRecording({"ball"}, /*epochs=*/true);
+  ASSERT_FALSE(scene.ok());
+  EXPECT_NE(scene.status().message().find("record seq 4 has epoch 3, lower than epoch 4 of seq 3"),
+            std::string::npos)
+      << scene.status();
+  EXPECT_TRUE(applied_.empty()) << "the tail past the snapshot was replayed";
+}
+
+TEST_F(RecoveryTest, AcceptsEpochsThatNeverGoDownAndSaysWhereEachBegins) {
+  WriteSnapshot(3, "ball", SmallSphere());
+  WriteEpochLog(1, {0, 0, 3, 3, 5, 5, 5});  // a single process's records, then two owners
+  auto scene = RecoverRecording({"ball"}, /*epochs=*/true);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(scene->highest_epoch, 5u);
+  EXPECT_EQ(scene->epoch_runs, (std::map<uint64_t, uint64_t>{{1, 0}, {3, 3}, {5, 5}}));
+  ASSERT_EQ(applied_.size(), 4u) << "only the tail past the snapshot is applied";
+  EXPECT_EQ(applied_.front().second, 4u);
+}
+
+TEST_F(RecoveryTest, EpochZeroIsNoOwnershipAndNeverRefused) {
+  // Alone, then in a cluster at epochs 3 and 4, then alone again, then in the cluster at 4.
+  WriteEpochLog(1, {0, 3, 4, 0, 0, 4});
+  auto scene = RecoverRecording({"ball"}, /*epochs=*/true);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(applied_.size(), 6u);
+  EXPECT_EQ(scene->highest_epoch, 4u);
+  EXPECT_EQ(scene->epoch_runs,
+            (std::map<uint64_t, uint64_t>{{1, 0}, {2, 3}, {3, 4}, {4, 0}, {6, 4}}));
+  applied_.clear();
+  scene->log.reset();        // closes the log
+  WriteEpochLog(7, {3});     // but a lower nonzero epoch after them is a stale owner's
+  auto refused = RecoverRecording({"ball"}, /*epochs=*/true);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("record seq 7 has epoch 3, lower than epoch 4 of seq 3"),
+            std::string::npos)
+      << refused.status();
+}
+
+TEST_F(RecoveryTest, WithoutEpochsAnyOrderIsReplayed) {
+  WriteEpochLog(1, {2, 1});  // no epoch_of: the store never looks inside a payload
+  auto scene = RecoverRecording({"ball"});
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(applied_.size(), 2u);
+  EXPECT_TRUE(scene->epoch_runs.empty());
+  EXPECT_EQ(scene->highest_epoch, 0u);
+}
+
+TEST_F(RecoveryTest, EpochThatDoesNotReadStopsRecoveryNamingTheRecord) {
+  auto log = EditLog::Open(LogDir(), FsyncPolicy{}, nullptr);
+  ASSERT_TRUE(log.ok()) << log.status();
+  ASSERT_TRUE((*log)->Append(1, "ball edit 1 e1").ok());
+  ASSERT_TRUE((*log)->Append(2, "ball edit 2 ebad").ok());
+  log->reset();
+  auto scene = RecoverRecording({"ball"}, /*epochs=*/true);
+  ASSERT_FALSE(scene.ok());
+  EXPECT_EQ(scene.status().code(), Status::Code::kDataLoss);
+  EXPECT_NE(scene.status().message().find("epoch of edit log record seq 2"), std::string::npos)
       << scene.status();
 }
 

@@ -51,7 +51,7 @@ struct StrokePoseRecord {
   bool completes() const { return pose_index + 1 >= pose_count; }
   std::string user = {};  // the authenticated user who made it (named users), else empty
   /// Cluster mode: the ownership epoch under which the owner sequenced it (AppendRecordEpoch);
-  /// 0 on a single process and in older logs.
+  /// 0 on a single process and in older logs. Every kind below has the same field.
   uint64_t epoch = 0;
 };
 
@@ -63,6 +63,7 @@ struct PaintRecord {
   /// it against the limits of its time). Apply AsLogged(paint) live.
   Paint paint;
   std::string user = {};  // the authenticated user who made it (named users), else empty
+  uint64_t epoch = 0;      // cluster mode: see StrokePoseRecord::epoch
 };
 
 /// A sweep of a skin's outline into an object (issue 6): the outline and plane travel in the
@@ -79,6 +80,7 @@ struct SweepRecord {
   /// wrong number of values: `request` is then incomplete and recovery skips the sweep.
   Status request_status;
   std::string user = {};  // the authenticated user who made it (named users), else empty
+  uint64_t epoch = 0;      // cluster mode: see StrokePoseRecord::epoch
 };
 
 /// An accepted model intent (issue 7) and the model version it produced.
@@ -88,6 +90,7 @@ struct ModelRecord {
   ModelEdit edit;  // decoded unchecked: the live server checked it
   uint64_t model_version = 0;
   std::string user = {};  // the authenticated user who made it (named users), else empty
+  uint64_t epoch = 0;      // cluster mode: see StrokePoseRecord::epoch
 };
 
 /// A ball edit of a skin (issue 6) and the skin version it produced.
@@ -100,6 +103,7 @@ struct BallEditRecord {
   Status edit_status;
   uint64_t skin_version = 0;
   std::string user = {};  // the authenticated user who made it (named users), else empty
+  uint64_t epoch = 0;      // cluster mode: see StrokePoseRecord::epoch
 };
 
 /// The histories an undo takes from (UndoRecord.target_book; the values are on disk).
@@ -122,6 +126,7 @@ struct UndoRecord {
   uint32_t target_book = 0;
   uint64_t target_seq = 0;
   std::string user = {};  // the authenticated user who made it (named users), else empty
+  uint64_t epoch = 0;      // cluster mode: see StrokePoseRecord::epoch
 };
 
 /// One edit-log record, decoded.
@@ -142,10 +147,16 @@ std::string EncodeLogRecord(const UndoRecord& record);
 void AppendRecordUser(std::string* payload, std::string_view user);
 
 /// Cluster mode (issue 17): adds the ownership epoch under which the edit was sequenced to an
-/// encoded stroke pose (EditRecord.epoch, appended as AppendRecordUser appends the user). Tagged
-/// records (paint, sweep, model, ball edit, undo) have no epoch field and are left as they are;
-/// epoch 0 adds nothing, so a single process writes the bytes it always wrote.
+/// encoded record of any kind (field 16 of every record message, appended as AppendRecordUser
+/// appends the user; it decodes into the record's `epoch`). Epoch 0 adds nothing, so a single
+/// process writes the bytes it always wrote. EncodeLogRecord never writes `epoch` (nor `user`):
+/// this is the one writer of the field.
 void AppendRecordEpoch(std::string* payload, uint64_t epoch);
+
+/// The epoch a decoded record carries (0: single process or older log).
+inline uint64_t RecordEpoch(const EditLogRecord& record) {
+  return std::visit([](const auto& r) { return r.epoch; }, record);
+}
 
 /// Tells the kinds apart by the first byte and decodes one payload. DataLoss naming `seq` (and
 /// the kind, for a tagged record) when the bytes do not parse.
