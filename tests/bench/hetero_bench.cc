@@ -271,7 +271,9 @@ Json RunHeteroBench(bool quick, const std::string& write_scenes) {
   int refused = 0;
   const int edits = quick ? 20 : 300;
   for (int e = 0; e < edits; ++e) {
-    const EditIntent in{corners[pick(rng)], {0, 0, 0}, {jitter(rng), jitter(rng), jitter(rng)}};
+    EditIntent in;
+    in.corner = corners[pick(rng)];
+    in.displacement = {jitter(rng), jitter(rng), jitter(rng)};
     const auto t0 = Clock::now();
     const auto out = ApplyIntent(&*big, &checker, in);
     apply_us.Add(UsSince(t0));
