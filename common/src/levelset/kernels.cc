@@ -378,26 +378,19 @@ bool InteriorIndices(const Grid& g, size_t size, const VoxelList& active,
   return true;
 }
 
-/// What the fused pass of the default reinitialisation measures and decides by; null when the
-/// caller reinitialises unconditionally.
-struct MeasureSpec {
-  double band;
-  double threshold;
-  bool force;
-};
-
 /// The default reinitialisation (first-order upwind, forward Euler, every stencil inside the box)
 /// with the arithmetic of ReinitImpl<kUpwind> and RkStep in the same order, so the results are the
 /// same bit for bit; it differs in the work around that arithmetic: the frozen data, the Eikonal
 /// measure and the first step's values come from one read of each stencil, the voxels beside the
 /// interface (which relax towards their frozen distance and read no neighbour) are kept apart
 /// from the rest, and the upwind side is chosen by a sign flip instead of a branch per axis.
-/// With `spec` it also measures as MeasureEikonal(phi, voxels, dx, spec->band) does into *stats,
-/// and leaves phi unchanged and returns false unless the mean error exceeds spec->threshold or
-/// spec->force holds (true otherwise, also when `iterations` <= 0 leaves phi as it is).
+/// With `trigger` (null: reinitialise unconditionally) it also measures as
+/// MeasureEikonal(phi, voxels, dx, trigger->band) does into *stats, and leaves phi unchanged and
+/// returns false unless the mean error exceeds trigger->threshold or trigger->force holds (true
+/// otherwise, also when `iterations` <= 0 leaves phi as it is).
 /// `voxels` are linear indices one voxel or more inside the box (InteriorIndices).
 bool UpwindReinitRk1(DenseField& phi, const Grid& g, const std::vector<ptrdiff_t>& voxels,
-                     int iterations, double dx, double cfl, const MeasureSpec* spec,
+                     int iterations, double dx, double cfl, const ReinitTrigger* trigger,
                      EikonalStats* stats) {
   float* p = phi.data().data();
   const double inv_dx = 1.0 / dx;
@@ -452,7 +445,7 @@ bool UpwindReinitRk1(DenseField& phi, const Grid& g, const std::vector<ptrdiff_t
         }
       }
     }
-    if (spec && !kink && std::abs(p0) < spec->band) {
+    if (trigger && !kink && std::abs(p0) < trigger->band) {
       // MeasureEikonal stops summing at the first kinked axis and skips the voxel; the sum over
       // the axes before it is then unused, so summing all three is the same.
       const double err = std::abs(std::sqrt(grad_sq) - 1.0);
@@ -475,9 +468,9 @@ bool UpwindReinitRk1(DenseField& phi, const Grid& g, const std::vector<ptrdiff_t
       next_far.push_back(static_cast<float>(p0 + dt * (-sign * (std::sqrt(grad_sq) - 1.0))));
     }
   }
-  if (spec) {
+  if (trigger) {
     if (stats->samples > 0) stats->mean_abs_error = sum / static_cast<double>(stats->samples);
-    if (!(stats->mean_abs_error > spec->threshold || spec->force)) return false;
+    if (!(stats->mean_abs_error > trigger->threshold || trigger->force)) return false;
   }
   if (iterations <= 0) return true;
   // Jacobi as in RkStep: every voxel's new value from the current field, then all written.
@@ -707,9 +700,8 @@ MeasuredReinit MeasureAndReinitialize(DenseField& phi, const VoxelList& active, 
     // beyond the band, which the fused pass tells apart); the fused pass needs them interior.
     std::vector<ptrdiff_t> voxels;
     if (internal::InteriorIndices(g, phi.size(), active, voxels)) {
-      const internal::MeasureSpec spec{trigger.band, trigger.threshold, trigger.force};
       out.triggered =
-          internal::UpwindReinitRk1(phi, g, voxels, iterations, dx, cfl, &spec, &out.before);
+          internal::UpwindReinitRk1(phi, g, voxels, iterations, dx, cfl, &trigger, &out.before);
       out.passes = out.triggered && iterations > 0 ? iterations : 0;
       return out;
     }
