@@ -38,7 +38,7 @@ inline int Mag3(int symbol) { return symbol == 0 ? 0 : symbol <= 2 ? 1 : 2; }
 /// are then link-time constants the point loop rematerialises where it needs them, instead of
 /// four more pointers competing for registers with the turtle's and the coders' state (GCC
 /// spilled the rANS state and the chord across each point). Each is filled once, by its
-/// accessor, which every caller (and PointContext) goes through before reading it.
+/// accessor, which every caller (and FillPointTables) goes through before reading it.
 alignas(64) double cos_values[kAngles];
 
 /// The cosine of every angle i * 2 pi / kAngles, from a fixed Taylor series on the first octant
@@ -309,16 +309,20 @@ struct Reach {
 #endif
 };
 
+/// Fills the point loop's constant tables (each accessor fills its own once), which the loop
+/// then reads by name: called once a message, not once a line (each accessor checks its guard).
+void FillPointTables() {
+  CosTable();
+  TurnTable();
+  RuleRootTable();
+}
+
 /// What SKC3's point loop reads and does not change within a message (gathered once: a line is
-/// about 20 points, and the tables' accessors each check their guard).
+/// about 20 points).
 struct PointContext {
   const RansSlot* tables;  // the message's kTables symbol tables
   double hs, vs;           // step * kHalfAlong, step * kAcross
   double lim;              // the plane: |x|, |y| <= lim
-  // The constant tables, filled by their accessors here; the point loop reads them by name.
-  const double* cos_table = CosTable();
-  const int32_t* turn = TurnTable();
-  const double* root = RuleRootTable();
 };
 
 /// SKC3's point loop: the next `n` points of a line after `p` into `out`, each from an along and
@@ -337,7 +341,7 @@ size_t DecodePoints(const PointContext& c, RansDecoder* rans_at, BitReader* raw_
   RansDecoder rans = *rans_at;
   BitReader raw = *raw_at;
   const RansSlot* tables = c.tables;
-  // The static tables by name (PointContext filled them): their addresses are constants.
+  // The static tables by name (FillPointTables filled them): their addresses are constants.
   const SymbolInfo* info = kSymbolInfos.data();
   const double* cos_table = cos_values;
   const int32_t* turn = turn_values;
@@ -729,6 +733,7 @@ Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, doub
 
   RansDecoder rans(rans_bytes);
   BitReader raw(raw_bytes);
+  FillPointTables();
   const PointContext context{slots.data(), step * kHalfAlong, step * kAcross, kMaxQuantised * step};
   lines->assign(nlines, {});
   // Each line is decoded into `scratch` and copied into its polyline once whole (one memcpy):
