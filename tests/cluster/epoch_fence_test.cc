@@ -178,6 +178,17 @@ class EpochFenceTest : public ::testing::Test {
     EXPECT_TRUE(ack.has_value()) << "no ack for stroke " << client_seq;
     return ack ? ack->ack().global_seq_first() + ack->ack().edits() - 1 : 0;
   }
+  // Undoes the sculptor's stroke `client_seq` (a tagged record in the log); true when accepted.
+  bool UndoStroke(uint64_t client_seq) {
+    v1::ClientMessage undo;
+    undo.mutable_undo()->set_client_seq(client_seq);
+    undo.mutable_undo()->set_object("clay");
+    EXPECT_TRUE(sculptor_->Send(undo));
+    auto undone = sculptor_->ReadUntil(v1::ServerMessage::kUndoAck);
+    EXPECT_TRUE(undone.has_value());
+    EXPECT_TRUE(!undone || undone->undo_ack().accepted()) << undone->DebugString();
+    return undone && undone->undo_ack().accepted();
+  }
   // A replay replica (a viewer), subscribed to the object; returns its region load.
   std::optional<v1::ServerMessage> Subscribe(RawClient& c) {
     EXPECT_TRUE(c.Enter("sculpt-dev-viewer", v1::ROLE_VIEWER));
@@ -256,13 +267,7 @@ TEST_F(EpochFenceTest, SingleProcessLogsAndSendsNoEpoch) {
   auto broadcast = replica.ReadUntil(v1::ServerMessage::kEdit);
   ASSERT_TRUE(broadcast.has_value());
   EXPECT_EQ(broadcast->edit().epoch(), 0u);
-  v1::ClientMessage undo;  // a tagged record too
-  undo.mutable_undo()->set_client_seq(1);
-  undo.mutable_undo()->set_object("clay");
-  ASSERT_TRUE(sculptor_->Send(undo));
-  auto undone = sculptor_->ReadUntil(v1::ServerMessage::kUndoAck);
-  ASSERT_TRUE(undone.has_value());
-  ASSERT_TRUE(undone->undo_ack().accepted()) << undone->DebugString();
+  ASSERT_TRUE(UndoStroke(1));  // a tagged record too
   server_.Stop();
   const std::vector<Logged> owned = ReadLog(server_.config().data_dir);
   ASSERT_EQ(owned.size(), 4u);
@@ -291,13 +296,7 @@ TEST_F(EpochFenceTest, EveryRecordKindIsLoggedWithTheEpochAndTheHistoryShowsIt) 
   StartOwner(7);
   Sculpt(1);
   Sculpt(2);
-  v1::ClientMessage undo;
-  undo.mutable_undo()->set_client_seq(1);
-  undo.mutable_undo()->set_object("clay");
-  ASSERT_TRUE(sculptor_->Send(undo));
-  auto undone = sculptor_->ReadUntil(v1::ServerMessage::kUndoAck);
-  ASSERT_TRUE(undone.has_value());
-  ASSERT_TRUE(undone->undo_ack().accepted()) << undone->DebugString();
+  ASSERT_TRUE(UndoStroke(1));
   const auto history = [this] {
     RawClient c(server_.port());
     EXPECT_TRUE(c.Enter("sculpt-dev-viewer", v1::ROLE_VIEWER));
