@@ -151,12 +151,14 @@ class Sculptor {
 // strokes made after the JoinScene went out (while the slow join and the paced resends are under
 // way, 60 a second) are new strokes, charged: they follow the resends paced at 3/4 of the
 // Welcome's rate, and a slow owner reading them in a clump refuses those past the stroke burst
-// of 60 (docs/cluster.md, "Failover rounds"). So the sanitizer run, there for the failover paths'
-// memory safety, still raises the bursts; the Release run (make test) and the soak keep the
-// default limits. Appended to a member's configuration.
+// of 60 (docs/cluster.md, "Failover rounds"). The same happens to the Release build on a loaded
+// machine (CI on 2 cores at load 6-7 refused 18 and 20 strokes once). These limits raise the
+// bursts; appended to a member's configuration.
+inline std::string RaisedBurstLimits() { return "[limits]\nstroke_burst = 2000\npose_burst = 20000\n"; }
+// The sanitizer run is there for the failover paths' memory safety: it always raises the bursts.
 inline std::string SanitizerLimits() {
 #if defined(__SANITIZE_ADDRESS__)
-  return "[limits]\nstroke_burst = 2000\npose_burst = 20000\n";
+  return RaisedBurstLimits();
 #else
   return "";
 #endif
@@ -178,7 +180,8 @@ class FailoverSoakTest : public sculpt::testing::EtcdTest {
     if (ports_.count(name) == 0) ports_[name] = sculpt::testing::FreePort();
     members_[name] = std::make_unique<Member>(
         name, etcd_->endpoint(), dir_.path(),
-        "replication = \"sync\"\nsync_fallback_ms = 0\n" + SanitizerLimits(),
+        "replication = \"sync\"\nsync_fallback_ms = 0\n" +
+            (raised_bursts_ ? RaisedBurstLimits() : SanitizerLimits()),
         std::vector<std::string>{"--http", "127.0.0.1:0"}, 2000,
         "127.0.0.1:" + std::to_string(ports_[name]));
     return *members_[name];
@@ -237,6 +240,11 @@ class FailoverSoakTest : public sculpt::testing::EtcdTest {
   }
 
   // kill -9 of the scene's owner `rounds` times under the sculptors; see the file comment.
+  // The rounds in `make test` run on machines whose load they do not control, so they raise the
+  // stroke bursts: what they check is that failover loses and repeats nothing, not the rate
+  // limit. The soak (run by hand on a quiet machine) keeps the default limits.
+  bool raised_bursts_ = false;
+
   void RunRounds(int rounds) {
     for (const char* n : {"a", "b", "c"}) {
       ASSERT_NE(Start(n).WaitPort(), 0) << n << " did not start; see " << dir_.path();

@@ -7,7 +7,10 @@
 namespace sculpt::server::cluster::soak {
 namespace {
 
-TEST_F(FailoverSoakTest, ThreeOwnerKillsUnderFourSculptorsLoseAndRepeatNothing) { RunRounds(3); }
+TEST_F(FailoverSoakTest, ThreeOwnerKillsUnderFourSculptorsLoseAndRepeatNothing) {
+  raised_bursts_ = true;
+  RunRounds(3);
+}
 
 }  // namespace
 }  // namespace sculpt::server::cluster::soak
