@@ -353,18 +353,58 @@ TEST_F(EpochFenceTest, EveryRecordKindIsLoggedWithTheEpochAndTheHistoryShowsIt) 
   EXPECT_NE(table.output.find("done, undoable, epoch 8\n"), std::string::npos) << table.output;
 }
 
-// A log in which a stale owner wrote after a newer ownership (epoch 6 after 7: here the fence is
-// granted a lower epoch, which the agent never does) is refused at start-up, naming the record;
-// nothing is cut off it.
+// A member whose fence holds a lower epoch than one its log already holds (a stale owner: the
+// agent never grants one, the test does) logs nothing and acknowledges nothing; the log stays
+// one that starts, and a later, higher epoch is served again.
+TEST_F(EpochFenceTest, RefusesToLogUnderAnEpochLowerThanTheLogs) {
+  StartOwner(7);
+  const uint64_t before = Sculpt(1);
+  ASSERT_GT(before, 0u);
+  fence_->Grant(6, OwnershipFence::Clock::now() + std::chrono::hours(1));
+  ASSERT_TRUE(sculptor_->Send(RawClient::PressStroke(2, {-1.0, 0, 22.5}, 3)));
+  auto refused = sculptor_->ReadUntil(v1::ServerMessage::kError);
+  ASSERT_TRUE(refused.has_value()) << "a stroke under epoch 6 after epoch 7 was not refused";
+  const std::string why = refused->error().message();
+  EXPECT_NE(why.find("epoch 6, lower than epoch 7"), std::string::npos) << why;
+  EXPECT_EQ(server_.scene().global_seq(), before) << "the stale stroke was sequenced";
+  fence_->Grant(8, OwnershipFence::Clock::now() + std::chrono::hours(1));
+  const uint64_t after = Sculpt(3);
+  EXPECT_EQ(after, before + 3) << "epoch 8 is not served after the refusal";
+  sculptor_.reset();
+  server_.Stop();
+  const std::vector<Logged> logged = ReadLog(server_.config().data_dir);
+  ASSERT_EQ(logged.size(), 6u);
+  for (const Logged& l : logged) {
+    EXPECT_EQ(l.epoch, l.seq <= before ? 7u : 8u) << "seq " << l.seq;
+  }
+  EXPECT_TRUE(server_.Start()) << "the log no longer starts";
+}
+
+// A log in which a stale owner wrote after a newer ownership (here appended by hand, since the
+// live path refuses to: a record of epoch 6 after epoch 7) is refused at start-up, naming the
+// record; nothing is cut off it.
 TEST_F(EpochFenceTest, RefusesToStartOnALogWhoseEpochsGoBackwards) {
   StartOwner(7);
   const uint64_t before = Sculpt(1);
-  fence_->Grant(6, OwnershipFence::Clock::now() + std::chrono::hours(1));
-  const uint64_t stale = Sculpt(2);
-  ASSERT_GT(stale, before);
+  ASSERT_GT(before, 0u);
   sculptor_.reset();
   server_.Stop();
-  const size_t logged = ReadLog(server_.config().data_dir).size();
+  std::vector<Logged> logged = ReadLog(server_.config().data_dir);
+  ASSERT_FALSE(logged.empty());
+  ASSERT_TRUE(logged.back().stroke);
+  v1::EditRecord stale;
+  ASSERT_TRUE(stale.ParseFromString(logged.back().payload));
+  stale.set_epoch(6);
+  {
+    store::RecoveryReport report;
+    auto log = store::EditLog::Open((fs::path(server_.config().data_dir) / store::kLogSubdir).string(),
+                                    store::FsyncPolicy{}, &report);
+    ASSERT_TRUE(log.ok()) << log.status();
+    ASSERT_TRUE((*log)->Append(before + 1, stale.SerializeAsString()).ok());
+    ASSERT_TRUE((*log)->Sync().ok());
+  }
+  logged = ReadLog(server_.config().data_dir);
+  ASSERT_EQ(logged.back().epoch, 6u);
   const ::testing::AssertionResult restarted = server_.Start();
   ASSERT_FALSE(restarted) << "started on a log whose epochs go backwards";
   const std::string why = restarted.message();
@@ -373,7 +413,7 @@ TEST_F(EpochFenceTest, RefusesToStartOnALogWhoseEpochsGoBackwards) {
             std::string::npos)
       << why;
   EXPECT_NE(why.find("stale owner"), std::string::npos) << why;
-  EXPECT_EQ(ReadLog(server_.config().data_dir).size(), logged) << "the refusal cut the log";
+  EXPECT_EQ(ReadLog(server_.config().data_dir).size(), logged.size()) << "the refusal cut the log";
 }
 
 TEST_F(EpochFenceTest, RejectsARegionLoadOfAnotherEpochThanEtcdNames) {
@@ -395,7 +435,7 @@ TEST_F(EpochFenceTest, RejectsARegionLoadOfAnotherEpochThanEtcdNames) {
       << "the refused load made a copy";
 }
 
-TEST_F(EpochFenceTest, RejectsAStaleOwnersBroadcastAndKeepsNothingOfIt) {
+TEST_F(EpochFenceTest, RejectsABroadcastOfAnEpochEtcdDoesNotNameAndKeepsNothingOfIt) {
   StartOwner(7);
   auto follower = Follow(7);
   ASSERT_TRUE(
@@ -403,9 +443,10 @@ TEST_F(EpochFenceTest, RejectsAStaleOwnersBroadcastAndKeepsNothingOfIt) {
   ASSERT_TRUE(follower->ready()) << follower->failure();
   const uint64_t before = Sculpt(1);
   ASSERT_TRUE(WaitFor([&] { return follower->durable_seq() >= before; }, milliseconds(10000)));
-  // The member at the address now sends under epoch 6 (stale: etcd still names 7 for the owner
-  // the standby follows).
-  fence_->Grant(6, OwnershipFence::Clock::now() + std::chrono::hours(1));
+  // The member at the address now sends under epoch 8, which etcd does not name for the owner the
+  // standby follows (7). (A lower epoch cannot be sent: the owner refuses to log under an epoch
+  // below its log's, RefusesToLogUnderAnEpochLowerThanTheLogs.)
+  fence_->Grant(8, OwnershipFence::Clock::now() + std::chrono::hours(1));
   const uint64_t stale = Sculpt(2);
   ASSERT_GT(stale, before);
   ASSERT_TRUE(WaitFor([&] { return follower->finished(); }, milliseconds(10000)))
@@ -413,7 +454,7 @@ TEST_F(EpochFenceTest, RejectsAStaleOwnersBroadcastAndKeepsNothingOfIt) {
   const std::string why = follower->failure();
   EXPECT_NE(why.find("EditBroadcast at seq " + std::to_string(before + 1)), std::string::npos)
       << why;
-  EXPECT_NE(why.find("of epoch 6"), std::string::npos) << why;
+  EXPECT_NE(why.find("of epoch 8"), std::string::npos) << why;
   EXPECT_NE(why.find("holds epoch 7"), std::string::npos) << why;
   EXPECT_EQ(follower->stale_epoch_refusals(), 1u);
   EXPECT_EQ(refusals_->load(), 1u);
@@ -429,12 +470,12 @@ TEST_F(EpochFenceTest, RejectsAStaleOwnersBroadcastAndKeepsNothingOfIt) {
   for (uint64_t s : SnapshotSeqs(Copy())) EXPECT_LE(s, before);
   // The owner logged it, under the epoch it held then.
   server_.Stop();
-  size_t at6 = 0;
+  size_t at8 = 0;
   for (const Logged& l : ReadLog(server_.config().data_dir)) {
-    EXPECT_EQ(l.epoch, l.seq > before ? 6u : 7u) << "seq " << l.seq;
-    at6 += l.seq > before ? 1 : 0;
+    EXPECT_EQ(l.epoch, l.seq > before ? 8u : 7u) << "seq " << l.seq;
+    at8 += l.seq > before ? 1 : 0;
   }
-  EXPECT_EQ(at6, static_cast<size_t>(stale - before));
+  EXPECT_EQ(at8, static_cast<size_t>(stale - before));
 }
 
 TEST_F(EpochFenceTest, StopsTakingTheOwnersStreamOnceEtcdNamesAnotherEpoch) {

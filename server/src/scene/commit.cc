@@ -4,6 +4,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <iterator>
 
@@ -170,6 +171,21 @@ void Scene::RunCommit(const std::shared_ptr<EditOp>& op) {
   // refuse a log whose epochs go backwards. None on a single process (the bytes stay as they
   // were).
   const uint64_t epoch = fence_ ? fence_->epoch() : 0;
+  // A log's epochs never go backwards (recovery refuses such a log): a member holding an older
+  // epoch than one already logged here is a stale owner, whatever its fence says, and logs
+  // nothing. The agent never grants one; this keeps a bug there from making the data directory
+  // unable to start. Epoch 0 (a single process) is never refused, as in recovery.
+  if (epoch != 0 && epoch < highest_epoch_) {
+    spdlog::error("refusing {} client_seq {}: this member holds epoch {} but the log already "
+                  "holds epoch {}",
+                  op->operation(), op->client_seq(), epoch, highest_epoch_);
+    out.status = Status(Status::Code::kUnavailable,
+                        std::string(op->operation()) + " refused: this member holds the scene at "
+                        "epoch " + std::to_string(epoch) + ", lower than epoch " +
+                        std::to_string(highest_epoch_) +
+                        " already in its log (a stale owner); reconnect through another member");
+    return op->Answer(out);
+  }
   for (std::string& r : records) codec::AppendRecordEpoch(&r, epoch);
   // One group: recovery sees the whole edit or none of it, so a crash between two of a stroke's
   // poses cannot leave part of it applied and its resend refused.
@@ -185,6 +201,7 @@ void Scene::RunCommit(const std::shared_ptr<EditOp>& op) {
   if (epoch_runs_.empty() ? epoch != 0 : epoch != epoch_runs_.rbegin()->second) {
     epoch_runs_.emplace(first, epoch);
   }
+  highest_epoch_ = std::max(highest_epoch_, epoch);
   resend_.Record(op->stream(), op->client_id(), op->client_seq());
   Observe("appended", op->operation(), last);
 

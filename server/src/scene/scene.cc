@@ -3,6 +3,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <exception>
 #include <filesystem>
@@ -232,6 +233,9 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   scene->snapshots_ = std::move(rec.snapshots);
   scene->next_seq_ = rec.last_seq + 1;
   scene->epoch_runs_ = std::move(rec.epoch_runs);
+  for (const auto& [seq, epoch] : scene->epoch_runs_) {
+    scene->highest_epoch_ = std::max(scene->highest_epoch_, epoch);
+  }
   scene->applied_seq_ = rec.last_seq;
   scene->replication_.set_versions_floor(rec.last_seq);
   scene->replication_.set_resend_table(&scene->resend_.entries());

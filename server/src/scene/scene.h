@@ -386,6 +386,8 @@ class Scene {
   // then extended by the commit pipeline): the epoch the history view shows for an edit.
   // Compute thread only.
   std::map<uint64_t, uint64_t> epoch_runs_;
+  // The highest epoch in the log (compute thread only): nothing is logged under a lower one.
+  uint64_t highest_epoch_ = 0;
   uint64_t EpochAt(uint64_t seq) const;
   uint64_t edits_since_snapshot_ = 0;
   double tail_apply_s_ = 0;  // stroke apply time since the last snapshot (compute thread)
