@@ -236,7 +236,7 @@ TEST_F(ClusterStatusTest, MetricsShowOwnershipMembersAndTheStandbysProgress) {
       << b_page;
   EXPECT_EQ(Sample(b_page, R"(sculpt_cluster_scene_epoch{scene="default"})"), 1.0) << b_page;
   EXPECT_EQ(b_page.find("sculpt_cluster_standby_lag_edits{"), std::string::npos) << b_page;
-  EXPECT_TRUE(Sample(b_page, R"(sculpt_cluster_follow_seq{member="b"})")) << b_page;
+  EXPECT_TRUE(Sample(b_page, R"(sculpt_cluster_follow_seq{member="b",scene="default"})")) << b_page;
 }
 
 TEST(ClusterStatusNoEtcd, ReportsAnUnreachableEtcdWithAHint) {
