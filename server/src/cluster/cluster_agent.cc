@@ -433,21 +433,24 @@ asio::awaitable<Status> ClusterAgent::Refresh() {
   auto put_call = etcd_->Put({keys_.Member(config_.member), EncodeMember(SelfRecord()), lease_});
   auto put = co_await std::move(put_call);
   if (!put.ok()) co_return put.status();
-  auto members_call = etcd_->GetPrefix(keys_.Members());
-  auto members = co_await std::move(members_call);
-  if (!members.ok()) co_return members.status();
-  auto scenes_call = etcd_->GetPrefix(keys_.Scenes());
-  auto scenes = co_await std::move(scenes_call);
-  if (!scenes.ok()) co_return scenes.status();
+  // Members and scenes in one range, so at one revision: an acquisition writes the owner's
+  // member record (its `owns`) in the txn that writes the scene's keys, so every member's view
+  // counts a scene as owned exactly when it counts it in its owner's load, and placement
+  // computed from two views of one revision agrees.
+  auto all_call = etcd_->GetPrefix(keys_.prefix);
+  auto all = co_await std::move(all_call);
+  if (!all.ok()) co_return all.status();
 
   std::vector<MemberRecord> live;
-  for (const KeyValue& kv : *members) {
-    auto m = DecodeMember(kv.value);
-    // Another member's record is untrusted input: a bad one is skipped, never fatal.
-    if (m.ok() && kv.key == keys_.Member(m->name)) live.push_back(std::move(m).value());
-  }
   std::map<std::string, SceneState> table;
-  for (const KeyValue& kv : *scenes) {
+  const std::string members_prefix = keys_.Members();
+  for (const KeyValue& kv : *all) {
+    if (kv.key.compare(0, members_prefix.size(), members_prefix) == 0) {
+      auto m = DecodeMember(kv.value);
+      // Another member's record is untrusted input: a bad one is skipped, never fatal.
+      if (m.ok() && kv.key == keys_.Member(m->name)) live.push_back(std::move(m).value());
+      continue;
+    }
     std::string scene, kind;
     if (!keys_.ParseSceneKey(kv.key, &scene, &kind)) continue;
     SceneState& st = table[scene];
@@ -605,8 +608,16 @@ asio::awaitable<void> ClusterAgent::MaybeAcquire(Slot& slot,
     txn.compares.push_back(
         {keys_.Standby(scene), Compare::Target::kModRevision, st.standby_mod_revision});
   }
+  // This member's record with the scene among its owned ones, in the same txn (see Refresh).
+  MemberRecord self = SelfRecord();
+  self.owns.push_back(scene);
+  self.owning.push_back({scene, slot.hosted.seq ? slot.hosted.seq() : 0,
+                         slot.hosted.acks_async && slot.hosted.acks_async()});
+  self.scene_seq = self.owning.front().seq;
+  self.acks_async = self.owning.front().acks_async;
   txn.success = {{keys_.Owner(scene), EncodeOwner(owner), lease_},
-                 {keys_.Epoch(scene), EncodeEpoch({epoch, config_.member}), 0}};
+                 {keys_.Epoch(scene), EncodeEpoch({epoch, config_.member}), 0},
+                 {keys_.Member(config_.member), EncodeMember(self), lease_}};
   auto r_call = etcd_->Txn(std::move(txn));
   auto r = co_await std::move(r_call);
   if (!r.ok()) {
