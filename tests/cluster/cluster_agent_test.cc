@@ -232,6 +232,52 @@ TEST_F(ClusterAgentTest, TwoMembersFourScenesOwnTwoEachAndRedirectToEachOther) {
   b.Stop();
 }
 
+// The "three members, six scenes" at the agent level: three members hosting the same six
+// scenes, started together, own two each; every member routes each scene it does not own to its
+// owner.
+TEST_F(ClusterAgentTest, ThreeMembersSixScenesOwnTwoEach) {
+  const std::vector<std::string> names = {"s1", "s2", "s3", "s4", "s5", "s6"};
+  std::vector<std::unique_ptr<ClusterAgent>> agents;
+  for (const char* m : {"a", "b", "c"}) {
+    agents.push_back(std::make_unique<ClusterAgent>(Config(m), Hosted(names), [] { return 0u; }));
+  }
+  for (size_t i = 0; i < agents.size(); ++i) {
+    ASSERT_TRUE(agents[i]->Start("127.0.0.1:" + std::to_string(10 + i), "").ok());
+  }
+  auto owner_of = [&](const std::string& n) -> int {
+    for (size_t i = 0; i < agents.size(); ++i) {
+      if (agents[i]->owned_epoch(n) == 1) return static_cast<int>(i);
+    }
+    return -1;
+  };
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        return std::all_of(names.begin(), names.end(),
+                           [&](const std::string& n) { return owner_of(n) >= 0; });
+      },
+      milliseconds(6000)));
+  std::vector<int> per_member(agents.size(), 0);
+  for (const std::string& n : names) ++per_member[owner_of(n)];
+  EXPECT_EQ(per_member, (std::vector<int>{2, 2, 2}));
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        for (const std::string& n : names) {
+          for (size_t i = 0; i < agents.size(); ++i) {
+            if (static_cast<int>(i) == owner_of(n)) continue;
+            const Route r = agents[i]->RouteScene(n);
+            if (r.kind != Route::Kind::kRedirect ||
+                r.tcp != "127.0.0.1:" + std::to_string(10 + owner_of(n))) {
+              return false;
+            }
+          }
+        }
+        return true;
+      },
+      milliseconds(3000)))
+      << "some member does not redirect some scene to its owner";
+  for (auto& agent : agents) agent->Stop();
+}
+
 // The lease resume a promotion's restart relies on (docs/cluster.md, "Lease resume"): a member
 // owning two scenes is replaced by a new agent (as execv replaces the process image) with the
 // resume token in the environment; the new agent keeps the lease and owns the same scenes at the
