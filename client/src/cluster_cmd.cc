@@ -122,25 +122,26 @@ const cluster::MemberRecord* MemberNamed(const ClusterView& v, const std::string
 }
 
 // How far the scene's standby is behind its owner, in edits, from the two members' records
-// (each as of its last refresh, every TTL/4): nullopt when either is missing or the standby's
-// copy is still loading.
+// (each as of its last refresh, every TTL/4; a member hosting several scenes lists each in its
+// `owning` and `following`): nullopt when either is missing or the standby's copy is still
+// loading.
 std::optional<uint64_t> StandbyLag(const ClusterView& v, const std::string& name,
                                    const SceneView& s) {
   if (!s.owner || !s.standby) return std::nullopt;
   const cluster::MemberRecord* owner = MemberNamed(v, s.owner->member);
   const cluster::MemberRecord* standby = MemberNamed(v, StandbyMember(*s.standby));
-  if (!owner || !standby || standby->follows != name ||
-      std::find(owner->owns.begin(), owner->owns.end(), name) == owner->owns.end()) {
-    return std::nullopt;
-  }
-  return owner->scene_seq > standby->follow_seq ? owner->scene_seq - standby->follow_seq : 0;
+  const cluster::SceneProgress* owned = owner ? owner->Owning(name) : nullptr;
+  const cluster::SceneProgress* copy = standby ? standby->Following(name) : nullptr;
+  if (!owned || !copy) return std::nullopt;
+  return owned->seq > copy->seq ? owned->seq - copy->seq : 0;
 }
 
-// StateOf, and whether the owner's synchronous acks have fallen back to async.
-std::string FullStateOf(const ClusterView& v, const SceneView& s) {
+// StateOf, and whether the owner's synchronous acks of this scene have fallen back to async.
+std::string FullStateOf(const ClusterView& v, const std::string& name, const SceneView& s) {
   std::string state = StateOf(s);
   const cluster::MemberRecord* owner = s.owner ? MemberNamed(v, s.owner->member) : nullptr;
-  if (owner && owner->acks_async) state += ", acks async (the standby is not confirming)";
+  const cluster::SceneProgress* owned = owner ? owner->Owning(name) : nullptr;
+  if (owned && owned->acks_async) state += ", acks async (the standby is not confirming)";
   return state;
 }
 
@@ -148,11 +149,14 @@ void PrintTable(const ClusterView& v, const ClusterStatusOptions& o) {
   std::printf("cluster %s at %s: %zu member%s, %zu scene%s\n", o.prefix.c_str(),
               Join(o.etcd).c_str(), v.members.size(), v.members.size() == 1 ? "" : "s",
               v.scenes.size(), v.scenes.size() == 1 ? "" : "s");
-  std::printf("\nmembers:\n%-16s  %-21s  %-21s  %8s  %s\n", "name", "tcp", "http", "sessions",
-              "owns");
+  std::printf("\nmembers:\n%-16s  %-21s  %-21s  %8s  %-24s  %s\n", "name", "tcp", "http",
+              "sessions", "owns", "follows");
   for (const cluster::MemberRecord& m : v.members) {
-    std::printf("%-16s  %-21s  %-21s  %8u  %s\n", m.name.c_str(), m.tcp.c_str(),
-                m.http.empty() ? "-" : m.http.c_str(), m.sessions, Join(m.owns).c_str());
+    std::vector<std::string> follows;
+    for (const cluster::SceneProgress& p : m.following) follows.push_back(p.scene);
+    std::printf("%-16s  %-21s  %-21s  %8u  %-24s  %s\n", m.name.c_str(), m.tcp.c_str(),
+                m.http.empty() ? "-" : m.http.c_str(), m.sessions, Join(m.owns).c_str(),
+                Join(follows).c_str());
   }
   for (const std::string& u : v.unreadable_members) std::printf("unreadable %s\n", u.c_str());
   std::printf("\nscenes:\n%-16s  %-16s  %6s  %-16s  %8s  %s\n", "scene", "owner", "epoch",
@@ -163,9 +167,20 @@ void PrintTable(const ClusterView& v, const ClusterStatusOptions& o) {
                 s.owner ? s.owner->member.c_str() : "-",
                 static_cast<unsigned long long>(EpochOf(s)),
                 s.standby ? StandbyMember(*s.standby).c_str() : "-",
-                lag ? std::to_string(*lag).c_str() : "-", FullStateOf(v, s).c_str());
+                lag ? std::to_string(*lag).c_str() : "-", FullStateOf(v, name, s).c_str());
     for (const std::string& u : s.unreadable) std::printf("  unreadable %s\n", u.c_str());
   }
+}
+
+// A member's `following` / `owning` list as JSON.
+json Progress(const std::vector<cluster::SceneProgress>& list, bool owner) {
+  json out = json::array();
+  for (const cluster::SceneProgress& p : list) {
+    json j = {{"scene", p.scene}, {"seq", p.seq}};
+    if (owner) j["acks_async"] = p.acks_async;
+    out.push_back(std::move(j));
+  }
+  return out;
 }
 
 json ToJson(const ClusterView& v, const ClusterStatusOptions& o) {
@@ -180,7 +195,9 @@ json ToJson(const ClusterView& v, const ClusterStatusOptions& o) {
                        {"follows", m.follows},
                        {"follow_seq", m.follow_seq},
                        {"scene_seq", m.scene_seq},
-                       {"acks_async", m.acks_async}});
+                       {"acks_async", m.acks_async},
+                       {"following", Progress(m.following, false)},
+                       {"owning", Progress(m.owning, true)}});
   }
   json scenes = json::array();
   for (const auto& [name, s] : v.scenes) {
@@ -191,7 +208,7 @@ json ToJson(const ClusterView& v, const ClusterStatusOptions& o) {
               {"epoch", EpochOf(s)},
               {"last_owner", s.epoch ? json(s.epoch->member) : json()},
               {"standby", s.standby ? json(StandbyMember(*s.standby)) : json()},
-              {"state", FullStateOf(v, s)},
+              {"state", FullStateOf(v, name, s)},
               {"standby_lag", StandbyLag(v, name, s) ? json(*StandbyLag(v, name, s)) : json()},
               {"unreadable", s.unreadable}};
     if (s.standby) {
@@ -392,11 +409,11 @@ std::pair<std::string, std::string> Progress(const ClusterView& v, const Cluster
     return {"naming", "waiting for owner " + s.owner->member + " to name member " + o.member +
                           " its standby"};
   }
-  if (m == v.members.end() || m->follows != o.scene) {
-    return {"loading", "member " + o.member + " is the standby and loads its copy"};
-  }
+  const cluster::SceneProgress* copy =
+      m == v.members.end() ? nullptr : m->Following(o.scene);
+  if (!copy) return {"loading", "member " + o.member + " is the standby and loads its copy"};
   return {"following", "member " + o.member + " follows; its copy holds seq " +
-                           std::to_string(m->follow_seq) + " (the owner stops acknowledging " +
+                           std::to_string(copy->seq) + " (the owner stops acknowledging " +
                            "once it has caught up)"};
 }
 

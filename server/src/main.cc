@@ -387,12 +387,16 @@ int main(int argc, char** argv) {
                    "(and a cluster of named users only cannot follow); set the same peer_token "
                    "on every member");
     }
+    // The one scene this process hosts, in the configured data directory.
+    std::vector<sculpt::server::cluster::HostedScene> hosted;
+    hosted.push_back({.name = config.scene.name,
+                      .data_dir = config.data_dir,
+                      .seq = [sc = scene->get()] { return sc->global_seq(); },
+                      .acks_async = [sc = scene->get()] { return sc->acks().fallen_back(); }});
     cluster = std::make_unique<sculpt::server::cluster::ClusterAgent>(
-        config.cluster, config.scene.name,
+        config.cluster, std::move(hosted),
         [&server] { return static_cast<uint32_t>(server.JoinedSeats().joined); });
-    (*scene)->set_ownership_fence(cluster->fence());
-    cluster->set_scene_seq([sc = scene->get()] { return sc->global_seq(); });
-    cluster->set_acks_async([sc = scene->get()] { return sc->acks().fallen_back(); });
+    (*scene)->set_ownership_fence(cluster->fence(config.scene.name));
     server.set_router(cluster.get());
     // A standby follows another owner's scene and, on failover, restarts on its copy.
     sculpt::server::cluster::StandbyOptions standby{
@@ -444,10 +448,8 @@ int main(int argc, char** argv) {
     http_port = *hp;
     if (cluster) {
       // http goes before cluster (declared after it), so the source never outlives the agent.
-      http->AddMetricsSource([agent = cluster.get(), sc = scene->get()](
-                                 sculpt::server::MetricsWriter& w) {
-        agent->WriteMetrics(w, sc->global_seq());
-      });
+      http->AddMetricsSource(
+          [agent = cluster.get()](sculpt::server::MetricsWriter& w) { agent->WriteMetrics(w); });
     }
     spdlog::info("http on {} (port {}): open {}://{}:{}/ ; web root {}", hc.listen, http_port,
                  config.tls.enabled() ? "https" : "http",

@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
@@ -236,7 +237,7 @@ TEST_F(ClusterStatusTest, MetricsShowOwnershipMembersAndTheStandbysProgress) {
       << b_page;
   EXPECT_EQ(Sample(b_page, R"(sculpt_cluster_scene_epoch{scene="default"})"), 1.0) << b_page;
   EXPECT_EQ(b_page.find("sculpt_cluster_standby_lag_edits{"), std::string::npos) << b_page;
-  EXPECT_TRUE(Sample(b_page, R"(sculpt_cluster_follow_seq{member="b"})")) << b_page;
+  EXPECT_TRUE(Sample(b_page, R"(sculpt_cluster_follow_seq{member="b",scene="default"})")) << b_page;
 }
 
 TEST(ClusterStatusNoEtcd, ReportsAnUnreachableEtcdWithAHint) {
@@ -274,6 +275,70 @@ TEST(ClusterStatusNoEtcd, HelpNamesTheOptions) {
     EXPECT_NE(r.output.find(flag), std::string::npos) << flag << "\n" << r.output;
   }
   EXPECT_NE(Sculpt("cluster status").exit_code, 0) << "--etcd is required";
+}
+
+}  // namespace
+}  // namespace sculpt::server::cluster
+
+namespace sculpt::server::cluster {
+namespace {
+
+// Members hosting several scenes (their records list each owned and followed scene with its
+// sequence): every scene's row shows its owner, standby and the standby's lag for that scene,
+// and "acks async" only for the scene whose acks fell back. Records written straight into etcd.
+TEST_F(ClusterStatusTest, ShowsEachSceneOfMembersHostingSeveral) {
+  MemberRecord a{"a", "127.0.0.1:1", "", {"p", "q", "r"}, {"p", "q"}, 0};
+  a.owning = {{"p", 50, false}, {"q", 20, true}};
+  a.following = {{"r", 7, false}};
+  MemberRecord b{"b", "127.0.0.1:2", "", {"p", "q", "r"}, {"r"}, 0};
+  b.owning = {{"r", 10, false}};
+  b.following = {{"p", 45, false}, {"q", 20, false}};
+  EtcdClient& etcd = *etcd_client_;
+  ASSERT_TRUE(etcd.Sync(etcd.Put({kKeys.Member("a"), EncodeMember(a), 0})).ok());
+  ASSERT_TRUE(etcd.Sync(etcd.Put({kKeys.Member("b"), EncodeMember(b), 0})).ok());
+  for (const auto& [scene, owner, standby] :
+       std::vector<std::array<std::string, 3>>{{"p", "a", "b"}, {"q", "a", "b"}, {"r", "b", "a"}}) {
+    const std::string tcp = owner == "a" ? a.tcp : b.tcp;
+    const std::string owner_record = EncodeOwner({owner, tcp, "", 1});
+    ASSERT_TRUE(etcd.Sync(etcd.Put({kKeys.Owner(scene), owner_record, 0})).ok());
+    ASSERT_TRUE(etcd.Sync(etcd.Put({kKeys.Epoch(scene), EncodeEpoch({1, owner}), 0})).ok());
+    ASSERT_TRUE(etcd.Sync(etcd.Put({kKeys.Standby(scene), EncodeStandby({standby, 1}), 0})).ok());
+  }
+  const RunResult out =
+      Sculpt("cluster status --json --etcd " + etcd_->endpoint() + " --prefix t/");
+  ASSERT_EQ(out.exit_code, 0) << out.output;
+  const json doc = JsonOf(out.output);
+  ASSERT_TRUE(doc.is_object()) << out.output;
+  std::map<std::string, json> scenes;
+  for (const json& s : doc["scenes"]) scenes[s["scene"].get<std::string>()] = s;
+  ASSERT_EQ(scenes.size(), 3u) << out.output;
+  EXPECT_EQ(scenes["p"]["owner"], "a");
+  EXPECT_EQ(scenes["p"]["standby"], "b");
+  EXPECT_EQ(scenes["p"]["standby_lag"], 5) << out.output;
+  EXPECT_EQ(scenes["q"]["standby_lag"], 0) << out.output;
+  EXPECT_EQ(scenes["r"]["owner"], "b");
+  EXPECT_EQ(scenes["r"]["standby_lag"], 3) << out.output;
+  EXPECT_EQ(scenes["p"]["state"], "owned");
+  EXPECT_NE(scenes["q"]["state"].get<std::string>().find("acks async"), std::string::npos);
+  EXPECT_EQ(scenes["r"]["state"], "owned");
+  for (const json& m : doc["members"]) {
+    if (m["name"] == "b") {
+      EXPECT_EQ(m["following"].size(), 2u) << m.dump();
+      EXPECT_EQ(m["owning"][0]["scene"], "r") << m.dump();
+    }
+  }
+  // The table: each scene's row with its own lag.
+  const RunResult table = Sculpt("cluster status --etcd " + etcd_->endpoint() + " --prefix t/");
+  ASSERT_EQ(table.exit_code, 0) << table.output;
+  std::map<std::string, std::string> lag;
+  std::istringstream lines(table.output);
+  for (std::string line; std::getline(lines, line);) {
+    std::istringstream row(line);
+    std::string name, owner, epoch, standby, l;
+    if (row >> name >> owner >> epoch >> standby >> l && epoch == "1") lag[name] = l;
+  }
+  EXPECT_EQ(lag, (std::map<std::string, std::string>{{"p", "5"}, {"q", "0"}, {"r", "3"}}))
+      << table.output;
 }
 
 }  // namespace

@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
+
 #include "cluster/placement.h"
 
 namespace sculpt::server::cluster {
@@ -50,8 +52,7 @@ TEST(ClusterRecordsTest, StandbyAndFollowRoundTrip) {
   EXPECT_EQ(back->follow_seq, 42u);
   EXPECT_EQ(back->scene_seq, 57u);
   EXPECT_TRUE(back->acks_async);
-  EXPECT_FALSE(
-      DecodeMember(R"({"name":"a","tcp":"h:1","sessions":0,"acks_async":"yes"})").ok());
+  EXPECT_FALSE(DecodeMember(R"({"name":"a","tcp":"h:1","sessions":0,"acks_async":"yes"})").ok());
   // A record without the field (an older member) may not follow; a wrong type is refused.
   auto old = DecodeMember(R"({"name":"a","tcp":"h:1","sessions":0})");
   ASSERT_TRUE(old.ok()) << old.status();
@@ -119,6 +120,123 @@ TEST(PlacementTest, OnlyMembersOfferingTheScene) {
   EXPECT_EQ(PickMember({M("a", {}, 0, {"other"}), M("b", {"q"}, 9)}, "s"), "b");
   EXPECT_EQ(PickMember({M("a", {}, 0, {"other"})}, "s"), std::nullopt);
   EXPECT_EQ(PickMember({}, "s"), std::nullopt);
+}
+
+}  // namespace
+}  // namespace sculpt::server::cluster
+
+namespace sculpt::server::cluster {
+namespace {
+
+// A member hosting several scenes lists each scene it follows and owns with its sequence; the
+// first of each is also written under the one-scene names, and a record of a one-scene member
+// (no lists) reads as lists of its one scene.
+TEST(ClusterRecordsTest, SeveralScenesFollowedAndOwnedRoundTrip) {
+  MemberRecord m{"a", "h:1", "", {"p", "q", "r", "s"}, {"p", "q"}, 2};
+  m.owning = {{"p", 40, false}, {"q", 7, true}};
+  m.following = {{"r", 12, false}, {"s", 3, false}};
+  m.scene_seq = 40;
+  m.follows = "r";
+  m.follow_seq = 12;
+  auto back = DecodeMember(EncodeMember(m));
+  ASSERT_TRUE(back.ok()) << back.status();
+  ASSERT_EQ(back->owning.size(), 2u);
+  ASSERT_EQ(back->following.size(), 2u);
+  ASSERT_NE(back->Owning("q"), nullptr);
+  EXPECT_EQ(back->Owning("q")->seq, 7u);
+  EXPECT_TRUE(back->Owning("q")->acks_async);
+  EXPECT_FALSE(back->Owning("p")->acks_async);
+  ASSERT_NE(back->Following("s"), nullptr);
+  EXPECT_EQ(back->Following("s")->seq, 3u);
+  EXPECT_EQ(back->Following("p"), nullptr);
+  EXPECT_EQ(back->Owning("r"), nullptr);
+  EXPECT_EQ(back->follows, "r");
+  EXPECT_EQ(back->follow_seq, 12u);
+
+  auto old = DecodeMember(
+      R"({"name":"b","tcp":"h:2","sessions":0,"owns":["v"],"scene_seq":9,"acks_async":true,)"
+      R"("follows":"w","follow_seq":5})");
+  ASSERT_TRUE(old.ok()) << old.status();
+  ASSERT_NE(old->Owning("v"), nullptr);
+  EXPECT_EQ(old->Owning("v")->seq, 9u);
+  EXPECT_TRUE(old->Owning("v")->acks_async);
+  ASSERT_NE(old->Following("w"), nullptr);
+  EXPECT_EQ(old->Following("w")->seq, 5u);
+  auto none = DecodeMember(R"({"name":"b","tcp":"h:2","sessions":0})");
+  ASSERT_TRUE(none.ok()) << none.status();
+  EXPECT_TRUE(none->owning.empty());
+  EXPECT_TRUE(none->following.empty());
+}
+
+TEST(ClusterRecordsTest, RejectsMalformedSceneLists) {
+  const std::string base = R"({"name":"a","tcp":"h:1","sessions":0,)";
+  for (const std::string& bad :
+       {base + R"("following":{"scene":"p","seq":1}})", base + R"("following":["p"]})",
+        base + R"("following":[{"seq":1}]})", base + R"("owning":[{"scene":"p","seq":-1}]})",
+        base + R"("owning":[{"scene":"p","seq":1,"acks_async":"no"}]})",
+        base + R"("owning":[{"scene":"","seq":1}]})"}) {
+    EXPECT_EQ(DecodeMember(bad).status().code(), Status::Code::kInvalidArgument) << bad;
+  }
+}
+
+std::map<std::string, int> CountPicks(const std::map<std::string, std::string>& picks) {
+  std::map<std::string, int> per_member;
+  for (const auto& [scene, member] : picks) ++per_member[member];
+  return per_member;
+}
+
+const std::vector<std::string> kSix = {"s1", "s2", "s3", "s4", "s5", "s6"};
+
+// Three idle members offering the same six new scenes: two each, and the same picks whatever
+// order a member reads the records or lists the scenes in (every member must agree).
+TEST(PlacementTest, SixNewScenesOverThreeMembersSpreadTwoEach) {
+  const std::vector<MemberRecord> view = {M("a", {}, 0, kSix), M("b", {}, 0, kSix),
+                                          M("c", {}, 0, kSix)};
+  const auto picks = PlaceScenes(view, kSix);
+  ASSERT_EQ(picks.size(), 6u);
+  EXPECT_EQ(CountPicks(picks), (std::map<std::string, int>{{"a", 2}, {"b", 2}, {"c", 2}}));
+  // Round robin in name order, the tie broken by name.
+  EXPECT_EQ(picks.at("s1"), "a");
+  EXPECT_EQ(picks.at("s2"), "b");
+  EXPECT_EQ(picks.at("s3"), "c");
+  std::vector<MemberRecord> reversed(view.rbegin(), view.rend());
+  std::vector<std::string> shuffled = {"s4", "s1", "s6", "s2", "s5", "s3", "s1"};
+  EXPECT_EQ(PlaceScenes(reversed, shuffled), picks);
+  std::vector<MemberRecord> rotated = {view[1], view[2], view[0]};
+  EXPECT_EQ(PlaceScenes(rotated, kSix), picks);
+}
+
+// Scenes already owned count: the new ones fill up the members with fewer first; sessions
+// break ties before names; a scene nobody offers is left out.
+TEST(PlacementTest, NewScenesFillUpTheLessLoadedMembersFirst) {
+  const std::vector<MemberRecord> view = {M("a", {"x", "y"}, 0, kSix), M("b", {}, 5, kSix),
+                                          M("c", {"z"}, 0, kSix)};
+  const auto picks = PlaceScenes(view, {"s1", "s2", "s3", "s4", "nobody"});
+  EXPECT_EQ(picks.count("nobody"), 0u);
+  // b (0 owned); then c (1) before b (1 now, more sessions); then b (1); then all at 2: a and c
+  // have fewer sessions than b, and a the smaller name.
+  EXPECT_EQ(picks.at("s1"), "b");
+  EXPECT_EQ(picks.at("s2"), "c");
+  EXPECT_EQ(picks.at("s3"), "b");
+  EXPECT_EQ(picks.at("s4"), "a");
+  // Only members offering the scene.
+  const auto only = PlaceScenes({M("a", {}, 0, {"s1"}), M("b", {}, 0, {"s2"})}, {"s1", "s2"});
+  EXPECT_EQ(only.at("s1"), "a");
+  EXPECT_EQ(only.at("s2"), "b");
+  EXPECT_EQ(PickMember(view, "s1"), "b");
+}
+
+// An owner naming standbys for several scenes spreads the copies over the other members,
+// counting the scenes they own and follow already.
+TEST(PlacementTest, StandbysSpreadOverTheCandidates) {
+  MemberRecord b = M("b", {"x"}, 0, kSix);
+  MemberRecord c = M("c", {}, 0, kSix);
+  c.following = {{"y", 1, false}, {"z", 1, false}};
+  const auto picks = PickStandbys({b, c}, {"s1", "s2", "s3"});
+  // b: 1 (owns x), c: 2 (follows y, z) → s1 to b; then 2/2 → b by name; then b 3, c 2 → c.
+  EXPECT_EQ(picks.at("s1"), "b");
+  EXPECT_EQ(picks.at("s2"), "b");
+  EXPECT_EQ(picks.at("s3"), "c");
 }
 
 }  // namespace

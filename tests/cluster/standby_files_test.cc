@@ -57,7 +57,7 @@ TEST_F(StandbyFilesTest, PromotionMovesTheOldDataAsideAndTheCopyIn) {
   Touch(standby() / "gen-4" / "log" / "log-new.sclog", "new log");
   Touch(standby() / "CURRENT", "gen-4 7\n");
 
-  ASSERT_TRUE(PromoteStandbyCopy(data(), "default", 7).ok());
+  ASSERT_TRUE(PromoteStandbyCopy(data(), "default", data(), 7).ok());
   EXPECT_EQ(Read(root / "snapshots" / "snap-new.vdb"), "new snapshot");
   EXPECT_EQ(Read(root / "log" / "log-new.sclog"), "new log");
   EXPECT_FALSE(fs::exists(root / "resend.pb")) << "the old owner's files must not mix in";
@@ -80,11 +80,54 @@ TEST_F(StandbyFilesTest, PromotionMovesTheOldDataAsideAndTheCopyIn) {
 TEST_F(StandbyFilesTest, PromotionWithoutACopyChangesNothing) {
   const fs::path root = data();
   Touch(root / "log" / "log-old.sclog", "old log");
-  const Status s = PromoteStandbyCopy(data(), "default", 1);
+  const Status s = PromoteStandbyCopy(data(), "default", data(), 1);
   EXPECT_EQ(s.code(), Status::Code::kFailedPrecondition) << s;
   EXPECT_EQ(Read(root / "log" / "log-old.sclog"), "old log");
   EXPECT_FALSE(fs::exists(root / "superseded"));
   EXPECT_FALSE(PromotedFromEpoch(data(), "default").has_value());
+}
+
+}  // namespace
+}  // namespace sculpt::server::cluster
+
+namespace sculpt::server::cluster {
+namespace {
+
+// A member hosting several scenes: a copy is promoted into its own scene's directory; the
+// member's other scenes (`scenes/`) and its other copies (`standby/`) stay where they are, also
+// when the promoted scene is the configured one whose directory holds them.
+TEST_F(StandbyFilesTest, PromotionIntoAHostedScenesDirectoryLeavesTheOtherScenes) {
+  const fs::path root = data();
+  const fs::path pot = root / "scenes" / "pot";
+  Touch(root / "log" / "log-main.sclog", "main log");
+  Touch(pot / "log" / "log-pot.sclog", "pot log");
+  Touch(root / "scenes" / "urn" / "log" / "log-urn.sclog", "urn log");
+  Touch(fs::path(StandbyDir(data(), "pot")) / "gen-1" / "snapshots" / "snap-pot.vdb", "pot copy");
+  Touch(fs::path(StandbyDir(data(), "pot")) / "CURRENT", "gen-1 3\n");
+  Touch(fs::path(StandbyDir(data(), "urn")) / "gen-2" / "snapshots" / "snap-urn.vdb", "urn copy");
+  Touch(fs::path(StandbyDir(data(), "urn")) / "CURRENT", "gen-2 4\n");
+
+  ASSERT_TRUE(PromoteStandbyCopy(data(), "pot", pot.string(), 3).ok());
+  EXPECT_EQ(Read(pot / "snapshots" / "snap-pot.vdb"), "pot copy");
+  EXPECT_FALSE(fs::exists(pot / "log" / "log-pot.sclog"));
+  EXPECT_EQ(PromotedFromEpoch(pot.string(), "pot"), std::optional<uint64_t>(3));
+  EXPECT_FALSE(PromotedFromEpoch(data(), "pot").has_value()) << "the marker is the scene's";
+  EXPECT_EQ(Read(root / "log" / "log-main.sclog"), "main log");
+  EXPECT_EQ(Read(root / "scenes" / "urn" / "log" / "log-urn.sclog"), "urn log");
+  EXPECT_TRUE(CurrentStandbyCopy(data(), "urn").has_value());
+  EXPECT_FALSE(fs::exists(StandbyDir(data(), "pot")));
+
+  // The configured scene's copy into data(): scenes/ and standby/ are not moved aside.
+  Touch(standby() / "gen-5" / "snapshots" / "snap-main.vdb", "main copy");
+  Touch(standby() / "CURRENT", "gen-5 9\n");
+  ASSERT_TRUE(PromoteStandbyCopy(data(), "default", data(), 9).ok());
+  EXPECT_EQ(Read(root / "snapshots" / "snap-main.vdb"), "main copy");
+  EXPECT_FALSE(fs::exists(root / "log" / "log-main.sclog"));
+  EXPECT_EQ(Read(root / "scenes" / "urn" / "log" / "log-urn.sclog"), "urn log");
+  EXPECT_EQ(Read(pot / "snapshots" / "snap-pot.vdb"), "pot copy");
+  EXPECT_TRUE(CurrentStandbyCopy(data(), "urn").has_value());
+  EXPECT_EQ(PromotedFromEpoch(data(), "default"), std::optional<uint64_t>(9));
+  EXPECT_EQ(PromotedFromEpoch(pot.string(), "pot"), std::optional<uint64_t>(3));
 }
 
 }  // namespace

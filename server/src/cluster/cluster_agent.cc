@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <filesystem>
 
 #include "cluster/placement.h"
@@ -57,42 +58,77 @@ void LogEtcdTrouble(const std::string& what, const Status& s) {
 
 }  // namespace
 
-ClusterAgent::ClusterAgent(ClusterConfig config, std::string scene,
+ClusterAgent::Slot::Slot(HostedScene h)
+    : hosted(std::move(h)), fence(std::make_shared<OwnershipFence>(hosted.name)) {
+  waiting_reason = "this member has not reached etcd yet";
+}
+
+ClusterAgent::ClusterAgent(ClusterConfig config, std::vector<HostedScene> scenes,
                            std::function<uint32_t()> sessions)
     : config_(std::move(config)),
-      scene_(std::move(scene)),
       keys_{config_.prefix},
       sessions_(std::move(sessions)),
-      fence_(std::make_shared<OwnershipFence>(scene_)),
       tick_(std::max(50, config_.lease_ttl_ms / 4)) {
-  waiting_reason_ = "this member has not reached etcd yet";
+  for (HostedScene& h : scenes) {
+    // A name given twice is one scene (one fence, one owner key).
+    if (FindSlot(h.name)) continue;
+    slots_.push_back(std::make_unique<Slot>(std::move(h)));
+  }
 }
 
 ClusterAgent::~ClusterAgent() { Stop(); }
+
+ClusterAgent::Slot* ClusterAgent::FindSlot(const std::string& scene) const {
+  for (const auto& slot : slots_) {
+    if (slot->hosted.name == scene) return slot.get();
+  }
+  return nullptr;
+}
+
+bool ClusterAgent::AnyFollowing() const {
+  return std::any_of(slots_.begin(), slots_.end(),
+                     [](const auto& slot) { return !slot->owned && slot->follower; });
+}
+
+std::shared_ptr<const OwnershipFence> ClusterAgent::fence(const std::string& scene) const {
+  if (const Slot* slot = FindSlot(scene)) return slot->fence;
+  // Fails closed: a scene this member does not host is never acknowledged through this agent.
+  return std::make_shared<const OwnershipFence>(scene);
+}
 
 MemberRecord ClusterAgent::SelfRecord() const {
   MemberRecord m;
   m.name = config_.member;
   m.tcp = tcp_;
   m.http = http_;
-  m.offers = {scene_};
-  if (owned_) {
-    m.owns = {scene_};
-    m.scene_seq = scene_seq_ ? scene_seq_() : 0;
-    m.acks_async = acks_async_ && acks_async_();
+  for (const auto& slot : slots_) {
+    m.offers.push_back(slot->hosted.name);
+    if (slot->owned) {
+      m.owns.push_back(slot->hosted.name);
+      m.owning.push_back({slot->hosted.name, slot->hosted.seq ? slot->hosted.seq() : 0,
+                          slot->hosted.acks_async && slot->hosted.acks_async()});
+    }
+    if (slot->follower && slot->follower->ready()) {
+      // Read now, not at the last tick: an owner moving its scene here waits on this figure.
+      m.following.push_back({slot->hosted.name, slot->follower->durable_seq(), false});
+    }
+  }
+  if (!m.owning.empty()) {
+    m.scene_seq = m.owning.front().seq;
+    m.acks_async = m.owning.front().acks_async;
+  }
+  if (!m.following.empty()) {
+    m.follows = m.following.front().scene;
+    m.follow_seq = m.following.front().seq;
   }
   m.sessions = sessions_ ? sessions_() : 0;
   m.standby = standby_.has_value();
-  if (follower_ && follower_->ready()) {
-    m.follows = follower_->options().scene;
-    // Read now, not at the last tick: an owner moving its scene here waits on this figure.
-    m.follow_seq = follower_->durable_seq();
-  }
   return m;
 }
 
 Status ClusterAgent::Start(const std::string& tcp, const std::string& http) {
   if (started_) return FailedPrecondition("ClusterAgent started twice");
+  if (slots_.empty()) return InvalidArgument("ClusterAgent: no scene to host");
   auto client = EtcdClient::Create({config_.etcd, std::max(std::chrono::milliseconds(100), tick_),
                                     config_.etcd_ca_file, config_.etcd_cert_file,
                                     config_.etcd_key_file});
@@ -101,6 +137,28 @@ Status ClusterAgent::Start(const std::string& tcp, const std::string& http) {
   tcp_ = tcp;
   http_ = http;
   started_ = true;
+  // A promotion's restart (Promote, execv) left its lease here. Honoured only by the same process
+  // (execv keeps the PID): then the image that held the lease no longer runs, so no other image
+  // can acknowledge anything under it. Read once; a child of this process never inherits it.
+  if (const char* env = std::getenv(kResumeLeaseEnv); env != nullptr) {
+    const std::string token = env;
+    ::unsetenv(kResumeLeaseEnv);
+    const size_t colon = token.find(':');
+    int64_t lease = 0;
+    long pid = 0;
+    try {
+      lease = std::stoll(token.substr(0, colon));
+      pid = colon == std::string::npos ? 0 : std::stol(token.substr(colon + 1));
+    } catch (...) {
+      lease = 0;
+    }
+    if (lease != 0 && pid == static_cast<long>(::getpid())) {
+      resume_lease_ = lease;
+    } else {
+      spdlog::warn("cluster: {}={} ignored: not a lease of this process (pid {})",
+                   kResumeLeaseEnv, token, ::getpid());
+    }
+  }
   const Status registered = etcd_->Sync(Register());
   if (!registered.ok()) {
     std::string list;
@@ -116,8 +174,11 @@ Status ClusterAgent::Start(const std::string& tcp, const std::string& http) {
                                          " (is etcd running? `" + etcdctl +
                                          " endpoint health`)");
   }
-  spdlog::info("cluster: member {} registered (tcp {}, http {}), lease TTL {} ms", config_.member,
-               tcp_, http_.empty() ? "off" : http_, config_.lease_ttl_ms);
+  place_from_ = Clock::now() + tick_;
+  spdlog::info("cluster: member {} registered (tcp {}, http {}), lease TTL {} ms, {} scene{}{}",
+               config_.member, tcp_, http_.empty() ? "off" : http_, config_.lease_ttl_ms,
+               slots_.size(), slots_.size() == 1 ? "" : "s",
+               resumed_ ? ", the lease kept across the restart" : "");
   // The routing table is filled before the first client can be told this member's ports.
   if (const Status read = etcd_->Sync(Refresh()); !read.ok())
     LogEtcdTrouble("reading the cluster", read);
@@ -126,11 +187,17 @@ Status ClusterAgent::Start(const std::string& tcp, const std::string& http) {
   return Status::Ok();
 }
 
+std::string ClusterAgent::ResumeToken() const {
+  const int64_t lease = lease_.load();
+  if (lease == 0) return {};
+  return std::to_string(lease) + ":" + std::to_string(::getpid());
+}
+
 void ClusterAgent::EnableStandby(StandbyOptions options) {
   if (!started_ && config_.standby) standby_ = std::move(options);
 }
 
-void ClusterAgent::RetireFollower() {
+void ClusterAgent::RetireFollower(Slot& slot) {
   std::lock_guard<std::mutex> lock(retired_mu_);
   // Threads of followers already stopped are joined (a standby retrying a dead owner retires
   // one per attempt).
@@ -142,11 +209,11 @@ void ClusterAgent::RetireFollower() {
       ++it;
     }
   }
-  if (!follower_) return;
+  if (!slot.follower) return;
   // Its destructor may wait for a connect to time out: not on the agent's thread, whose
   // keep-alives must not stall.
   auto done = std::make_shared<std::atomic<bool>>(false);
-  retired_.push_back({std::thread([f = std::shared_ptr<StandbyFollower>(std::move(follower_)),
+  retired_.push_back({std::thread([f = std::shared_ptr<StandbyFollower>(std::move(slot.follower)),
                                    done]() mutable {
                         f.reset();
                         done->store(true);
@@ -156,14 +223,16 @@ void ClusterAgent::RetireFollower() {
 
 void ClusterAgent::Stop() {
   if (stopping_.exchange(true)) return;
-  fence_->Revoke();
-  owned_epoch_ = 0;
+  for (const auto& slot : slots_) {
+    slot->fence->Revoke();
+    slot->owned_epoch = 0;
+  }
   if (!etcd_) return;
   asio::post(etcd_->io(), [this] {
     if (timer_) timer_->cancel();
   });
   // Our keys go now rather than after the TTL: other members see this one leave at once. The
-  // epoch record stays: this member, restarted, takes its scene back with epoch + 1.
+  // epoch records stay: this member, restarted, takes its scenes back with epoch + 1.
   auto revoke = [this]() -> asio::awaitable<Status> {
     if (lease_ == 0) co_return Status::Ok();
     auto call = etcd_->Revoke(lease_);
@@ -175,14 +244,58 @@ void ClusterAgent::Stop() {
   etcd_->Halt();     // joins the agent's thread; the io_context (and the loop's frame) stays
   timer_.reset();    // before its io_context: a timer's service must outlive it
   etcd_.reset();     // the loop's frame goes with its io_context
-  fence_->Revoke();  // again: an acquisition may have completed while the lease was revoked
-  RetireFollower();
+  for (const auto& slot : slots_) {
+    slot->fence->Revoke();  // again: an acquisition may have completed while the lease went
+    RetireFollower(*slot);
+  }
+  std::lock_guard<std::mutex> lock(retired_mu_);
+  for (Retired& r : retired_) r.thread.join();
+  retired_.clear();
+}
+
+void ClusterAgent::Abandon() {
+  if (stopping_.exchange(true)) return;
+  for (const auto& slot : slots_) {
+    slot->fence->Revoke();
+    slot->owned_epoch = 0;
+  }
+  if (!etcd_) return;
+  asio::post(etcd_->io(), [this] {
+    if (timer_) timer_->cancel();
+  });
+  etcd_->Halt();
+  timer_.reset();
+  etcd_.reset();
+  for (const auto& slot : slots_) {
+    slot->fence->Revoke();
+    RetireFollower(*slot);
+  }
   std::lock_guard<std::mutex> lock(retired_mu_);
   for (Retired& r : retired_) r.thread.join();
   retired_.clear();
 }
 
 asio::awaitable<Status> ClusterAgent::Register() {
+  if (resume_lease_ != 0) {
+    // The lease of the image before the execv: kept only if etcd still keeps it alive (then
+    // every key under it, owner keys included, is still there: nobody else can have taken a
+    // scene it owned).
+    const int64_t resume = std::exchange(resume_lease_, 0);
+    const auto sent = Clock::now();
+    auto ttl_call = etcd_->KeepAlive(resume);
+    auto ttl = co_await std::move(ttl_call);
+    if (ttl.ok()) {
+      lease_ = resume;
+      resumed_ = true;
+      const auto t = std::min(*ttl, std::chrono::milliseconds(config_.lease_ttl_ms));
+      lease_valid_until_ = sent + t - Margin(t);
+      auto put_call =
+          etcd_->Put({keys_.Member(config_.member), EncodeMember(SelfRecord()), lease_});
+      auto put = co_await std::move(put_call);
+      co_return put.status();
+    }
+    LogEtcdTrouble("the lease kept across the restart is gone; registering anew", ttl.status());
+  }
   const auto sent = Clock::now();
   auto lease_call = etcd_->Grant(std::chrono::milliseconds(config_.lease_ttl_ms));
   auto lease = co_await std::move(lease_call);
@@ -197,31 +310,42 @@ asio::awaitable<Status> ClusterAgent::Register() {
 }
 
 asio::awaitable<void> ClusterAgent::Loop() {
-  // A standby following its owner reads the owner key every fast tick between two full ticks:
-  // the takeover then starts within a fast tick of the owner's lease running out in etcd, not up
-  // to a whole tick later (a quarter of the failover budget at the default TTL).
+  // A standby following an owner reads the owner keys it follows every fast tick between two
+  // full ticks: the takeover then starts within a fast tick of the owner's lease running out in
+  // etcd, not up to a whole tick later (a quarter of the failover budget at the default TTL).
   const auto fast_tick = std::max(std::chrono::milliseconds(20), tick_ / 5);
   while (!stopping_) {
     co_await Tick();
     const auto next_full = Clock::now() + tick_;
     boost::system::error_code ec;
-    while (!stopping_ && !owned_ && follower_ && Clock::now() + fast_tick < next_full) {
+    bool full_now = false;
+    while (!stopping_ && !full_now && AnyFollowing() && Clock::now() + fast_tick < next_full) {
       timer_->expires_after(fast_tick);
       co_await timer_->async_wait(asio::redirect_error(asio::use_awaitable, ec));
       if (stopping_) co_return;
-      auto owner_call = etcd_->Get(keys_.Owner(scene_));
-      auto owner = co_await std::move(owner_call);
-      if (owner.ok() && !owner->has_value()) break;  // gone: the full tick takes it over now
-      if (owner.ok()) {
-        // A newer epoch than the one followed (epochs only grow): a new owner. The full tick
-        // reads the scene's keys (checked against each other), stops the old follow and follows
-        // the new owner now.
-        auto o = DecodeOwner((*owner)->value);
-        if (o.ok() && follower_ && o->epoch > follower_->expected_epoch()) break;
+      for (const auto& slot : slots_) {
+        if (slot->owned || !slot->follower) continue;
+        auto owner_call = etcd_->Get(keys_.Owner(slot->hosted.name));
+        auto owner = co_await std::move(owner_call);
+        if (stopping_) co_return;
+        if (owner.ok() && !owner->has_value()) {
+          full_now = true;  // gone: the full tick takes it over now
+          break;
+        }
+        if (owner.ok()) {
+          // A newer epoch than the one followed (epochs only grow): a new owner. The full tick
+          // reads the scene's keys (checked against each other), stops the old follow and
+          // follows the new owner now.
+          auto o = DecodeOwner((*owner)->value);
+          if (o.ok() && slot->follower && o->epoch > slot->follower->expected_epoch()) {
+            full_now = true;
+            break;
+          }
+        }
       }
     }
     if (stopping_) co_return;
-    if (Clock::now() < next_full && !(follower_ && !owned_)) {
+    if (Clock::now() < next_full && !full_now) {
       timer_->expires_at(next_full);
       co_await timer_->async_wait(asio::redirect_error(asio::use_awaitable, ec));
     }
@@ -238,11 +362,42 @@ asio::awaitable<void> ClusterAgent::Tick() {
     co_return;
   }
   if (stopping_) co_return;
-  co_await MaybeAcquire();
-  if (stopping_) co_return;
-  co_await TendStandby();
-  if (stopping_) co_return;
-  co_await TendMove();
+  // Placement of the never-owned scenes, one pass over all of them (PlaceScenes): every member
+  // reading the same records picks the same member for each, and several new scenes spread.
+  std::map<std::string, std::string> picks;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    std::vector<std::string> never_owned;
+    for (const MemberRecord& m : members_) {
+      for (const std::string& scene : m.offers) {
+        const auto it = scenes_.find(scene);
+        if (it == scenes_.end() || (!it->second.epoch && !it->second.owner)) {
+          never_owned.push_back(scene);
+        }
+      }
+    }
+    picks = PlaceScenes(members_, never_owned);
+  }
+  const bool may_place = Clock::now() >= place_from_;
+  for (const auto& slot : slots_) {
+    co_await MaybeAcquire(*slot, picks, may_place);
+    if (stopping_) co_return;
+  }
+  std::vector<std::pair<Slot*, uint64_t>> promote;
+  for (const auto& slot : slots_) {
+    auto tend_call = TendStandby(*slot);
+    const std::optional<uint64_t> dead = co_await std::move(tend_call);
+    if (stopping_) co_return;
+    if (dead) promote.emplace_back(slot.get(), *dead);
+  }
+  if (!promote.empty()) {
+    co_await Promote(std::move(promote));
+    if (stopping_) co_return;
+  }
+  for (const auto& slot : slots_) {
+    co_await TendMove(*slot);
+    if (stopping_) co_return;
+  }
 }
 
 asio::awaitable<void> ClusterAgent::KeepLeaseAlive() {
@@ -252,18 +407,22 @@ asio::awaitable<void> ClusterAgent::KeepLeaseAlive() {
   if (ttl.ok()) {
     const auto t = std::min(*ttl, std::chrono::milliseconds(config_.lease_ttl_ms));
     lease_valid_until_ = sent + t - Margin(t);
-    if (owned_) fence_->Extend(lease_valid_until_);
+    for (const auto& slot : slots_) {
+      if (slot->owned) slot->fence->Extend(lease_valid_until_);
+    }
     co_return;
   }
   if (ttl.status().code() != Status::Code::kNotFound) {
-    // etcd out of reach: the fence runs out by itself at lease_valid_until_.
+    // etcd out of reach: the fences run out by themselves at lease_valid_until_.
     ++etcd_failures_;
     LogEtcdTrouble("lease keep-alive", ttl.status());
     co_return;
   }
   // The lease is gone (we were cut off past its TTL, or Stop revoked it): so is every key under
   // it.
-  if (owned_) LoseOwnership("its lease expired in etcd");
+  for (const auto& slot : slots_) {
+    if (slot->owned) LoseOwnership(*slot, "its lease expired in etcd");
+  }
   if (stopping_) co_return;
   LogEtcdTrouble("lease expired; registering again", ttl.status());
   const Status again = co_await Register();
@@ -274,21 +433,24 @@ asio::awaitable<Status> ClusterAgent::Refresh() {
   auto put_call = etcd_->Put({keys_.Member(config_.member), EncodeMember(SelfRecord()), lease_});
   auto put = co_await std::move(put_call);
   if (!put.ok()) co_return put.status();
-  auto members_call = etcd_->GetPrefix(keys_.Members());
-  auto members = co_await std::move(members_call);
-  if (!members.ok()) co_return members.status();
-  auto scenes_call = etcd_->GetPrefix(keys_.Scenes());
-  auto scenes = co_await std::move(scenes_call);
-  if (!scenes.ok()) co_return scenes.status();
+  // Members and scenes in one range, so at one revision: an acquisition writes the owner's
+  // member record (its `owns`) in the txn that writes the scene's keys, so every member's view
+  // counts a scene as owned exactly when it counts it in its owner's load, and placement
+  // computed from two views of one revision agrees.
+  auto all_call = etcd_->GetPrefix(keys_.prefix);
+  auto all = co_await std::move(all_call);
+  if (!all.ok()) co_return all.status();
 
   std::vector<MemberRecord> live;
-  for (const KeyValue& kv : *members) {
-    auto m = DecodeMember(kv.value);
-    // Another member's record is untrusted input: a bad one is skipped, never fatal.
-    if (m.ok() && kv.key == keys_.Member(m->name)) live.push_back(std::move(m).value());
-  }
   std::map<std::string, SceneState> table;
-  for (const KeyValue& kv : *scenes) {
+  const std::string members_prefix = keys_.Members();
+  for (const KeyValue& kv : *all) {
+    if (kv.key.compare(0, members_prefix.size(), members_prefix) == 0) {
+      auto m = DecodeMember(kv.value);
+      // Another member's record is untrusted input: a bad one is skipped, never fatal.
+      if (m.ok() && kv.key == keys_.Member(m->name)) live.push_back(std::move(m).value());
+      continue;
+    }
     std::string scene, kind;
     if (!keys_.ParseSceneKey(kv.key, &scene, &kind)) continue;
     SceneState& st = table[scene];
@@ -307,7 +469,10 @@ asio::awaitable<Status> ClusterAgent::Refresh() {
     } else if (kind == "owner") {
       // An owner key not under a lease would outlive its owner: not honoured.
       auto o = DecodeOwner(kv.value);
-      if (o.ok() && kv.lease != 0) st.owner = std::move(o).value();
+      if (o.ok() && kv.lease != 0) {
+        st.owner = std::move(o).value();
+        st.owner_lease = kv.lease;
+      }
     } else {
       auto e = DecodeEpoch(kv.value);
       if (e.ok()) {
@@ -329,6 +494,7 @@ asio::awaitable<Status> ClusterAgent::Refresh() {
                                   std::to_string(st.epoch->epoch)
                             : std::string("is missing"));
       st.owner.reset();
+      st.owner_lease = 0;
     }
   }
   std::lock_guard<std::mutex> lock(mu_);
@@ -337,27 +503,56 @@ asio::awaitable<Status> ClusterAgent::Refresh() {
   co_return Status::Ok();
 }
 
-void ClusterAgent::LoseOwnership(const std::string& why) {
+void ClusterAgent::LoseOwnership(Slot& slot, const std::string& why) {
   ++ownership_losses_;
-  fence_->Revoke();
-  owned_ = false;
-  owned_epoch_ = 0;
+  slot.fence->Revoke();
+  slot.owned = false;
+  slot.owned_epoch = 0;
   spdlog::error("cluster: member {} no longer owns scene {} ({}): acknowledging nothing for it",
-                config_.member, scene_, why);
+                config_.member, slot.hosted.name, why);
 }
 
-std::pair<ClusterAgent::SceneState, std::vector<MemberRecord>> ClusterAgent::ReadTable() const {
+std::pair<ClusterAgent::SceneState, std::vector<MemberRecord>> ClusterAgent::ReadTable(
+    const std::string& scene) const {
   std::lock_guard<std::mutex> lock(mu_);
-  const auto it = scenes_.find(scene_);
+  const auto it = scenes_.find(scene);
   return {it != scenes_.end() ? it->second : SceneState{}, members_};
 }
 
-asio::awaitable<void> ClusterAgent::MaybeAcquire() {
-  const auto [st, members] = ReadTable();
-  if (owned_) {
-    const bool ours =
-        st.owner && st.owner->member == config_.member && st.owner->epoch == owned_epoch_.load();
-    if (!ours) LoseOwnership("its owner key is gone or names another member");
+asio::awaitable<void> ClusterAgent::MaybeAcquire(Slot& slot,
+                                                 const std::map<std::string, std::string>& picks,
+                                                 bool may_place) {
+  const std::string& scene = slot.hosted.name;
+  const auto [st, members] = ReadTable(scene);
+  if (slot.owned) {
+    const bool ours = st.owner && st.owner->member == config_.member &&
+                      st.owner->epoch == slot.owned_epoch.load();
+    if (!ours) LoseOwnership(slot, "its owner key is gone or names another member");
+    co_return;
+  }
+  if (st.owner && st.owner->member == config_.member && st.owner_lease == lease_.load()) {
+    // The owner key names this member under the lease it holds now, with the epoch record of an
+    // acquisition: this member acquired the scene under this lease. Either the process image
+    // before a promotion's execv did (Start resumed its lease), or this image's acquire txn
+    // succeeded and its answer was lost. No other image holds the lease (execv replaced the one
+    // that did), the key could not have been taken from it while the lease lived, and the data
+    // directory is the one the acquisition served from: owned again at the same epoch, without
+    // a new one.
+    slot.owned = true;
+    slot.owned_epoch = st.owner->epoch;
+    slot.fence->Grant(st.owner->epoch, lease_valid_until_);
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      slot.waiting_reason.clear();
+    }
+    spdlog::info("cluster: member {} owns scene {} again at epoch {} (its owner key under lease "
+                 "{}{})",
+                 config_.member, scene, st.owner->epoch, lease_.load(),
+                 resumed_ ? ", kept across the restart" : "");
+    auto put_call =
+        etcd_->Put({keys_.Member(config_.member), EncodeMember(SelfRecord()), lease_});
+    auto put = co_await std::move(put_call);
+    if (!put.ok()) LogEtcdTrouble("publishing the load", put.status());
     co_return;
   }
   if (st.owner) co_return;  // another member serves it; RouteScene redirects there
@@ -372,7 +567,7 @@ asio::awaitable<void> ClusterAgent::MaybeAcquire() {
     if (st.epoch->member != config_.member) {
       const bool named = st.standby && st.standby->member == config_.member;
       promoted = named && standby_ &&
-                 PromotedFromEpoch(standby_->data_dir, scene_) == st.epoch->epoch;
+                 PromotedFromEpoch(slot.hosted.data_dir, scene) == st.epoch->epoch;
       if (!promoted) {
         reason = "its last owner " + st.epoch->member + " (epoch " +
                  std::to_string(st.epoch->epoch) + ") is gone" +
@@ -388,12 +583,17 @@ asio::awaitable<void> ClusterAgent::MaybeAcquire() {
       reason = "it is being moved to member " + st.move->member +
                ", which takes it over from its copy";
     }
-  } else if (const auto pick = PickMember(members, scene_); pick && *pick != config_.member) {
-    reason = "placed on member " + *pick + ", which has not taken it yet";
+  } else if (const auto pick = picks.find(scene);
+             pick != picks.end() && pick->second != config_.member) {
+    reason = "placed on member " + pick->second + ", which has not taken it yet";
+  } else if (pick == picks.end()) {
+    reason = "no live member offers it yet";  // this member's record not read back yet
+  } else if (!may_place) {
+    reason = "this member places new scenes once the members starting with it are registered";
   }
   {
     std::lock_guard<std::mutex> lock(mu_);
-    waiting_reason_ = reason.empty() ? "being acquired by this member" : reason;
+    slot.waiting_reason = reason.empty() ? "being acquired by this member" : reason;
   }
   if (!reason.empty()) co_return;
 
@@ -401,59 +601,69 @@ asio::awaitable<void> ClusterAgent::MaybeAcquire() {
   OwnerRecord owner{config_.member, tcp_, http_, epoch};
   TxnRequest txn;
   // Nobody owns it, and nobody bumped the epoch since we read it.
-  txn.compares = {{keys_.Owner(scene_), Compare::Target::kCreateRevision, 0},
-                  {keys_.Epoch(scene_), Compare::Target::kModRevision, st.epoch_mod_revision}};
+  txn.compares = {{keys_.Owner(scene), Compare::Target::kCreateRevision, 0},
+                  {keys_.Epoch(scene), Compare::Target::kModRevision, st.epoch_mod_revision}};
   // The standby named when we read (a promotion is the named standby's only).
   if (st.standby) {
     txn.compares.push_back(
-        {keys_.Standby(scene_), Compare::Target::kModRevision, st.standby_mod_revision});
+        {keys_.Standby(scene), Compare::Target::kModRevision, st.standby_mod_revision});
   }
-  txn.success = {{keys_.Owner(scene_), EncodeOwner(owner), lease_},
-                 {keys_.Epoch(scene_), EncodeEpoch({epoch, config_.member}), 0}};
+  // This member's record with the scene among its owned ones, in the same txn (see Refresh).
+  MemberRecord self = SelfRecord();
+  self.owns.push_back(scene);
+  self.owning.push_back({scene, slot.hosted.seq ? slot.hosted.seq() : 0,
+                         slot.hosted.acks_async && slot.hosted.acks_async()});
+  self.scene_seq = self.owning.front().seq;
+  self.acks_async = self.owning.front().acks_async;
+  txn.success = {{keys_.Owner(scene), EncodeOwner(owner), lease_},
+                 {keys_.Epoch(scene), EncodeEpoch({epoch, config_.member}), 0},
+                 {keys_.Member(config_.member), EncodeMember(self), lease_}};
   auto r_call = etcd_->Txn(std::move(txn));
   auto r = co_await std::move(r_call);
   if (!r.ok()) {
-    LogEtcdTrouble("acquiring scene " + scene_, r.status());
+    LogEtcdTrouble("acquiring scene " + scene, r.status());
     co_return;
   }
   if (!r->succeeded) co_return;  // another member was faster; the next Refresh shows it
   if (stopping_) co_return;      // Stop revokes the lease: the owner key goes with it
-  owned_ = true;
-  owned_epoch_ = epoch;
-  fence_->Grant(epoch, lease_valid_until_);
+  slot.owned = true;
+  slot.owned_epoch = epoch;
+  slot.fence->Grant(epoch, lease_valid_until_);
   {
     std::lock_guard<std::mutex> lock(mu_);
-    SceneState& mine = scenes_[scene_];
+    SceneState& mine = scenes_[scene];
     mine.owner = owner;
+    mine.owner_lease = lease_;
     mine.epoch = EpochRecord{epoch, config_.member};
-    waiting_reason_.clear();
+    slot.waiting_reason.clear();
   }
-  spdlog::info("cluster: member {} owns scene {} at epoch {}{}", config_.member, scene_, epoch,
+  spdlog::info("cluster: member {} owns scene {} at epoch {}{}", config_.member, scene, epoch,
                promoted ? " (took it over as the standby)" : "");
-  if (standby_) ClearPromotedMarker(standby_->data_dir);
-  RetireFollower();
+  ClearPromotedMarker(slot.hosted.data_dir);
+  RetireFollower(slot);
   // The new load right away, so placement elsewhere sees it before the next tick.
   auto put_call = etcd_->Put({keys_.Member(config_.member), EncodeMember(SelfRecord()), lease_});
   auto put = co_await std::move(put_call);
   if (!put.ok()) LogEtcdTrouble("publishing the load", put.status());
 }
 
-asio::awaitable<void> ClusterAgent::TendStandby() {
-  const auto [st, members] = ReadTable();
-  if (owned_) {
-    RetireFollower();
+asio::awaitable<std::optional<uint64_t>> ClusterAgent::TendStandby(Slot& slot) {
+  const std::string& scene = slot.hosted.name;
+  const auto [st, members] = ReadTable(scene);
+  if (slot.owned) {
+    RetireFollower(slot);
     if (config_.replication == "none") {
       // No standby: nobody follows, and a standby named under an earlier setting is dropped, so
       // no member takes the scene over from a copy this owner no longer feeds.
       if (st.standby) {
-        auto del_call = etcd_->Delete(keys_.Standby(scene_));
+        auto del_call = etcd_->Delete(keys_.Standby(scene));
         auto del = co_await std::move(del_call);
         if (!del.ok()) LogEtcdTrouble("removing the standby (replication = none)", del.status());
       }
-      co_return;
+      co_return std::nullopt;
     }
     // The standby: the one named while it lives and may follow, else the least loaded other
-    // live member that offers the scene and may follow (every owner computes the same).
+    // live member that offers the scene and may follow (owned plus followed scenes).
     std::vector<MemberRecord> candidates;
     for (const MemberRecord& m : members) {
       if (m.name != config_.member && m.standby) candidates.push_back(m);
@@ -462,55 +672,60 @@ asio::awaitable<void> ClusterAgent::TendStandby() {
                                                 [&](const MemberRecord& m) {
                                                   return m.name == st.standby->member;
                                                 });
-    if (keep) co_return;
-    const auto pick = PickMember(candidates, scene_);
-    if (!pick) co_return;
-    StandbyRecord record{*pick, owned_epoch_.load()};
-    auto put_call = etcd_->Put({keys_.Standby(scene_), EncodeStandby(record), 0});
+    if (keep) co_return std::nullopt;
+    const auto picks = PickStandbys(candidates, {scene});
+    const auto pick = picks.find(scene);
+    if (pick == picks.end()) co_return std::nullopt;
+    StandbyRecord record{pick->second, slot.owned_epoch.load()};
+    auto put_call = etcd_->Put({keys_.Standby(scene), EncodeStandby(record), 0});
     auto put = co_await std::move(put_call);
     if (!put.ok()) {
       LogEtcdTrouble("naming a standby", put.status());
     } else {
-      spdlog::info("cluster: member {} is the standby of scene {} (epoch {})", *pick, scene_,
-                   record.epoch);
+      spdlog::info("cluster: member {} is the standby of scene {} (epoch {})", pick->second,
+                   scene, record.epoch);
       // Routing knows at once, not at the next Refresh: the standby may subscribe before it, and
       // its session is told apart by this name (its progress reports and the resend table that
-      // comes with its region load).
+      // comes with its region load). The member's load counts it too, so the next scene's
+      // standby this tick goes elsewhere when it can.
       std::lock_guard<std::mutex> lock(mu_);
-      scenes_[scene_].standby = record;
+      scenes_[scene].standby = record;
+      for (MemberRecord& m : members_) {
+        if (m.name == pick->second) m.following.push_back({scene, 0, false});
+      }
     }
-    co_return;
+    co_return std::nullopt;
   }
   // Fencing: the follow takes only the epoch etcd names. Once the scene's epoch moved on (a new
   // owner, or none yet), the old owner's stream is refused at once, also while this member waits
   // for the new owner or stops following.
-  if (follower_ && st.epoch && st.epoch->epoch != follower_->options().owner_epoch) {
-    follower_->Supersede(st.epoch->epoch);
+  if (slot.follower && st.epoch && st.epoch->epoch != slot.follower->options().owner_epoch) {
+    slot.follower->Supersede(st.epoch->epoch);
   }
   const bool named = standby_ && st.standby && st.standby->member == config_.member;
   if (!named) {
-    RetireFollower();
-    co_return;
+    RetireFollower(slot);
+    co_return std::nullopt;
   }
   if (st.owner && st.owner->member != config_.member) {
     // Follow the owner; a new follow when the owner changed or the last one ended.
-    const bool same_owner = follower_ && follower_->options().owner_tcp == st.owner->tcp &&
-                            follower_->options().owner_epoch == st.owner->epoch;
-    const bool current = same_owner && !follower_->finished();
+    const bool same_owner = slot.follower && slot.follower->options().owner_tcp == st.owner->tcp &&
+                            slot.follower->options().owner_epoch == st.owner->epoch;
+    const bool current = same_owner && !slot.follower->finished();
     const auto now = Clock::now();
-    if (follower_ && follower_->finished() && ended_at_ == Clock::time_point{}) {
-      spdlog::warn("cluster: following scene {} ended: {}", scene_, follower_->failure());
-      ended_at_ = now;
+    if (slot.follower && slot.follower->finished() && slot.ended_at == Clock::time_point{}) {
+      spdlog::warn("cluster: following scene {} ended: {}", scene, slot.follower->failure());
+      slot.ended_at = now;
     }
     // The same owner again only after a pause (a follow that fails at once, e.g. a scene of
     // several objects, must not reconnect every tick); a new owner at once.
-    const bool wait = same_owner && !current && now - ended_at_ < std::chrono::seconds(2);
+    const bool wait = same_owner && !current && now - slot.ended_at < std::chrono::seconds(2);
     if (!current && !wait) {
-      ended_at_ = {};
-      RetireFollower();
+      slot.ended_at = {};
+      RetireFollower(slot);
       FollowerOptions fo;
       fo.data_dir = standby_->data_dir;
-      fo.scene = scene_;
+      fo.scene = scene;
       fo.member = config_.member;
       // The members' peer token when the cluster has one (the owner then takes only a session
       // that presented it for its standby); else the viewer token.
@@ -520,64 +735,86 @@ asio::awaitable<void> ClusterAgent::TendStandby() {
       fo.owner_epoch = st.owner->epoch;
       fo.stale_epoch_refusals = stale_epoch_refusals_;
       fo.snapshot_every_records = standby_->snapshot_every_edits;
-      follower_ = std::make_unique<StandbyFollower>(std::move(fo));
+      slot.follower = std::make_unique<StandbyFollower>(std::move(fo));
     }
-    if (follower_ && follower_->ready()) follow_seq_ = follower_->durable_seq();
-    co_return;
+    if (slot.follower && slot.follower->ready()) slot.follow_seq = slot.follower->durable_seq();
+    co_return std::nullopt;
   }
-  if (st.owner || !st.epoch || st.epoch->member == config_.member) co_return;
-  if (PromotedFromEpoch(standby_->data_dir, scene_) == st.epoch->epoch) co_return;  // acquiring
+  if (st.owner || !st.epoch || st.epoch->member == config_.member) co_return std::nullopt;
+  if (PromotedFromEpoch(slot.hosted.data_dir, scene) == st.epoch->epoch) {
+    co_return std::nullopt;  // acquiring
+  }
   // The owner is gone and this member is its standby: take over with the copy of that epoch.
   uint64_t copy_epoch = 0;
-  if (!CurrentStandbyCopy(standby_->data_dir, scene_, &copy_epoch) ||
+  if (!CurrentStandbyCopy(standby_->data_dir, scene, &copy_epoch) ||
       copy_epoch != st.epoch->epoch) {
     std::lock_guard<std::mutex> lock(mu_);
-    waiting_reason_ = "its last owner " + st.epoch->member + " (epoch " +
-                      std::to_string(st.epoch->epoch) +
-                      ") is gone and this member, its standby, holds no copy of that epoch";
-    co_return;
+    slot.waiting_reason = "its last owner " + st.epoch->member + " (epoch " +
+                          std::to_string(st.epoch->epoch) +
+                          ") is gone and this member, its standby, holds no copy of that epoch";
+    co_return std::nullopt;
   }
-  co_await Promote(st.epoch->epoch);
+  co_return st.epoch->epoch;
 }
 
-asio::awaitable<void> ClusterAgent::Promote(uint64_t dead_epoch) {
-  spdlog::warn("cluster: the owner of scene {} (epoch {}) is gone: member {}, its standby, takes "
-               "it over",
-               scene_, dead_epoch, config_.member);
-  if (follower_) {
-    // Its log made durable and closed before the files move (the connection is gone already).
-    follower_.reset();
-  }
+asio::awaitable<void> ClusterAgent::Promote(std::vector<std::pair<Slot*, uint64_t>> promote) {
   if (standby_->restart_argv.empty()) {
     LogEtcdTrouble("promotion", FailedPrecondition("no command line to restart with"));
     co_return;
   }
-  if (const Status s = PromoteStandbyCopy(standby_->data_dir, scene_, dead_epoch); !s.ok()) {
-    LogEtcdTrouble("promotion", s);
-    co_return;
+  size_t promoted = 0;
+  for (auto& [slot, dead_epoch] : promote) {
+    spdlog::warn("cluster: the owner of scene {} (epoch {}) is gone: member {}, its standby, "
+                 "takes it over",
+                 slot->hosted.name, dead_epoch, config_.member);
+    // Its log made durable and closed before the files move (the connection is gone already).
+    slot->follower.reset();
+    if (const Status s = PromoteStandbyCopy(standby_->data_dir, slot->hosted.name,
+                                            slot->hosted.data_dir, dead_epoch);
+        !s.ok()) {
+      LogEtcdTrouble("promotion of scene " + slot->hosted.name, s);
+      continue;
+    }
+    ++promoted;
   }
-  // This member's keys go now; the restarted process registers anew and acquires.
-  auto revoke_call = etcd_->Revoke(lease_);
-  auto revoked = co_await std::move(revoke_call);
-  if (!revoked.ok()) LogEtcdTrouble("revoking the lease before the restart", revoked);
+  if (promoted == 0) co_return;
+  // The restart keeps the lease (and with it this member's record and the owner keys of the
+  // scenes it owns): revoking it would leave those scenes without an owner for the restart and
+  // invite their standbys to take them over. The restarted process resumes the lease if it still
+  // lives (Start, Register); the promoted scenes are acquired with epoch + 1 from their marker.
+  // Safety: from here on this image acknowledges nothing (every fence revoked), and execv
+  // replaces it in the same process, so the one image that may use the lease afterwards is the
+  // restarted one, which opens the same data directories (docs/cluster.md, "Lease resume").
+  for (const auto& slot : slots_) slot->fence->Revoke();
+  const std::string token = ResumeToken();
+  if (::setenv(kResumeLeaseEnv, token.c_str(), 1) != 0) {
+    // Without it the restart registers a new lease; the owned scenes come back with epoch + 1
+    // once the old lease expires (unless their standbys are faster).
+    LogEtcdTrouble("promotion", Internal("cannot set " + std::string(kResumeLeaseEnv)));
+  }
+  // A fresh keep-alive: the restart has the whole TTL to reach etcd again.
+  auto ttl_call = etcd_->KeepAlive(lease_);
+  auto ttl = co_await std::move(ttl_call);
+  if (!ttl.ok()) LogEtcdTrouble("keeping the lease alive before the restart", ttl.status());
   Reexec(standby_->restart_argv);
 }
 
-asio::awaitable<void> ClusterAgent::TendMove() {
-  const auto [st, members] = ReadTable();
-  if (!owned_) {
+asio::awaitable<void> ClusterAgent::TendMove(Slot& slot) {
+  const std::string& scene = slot.hosted.name;
+  const auto [st, members] = ReadTable(scene);
+  if (!slot.owned) {
     // Ownership lost meanwhile (LoseOwnership fenced already) or released: nothing to undo.
-    move_fenced_ = false;
-    move_mark_.reset();
+    slot.move_fenced = false;
+    slot.move_mark.reset();
     co_return;
   }
   if (!st.move) {
-    ResumeAfterMove("its move request was removed");
-    move_target_.clear();
+    ResumeAfterMove(slot, "its move request was removed");
+    slot.move_target.clear();
     co_return;
   }
   const MoveRecord& mv = *st.move;
-  const uint64_t epoch = owned_epoch_.load();
+  const uint64_t epoch = slot.owned_epoch.load();
   const auto target = std::find_if(members.begin(), members.end(),
                                    [&](const MemberRecord& m) { return m.name == mv.member; });
   const auto limit = std::max(std::chrono::milliseconds(10000), 4 * tick_);
@@ -593,61 +830,62 @@ asio::awaitable<void> ClusterAgent::TendMove() {
     why = "member " + mv.member + " is not a live member";
   } else if (!target->standby) {
     why = "member " + mv.member + " may not follow a scene (its cluster.standby is false)";
-  } else if (std::find(target->offers.begin(), target->offers.end(), scene_) ==
+  } else if (std::find(target->offers.begin(), target->offers.end(), scene) ==
              target->offers.end()) {
-    why = "member " + mv.member + " does not offer scene " + scene_;
+    why = "member " + mv.member + " does not offer scene " + scene;
   } else if (config_.replication == "none") {
     why = "the scene has replication = \"none\": no standby follows it";
-  } else if (!scene_seq_) {
+  } else if (!slot.hosted.seq) {
     why = "this member cannot read its scene's sequence";
-  } else if (move_fenced_ && Clock::now() - move_fenced_at_ > limit) {
+  } else if (slot.move_fenced && Clock::now() - slot.move_fenced_at > limit) {
     why = "member " + mv.member + "'s copy did not reach the last sequence within " +
           std::to_string(limit.count()) + " ms of the fence";
   }
   if (!why.empty()) {
-    co_await DropMove(st.move_mod_revision, mv.member, why);
+    co_await DropMove(slot, st.move_mod_revision, mv.member, why);
     co_return;
   }
-  if (move_target_ != mv.member) {
-    move_target_ = mv.member;
-    move_mark_.reset();
-    spdlog::info("cluster: moving scene {} (epoch {}) to member {} as requested", scene_, epoch,
+  if (slot.move_target != mv.member) {
+    slot.move_target = mv.member;
+    slot.move_mark.reset();
+    spdlog::info("cluster: moving scene {} (epoch {}) to member {} as requested", scene, epoch,
                  mv.member);
   }
   if (!st.standby || st.standby->member != mv.member) {
     // The target follows first, as any standby does (TendStandby keeps it while it lives).
     StandbyRecord record{mv.member, epoch};
-    auto put_call = etcd_->Put({keys_.Standby(scene_), EncodeStandby(record), 0});
+    auto put_call = etcd_->Put({keys_.Standby(scene), EncodeStandby(record), 0});
     auto put = co_await std::move(put_call);
     if (!put.ok()) {
       LogEtcdTrouble("naming the standby for a move", put.status());
       co_return;
     }
     spdlog::info("cluster: member {} is the standby of scene {} (epoch {}), for the move",
-                 mv.member, scene_, epoch);
+                 mv.member, scene, epoch);
     std::lock_guard<std::mutex> lock(mu_);
-    scenes_[scene_].standby = record;
+    scenes_[scene].standby = record;
     co_return;
   }
   // How far the target's copy is durable, as its member record said at its last refresh.
-  const uint64_t copy = target->follows == scene_ ? target->follow_seq : 0;
-  const uint64_t seq = scene_seq_();
-  if (!move_fenced_) {
-    if (target->follows != scene_) co_return;  // still loading its copy
+  const SceneProgress* follows = target->Following(scene);
+  const uint64_t copy = follows ? follows->seq : 0;
+  const uint64_t seq = slot.hosted.seq();
+  if (!slot.move_fenced) {
+    if (!follows) co_return;  // still loading its copy
     // Caught up: the copy holds what this member had when the target was first seen following,
     // so what remains after the fence is a few ticks of edits at most.
-    if (!move_mark_) move_mark_ = seq;
-    if (copy < *move_mark_) co_return;
-    fence_->Revoke();
-    move_fenced_ = true;
-    move_fenced_at_ = Clock::now();
+    if (!slot.move_mark) slot.move_mark = seq;
+    if (copy < *slot.move_mark) co_return;
+    slot.fence->Revoke();
+    slot.move_fenced = true;
+    slot.move_fenced_at = Clock::now();
     {
       std::lock_guard<std::mutex> lock(mu_);
-      moving_to_ = mv.member;
+      slot.moving_to = mv.member;
     }
     spdlog::info("cluster: scene {} fenced for the move to member {} (its copy holds seq {}, this "
                  "member seq {}): sequencing and acknowledging nothing more",
-                 scene_, mv.member, copy, seq);
+                 scene, mv.member, copy, seq);
     co_return;
   }
   if (copy < seq) co_return;  // the copy takes the last edits
@@ -656,75 +894,81 @@ asio::awaitable<void> ClusterAgent::TendMove() {
   MoveRecord released = mv;
   released.released = true;
   TxnRequest txn;
-  txn.compares = {{keys_.Epoch(scene_), Compare::Target::kModRevision, st.epoch_mod_revision},
-                  {keys_.Move(scene_), Compare::Target::kModRevision, st.move_mod_revision}};
-  txn.success = {{keys_.Move(scene_), EncodeMove(released), 0}};
-  txn.success_deletes = {keys_.Owner(scene_)};
+  txn.compares = {{keys_.Epoch(scene), Compare::Target::kModRevision, st.epoch_mod_revision},
+                  {keys_.Move(scene), Compare::Target::kModRevision, st.move_mod_revision}};
+  txn.success = {{keys_.Move(scene), EncodeMove(released), 0}};
+  txn.success_deletes = {keys_.Owner(scene)};
   auto r_call = etcd_->Txn(std::move(txn));
   auto r = co_await std::move(r_call);
   if (!r.ok()) {
-    LogEtcdTrouble("releasing scene " + scene_ + " for the move", r.status());
+    LogEtcdTrouble("releasing scene " + scene + " for the move", r.status());
     co_return;
   }
   if (!r->succeeded) co_return;  // the request or the epoch changed: the next tick reads them
-  owned_ = false;
-  owned_epoch_ = 0;
-  move_fenced_ = false;
-  move_mark_.reset();
-  move_target_.clear();
+  slot.owned = false;
+  slot.owned_epoch = 0;
+  slot.move_fenced = false;
+  slot.move_mark.reset();
+  slot.move_target.clear();
   {
     std::lock_guard<std::mutex> lock(mu_);
-    SceneState& mine = scenes_[scene_];
+    SceneState& mine = scenes_[scene];
     mine.owner.reset();
+    mine.owner_lease = 0;
     mine.move = released;
-    moving_to_.clear();
-    waiting_reason_ = "it is being moved to member " + mv.member +
-                      ", which takes it over from its copy";
+    slot.moving_to.clear();
+    slot.waiting_reason = "it is being moved to member " + mv.member +
+                          ", which takes it over from its copy";
   }
   spdlog::info("cluster: member {} released scene {} (epoch {}, seq {}) to member {}, whose copy "
                "holds it: {} takes it over as its standby",
-               config_.member, scene_, epoch, seq, mv.member, mv.member);
+               config_.member, scene, epoch, seq, mv.member, mv.member);
   auto put_call = etcd_->Put({keys_.Member(config_.member), EncodeMember(SelfRecord()), lease_});
   auto put = co_await std::move(put_call);
   if (!put.ok()) LogEtcdTrouble("publishing the load", put.status());
 }
 
-asio::awaitable<void> ClusterAgent::DropMove(int64_t mod_revision, std::string member,
+asio::awaitable<void> ClusterAgent::DropMove(Slot& slot, int64_t mod_revision, std::string member,
                                              std::string why) {
+  const std::string& scene = slot.hosted.name;
   // Only the request read (a newer one is judged on its own at the next tick).
   TxnRequest txn;
-  txn.compares = {{keys_.Move(scene_), Compare::Target::kModRevision, mod_revision}};
-  txn.success_deletes = {keys_.Move(scene_)};
+  txn.compares = {{keys_.Move(scene), Compare::Target::kModRevision, mod_revision}};
+  txn.success_deletes = {keys_.Move(scene)};
   auto r_call = etcd_->Txn(std::move(txn));
   auto r = co_await std::move(r_call);
   if (!r.ok()) {
-    LogEtcdTrouble("removing the move request of scene " + scene_, r.status());
+    LogEtcdTrouble("removing the move request of scene " + scene, r.status());
     co_return;
   }
   if (r->succeeded && member == config_.member) {
-    spdlog::info("cluster: move request of scene {} to member {} removed: {}", scene_, member,
+    spdlog::info("cluster: move request of scene {} to member {} removed: {}", scene, member,
                  why);
   } else if (r->succeeded) {
-    spdlog::warn("cluster: move request of scene {} to member {} removed: {}", scene_, member,
+    spdlog::warn("cluster: move request of scene {} to member {} removed: {}", scene, member,
                  why);
   }
-  ResumeAfterMove("its move request was removed");
-  move_target_.clear();
+  ResumeAfterMove(slot, "its move request was removed");
+  slot.move_target.clear();
 }
 
-void ClusterAgent::ResumeAfterMove(const std::string& why) {
-  move_mark_.reset();
-  if (!move_fenced_) return;
-  move_fenced_ = false;
+void ClusterAgent::ResumeAfterMove(Slot& slot, const std::string& why) {
+  slot.move_mark.reset();
+  if (!slot.move_fenced) return;
+  slot.move_fenced = false;
   {
     std::lock_guard<std::mutex> lock(mu_);
-    moving_to_.clear();
+    slot.moving_to.clear();
   }
-  if (owned_) fence_->Grant(owned_epoch_.load(), lease_valid_until_);
-  spdlog::warn("cluster: scene {}: the move is off ({}): acknowledging again", scene_, why);
+  if (slot.owned) slot.fence->Grant(slot.owned_epoch.load(), lease_valid_until_);
+  spdlog::warn("cluster: scene {}: the move is off ({}): acknowledging again", slot.hosted.name,
+               why);
 }
 
-uint64_t ClusterAgent::owned_epoch() const { return fence_->held() ? owned_epoch_.load() : 0; }
+uint64_t ClusterAgent::owned_epoch(const std::string& scene) const {
+  const Slot* slot = FindSlot(scene);
+  return slot && slot->fence->held() ? slot->owned_epoch.load() : 0;
+}
 
 std::vector<MemberAddress> ClusterAgent::LiveMembers() const {
   std::lock_guard<std::mutex> lock(mu_);
@@ -736,13 +980,14 @@ std::vector<MemberAddress> ClusterAgent::LiveMembers() const {
 
 Route ClusterAgent::RouteScene(const std::string& requested) const {
   Route r;
-  r.scene = requested.empty() ? scene_ : requested;
-  if (r.scene == scene_ && fence_->held()) {
+  r.scene = requested.empty() && !slots_.empty() ? slots_.front()->hosted.name : requested;
+  const Slot* slot = FindSlot(r.scene);
+  if (slot && slot->fence->held()) {
     r.kind = Route::Kind::kLocal;
     r.member = config_.member;
-    r.epoch = fence_->epoch();
+    r.epoch = slot->fence->epoch();
     std::lock_guard<std::mutex> lock(mu_);
-    const auto it = scenes_.find(scene_);
+    const auto it = scenes_.find(r.scene);
     if (it != scenes_.end() && it->second.standby) r.standby = it->second.standby->member;
     return r;
   }
@@ -757,15 +1002,16 @@ Route ClusterAgent::RouteScene(const std::string& requested) const {
     r.epoch = o.epoch;
     return r;
   }
-  if (r.scene == scene_) {
+  if (slot) {
     r.kind = Route::Kind::kUnavailable;
     r.reason =
-        "scene " + scene_ + " has no owner now: " +
+        "scene " + r.scene + " has no owner now: " +
         (it != scenes_.end() && it->second.owner
-             ? (moving_to_.empty() ? "this member's lease is not confirmed by etcd"
-                                   : "it is being moved to member " + moving_to_ +
-                                         ", which takes it over once its copy holds every edit")
-             : waiting_reason_);
+             ? (slot->moving_to.empty()
+                    ? "this member's lease is not confirmed by etcd"
+                    : "it is being moved to member " + slot->moving_to +
+                          ", which takes it over once its copy holds every edit")
+             : slot->waiting_reason);
     return r;
   }
   if (it != scenes_.end()) {

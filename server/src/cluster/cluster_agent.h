@@ -1,6 +1,6 @@
 /// @brief ClusterAgent: this member's presence in etcd (lease, membership record), the ownership
-/// of its scene (acquired by txn with a new epoch, fenced locally), and the routing table
-/// sessions read to redirect a JoinScene to a scene's owner.
+/// of the scenes it hosts (each acquired by txn with a new epoch, fenced locally), and the
+/// routing table sessions read to redirect a JoinScene to a scene's owner.
 #ifndef SCULPT_SERVER_CLUSTER_CLUSTER_AGENT_H_
 #define SCULPT_SERVER_CLUSTER_CLUSTER_AGENT_H_
 
@@ -28,23 +28,24 @@ class MetricsWriter;
 
 namespace sculpt::server::cluster {
 
-/// One sculptd's part in a cluster (docs/cluster.md). Every `lease_ttl_ms / 4` it: keeps its
-/// lease alive (the fence's deadline follows each answered keep-alive), refreshes
-/// `members/<name>` with its load, reads every member and scene key, and, if its scene has no
-/// owner and this member may take it (a new scene placed here, least loaded, or a scene whose
-/// last owner was this member), acquires `scenes/<scene>/owner` with epoch + 1 in one txn.
-/// All etcd traffic runs on the EtcdClient's own thread; sessions only read the routing table
-/// (RouteScene) and the commit pipeline only reads the fence.
-/// Thread safety: Start and Stop from the owning thread; RouteScene, fence() and the accessors
-/// from any thread.
-/// Standby and failover (docs/cluster.md): the owner names a standby among the other live
-/// members (`scenes/<scene>/standby`); that member follows the owner's edit stream into
-/// `<data_dir>/standby/` (StandbyFollower); when the owner's key is gone it makes that copy its
-/// data directory and restarts itself with the same command line, and the restarted process
-/// takes the scene with the next epoch.
+/// One scene this member hosts: its name, the data directory it lives in (config.data_dir for
+/// the configured scene; a standby copy of it is promoted into this directory), and two hooks the
+/// agent calls on its own thread: the scene's last applied sequence (Scene::global_seq: the
+/// standbys' lag, and what a move compares the target's copy with; empty: no move is carried
+/// out) and whether its synchronous acks have fallen back to async (AckGate::fallen_back).
+struct HostedScene {
+  std::string name;
+  std::string data_dir;
+  std::function<uint64_t()> seq;
+  std::function<bool()> acks_async;
+};
+
+/// What a member needs to follow other owners' scenes and to take one over.
 struct StandbyOptions {
-  std::string data_dir;  // config.data_dir
-  std::string token;     // a viewer token the owner accepts
+  /// The member's data directory (config.data_dir): its standby copies live in
+  /// `<data_dir>/standby/<scene>/`, whichever hosted scene they copy.
+  std::string data_dir;
+  std::string token;  // a viewer token the owner accepts
   /// This process's command line, run again (execv of /proc/self/exe) after a promotion.
   std::vector<std::string> restart_argv;
   /// The copy's snapshot interval in logged records (config.snapshot_every_edits).
@@ -53,112 +54,77 @@ struct StandbyOptions {
   PeerTlsOptions tls;
 };
 
+/// The environment variable a promotion sets before execv ("<lease id>:<pid>"): the restarted
+/// process resumes that lease, and the scenes it owned under it, when the lease still lives.
+inline constexpr char kResumeLeaseEnv[] = "SCULPT_CLUSTER_RESUME_LEASE";
+
+/// One sculptd's part in a cluster (docs/cluster.md), for every scene it hosts, under one member
+/// lease. Every `lease_ttl_ms / 4` it: keeps its lease alive (the fences' deadline follows each
+/// answered keep-alive), refreshes `members/<name>` with its load (`offers` every hosted scene,
+/// `owns` those it owns), reads every member and scene key, and acquires each hosted scene that
+/// has no owner and that this member may take (a never-owned scene placed here by PlaceScenes,
+/// or a scene whose last owner was this member) with `scenes/<scene>/owner` at epoch + 1 in one
+/// txn. All etcd traffic runs on the EtcdClient's own thread; sessions only read the routing
+/// table (RouteScene) and each scene's commit pipeline only reads its fence.
+/// Standby and failover: each owner names a standby per scene among the other live members
+/// (`scenes/<scene>/standby`); the named member follows the owner's edit stream into
+/// `<data_dir>/standby/<scene>/` (one StandbyFollower per followed scene); when the owner's key
+/// is gone it makes that copy the scene's data directory (HostedScene::data_dir) and restarts
+/// itself with the same command line, keeping its lease for the scenes it owns (Start resumes
+/// it), and the restarted process takes the scene with the next epoch.
+/// Thread safety: constructor, Start, Stop, Abandon and EnableStandby from the owning thread;
+/// RouteScene, fence(), the accessors and WriteMetrics from any thread.
 class ClusterAgent : public SceneRouter {
  public:
-  /// `scene`: the scene this process serves (config.scene.name); `sessions`: its joined sessions
-  /// now (called on the agent's thread).
-  ClusterAgent(ClusterConfig config, std::string scene, std::function<uint32_t()> sessions);
+  /// `scenes`: the scenes this process serves (at least one; the first is the one a JoinScene
+  /// naming no scene gets); `sessions`: its joined sessions now (called on the agent's thread).
+  ClusterAgent(ClusterConfig config, std::vector<HostedScene> scenes,
+               std::function<uint32_t()> sessions);
   ~ClusterAgent() override;
 
-  /// Connects to etcd, grants the lease and registers this member with its advertised
-  /// addresses (HOST:PORT; http empty when the HTTP port is off), then runs the loop above in
-  /// the background. Unavailable naming the endpoints when etcd does not answer; InvalidArgument
-  /// for a malformed endpoint.
+  /// Connects to etcd and registers this member with its advertised addresses (HOST:PORT; http
+  /// empty when the HTTP port is off), then runs the loop above in the background. The lease is
+  /// the one named by kResumeLeaseEnv when that was set by this very process image's
+  /// predecessor (same PID: execv) and etcd still keeps it alive; the scenes whose owner keys
+  /// name this member under it are then owned again at their epochs (docs/cluster.md, "Lease
+  /// resume"). Otherwise a new lease is granted. Unavailable naming the endpoints when etcd does
+  /// not answer; InvalidArgument for a malformed endpoint.
   Status Start(const std::string& tcp, const std::string& http);
   /// Before Start: this member may be a standby (cluster.standby) and take a scene over. Without
   /// it the member neither follows nor takes over a scene another member owned.
   void EnableStandby(StandbyOptions options);
-  /// Before Start: the scene's last applied sequence (Scene::global_seq), which an owner asked to
-  /// move its scene (`scenes/<scene>/move`) compares with its standby's copy. Without it no
-  /// move request is carried out.
-  void set_scene_seq(std::function<uint64_t()> scene_seq) {
-    if (!started_) scene_seq_ = std::move(scene_seq);
-  }
-  /// Whether the scene's synchronous acks have fallen back to async (AckGate::fallen_back), for
-  /// the member record; call before Start.
-  void set_acks_async(std::function<bool()> acks_async) {
-    if (!started_) acks_async_ = std::move(acks_async);
-  }
-  /// Revokes the lease (this member's keys and its scene's owner key go at once), stops the
-  /// loop and fences the scene. Idempotent.
+  /// Revokes the lease (this member's keys and its scenes' owner keys go at once), stops the
+  /// loop and fences every scene. Idempotent.
   void Stop();
+  /// Ends the agent as execv ends a process image: every fence revoked and the loop stopped, the
+  /// lease neither revoked nor kept alive any more (it lives out its TTL). What a promotion does
+  /// before the restart; tests use it to stand for one. Stop afterwards does nothing more.
+  void Abandon();
+  /// The value a promotion puts in kResumeLeaseEnv ("<lease id>:<pid>"); empty before Start.
+  std::string ResumeToken() const;
 
-  /// What the commit pipeline consults; valid from construction (not held until acquired).
-  std::shared_ptr<const OwnershipFence> fence() const { return fence_; }
+  /// What `scene`'s commit pipeline consults; valid from construction (not held until
+  /// acquired). A scene this member does not host gets a fence that is never held.
+  std::shared_ptr<const OwnershipFence> fence(const std::string& scene) const;
+  /// kLocal for a hosted scene this member owns, kRedirect to the owner of another, kUnavailable
+  /// with the reason, kUnknown for a scene the cluster does not know; "" is the first hosted
+  /// scene.
   Route RouteScene(const std::string& scene) const override;
   std::vector<MemberAddress> LiveMembers() const override;
-  /// The epoch this member holds its scene at, 0 when it does not.
-  uint64_t owned_epoch() const;
-  /// The cluster's figures for /metrics (docs/cluster.md, "Metrics"): ownership, live members,
-  /// the standby's progress and lag against `scene_seq` (the scene's global sequence here),
-  /// etcd trouble. From any thread.
-  void WriteMetrics(MetricsWriter& w, uint64_t scene_seq) const;
+  /// The epoch this member holds `scene` at, 0 when it does not (or does not host it).
+  uint64_t owned_epoch(const std::string& scene) const;
+  /// The cluster's figures for /metrics (docs/cluster.md, "Metrics"), per hosted scene (label
+  /// `scene`): ownership, the standby's progress and lag (from the scene's `seq` hook), this
+  /// member's copies as a standby; and the live members and etcd trouble. From any thread.
+  void WriteMetrics(MetricsWriter& w) const;
 
  private:
-  asio::awaitable<void> Loop();
-  asio::awaitable<void> Tick();
-  asio::awaitable<Status> Register();
-  asio::awaitable<void> KeepLeaseAlive();
-  asio::awaitable<Status> Refresh();
-  asio::awaitable<void> MaybeAcquire();
-  // Owner: names a standby when there is none or it left. Standby: follows the owner, or takes
-  // the scene over when the owner is gone.
-  asio::awaitable<void> TendStandby();
-  // Owner asked to move its scene (`scenes/<scene>/move`, docs/cluster.md "Moving a scene"):
-  // names the target standby, fences once its copy has caught up, releases the owner key once
-  // the copy holds the last sequence; the target's takeover (TendStandby, Promote) does the rest.
-  // A request it cannot carry out is removed with the reason.
-  asio::awaitable<void> TendMove();
-  asio::awaitable<void> DropMove(int64_t mod_revision, std::string member, std::string why);
-  // The move is off while fenced for it: acknowledge again.
-  void ResumeAfterMove(const std::string& why);
-  // The standby copy becomes the data directory and the process starts again (never returns
-  // unless that fails).
-  asio::awaitable<void> Promote(uint64_t dead_epoch);
-  void RetireFollower();
-  // Lost the scene (lease gone, owner key no longer ours): fence at once and say why.
-  void LoseOwnership(const std::string& why);
-  MemberRecord SelfRecord() const;
+  using Clock = OwnershipFence::Clock;
 
-  const ClusterConfig config_;
-  const std::string scene_;
-  const Keys keys_;
-  const std::function<uint32_t()> sessions_;
-  const std::shared_ptr<OwnershipFence> fence_;
-  const std::chrono::milliseconds tick_;
-  std::unique_ptr<EtcdClient> etcd_;
-
-  // The agent's thread only (the EtcdClient's io_context), after Start.
-  std::string tcp_;
-  std::string http_;
-  int64_t lease_ = 0;
-  OwnershipFence::Clock::time_point lease_valid_until_{};
-  bool owned_ = false;
-  std::unique_ptr<asio::steady_timer> timer_;
-  std::atomic<bool> stopping_{false};
-  bool started_ = false;  // the owning thread's
-  std::optional<StandbyOptions> standby_;  // set before Start
-  std::unique_ptr<StandbyFollower> follower_;  // the agent's thread
-  OwnershipFence::Clock::time_point ended_at_{};  // when the current follower was seen ended
-  struct Retired {
-    std::thread thread;
-    std::shared_ptr<std::atomic<bool>> done;
-  };
-  std::mutex retired_mu_;
-  std::vector<Retired> retired_;  // followers being stopped (a stop may wait on a connect)
-  std::atomic<uint64_t> follow_seq_{0};
-  std::function<uint64_t()> scene_seq_;  // set before Start
-  std::function<bool()> acks_async_;
-  // The move in progress (agent's thread): fenced for it since move_fenced_at_; the owner's
-  // sequence when the target was first seen following (its copy must reach it before the fence).
-  bool move_fenced_ = false;
-  OwnershipFence::Clock::time_point move_fenced_at_{};
-  std::string move_target_;
-  std::optional<uint64_t> move_mark_;
-
-  // What the last Refresh read; RouteScene's table.
+  // What the last Refresh read of one scene; RouteScene's table.
   struct SceneState {
     std::optional<OwnerRecord> owner;
+    int64_t owner_lease = 0;  // the lease the owner key is held under
     std::optional<EpochRecord> epoch;
     int64_t epoch_mod_revision = 0;
     std::optional<StandbyRecord> standby;
@@ -166,16 +132,97 @@ class ClusterAgent : public SceneRouter {
     std::optional<MoveRecord> move;
     int64_t move_mod_revision = 0;
   };
-  // This member's scene as the last Refresh read it, and the live members, copied under mu_.
-  std::pair<SceneState, std::vector<MemberRecord>> ReadTable() const;
+
+  // One hosted scene: what the agent does for it, as owner or as standby.
+  struct Slot {
+    explicit Slot(HostedScene h);
+    const HostedScene hosted;
+    const std::shared_ptr<OwnershipFence> fence;
+    // The agent's thread.
+    bool owned = false;
+    std::unique_ptr<StandbyFollower> follower;
+    Clock::time_point ended_at{};  // when the current follower was seen ended
+    // The move in progress: fenced for it since move_fenced_at; the owner's sequence when the
+    // target was first seen following (its copy must reach it before the fence).
+    bool move_fenced = false;
+    Clock::time_point move_fenced_at{};
+    std::string move_target;
+    std::optional<uint64_t> move_mark;
+    // Any thread.
+    std::atomic<uint64_t> owned_epoch{0};
+    std::atomic<uint64_t> follow_seq{0};
+    // Guarded by the agent's mu_.
+    std::string waiting_reason;  // why the scene has no owner
+    std::string moving_to;       // fenced for a move to this member
+  };
+
+  asio::awaitable<void> Loop();
+  asio::awaitable<void> Tick();
+  asio::awaitable<Status> Register();
+  asio::awaitable<void> KeepLeaseAlive();
+  asio::awaitable<Status> Refresh();
+  // Acquires `slot`'s scene when it has no owner and this member may take it; `picks` is the
+  // placement of every never-owned scene this tick (PlaceScenes over the live members).
+  asio::awaitable<void> MaybeAcquire(Slot& slot, const std::map<std::string, std::string>& picks,
+                                     bool may_place);
+  // Owner: names a standby when there is none or it left. Standby: follows the owner, or, when
+  // the owner is gone, returns the dead owner's epoch: the scene is to be promoted.
+  asio::awaitable<std::optional<uint64_t>> TendStandby(Slot& slot);
+  // Owner asked to move its scene (`scenes/<scene>/move`, docs/cluster.md "Moving a scene"):
+  // names the target standby, fences once its copy has caught up, releases the owner key once
+  // the copy holds the last sequence; the target's takeover (TendStandby, Promote) does the rest.
+  // A request it cannot carry out is removed with the reason.
+  asio::awaitable<void> TendMove(Slot& slot);
+  asio::awaitable<void> DropMove(Slot& slot, int64_t mod_revision, std::string member,
+                                 std::string why);
+  // The move is off while fenced for it: acknowledge again.
+  void ResumeAfterMove(Slot& slot, const std::string& why);
+  // Each standby copy of `promote` (slot, dead owner's epoch) becomes its scene's data
+  // directory and the process starts again, keeping its lease (never returns unless that
+  // fails).
+  asio::awaitable<void> Promote(std::vector<std::pair<Slot*, uint64_t>> promote);
+  void RetireFollower(Slot& slot);
+  // Lost the scene (lease gone, owner key no longer ours): fence at once and say why.
+  void LoseOwnership(Slot& slot, const std::string& why);
+  MemberRecord SelfRecord() const;
+  Slot* FindSlot(const std::string& scene) const;
+  bool AnyFollowing() const;
+  // The scene as the last Refresh read it, and the live members, copied under mu_.
+  std::pair<SceneState, std::vector<MemberRecord>> ReadTable(const std::string& scene) const;
+
+  const ClusterConfig config_;
+  const Keys keys_;
+  const std::function<uint32_t()> sessions_;
+  const std::chrono::milliseconds tick_;
+  std::vector<std::unique_ptr<Slot>> slots_;  // fixed at construction
+  std::unique_ptr<EtcdClient> etcd_;
+
+  // The agent's thread only (the EtcdClient's io_context), after Start.
+  std::string tcp_;
+  std::string http_;
+  std::atomic<int64_t> lease_{0};
+  int64_t resume_lease_ = 0;  // from kResumeLeaseEnv, tried once by the first Register
+  bool resumed_ = false;      // the first Register kept the lease of the image before the execv
+  OwnershipFence::Clock::time_point lease_valid_until_{};
+  // Never-owned scenes are placed only from here on (one tick after the first registration), so
+  // members started together see each other's records before they place new scenes.
+  OwnershipFence::Clock::time_point place_from_{};
+  std::unique_ptr<asio::steady_timer> timer_;
+  std::atomic<bool> stopping_{false};
+  bool started_ = false;  // the owning thread's
+  std::optional<StandbyOptions> standby_;  // set before Start
+  struct Retired {
+    std::thread thread;
+    std::shared_ptr<std::atomic<bool>> done;
+  };
+  std::mutex retired_mu_;
+  std::vector<Retired> retired_;  // followers being stopped (a stop may wait on a connect)
+
   mutable std::mutex mu_;
   std::map<std::string, SceneState> scenes_;  // guarded by mu_
   std::vector<MemberRecord> members_;         // guarded by mu_
-  std::string waiting_reason_;  // guarded by mu_: why this member's scene has no owner
-  std::string moving_to_;       // guarded by mu_: fenced for a move to this member
-  std::atomic<uint64_t> owned_epoch_{0};
   std::atomic<uint64_t> etcd_failures_{0};     // keep-alives and refreshes etcd did not answer
-  std::atomic<uint64_t> ownership_losses_{0};  // times this member stopped owning its scene
+  std::atomic<uint64_t> ownership_losses_{0};  // times this member stopped owning a scene
   // Frames its followers refused for their epoch (shared with each StandbyFollower).
   std::shared_ptr<std::atomic<uint64_t>> stale_epoch_refusals_ =
       std::make_shared<std::atomic<uint64_t>>(0);

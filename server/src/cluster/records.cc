@@ -59,13 +59,60 @@ Status List(const Json& j, const std::string& field, std::vector<std::string>* o
   return Status::Ok();
 }
 
+// `following` / `owning`: an array of {"scene", "seq"[, "acks_async"]}.
+Status ProgressList(const Json& j, const std::string& field, bool owner,
+                    std::vector<SceneProgress>* out) {
+  const auto it = j.find(field);
+  if (it == j.end()) return Status::Ok();
+  if (!it->is_array() || it->size() > kMaxList) {
+    return Outside(field, it->dump().substr(0, 64),
+                   "an array of at most " + std::to_string(kMaxList) + " objects");
+  }
+  for (const Json& x : *it) {
+    if (!x.is_object()) return Outside(field, x.dump().substr(0, 64), "objects");
+    SceneProgress p;
+    SCULPT_RETURN_IF_ERROR(Text(x, "scene", true, &p.scene));
+    SCULPT_RETURN_IF_ERROR(Count(x, "seq", &p.seq));
+    if (const auto a = x.find("acks_async"); owner && a != x.end()) {
+      if (!a->is_boolean()) return Outside("acks_async", a->dump().substr(0, 64), "true or false");
+      p.acks_async = a->get<bool>();
+    }
+    out->push_back(std::move(p));
+  }
+  return Status::Ok();
+}
+
+const SceneProgress* Find(const std::vector<SceneProgress>& list, const std::string& scene) {
+  for (const SceneProgress& p : list) {
+    if (p.scene == scene) return &p;
+  }
+  return nullptr;
+}
+
 }  // namespace
 
+const SceneProgress* MemberRecord::Following(const std::string& scene) const {
+  return Find(following, scene);
+}
+
+const SceneProgress* MemberRecord::Owning(const std::string& scene) const {
+  return Find(owning, scene);
+}
+
 std::string EncodeMember(const MemberRecord& m) {
+  Json following = Json::array();
+  for (const SceneProgress& p : m.following) {
+    following.push_back({{"scene", p.scene}, {"seq", p.seq}});
+  }
+  Json owning = Json::array();
+  for (const SceneProgress& p : m.owning) {
+    owning.push_back({{"scene", p.scene}, {"seq", p.seq}, {"acks_async", p.acks_async}});
+  }
   return Json{{"name", m.name},     {"tcp", m.tcp},   {"http", m.http},
               {"offers", m.offers}, {"owns", m.owns}, {"sessions", m.sessions},
               {"standby", m.standby}, {"follows", m.follows}, {"follow_seq", m.follow_seq},
-              {"scene_seq", m.scene_seq}, {"acks_async", m.acks_async}}
+              {"scene_seq", m.scene_seq}, {"acks_async", m.acks_async},
+              {"following", following}, {"owning", owning}}
       .dump();
 }
 
@@ -130,6 +177,15 @@ StatusOr<MemberRecord> DecodeMember(const std::string& text) {
   if (const auto it = j.find("acks_async"); it != j.end()) {
     if (!it->is_boolean()) return Outside("acks_async", it->dump().substr(0, 64), "true or false");
     m.acks_async = it->get<bool>();
+  }
+  // Written by members hosting several scenes (absent: one scene at most, from the fields above).
+  SCULPT_RETURN_IF_ERROR(ProgressList(j, "following", false, &m.following));
+  SCULPT_RETURN_IF_ERROR(ProgressList(j, "owning", true, &m.owning));
+  if (!j.contains("following") && !m.follows.empty()) {
+    m.following.push_back({m.follows, m.follow_seq, false});
+  }
+  if (!j.contains("owning") && !m.owns.empty()) {
+    m.owning.push_back({m.owns.front(), m.scene_seq, m.acks_async});
   }
   return m;
 }

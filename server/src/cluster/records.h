@@ -11,21 +11,38 @@
 
 namespace sculpt::server::cluster {
 
+/// One scene's progress in a member record: as standby, how far its copy is durable; as owner,
+/// its last applied sequence and whether its synchronous acks fell back to async.
+struct SceneProgress {
+  std::string scene;
+  uint64_t seq = 0;
+  bool acks_async = false;  // owner only
+};
+
 /// `members/<name>`, under the member's lease: refreshed while it lives, gone with its lease.
 struct MemberRecord {
   std::string name;
   std::string tcp;                  // HOST:PORT clients are sent to
   std::string http;                 // HOST:PORT of the HTTP port, empty when off
-  std::vector<std::string> offers;  // scenes this member can host (its configured scene)
+  std::vector<std::string> offers;  // scenes this member can host (every scene it hosts)
   std::vector<std::string> owns;    // scenes it owns now
   uint32_t sessions = 0;            // joined sessions
   bool standby = true;              // may follow another owner's scene (cluster.standby)
-  std::string follows = {};         // the scene it follows as standby now, empty when none
-  uint64_t follow_seq = 0;          // the last sequence of it logged durably in its standby copy
-  uint64_t scene_seq = 0;   // the last sequence of the scene it owns (its standbys' lag: this
-                            // minus their follow_seq), at the record's refresh; 0 when none
-  bool acks_async = false;  // it owns a sync scene that has fallen back to async (its standby
-                            // confirmed nothing within sync_fallback_ms)
+  // The first entry of `following` and of `owning` again, under the names members of one scene
+  // each wrote (older readers read these). Decoding a record without the lists fills the lists
+  // from them.
+  std::string follows = {};  // the first scene it follows as standby now, empty when none
+  uint64_t follow_seq = 0;   // the last sequence of it logged durably in its standby copy
+  uint64_t scene_seq = 0;    // the last sequence of the first scene it owns, 0 when none
+  bool acks_async = false;   // that scene is sync and has fallen back to async
+  /// Every scene it follows as standby (`seq`: durable in its copy), and every scene it owns
+  /// (`seq`: last applied; a standby's lag is this minus its `following` seq), in its order.
+  std::vector<SceneProgress> following = {};
+  std::vector<SceneProgress> owning = {};
+
+  /// Its entry for `scene` in `following` / `owning`; null when it has none.
+  const SceneProgress* Following(const std::string& scene) const;
+  const SceneProgress* Owning(const std::string& scene) const;
 };
 
 /// `scenes/<scene>/owner`, under the owner's lease.

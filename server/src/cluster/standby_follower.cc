@@ -65,13 +65,13 @@ std::optional<std::string> CurrentStandbyCopy(const std::string& data_dir, const
 }
 
 Status PromoteStandbyCopy(const std::string& data_dir, const std::string& scene,
-                          uint64_t dead_epoch) {
+                          const std::string& scene_dir, uint64_t dead_epoch) {
   const auto copy = CurrentStandbyCopy(data_dir, scene);
   if (!copy) {
     return FailedPrecondition("no complete standby copy of scene " + scene + " in " +
                               StandbyDir(data_dir, scene));
   }
-  const fs::path root(data_dir);
+  const fs::path root(scene_dir);
   const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(
                       std::chrono::system_clock::now().time_since_epoch())
                       .count();
@@ -82,7 +82,9 @@ Status PromoteStandbyCopy(const std::string& data_dir, const std::string& scene,
   if (ec) return Internal("cannot create " + aside.string() + ": " + ec.message());
   for (const fs::directory_entry& e : fs::directory_iterator(root, ec)) {
     const std::string name = e.path().filename().string();
-    if (name == "standby" || name == "superseded") continue;
+    // The member's copies and its other hosted scenes stay (they live under the configured
+    // scene's directory, data_dir).
+    if (name == "standby" || name == "superseded" || name == "scenes") continue;
     fs::rename(e.path(), aside / name, ec);
     if (ec) return Internal("cannot move " + e.path().string() + " aside: " + ec.message());
   }
@@ -96,14 +98,14 @@ Status PromoteStandbyCopy(const std::string& data_dir, const std::string& scene,
                                                  scene + " " + std::to_string(dead_epoch) + "\n"));
   fs::remove_all(StandbyDir(data_dir, scene), ec);  // its other generations; the copy is in
   spdlog::warn(
-      "cluster: the standby copy of scene {} is now the data directory {} (what was "
+      "cluster: the standby copy of scene {} is now its data directory {} (what was "
       "there is in {})",
-      scene, data_dir, aside.string());
+      scene, scene_dir, aside.string());
   return Status::Ok();
 }
 
-std::optional<uint64_t> PromotedFromEpoch(const std::string& data_dir, const std::string& scene) {
-  const std::string line = ReadSmallFile(fs::path(data_dir) / kPromoted);
+std::optional<uint64_t> PromotedFromEpoch(const std::string& scene_dir, const std::string& scene) {
+  const std::string line = ReadSmallFile(fs::path(scene_dir) / kPromoted);
   const size_t space = line.rfind(' ');
   if (space == std::string::npos || line.substr(0, space) != scene) return std::nullopt;
   try {
@@ -113,9 +115,9 @@ std::optional<uint64_t> PromotedFromEpoch(const std::string& data_dir, const std
   }
 }
 
-void ClearPromotedMarker(const std::string& data_dir) {
+void ClearPromotedMarker(const std::string& scene_dir) {
   std::error_code ec;
-  fs::remove(fs::path(data_dir) / kPromoted, ec);
+  fs::remove(fs::path(scene_dir) / kPromoted, ec);
 }
 
 struct StandbyFollower::Impl {

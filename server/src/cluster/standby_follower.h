@@ -33,18 +33,22 @@ std::string StandbyDir(const std::string& data_dir, const std::string& scene);
 std::optional<std::string> CurrentStandbyCopy(const std::string& data_dir,
                                               const std::string& scene, uint64_t* epoch = nullptr);
 
-/// Failover: makes the standby copy the member's data directory. Everything else in `data_dir`
-/// (the scene this process opened at start, other side files) is moved, never deleted, into
-/// `<data_dir>/superseded/<epoch>-<ms>/`; the copy's files take its place; `cluster-promoted`
-/// records that the directory is the standby copy of `scene` as owned at `dead_epoch`, so the
-/// restarted process may take the scene with epoch + 1. FailedPrecondition without a complete
-/// copy; Internal for a file-system error (the directory is then left as the error says).
+/// Failover: makes the standby copy of `scene` (in `StandbyDir(data_dir, scene)`, `data_dir`
+/// being the member's data directory) the scene's data directory `scene_dir` (data_dir itself
+/// for the member's configured scene, `<data_dir>/scenes/<scene>` for another hosted one).
+/// Everything else in `scene_dir` (the scene this process opened at start, other side files) is
+/// moved, never deleted, into `<scene_dir>/superseded/<epoch>-<ms>/`, except `standby/` (the
+/// member's copies), `scenes/` (its other hosted scenes) and `superseded/`; the copy's files take
+/// its place; `<scene_dir>/cluster-promoted` records that the directory is the standby copy of
+/// `scene` as owned at `dead_epoch`, so the restarted process may take the scene with epoch + 1.
+/// FailedPrecondition without a complete copy; Internal for a file-system error (the directory is
+/// then left as the error says).
 Status PromoteStandbyCopy(const std::string& data_dir, const std::string& scene,
-                          uint64_t dead_epoch);
-/// The epoch written by PromoteStandbyCopy for `scene`, nullopt when none.
-std::optional<uint64_t> PromotedFromEpoch(const std::string& data_dir, const std::string& scene);
-/// Forgets the promotion marker (once the scene is acquired).
-void ClearPromotedMarker(const std::string& data_dir);
+                          const std::string& scene_dir, uint64_t dead_epoch);
+/// The epoch PromoteStandbyCopy wrote into `scene_dir` for `scene`, nullopt when none.
+std::optional<uint64_t> PromotedFromEpoch(const std::string& scene_dir, const std::string& scene);
+/// Forgets the promotion marker of `scene_dir` (once the scene is acquired).
+void ClearPromotedMarker(const std::string& scene_dir);
 
 /// TLS to the owner: a cluster whose members' TCP ports speak TLS (cluster.peer_ca_file,
 /// docs/cluster.md "TLS between members").
