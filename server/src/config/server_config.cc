@@ -724,6 +724,7 @@ ServerConfig ConfigForScene(const ServerConfig& c, const std::string& scene) {
   ServerConfig copy = c;
   copy.data_dir = SceneDataDir(c, scene);
   copy.scene.name = scene;
+  copy.scene.also.clear();  // the copy describes one scene (Scene::Open validates it)
   return copy;
 }
 

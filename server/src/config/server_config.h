@@ -236,7 +236,8 @@ std::vector<std::string> HostedScenes(const ServerConfig& config);
 std::string SceneDataDir(const ServerConfig& config, const std::string& scene);
 
 /// A copy of `config` for one hosted scene (what Scene::Open takes): data_dir is
-/// SceneDataDir(config, scene) and scene.name is `scene`; the other settings are shared.
+/// SceneDataDir(config, scene), scene.name is `scene` and scene.also is empty; the other
+/// settings are shared.
 ServerConfig ConfigForScene(const ServerConfig& config, const std::string& scene);
 
 /// Reads a TOML file into `config` (keys not present keep their values). InvalidArgument naming
