@@ -540,7 +540,9 @@ int main(int argc, char** argv) {
   if (scenes.size() == 1) {
     spdlog::info("stopped at seq {}", scene->global_seq());
   } else {
-    for (const auto& s : scenes) spdlog::info("scene '{}' stopped at seq {}", s->name(), s->global_seq());
+    for (const auto& s : scenes) {
+      spdlog::info("scene '{}' stopped at seq {}", s->name(), s->global_seq());
+    }
   }
   return 0;
 }

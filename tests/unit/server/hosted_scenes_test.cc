@@ -28,8 +28,8 @@ Status Refusal(const ServerConfig& c) {
 
 TEST(HostedScenesTest, ReadsAlsoFromTheSceneTable) {
   ServerConfig c;
-  ASSERT_TRUE(
-      LoadConfigFile(Write("read", "[scene]\nname = \"main\"\nalso = [\"b\", \"c-2\"]\n"), &c).ok());
+  const std::string path = Write("read", "[scene]\nname = \"main\"\nalso = [\"b\", \"c-2\"]\n");
+  ASSERT_TRUE(LoadConfigFile(path, &c).ok());
   EXPECT_TRUE(ValidateConfig(c).ok()) << ValidateConfig(c);
   EXPECT_EQ(c.scene.also, (std::vector<std::string>{"b", "c-2"}));
   EXPECT_EQ(HostedScenes(c), (std::vector<std::string>{"main", "b", "c-2"}));
