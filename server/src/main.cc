@@ -109,7 +109,8 @@ int main(int argc, char** argv) {
   using sculpt::server::ServerConfig;
   CLI::App app{"sculptd: the authoritative Sculpt server"};
   app.require_subcommand(1);
-  CLI::App* serve = app.add_subcommand("serve", "Serve one scene (defaults need no file)");
+  CLI::App* serve = app.add_subcommand(
+      "serve", "Serve one scene, or several with --also-scene (defaults need no file)");
 
   std::string config_path;
   std::string listen, data_dir, fsync, sculptor_token, viewer_token;
@@ -121,7 +122,12 @@ int main(int argc, char** argv) {
   serve->add_option("--listen", listen, "HOST:PORT to listen on (default 127.0.0.1:7420; port 0 "
                                         "picks a free one)");
   serve->add_option("--data", data_dir, "Data directory: edit log and snapshots "
-                                        "(default ./sculpt-data)");
+                                        "(default ./sculpt-data; scenes beside scene.name in "
+                                        "its scenes/NAME)");
+  std::vector<std::string> also_scenes;
+  serve->add_option("--also-scene", also_scenes,
+                    "Host this scene too, beside scene.name, with the same [scene] settings; "
+                    "repeatable, appended to scene.also (docs/scenes.md)");
   serve->add_option("--fsync", fsync, "Edit log durability: always | group (default group)")
       ->check(CLI::IsMember({"always", "group"}));
   serve->add_option("--group-commit-ms", group_ms, "Group commit window (default 5 ms)")
@@ -185,8 +191,8 @@ int main(int argc, char** argv) {
                          std::to_string(ld.max_connections_per_source) + ")")
       ->check(CLI::Range(int64_t{1}, int64_t{1000000}));
   limits->add_option("--max-clients-per-scene", max_clients,
-                     "Joined clients at most (default " + std::to_string(ld.max_clients_per_scene) +
-                         ")")
+                     "Joined clients per scene at most (default " +
+                         std::to_string(ld.max_clients_per_scene) + ")")
       ->check(CLI::Range(int64_t{1}, int64_t{100000}));
   limits->add_option("--reserved-sculptor-seats", reserved_seats,
                      "Seats of the scene viewers may not take (default " +
@@ -310,6 +316,7 @@ int main(int argc, char** argv) {
   }
   if (!listen.empty()) config.listen = listen;
   if (!data_dir.empty()) config.data_dir = data_dir;
+  config.scene.also.insert(config.scene.also.end(), also_scenes.begin(), also_scenes.end());
   if (!fsync.empty()) config.fsync = fsync;
   if (group_ms > 0) config.group_commit_ms = group_ms;
   if (io_threads > 0) config.io_threads = io_threads;
@@ -355,9 +362,15 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  const std::vector<std::string> hosted = sculpt::server::HostedScenes(config);
   if (check_only) {
-    std::printf("configuration is valid: listen %s, data %s, scene %s%s%s\n",
-                config.listen.c_str(), config.data_dir.c_str(), config.scene.name.c_str(),
+    std::string scenes = config.scene.name;
+    for (const std::string& name : config.scene.also) {
+      scenes += ", " + name + " (" + sculpt::server::SceneDataDir(config, name) + ")";
+    }
+    std::printf("configuration is valid: listen %s, data %s, %s %s%s%s\n",
+                config.listen.c_str(), config.data_dir.c_str(),
+                hosted.size() == 1 ? "scene" : "scenes", scenes.c_str(),
                 config.tls.enabled() ? ", TLS" : "",
                 config.cluster.enabled()
                     ? (", cluster member " + config.cluster.member +
@@ -368,15 +381,25 @@ int main(int argc, char** argv) {
     return 0;
   }
 
-  auto scene = sculpt::server::Scene::Open(config);
-  if (!scene.ok()) {
-    spdlog::error("cannot open the scene in {}: {}", config.data_dir, scene.status().ToString());
-    return 1;
+  // Every hosted scene in its own data directory; the first, scene.name, is the default one.
+  std::vector<std::unique_ptr<sculpt::server::Scene>> scenes;
+  std::vector<sculpt::server::Scene*> scene_ptrs;
+  for (const std::string& name : hosted) {
+    const ServerConfig scene_config = sculpt::server::ConfigForScene(config, name);
+    auto opened = sculpt::server::Scene::Open(scene_config);
+    if (!opened.ok()) {
+      spdlog::error("cannot open the scene in {}: {}", scene_config.data_dir,
+                    opened.status().ToString());
+      return 1;
+    }
+    spdlog::info("scene '{}': {}", name, (*opened)->recovery_summary());
+    scenes.push_back(std::move(opened).value());
+    scene_ptrs.push_back(scenes.back().get());
   }
-  spdlog::info("scene '{}': {}", config.scene.name, (*scene)->recovery_summary());
+  sculpt::server::Scene* const scene = scenes.front().get();
 
   sculpt::server::asio::io_context io;
-  sculpt::server::Server server(io, config, **scene);
+  sculpt::server::Server server(io, config, scene_ptrs);
   // Cluster mode (issue 17, docs/cluster.md): the scene is fenced and joins are routed from the
   // first connection on; the agent reaches etcd once the ports are known.
   std::unique_ptr<sculpt::server::cluster::ClusterAgent> cluster;
@@ -387,16 +410,18 @@ int main(int argc, char** argv) {
                    "(and a cluster of named users only cannot follow); set the same peer_token "
                    "on every member");
     }
-    // The one scene this process hosts, in the configured data directory.
-    std::vector<sculpt::server::cluster::HostedScene> hosted;
-    hosted.push_back({.name = config.scene.name,
-                      .data_dir = config.data_dir,
-                      .seq = [sc = scene->get()] { return sc->global_seq(); },
-                      .acks_async = [sc = scene->get()] { return sc->acks().fallen_back(); }});
+    // Every scene this process hosts, each in its own data directory and fenced on its own.
+    std::vector<sculpt::server::cluster::HostedScene> offered;
+    for (sculpt::server::Scene* sc : scene_ptrs) {
+      offered.push_back({.name = sc->name(),
+                         .data_dir = sculpt::server::SceneDataDir(config, sc->name()),
+                         .seq = [sc] { return sc->global_seq(); },
+                         .acks_async = [sc] { return sc->acks().fallen_back(); }});
+    }
     cluster = std::make_unique<sculpt::server::cluster::ClusterAgent>(
-        config.cluster, std::move(hosted),
+        config.cluster, std::move(offered),
         [&server] { return static_cast<uint32_t>(server.JoinedSeats().joined); });
-    (*scene)->set_ownership_fence(cluster->fence(config.scene.name));
+    for (sculpt::server::Scene* sc : scene_ptrs) sc->set_ownership_fence(cluster->fence(sc->name()));
     server.set_router(cluster.get());
     // A standby follows another owner's scene and, on failover, restarts on its copy.
     sculpt::server::cluster::StandbyOptions standby{
@@ -508,7 +533,7 @@ int main(int argc, char** argv) {
     if (cluster) cluster->Stop();
     server.Stop();
     if (http) http->Stop();
-    (*scene)->FlushAndSnapshot();
+    for (const auto& s : scenes) s->FlushAndSnapshot();
     hangups.cancel();
     io.stop();
   });
@@ -516,6 +541,12 @@ int main(int argc, char** argv) {
   for (int i = 1; i < config.io_threads; ++i) threads.emplace_back([&io] { io.run(); });
   io.run();
   for (auto& t : threads) t.join();
-  spdlog::info("stopped at seq {}", (*scene)->global_seq());
+  if (scenes.size() == 1) {
+    spdlog::info("stopped at seq {}", scene->global_seq());
+  } else {
+    for (const auto& s : scenes) {
+      spdlog::info("scene '{}' stopped at seq {}", s->name(), s->global_seq());
+    }
+  }
   return 0;
 }

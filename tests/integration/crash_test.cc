@@ -35,13 +35,16 @@ using sculpt::testing::RawClient;
 
 class Daemon {
  public:
-  Daemon(const fs::path& data, const fs::path& port_file) : port_file_(port_file) {
+  Daemon(const fs::path& data, const fs::path& port_file,
+         const std::vector<std::string>& extra_args = {})
+      : port_file_(port_file) {
     fs::remove(port_file_);
     const std::string bin = std::string(SCULPT_BIN_DIR) + "/sculptd";
     std::vector<std::string> args = {bin,      "serve",       "--listen",
                                      "127.0.0.1:0", "--data",  data.string(),
                                      "--port-file", port_file.string(), "--fsync",
                                      "group",   "--snapshot-every", "300"};
+    args.insert(args.end(), extra_args.begin(), extra_args.end());
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
@@ -505,6 +508,59 @@ TEST(CrashTest, KillNineTwentyTimesLosesNoAcknowledgedEdit) {
     ASSERT_TRUE(scene.ok()) << scene.status();
     EXPECT_EQ((*scene)->StateHash("clay"), recovered);
   }
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace sculpt::server
+
+namespace sculpt::server {
+namespace {
+
+// One sculptd hosting two scenes (docs/scenes.md), killed with SIGKILL: each scene comes back
+// from its own data directory with every acknowledged stroke, none in the other.
+TEST(CrashTest, KillNineOfAProcessHostingTwoScenesRecoversEachFromItsOwnDirectory) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("sculptd_crash_scenes_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path data = dir / "data";
+  constexpr int kPoses = 4;
+  auto sculpt = [](uint16_t port, const std::string& scene, int strokes) {
+    v1::JoinScene join;
+    join.set_scene(scene);
+    RawClient c(port);
+    if (!c.Enter("sculpt-dev-sculptor", v1::ROLE_SCULPTOR, RawClient::kAutoId, join)) return -1;
+    int acked = 0;
+    for (int i = 1; i <= strokes; ++i) {
+      c.Send(RawClient::PressStroke(i, {0, 0, 12.3}, kPoses));
+      if (c.ReadUntil(v1::ServerMessage::kAck)) ++acked;
+    }
+    return acked;
+  };
+  auto seq_of = [](uint16_t port, const std::string& scene) -> int64_t {
+    v1::JoinScene join;
+    join.set_scene(scene);
+    RawClient c(port);
+    if (!c.Enter("sculpt-dev-viewer", v1::ROLE_VIEWER, RawClient::kAutoId, join)) return -1;
+    EXPECT_EQ(c.info().scene(), scene);
+    return static_cast<int64_t>(c.info().global_seq());
+  };
+  {
+    Daemon d(data, dir / "port", {"--also-scene", "b", "--http", "off"});
+    const uint16_t port = d.WaitPort();
+    ASSERT_NE(port, 0) << "sculptd did not start";
+    ASSERT_EQ(sculpt(port, "b", 3), 3);
+    ASSERT_EQ(sculpt(port, "default", 1), 1);
+    d.Kill(SIGKILL);
+  }
+  EXPECT_TRUE(fs::is_directory(data / "scenes" / "b" / "log"));
+  Daemon d(data, dir / "port", {"--also-scene", "b", "--http", "off"});
+  const uint16_t port = d.WaitPort();
+  ASSERT_NE(port, 0) << "sculptd did not restart";
+  EXPECT_EQ(seq_of(port, "b"), 3 * kPoses);
+  EXPECT_EQ(seq_of(port, "default"), 1 * kPoses);
+  d.Kill(SIGTERM);
   fs::remove_all(dir);
 }
 

@@ -8,6 +8,7 @@
 #include "sculpt/skin/skin.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <sstream>
@@ -95,6 +96,35 @@ constexpr size_t kMaxPeerToken = 1024;
 // A host clients can be sent to: not a wildcard address.
 bool IsWildcardHost(const std::string& host) {
   return host.empty() || host == "0.0.0.0" || host == "::" || host == "[::]";
+}
+
+// scene.also: each a scene name as scene.name is (1..64 bytes), restricted further to
+// [A-Za-z0-9._-] and not "." or "..", since it names a directory under data_dir/scenes/.
+Status ValidateAlsoScenes(const SceneConfig& s) {
+  if (s.also.size() > kMaxAlsoScenes) {
+    return Outside("scene.also.size", std::to_string(s.also.size()),
+                   "[0, " + std::to_string(kMaxAlsoScenes) + "]");
+  }
+  for (size_t i = 0; i < s.also.size(); ++i) {
+    const std::string& n = s.also[i];
+    const std::string k = "scene.also[" + std::to_string(i) + "]";
+    const bool chars_ok = std::all_of(n.begin(), n.end(), [](char ch) {
+      return std::isalnum(static_cast<unsigned char>(ch)) || ch == '.' || ch == '_' || ch == '-';
+    });
+    if (n.empty() || n.size() > 64 || !chars_ok || n == "." || n == "..") {
+      return Outside(k, n, "1..64 bytes of [A-Za-z0-9._-], not \".\" or \"..\"");
+    }
+    if (n == s.name) {
+      return Outside(k, n, "names other than scene.name=" + s.name + " (hosted already)");
+    }
+    for (size_t j = 0; j < i; ++j) {
+      if (s.also[j] == n) {
+        return Outside(k, n, "names not already in scene.also (scene.also[" + std::to_string(j) +
+                                 "] is the same)");
+      }
+    }
+  }
+  return Status::Ok();
 }
 
 Status ValidateClusterConfig(const ServerConfig& c) {
@@ -388,8 +418,17 @@ Status LoadConfigFile(const std::string& path, ServerConfig* c) {
         path, *s, "scene",
         {"name", "voxel_size", "half_width", "min_tool_size", "max_tool_size", "max_speed",
          "max_amount", "bounds_margin", "mesh_position_bits", "mesh_speed", "mesh_max_rate_hz",
-         "mesh_chunk_voxels", "effects", "objects", "materials", "skins"}));
+         "mesh_chunk_voxels", "effects", "objects", "materials", "skins", "also"}));
     Get(*s, "name", &sc.name);
+    if (s->contains("also")) {
+      const toml::array* a = (*s)["also"].as_array();
+      if (!a) return Outside("scene.also", "not an array", "arrays of scene names [\"b\", \"c\"]");
+      sc.also.clear();
+      for (const auto& x : *a) {
+        if (!x.is_string()) return Outside("scene.also", "not a string", "scene names \"b\"");
+        sc.also.push_back(x.value_or(std::string()));
+      }
+    }
     Get(*s, "voxel_size", &sc.voxel_size);
     Get(*s, "half_width", &sc.half_width);
     Get(*s, "min_tool_size", &sc.min_tool_size);
@@ -661,7 +700,27 @@ Status ValidateConfig(const ServerConfig& c) {
       }
     }
   }
+  SCULPT_RETURN_IF_ERROR(ValidateAlsoScenes(s));
   return ValidateClusterConfig(c);
+}
+
+std::vector<std::string> HostedScenes(const ServerConfig& c) {
+  std::vector<std::string> names{c.scene.name};
+  names.insert(names.end(), c.scene.also.begin(), c.scene.also.end());
+  return names;
+}
+
+std::string SceneDataDir(const ServerConfig& c, const std::string& scene) {
+  if (scene == c.scene.name) return c.data_dir;
+  return (std::filesystem::path(c.data_dir) / "scenes" / scene).string();
+}
+
+ServerConfig ConfigForScene(const ServerConfig& c, const std::string& scene) {
+  ServerConfig copy = c;
+  copy.data_dir = SceneDataDir(c, scene);
+  copy.scene.name = scene;
+  copy.scene.also.clear();  // the copy describes one scene (Scene::Open validates it)
+  return copy;
 }
 
 uint32_t ViewerSeats(const LimitsConfig& l) {

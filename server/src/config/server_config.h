@@ -64,6 +64,11 @@ struct EffectsConfig {
 
 struct SceneConfig {
   std::string name = "default";
+  /// Further scenes this process hosts beside `name` (`[scene] also = ["b", "c"]`, `sculptd serve
+  /// --also-scene NAME`), each with every other setting of this table; at most kMaxAlsoScenes,
+  /// names of 1..64 bytes of [A-Za-z0-9._-] (they name directories: SceneDataDir), none repeated
+  /// nor equal to `name`. Not with [cluster] yet.
+  std::vector<std::string> also;
   double voxel_size = 0.5;
   int half_width = 6;
   std::vector<ObjectConfig> objects{ObjectConfig{}};
@@ -219,6 +224,21 @@ struct ServerConfig {
   TlsConfig tls;
   ClusterConfig cluster;
 };
+
+/// Most scenes `scene.also` may name.
+constexpr size_t kMaxAlsoScenes = 64;
+
+/// The scenes this process hosts: scene.name (the default scene), then scene.also in order.
+std::vector<std::string> HostedScenes(const ServerConfig& config);
+
+/// The data directory of hosted scene `scene`: config.data_dir itself for scene.name (the layout
+/// a single-scene process always had), `<data_dir>/scenes/<scene>` for the others.
+std::string SceneDataDir(const ServerConfig& config, const std::string& scene);
+
+/// A copy of `config` for one hosted scene (what Scene::Open takes): data_dir is
+/// SceneDataDir(config, scene), scene.name is `scene` and scene.also is empty; the other
+/// settings are shared.
+ServerConfig ConfigForScene(const ServerConfig& config, const std::string& scene);
 
 /// Reads a TOML file into `config` (keys not present keep their values). InvalidArgument naming
 /// the key, value and allowed range for a bad value; NotFound for a missing file.

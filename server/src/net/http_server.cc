@@ -7,8 +7,10 @@
 
 #include <algorithm>
 #include <cctype>
+#include <functional>
 #include <optional>
 #include <type_traits>
+#include <vector>
 
 #include "net/beast.h"
 #include "net/metrics.h"
@@ -507,17 +509,20 @@ void HttpServer::CountResponse(int code) {
 
 Status HttpServer::Readiness() {
   if (stopped_) return Status(Status::Code::kUnavailable, "shutting down");
-  const std::filesystem::path log_dir =
-      std::filesystem::path(server_.config().data_dir) / store::kLogSubdir;
-  if (::access(log_dir.c_str(), W_OK) != 0) {
-    return Status(Status::Code::kUnavailable, "edit log directory " + log_dir.string() +
-                                                  " is not writable");
-  }
-  struct statvfs fs {};
-  if (::statvfs(log_dir.c_str(), &fs) == 0 &&
-      static_cast<uint64_t>(fs.f_bavail) * fs.f_frsize < (1u << 20)) {
-    return Status(Status::Code::kUnavailable,
-                  "edit log directory " + log_dir.string() + " has under 1 MiB free");
+  // Every hosted scene's log: one that cannot take edits makes the process not ready.
+  for (const Scene* scene : server_.scenes()) {
+    const std::filesystem::path log_dir =
+        std::filesystem::path(SceneDataDir(server_.config(), scene->name())) / store::kLogSubdir;
+    if (::access(log_dir.c_str(), W_OK) != 0) {
+      return Status(Status::Code::kUnavailable, "edit log directory " + log_dir.string() +
+                                                    " is not writable");
+    }
+    struct statvfs fs {};
+    if (::statvfs(log_dir.c_str(), &fs) == 0 &&
+        static_cast<uint64_t>(fs.f_bavail) * fs.f_frsize < (1u << 20)) {
+      return Status(Status::Code::kUnavailable,
+                    "edit log directory " + log_dir.string() + " has under 1 MiB free");
+    }
   }
   return Status::Ok();
 }
@@ -525,7 +530,21 @@ Status HttpServer::Readiness() {
 std::string HttpServer::MetricsText() {
   MetricsWriter w;
   ServerStats& s = server_.stats();
-  Scene& scene = server_.scene();
+  // A process hosting several scenes (docs/scenes.md) labels each scene's figures with its name;
+  // one hosting a single scene writes them unlabelled, as it always did.
+  const std::vector<Scene*>& scenes = server_.scenes();
+  auto per_scene = [&](const std::function<void(Scene&, const MetricLabels&)>& write) {
+    for (Scene* scene : scenes) {
+      MetricLabels labels;
+      if (scenes.size() > 1) labels.emplace_back("scene", scene->name());
+      write(*scene, labels);
+    }
+  };
+  // `labels` with one more pair after the scene's.
+  auto with = [](MetricLabels labels, std::string key, std::string value) {
+    labels.emplace_back(std::move(key), std::move(value));
+    return labels;
+  };
   for (const auto& [key, n] : server_.CountSessions()) {
     w.Gauge("sculpt_sessions", "Live sessions by role and transport", static_cast<double>(n),
             {{"role", key.first}, {"transport", key.second}});
@@ -543,10 +562,12 @@ std::string HttpServer::MetricsText() {
   w.Counter("sculpt_disconnects_for_cause_total",
             "Clients dropped for rate violations or a full send queue",
             static_cast<double>(s.disconnects_for_cause.load()));
-  w.Counter("sculpt_edits_total",
-            "Edits applied to the scene (its global sequence, since the data directory "
-            "began); rate() gives edits per second",
-            static_cast<double>(scene.global_seq()));
+  per_scene([&](Scene& scene, const MetricLabels& labels) {
+    w.Counter("sculpt_edits_total",
+              "Edits applied to the scene (its global sequence, since the data directory "
+              "began); rate() gives edits per second",
+              static_cast<double>(scene.global_seq()), labels);
+  });
   // One family at a time: the text format wants each family's samples together.
   auto per_transport = [&](const char* name, const char* help,
                            const std::array<std::atomic<uint64_t>, kTransportKinds>& values) {
@@ -564,73 +585,113 @@ std::string HttpServer::MetricsText() {
                 s.stroke_ack_seconds[t].Read(),
                 {{"transport", TransportName(static_cast<TransportKind>(t))}});
   }
-  ReplicationStats& r = scene.replication_stats();
-  w.Counter("sculpt_replication_broadcasts_total", "Edit broadcasts built for replicas",
-            static_cast<double>(r.broadcasts.load()));
-  w.Counter("sculpt_replication_leaf_deltas_total", "Leaf-delta messages built for replicas",
-            static_cast<double>(r.leaf_deltas.load()));
-  w.Counter("sculpt_replication_resyncs_total", "Replica region loads (subscribe, interest)",
-            static_cast<double>(r.resyncs.load()));
-  w.Counter("sculpt_replication_divergences_total", "Replicas' reports of a state-hash mismatch",
-            static_cast<double>(r.divergences.load()));
-  w.Counter("sculpt_replication_bytes_total", "Bytes of replication messages built",
-            static_cast<double>(r.broadcast_bytes.load()), {{"kind", "broadcast"}});
-  w.Counter("sculpt_replication_bytes_total", "Bytes of replication messages built",
-            static_cast<double>(r.leaf_delta_bytes.load()), {{"kind", "leaf_delta"}});
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    w.Counter("sculpt_replication_broadcasts_total", "Edit broadcasts built for replicas",
+              static_cast<double>(sc.replication_stats().broadcasts.load()), l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    w.Counter("sculpt_replication_leaf_deltas_total", "Leaf-delta messages built for replicas",
+              static_cast<double>(sc.replication_stats().leaf_deltas.load()), l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    w.Counter("sculpt_replication_resyncs_total", "Replica region loads (subscribe, interest)",
+              static_cast<double>(sc.replication_stats().resyncs.load()), l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    w.Counter("sculpt_replication_divergences_total", "Replicas' reports of a state-hash mismatch",
+              static_cast<double>(sc.replication_stats().divergences.load()), l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    ReplicationStats& r = sc.replication_stats();
+    w.Counter("sculpt_replication_bytes_total", "Bytes of replication messages built",
+              static_cast<double>(r.broadcast_bytes.load()), with(l, "kind", "broadcast"));
+    w.Counter("sculpt_replication_bytes_total", "Bytes of replication messages built",
+              static_cast<double>(r.leaf_delta_bytes.load()), with(l, "kind", "leaf_delta"));
+  });
   w.Counter("sculpt_viewer_chunks_superseded_total",
             "Mesh chunk frames a slow viewer never got because a newer version replaced them",
             static_cast<double>(s.frames_superseded.load()));
-  Scene::MeshStats& m = scene.mesh_stats();
-  w.Counter("sculpt_viewer_chunk_encodes_total", "Mesh chunks Draco-encoded for viewers",
-            static_cast<double>(m.chunks_encoded.load()));
-  w.Counter("sculpt_viewer_chunk_bytes_total", "Bytes of encoded mesh chunk messages",
-            static_cast<double>(m.chunk_bytes.load()));
-  w.Counter("sculpt_viewer_mesh_updates_total", "Viewer mesh update rounds",
-            static_cast<double>(m.updates.load()));
-  w.Counter("sculpt_viewer_snapshot_seconds_total",
-            "Compute-thread time spent copying sculptures for the mesher",
-            static_cast<double>(m.snapshot_us.load()) * 1e-6);
-  w.Histogram("sculpt_log_fsync_seconds",
-              "Durations of the edit log's fdatasync calls, each making the records written "
-              "before it durable (acknowledgements wait for them)",
-              scene.log_sync_seconds());
-  w.Gauge("sculpt_compute_queue_depth",
-          "Tasks queued for the scene's compute thread and not yet started (edits, joins, "
-          "subscriptions)",
-          static_cast<double>(scene.compute_queue_depth()));
-  w.Gauge("sculpt_acks_awaiting_durability",
-          "Edits applied whose acknowledgement waits for the edit log's next fdatasync",
-          static_cast<double>(scene.acks_awaiting_durability()));
-  if (scene.acks().sync()) {
-    // Cluster mode with replication = "sync" (docs/cluster.md).
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    w.Counter("sculpt_viewer_chunk_encodes_total", "Mesh chunks Draco-encoded for viewers",
+              static_cast<double>(sc.mesh_stats().chunks_encoded.load()), l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    w.Counter("sculpt_viewer_chunk_bytes_total", "Bytes of encoded mesh chunk messages",
+              static_cast<double>(sc.mesh_stats().chunk_bytes.load()), l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    w.Counter("sculpt_viewer_mesh_updates_total", "Viewer mesh update rounds",
+              static_cast<double>(sc.mesh_stats().updates.load()), l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    w.Counter("sculpt_viewer_snapshot_seconds_total",
+              "Compute-thread time spent copying sculptures for the mesher",
+              static_cast<double>(sc.mesh_stats().snapshot_us.load()) * 1e-6, l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    w.Histogram("sculpt_log_fsync_seconds",
+                "Durations of the edit log's fdatasync calls, each making the records written "
+                "before it durable (acknowledgements wait for them)",
+                sc.log_sync_seconds(), l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    w.Gauge("sculpt_compute_queue_depth",
+            "Tasks queued for the scene's compute thread and not yet started (edits, joins, "
+            "subscriptions)",
+            static_cast<double>(sc.compute_queue_depth()), l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    w.Gauge("sculpt_acks_awaiting_durability",
+            "Edits applied whose acknowledgement waits for the edit log's next fdatasync",
+            static_cast<double>(sc.acks_awaiting_durability()), l);
+  });
+  // Cluster mode with replication = "sync" (docs/cluster.md).
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    if (!sc.acks().sync()) return;
     w.Gauge("sculpt_replication_sync_fallen_back",
             "1 while acknowledgements do not wait for the standby (it did not confirm an edit "
             "within cluster.sync_fallback_ms), 0 while they do",
-            scene.acks().fallen_back() ? 1.0 : 0.0);
+            sc.acks().fallen_back() ? 1.0 : 0.0, l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    if (!sc.acks().sync()) return;
     w.Counter("sculpt_replication_sync_fallbacks_total",
               "Times synchronous replication fell back to asynchronous",
-              static_cast<double>(scene.acks().fallbacks()));
+              static_cast<double>(sc.acks().fallbacks()), l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    if (!sc.acks().sync()) return;
     w.Gauge("sculpt_replication_standby_durable_seq",
             "The last sequence the standby said its copy holds durably",
-            static_cast<double>(scene.acks().standby_durable_seq()));
-  }
-  w.Counter("sculpt_compute_task_failures_total",
-            "Scene tasks that threw (compute thread and join worker: the requester got INTERNAL; "
-            "mesher: the chunk was skipped)",
-            static_cast<double>(scene.task_stats().failures.load()));
-  w.Gauge("sculpt_late_joins_pending",
-          "Late joins admitted and not yet answered (copying, queued or being serialised)",
-          static_cast<double>(scene.pending_joins()));
-  w.Counter("sculpt_late_joins_refused_total",
-            "Late joins refused over limits.max_pending_joins (RESOURCE_EXHAUSTED)",
-            static_cast<double>(scene.task_stats().joins_refused.load()));
-  w.Counter("sculpt_compute_jobs_passed_over_total",
-            "Times the compute thread served a client's job while an older job of another "
-            "client (user or source address) waited (fair sharing by measured cost)",
-            static_cast<double>(scene.task_stats().passed_over.load()));
-  w.Gauge("sculpt_compute_waiting_sessions",
-          "Clients (users or source addresses) with work queued for the scene's compute thread",
-          static_cast<double>(scene.task_stats().waiting_sessions.load()));
+            static_cast<double>(sc.acks().standby_durable_seq()), l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    w.Counter("sculpt_compute_task_failures_total",
+              "Scene tasks that threw (compute thread and join worker: the requester got "
+              "INTERNAL; mesher: the chunk was skipped)",
+              static_cast<double>(sc.task_stats().failures.load()), l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    w.Gauge("sculpt_late_joins_pending",
+            "Late joins admitted and not yet answered (copying, queued or being serialised)",
+            static_cast<double>(sc.pending_joins()), l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    w.Counter("sculpt_late_joins_refused_total",
+              "Late joins refused over limits.max_pending_joins (RESOURCE_EXHAUSTED)",
+              static_cast<double>(sc.task_stats().joins_refused.load()), l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    w.Counter("sculpt_compute_jobs_passed_over_total",
+              "Times the compute thread served a client's job while an older job of another "
+              "client (user or source address) waited (fair sharing by measured cost)",
+              static_cast<double>(sc.task_stats().passed_over.load()), l);
+  });
+  per_scene([&](Scene& sc, const MetricLabels& l) {
+    w.Gauge("sculpt_compute_waiting_sessions",
+            "Clients (users or source addresses) with work queued for the scene's compute thread",
+            static_cast<double>(sc.task_stats().waiting_sessions.load()), l);
+  });
   w.Gauge("sculpt_http_connections", "Open HTTP connections and WebSocket sessions",
           static_cast<double>(open_->load()));
   w.Counter("sculpt_http_connections_refused_total",

@@ -78,8 +78,8 @@ class HttpServer {
   /// Adds a writer of more families (the edit log's fsync time, the compute queue depth, ...),
   /// called on every scrape from an I/O thread; it must only read atomics or take short locks.
   void AddMetricsSource(std::function<void(MetricsWriter&)> source);
-  /// Ok when the scene is recovered and its edit log directory is writable with space left;
-  /// Unavailable naming what is not.
+  /// Ok when every hosted scene is recovered and its edit log directory is writable with space
+  /// left; Unavailable naming the first that is not.
   Status Readiness();
 
   const HttpConfig& config() const { return config_; }

@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <stdexcept>
 #include <vector>
 
 #include "net/session.h"
@@ -30,14 +31,18 @@ Authenticator::Options AuthOptions(const ServerConfig& c, bool with_users_file) 
 
 }  // namespace
 
-Server::Server(asio::io_context& io, const ServerConfig& config, Scene& scene)
+Server::Server(asio::io_context& io, const ServerConfig& config, std::vector<Scene*> scenes)
     : io_(io),
       config_(config),
-      scene_(scene),
+      scenes_(std::move(scenes)),
       acceptor_(io),
       presence_timer_(io),
       accept_pause_(io, "accept on " + config.listen),
       budgets_(config.limits) {
+  // A programmer's error (main opens at least scene.name): refused here, not at the first join.
+  if (scenes_.empty() || std::find(scenes_.begin(), scenes_.end(), nullptr) != scenes_.end()) {
+    throw std::invalid_argument("Server needs at least one scene and no null scene");
+  }
   // The shared tokens until Start reads the users file (creating this one cannot fail).
   auto a = Authenticator::Create(AuthOptions(config_, false));
   if (a.ok()) auth_ = std::move(a).value();
@@ -220,6 +225,24 @@ void Server::Unregister(const Session* s) {
   }
 }
 
+Scene* Server::FindScene(const std::string& name) {
+  for (Scene* scene : scenes_) {
+    if (scene->name() == name) return scene;
+  }
+  return nullptr;
+}
+
+Server::Seats Server::JoinedSeats(const Scene& scene) {
+  std::lock_guard<std::mutex> lock(sessions_mu_);
+  Seats seats;
+  for (const auto& s : sessions_) {
+    if (!s->joined() || s->joined_scene() != &scene) continue;
+    ++seats.joined;
+    if (s->role() == v1::ROLE_VIEWER) ++seats.viewers;
+  }
+  return seats;
+}
+
 Server::Seats Server::JoinedSeats() {
   std::lock_guard<std::mutex> lock(sessions_mu_);
   Seats seats;
@@ -267,19 +290,23 @@ void Server::SchedulePresence() {
 }
 
 void Server::BroadcastPresence() {
-  std::vector<std::shared_ptr<Session>> sessions;
+  // Each scene's joined sessions, in the set's order (a single scene's broadcast is the one it
+  // always was).
+  std::map<const Scene*, std::vector<std::shared_ptr<Session>>> by_scene;
   {
     std::lock_guard<std::mutex> lock(sessions_mu_);
     for (const auto& s : sessions_) {
-      if (s->joined()) sessions.push_back(s);
+      if (s->joined()) by_scene[s->joined_scene()].push_back(s);
     }
   }
-  if (sessions.size() < 2) return;
-  v1::ServerMessage msg;
-  for (const auto& s : sessions) *msg.mutable_presence()->add_users() = s->PresenceEntry();
-  // Serialized once, shared by every session.
-  const Frame frame = codec::EncodeSharedFrame(msg);
-  for (const auto& s : sessions) s->DeliverPresence(frame);
+  for (const auto& [scene, sessions] : by_scene) {
+    if (sessions.size() < 2) continue;
+    v1::ServerMessage msg;
+    for (const auto& s : sessions) *msg.mutable_presence()->add_users() = s->PresenceEntry();
+    // Serialized once, shared by every session of the scene.
+    const Frame frame = codec::EncodeSharedFrame(msg);
+    for (const auto& s : sessions) s->DeliverPresence(frame);
+  }
 }
 
 }  // namespace sculpt::server

@@ -12,6 +12,7 @@
 #include <set>
 #include <string>
 #include <unordered_map>
+#include <vector>
 
 #include "config/server_config.h"
 #include "net/accept_pause.h"
@@ -67,11 +68,16 @@ struct ServerStats {
 /// Live sessions counted by (role name, transport name), for /metrics.
 using SessionCounts = std::map<std::pair<std::string, std::string>, uint64_t>;
 
-/// Owns the TCP acceptor and the set of live sessions. Thread safety: Start/Stop from the
-/// owning thread; every other method from any thread.
+/// Owns the TCP acceptor and the set of live sessions of every scene this process hosts.
+/// Thread safety: Start/Stop from the owning thread; every other method from any thread.
 class Server {
  public:
-  Server(asio::io_context& io, const ServerConfig& config, Scene& scene);
+  /// `scenes`: the hosted scenes (HostedScenes(config) order), non-empty, outliving the server;
+  /// the first is the default scene, the one a JoinScene naming no scene joins.
+  Server(asio::io_context& io, const ServerConfig& config, std::vector<Scene*> scenes);
+  /// A server of one scene (tests, tools): Server(io, config, {&scene}).
+  Server(asio::io_context& io, const ServerConfig& config, Scene& scene)
+      : Server(io, config, std::vector<Scene*>{&scene}) {}
   ~Server();
 
   /// Loads the TLS files (config.tls), binds and listens on config.listen. Returns the bound
@@ -81,7 +87,12 @@ class Server {
   void Stop();
 
   const ServerConfig& config() const { return config_; }
-  Scene& scene() { return scene_; }
+  /// The default scene (the first hosted).
+  Scene& scene() { return *scenes_.front(); }
+  /// The hosted scene named `name`; null when this process does not host it.
+  Scene* FindScene(const std::string& name);
+  /// Every hosted scene, the default first.
+  const std::vector<Scene*>& scenes() const { return scenes_; }
   ServerStats& stats() { return stats_; }
   asio::io_context& io() { return io_; }
   /// Who may connect (valid after Start).
@@ -103,12 +114,16 @@ class Server {
 
   // Called by sessions.
   void Unregister(const Session* s);
+  /// Sends each scene's joined sessions the presence of that scene's sessions only.
   void BroadcastPresence();
-  /// Sessions that have joined the scene, and how many of them are viewers.
+  /// Sessions that have joined, and how many of them are viewers.
   struct Seats {
     size_t joined = 0;
     size_t viewers = 0;
   };
+  /// The seats taken in `scene` (limits.max_clients_per_scene counts them).
+  Seats JoinedSeats(const Scene& scene);
+  /// The seats taken in every hosted scene together (a cluster member's load).
   Seats JoinedSeats();
   /// The rate limits shared by the sessions of one source address or one named user.
   BudgetPool& budgets() { return budgets_; }
@@ -126,7 +141,7 @@ class Server {
 
   asio::io_context& io_;
   ServerConfig config_;
-  Scene& scene_;
+  const std::vector<Scene*> scenes_;
   tcp::acceptor acceptor_;
   std::shared_ptr<boost::asio::ssl::context> tls_;       // the TCP port's; null: plaintext
   std::shared_ptr<boost::asio::ssl::context> http_tls_;  // the HTTP port's

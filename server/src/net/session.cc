@@ -456,7 +456,7 @@ void Session::Handle(const std::string& payload) {
       if (!subscribed_ || !Charge("DivergenceReport", kDivergenceCost, received)) return;
       v1::DivergenceReport r = msg.divergence();
       r.set_object(Printable(r.object()));
-      server_.scene().ReportDivergence(id_, codec::DecodeDivergenceReport(r));
+      scene_->ReportDivergence(id_, codec::DecodeDivergenceReport(r));
       return;
     }
     case v1::ClientMessage::kViewerSubscribe: return OnViewerSubscribe(msg.viewer_subscribe());
@@ -572,7 +572,7 @@ void Session::OnAuthenticated(AuthResult r, v1::Role role, uint64_t client_id,
   user_ = r.user;
   peer_ = r.peer;
   if (r.peer) spdlog::info("session {}: cluster peer {} from {}", id_, r.user, transport_->remote());
-  if (r.named) server_.scene().NameAuthor(client_id_, r.user);  // in its log records and history
+  named_ = r.named;  // the scene joined names the author (OnJoin)
   {
     std::lock_guard<std::mutex> lock(presence_mu_);
     presence_.set_session_id(id_);
@@ -587,7 +587,7 @@ void Session::OnAuthenticated(AuthResult r, v1::Role role, uint64_t client_id,
   w->set_protocol_version(kProtocolVersion);
   w->set_session_id(id_);
   w->set_role(role_);
-  w->add_scenes(server_.scene().name());
+  for (const Scene* scene : server_.scenes()) w->add_scenes(scene->name());
   w->set_max_frame_bytes(c.limits.max_frame_bytes);
   w->set_max_poses_per_stroke(c.limits.max_poses_per_stroke);
   w->set_max_stroke_work(c.limits.max_stroke_work);
@@ -597,11 +597,13 @@ void Session::OnAuthenticated(AuthResult r, v1::Role role, uint64_t client_id,
   Send(out);
 }
 
-bool Session::RouteJoin(const v1::JoinScene& j) {
+bool Session::RouteJoin(const v1::JoinScene& j, std::string* local_scene) {
   // Cluster mode: the routing table is read without waiting on etcd (cluster/cluster_agent.h).
   const cluster::Route r = server_.router()->RouteScene(j.scene());
   switch (r.kind) {
     case cluster::Route::Kind::kLocal:
+      *local_scene = r.scene;  // "" resolved to the member's scene
+      return true;
     case cluster::Route::Kind::kUnknown:
       return true;
     case cluster::Route::Kind::kRedirect: {
@@ -634,15 +636,30 @@ void Session::OnJoin(const v1::JoinScene& j) {
     return Close("join before hello", true);
   }
   if (!Charge("JoinScene", j.skip_state() ? kJoinSkipStateCost : kJoinCost, Clock::now())) return;
-  if (!joined_ && server_.router() && !RouteJoin(j)) return;
-  if (!j.scene().empty() && j.scene() != server_.scene().name()) {
-    SendError(ProtocolError(v1::ERROR_CODE_NOT_FOUND, "JoinScene.scene", j.scene(),
-                            "{" + server_.scene().name() + "}", "unknown scene"));
+  std::string name = j.scene();
+  if (!joined_ && server_.router() && !RouteJoin(j, &name)) return;
+  // An empty name joins the default scene (the first hosted).
+  Scene* const target = name.empty() ? &server_.scene() : server_.FindScene(name);
+  if (!target) {
+    std::string hosted;
+    for (const Scene* scene : server_.scenes()) {
+      hosted += (hosted.empty() ? "" : ", ") + scene->name();
+    }
+    SendError(ProtocolError(v1::ERROR_CODE_NOT_FOUND, "JoinScene.scene", name, "{" + hosted + "}",
+                            "unknown scene"));
     return Violation();
   }
   if (joined_) {
     SendError(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, "JoinScene", "repeated",
                             "once per connection", "already joined"));
+    return Violation();
+  }
+  // A join the scene refused (OnJoinState) may be asked again, of the same scene: the session's
+  // subscriptions and author name stay with the scene it was bound to.
+  if (scene_ && target != scene_) {
+    SendError(ProtocolError(v1::ERROR_CODE_FAILED_PRECONDITION, "JoinScene.scene", name,
+                            "{" + scene_->name() + "} (the scene this connection asked first)",
+                            "a connection joins one scene"));
     return Violation();
   }
   const uint64_t allowance = ResendAllowance::AllowanceFor(server_.config().limits);
@@ -651,7 +668,8 @@ void Session::OnJoin(const v1::JoinScene& j) {
     SendStatus(declared.status());
     return Violation();
   }
-  const Server::Seats seats = server_.JoinedSeats();
+  // Seats are counted per scene: each hosted scene has max_clients_per_scene of its own.
+  const Server::Seats seats = server_.JoinedSeats(*target);
   const uint32_t max_clients = server_.config().limits.max_clients_per_scene;
   if (seats.joined >= max_clients) {
     SendError(ProtocolError(v1::ERROR_CODE_RESOURCE_EXHAUSTED, "clients",
@@ -672,6 +690,11 @@ void Session::OnJoin(const v1::JoinScene& j) {
                             "no seat left for viewers"));
     return Close("no seat left for viewers", true);
   }
+  if (!scene_) {
+    scene_ = target;
+    scene_flag_ = target;  // before joined_flag_: a joined session always names its scene
+    if (named_) scene_->NameAuthor(client_id_, user_);  // in its log records and history
+  }
   joined_ = true;
   joined_flag_ = true;
   resends_.Declare(*declared, allowance);
@@ -682,13 +705,13 @@ void Session::OnJoin(const v1::JoinScene& j) {
   if (j.skip_state()) {
     // A replica loads its region through Subscribe: scene info only.
     v1::ServerMessage info;
-    *info.mutable_scene_info() = ToWireSceneInfo(server_.scene().Info());
+    *info.mutable_scene_info() = ToWireSceneInfo(scene_->Info());
     if (const cluster::SceneRouter* router = server_.router()) {
       SetWireClusterMembers(router->LiveMembers(), info.mutable_scene_info());
     }
     return Send(info);
   }
-  server_.scene().RequestJoinState(
+  scene_->RequestJoinState(
       [self = shared_from_this()](StatusOr<JoinState> js) { self->OnJoinState(std::move(js)); },
       client_id_);
 }
@@ -709,7 +732,7 @@ void Session::OnStroke(const v1::Stroke& s, Clock::time_point received) {
                       s.client_seq())) {
     return;
   }
-  auto limits = server_.scene().LimitsFor(s.object());
+  auto limits = scene_->LimitsFor(s.object());
   if (!limits.ok()) {
     server_.stats().strokes_refused++;
     SendStatus(limits.status(), s.client_seq());
@@ -727,10 +750,10 @@ void Session::OnStroke(const v1::Stroke& s, Clock::time_point received) {
     presence_.set_radius(s.tool_size().x());
   }
   ++strokes_in_flight_;
-  server_.scene().Submit(client_id_, std::move(decoded).value(),
-                         [self = shared_from_this(), received](const StrokeOutcome& out) {
-                           self->OnStrokeDone(out, received);
-                         });
+  scene_->Submit(client_id_, std::move(decoded).value(),
+                 [self = shared_from_this(), received](const StrokeOutcome& out) {
+                   self->OnStrokeDone(out, received);
+                 });
 }
 
 void Session::OnHover(const v1::Hover& h) {
@@ -746,6 +769,10 @@ void Session::OnHover(const v1::Hover& h) {
   presence_.set_radius(h.radius());
 }
 
+// A Subscribe or SetInterest is charged before the join check refuses one sent too early: the
+// joined scene prices it, or the default scene before a join.
+Scene& Session::PricingScene() { return scene_ ? *scene_ : server_.scene(); }
+
 ReplicaSink Session::Sink() {
   ReplicaSink sink;
   sink.session_id = id_;
@@ -753,7 +780,8 @@ ReplicaSink Session::Sink() {
   // Cluster mode: the scene's named standby (as for ReplicaProgress: its Hello name, and the
   // peer token when the cluster has one) gets the resend table with its region loads.
   if (const cluster::SceneRouter* router = server_.router()) {
-    sink.standby = IsSceneStandby(router->RouteScene(""), user_, peer_, server_.config());
+    sink.standby = IsSceneStandby(router->RouteScene(scene_ ? scene_->name() : ""), user_, peer_,
+                                  server_.config());
   }
   // Weak: a subscription the scene still holds must not keep a closed session alive.
   std::weak_ptr<Session> weak = shared_from_this();
@@ -786,7 +814,7 @@ std::function<void(Status)> Session::BeginSubscription(const char* what, bool* f
 }
 
 void Session::OnSubscribe(const v1::Subscribe& sub) {
-  const double cost = RegionCost(ToWireSceneInfo(server_.scene().Info()), sub.object(),
+  const double cost = RegionCost(ToWireSceneInfo(PricingScene().Info()), sub.object(),
                                  sub.has_interest() ? &sub.interest() : nullptr, kSubscribeCost,
                                  server_.config().limits.request_burst);
   if (!Charge("Subscribe", cost, Clock::now())) return;
@@ -794,11 +822,11 @@ void Session::OnSubscribe(const v1::Subscribe& sub) {
   if (!done) return;
   auto request = codec::DecodeSubscribe(sub);
   if (!request.ok()) return done(request.status());
-  server_.scene().Subscribe(Sink(), std::move(request).value(), std::move(done));
+  scene_->Subscribe(Sink(), std::move(request).value(), std::move(done));
 }
 
 void Session::OnSetInterest(const v1::SetInterest& si) {
-  const double cost = RegionCost(ToWireSceneInfo(server_.scene().Info()), si.object(),
+  const double cost = RegionCost(ToWireSceneInfo(PricingScene().Info()), si.object(),
                                  si.has_interest() ? &si.interest() : nullptr, kSetInterestCost,
                                  server_.config().limits.request_burst);
   if (!Charge("SetInterest", cost, Clock::now())) return;
@@ -806,7 +834,7 @@ void Session::OnSetInterest(const v1::SetInterest& si) {
   if (!done) return;
   auto request = codec::DecodeSetInterest(si);
   if (!request.ok()) return done(request.status());
-  server_.scene().SetInterest(id_, std::move(request).value(), std::move(done));
+  scene_->SetInterest(id_, std::move(request).value(), std::move(done));
 }
 
 // Not charged when accepted: the named standby sends one per sync of its copy's log (a few
@@ -827,7 +855,7 @@ void Session::OnReplicaProgress(const v1::ReplicaProgress& p) {
   // The follower says who it is in its Hello (client_name "standby-<member>"); only the member
   // this owner named in etcd counts, and with cluster.peer_token only a session that presented
   // it (without one: as strong as the viewer token it connected with).
-  const cluster::Route route = router->RouteScene("");
+  const cluster::Route route = router->RouteScene(scene_ ? scene_->name() : "");
   if (!IsSceneStandby(route, user_, peer_, server_.config())) {
     // Charged rather than counted as a violation: a member just named standby may report before
     // this owner's routing table (up to one tick old) names it, and must not be disconnected
@@ -848,20 +876,20 @@ void Session::OnReplicaProgress(const v1::ReplicaProgress& p) {
     return;
   }
   auto progress = codec::DecodeReplicaProgress(p);
-  if (progress.ok() && !server_.scene().LimitsFor(progress->object).ok()) {
+  if (progress.ok() && !scene_->LimitsFor(progress->object).ok()) {
     progress =
         Outside("ReplicaProgress.object", Printable(progress->object), "an object of this scene");
   }
-  if (progress.ok() && progress->durable_seq > server_.scene().global_seq()) {
+  if (progress.ok() && progress->durable_seq > scene_->global_seq()) {
     progress = Outside("ReplicaProgress.durable_seq", std::to_string(progress->durable_seq),
-                       "[1, " + std::to_string(server_.scene().global_seq()) +
+                       "[1, " + std::to_string(scene_->global_seq()) +
                            "] (the scene's last applied sequence)");
   }
   if (!progress.ok()) {
     SendStatus(progress.status());
     return Violation();
   }
-  server_.scene().StandbyDurable(progress->durable_seq);
+  scene_->StandbyDurable(progress->durable_seq);
 }
 
 void Session::OnViewerSubscribe(const v1::ViewerSubscribe& vs) {
@@ -870,7 +898,7 @@ void Session::OnViewerSubscribe(const v1::ViewerSubscribe& vs) {
   if (!done) return;
   auto request = codec::DecodeViewerSubscribe(vs);
   if (!request.ok()) return done(request.status());
-  server_.scene().SubscribeViewer(Sink(), std::move(request).value(), std::move(done));
+  scene_->SubscribeViewer(Sink(), std::move(request).value(), std::move(done));
 }
 
 void Session::OnContourSubscribe(const v1::ContourSubscribe& c) {
@@ -885,12 +913,12 @@ void Session::OnContourSubscribe(const v1::ContourSubscribe& c) {
     SendStatus(request.status());
     return Violation();
   }
-  server_.scene().SubscribeContours(Sink(), std::move(request).value(),
-                                    [self = shared_from_this()](Status st) {
-                                      if (!st.ok()) {
-                                        self->OnSubscriptionRefused(nullptr, std::move(st));
-                                      }
-                                    });
+  scene_->SubscribeContours(Sink(), std::move(request).value(),
+                            [self = shared_from_this()](Status st) {
+                              if (!st.ok()) {
+                                self->OnSubscriptionRefused(nullptr, std::move(st));
+                              }
+                            });
 }
 
 // Ball edits, sweeps, paints and model intents are strokes too: joined sculptors only, the
@@ -1044,10 +1072,10 @@ void Session::OnSkinBallEdit(const v1::SkinBallEdit& e) {
     OnSkinAck(ToWireAck(SkinOutcome{edit.status(), e.client_seq()}));
     return Violation();
   }
-  server_.scene().EditSkin(client_id_, std::move(edit).value(),
-                           [self = shared_from_this()](const SkinOutcome& o) {
-                             self->OnSkinAck(ToWireAck(o));
-                           });
+  scene_->EditSkin(client_id_, std::move(edit).value(),
+                   [self = shared_from_this()](const SkinOutcome& o) {
+                     self->OnSkinAck(ToWireAck(o));
+                   });
 }
 
 void Session::OnSkinSweep(const v1::SkinSweep& s) {
@@ -1057,10 +1085,10 @@ void Session::OnSkinSweep(const v1::SkinSweep& s) {
     OnSkinAck(ToWireAck(SkinOutcome{sweep.status(), s.client_seq()}));
     return Violation();
   }
-  server_.scene().SweepSkin(client_id_, std::move(sweep).value(),
-                            [self = shared_from_this()](const SkinOutcome& o) {
-                              self->OnSkinAck(ToWireAck(o));
-                            });
+  scene_->SweepSkin(client_id_, std::move(sweep).value(),
+                    [self = shared_from_this()](const SkinOutcome& o) {
+                      self->OnSkinAck(ToWireAck(o));
+                    });
 }
 
 void Session::OnPaint(const v1::PaintEdit& p) {
@@ -1069,7 +1097,7 @@ void Session::OnPaint(const v1::PaintEdit& p) {
     OnPaintAck(ToWireAck(PaintOutcome{st, p.client_seq()}));
     Violation();
   };
-  auto limits = server_.scene().LimitsFor(p.object());
+  auto limits = scene_->LimitsFor(p.object());
   if (!limits.ok()) {
     return refuse(
         Outside("PaintEdit.object", p.object(), "the scene's objects", Status::Code::kNotFound));
@@ -1077,7 +1105,7 @@ void Session::OnPaint(const v1::PaintEdit& p) {
   auto paint =
       codec::DecodePaintEdit(p, *limits, static_cast<int>(server_.config().scene.materials.size()));
   if (!paint.ok()) return refuse(paint.status());
-  server_.scene().Paint(
+  scene_->Paint(
       client_id_, std::move(paint).value(),
       [self = shared_from_this()](const PaintOutcome& o) { self->OnPaintAck(ToWireAck(o)); });
 }
@@ -1092,10 +1120,10 @@ void Session::OnModelIntent(const v1::ModelIntent& mi) {
     OnModelAck(ToWireAck(refused));
     return Violation();
   }
-  server_.scene().EditModel(client_id_, std::move(edit).value(),
-                            [self = shared_from_this()](const ModelOutcome& o) {
-                              self->OnModelAck(ToWireAck(o));
-                            });
+  scene_->EditModel(client_id_, std::move(edit).value(),
+                    [self = shared_from_this()](const ModelOutcome& o) {
+                      self->OnModelAck(ToWireAck(o));
+                    });
 }
 
 void Session::OnUndo(const v1::UndoRequest& u) {
@@ -1110,10 +1138,10 @@ void Session::OnUndo(const v1::UndoRequest& u) {
     refused.redo = u.redo();
     return OnUndoAck(ToWireAck(refused));
   }
-  server_.scene().Undo(client_id_, std::move(command).value(),
-                       [self = shared_from_this()](const UndoCommandOutcome& o) {
-                         self->OnUndoAck(ToWireAck(o));
-                       });
+  scene_->Undo(client_id_, std::move(command).value(),
+               [self = shared_from_this()](const UndoCommandOutcome& o) {
+                 self->OnUndoAck(ToWireAck(o));
+               });
 }
 
 // The history view: any joined session (viewers too) may read it; a request costs tokens of the
@@ -1133,10 +1161,10 @@ void Session::OnHistory(const v1::HistoryRequest& h) {
   }
   auto query = codec::DecodeHistoryRequest(h);
   if (!query.ok()) return refuse(ToWireError(query.status(), 0));
-  server_.scene().History(std::move(query).value(),
-                          [self = shared_from_this()](const HistoryOutcome& o) {
-                            self->OnHistoryAnswer(ToWireAnswer(o));
-                          });
+  scene_->History(std::move(query).value(),
+                  [self = shared_from_this()](const HistoryOutcome& o) {
+                    self->OnHistoryAnswer(ToWireAnswer(o));
+                  });
 }
 
 void Session::OnHistoryAnswer(v1::HistoryAnswer a) {
@@ -1260,9 +1288,9 @@ void Session::FinishClose() {
   transport_->Close();
   close_timer_.cancel();
   const Scene::RequesterScope requester(ComputeOwner(user_budget_ != nullptr, user_, source_));
-  if (subscribed_) server_.scene().Unsubscribe(id_);
-  if (joined_) server_.scene().UnsubscribeContours(id_);
-  if (viewing_) server_.scene().UnsubscribeViewer(id_);
+  if (subscribed_) scene_->Unsubscribe(id_);
+  if (joined_) scene_->UnsubscribeContours(id_);
+  if (viewing_) scene_->UnsubscribeViewer(id_);
   server_.Unregister(this);
 }
 

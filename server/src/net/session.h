@@ -80,6 +80,9 @@ class Session : public std::enable_shared_from_this<Session> {
   TransportKind transport_kind() const { return transport_kind_; }
   /// True once joined and until closing (any thread).
   bool joined() const { return joined_flag_.load(); }
+  /// The scene bound at the first JoinScene this server accepted from the client, null before
+  /// (any thread); it stays bound until the session ends.
+  const Scene* joined_scene() const { return scene_flag_.load(); }
   /// ROLE_UNSPECIFIED until authenticated (any thread).
   v1::Role role() const { return role_flag_.load(); }
   /// The presence entry the server broadcasts (any thread).
@@ -109,8 +112,9 @@ class Session : public std::enable_shared_from_this<Session> {
   void OnAuthenticated(AuthResult r, v1::Role role, uint64_t client_id, const std::string& name);
   void OnJoin(const v1::JoinScene& j);
   // Cluster mode: redirects (or refuses) a join the router says is not served here; false when
-  // it answered and the session is closing.
-  bool RouteJoin(const v1::JoinScene& j);
+  // it answered and the session is closing. A join served here sets `*local_scene` to the
+  // scene's resolved name (unchanged when the cluster knows no such scene).
+  bool RouteJoin(const v1::JoinScene& j, std::string* local_scene);
   void OnStroke(const v1::Stroke& s, Clock::time_point received);
   void OnHover(const v1::Hover& h);
   void OnSubscribe(const v1::Subscribe& sub);
@@ -145,6 +149,7 @@ class Session : public std::enable_shared_from_this<Session> {
   // Starts a once-per-connection subscription (see session.cc); null when refused.
   std::function<void(Status)> BeginSubscription(const char* what, bool* flag,
                                                 const char* repeat_hint);
+  Scene& PricingScene();
   ReplicaSink Sink();
   void Violation();
 
@@ -186,6 +191,10 @@ class Session : public std::enable_shared_from_this<Session> {
   State state_ = State::kAwaitHello;
   bool closing_ = false;
   bool joined_ = false;
+  // The hosted scene this session joined (bound at its first accepted JoinScene, kept until it
+  // ends); every request after the join goes to it.
+  Scene* scene_ = nullptr;
+  std::atomic<const Scene*> scene_flag_{nullptr};  // scene_, for the server's other threads
   bool subscribed_ = false;
   bool viewing_ = false;
   std::atomic<bool> joined_flag_{false};
@@ -194,6 +203,7 @@ class Session : public std::enable_shared_from_this<Session> {
   uint64_t client_id_ = 0;  // the id edits are filed under (bound to the user when named)
   std::string user_;        // the authenticated user name (named users) or the claimed name
   bool peer_ = false;       // presented the cluster's peer token (a member's follower)
+  bool named_ = false;      // user_ is an authenticated named user
   RateLimiter strokes_;  // strokes and every other edit message
   RateLimiter poses_;    // each pose is an edit: bounds the work one client queues
   RateLimiter requests_;  // every request that is not an edit, by its cost
