@@ -21,28 +21,8 @@ RATE=${RATE:-60}
 POSES=${POSES:-4}
 SUSTAIN_P99_MS=${SUSTAIN_P99_MS:-100}
 SCENES=(default s1 s2 s3 s4 s5)
-WORK=$(mktemp -d)
-PIDS=()
-cleanup() {
-  for p in "${PIDS[@]}"; do kill -KILL "$p" 2>/dev/null || true; done
-  wait 2>/dev/null || true
-  rm -rf "$WORK"
-}
-trap cleanup EXIT
-
-free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
-CPORT=$(free_port)
-PPORT=$(free_port)
-ETCD="http://127.0.0.1:$CPORT"
-/usr/bin/etcd --name cap --data-dir "$WORK/etcd" --listen-client-urls "$ETCD" \
-  --advertise-client-urls "$ETCD" --listen-peer-urls "http://127.0.0.1:$PPORT" \
-  --initial-advertise-peer-urls "http://127.0.0.1:$PPORT" \
-  --initial-cluster "cap=http://127.0.0.1:$PPORT" > "$WORK/etcd.log" 2>&1 &
-PIDS+=($!)
-for _ in $(seq 1 150); do
-  curl -s "$ETCD/health" | grep -q true && break
-  sleep 0.1
-done
+. "$(dirname "$0")/bench_etcd.sh"
+start_etcd cap
 
 # The JSON value of an etcd key (v3 gateway), empty when absent.
 etcd_get() {

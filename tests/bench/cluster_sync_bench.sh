@@ -11,34 +11,15 @@ SECS=${BENCH_SECONDS:-15}
 ROUNDS=${ROUNDS:-1}
 SCULPTORS=${SCULPTORS:-2}
 RATE=${RATE:-60}
-WORK=$(mktemp -d)
-PIDS=()
-cleanup() {
-  for p in "${PIDS[@]}"; do kill -KILL "$p" 2>/dev/null || true; done
-  wait 2>/dev/null || true
-  rm -rf "$WORK"
-}
-trap cleanup EXIT
-
-free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
-CPORT=$(free_port)
-PPORT=$(free_port)
-/usr/bin/etcd --name b --data-dir "$WORK/etcd" --listen-client-urls "http://127.0.0.1:$CPORT" \
-  --advertise-client-urls "http://127.0.0.1:$CPORT" --listen-peer-urls "http://127.0.0.1:$PPORT" \
-  --initial-advertise-peer-urls "http://127.0.0.1:$PPORT" \
-  --initial-cluster "b=http://127.0.0.1:$PPORT" > "$WORK/etcd.log" 2>&1 &
-PIDS+=($!)
-for _ in $(seq 1 150); do
-  curl -s "http://127.0.0.1:$CPORT/health" | grep -q true && break
-  sleep 0.1
-done
+. "$(dirname "$0")/bench_etcd.sh"
+start_etcd b
 
 member() {  # mode round name
   local mode=$1 round=$2 name=$3 dir="$WORK/$1-$2"
   mkdir -p "$dir"
   cat > "$dir/$name.toml" <<TOML
 [cluster]
-etcd = ["http://127.0.0.1:$CPORT"]
+etcd = ["$ETCD"]
 member = "$name"
 prefix = "bench-$mode-$round/"
 replication = "$mode"

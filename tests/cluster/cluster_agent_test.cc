@@ -356,7 +356,9 @@ TEST_F(ClusterAgentTest, ARestartedAgentResumesItsLeaseAndItsScenesAtTheSameEpoc
   EXPECT_EQ(read(keys.Owner(p)).create_revision, p_owner.create_revision);
   EXPECT_EQ(read(keys.Owner(p)).lease, p_owner.lease);
   for (const std::string& n : names) {
-    if (n != p && n != r) EXPECT_EQ(b.owned_epoch(n), 1u) << n;
+    if (n != p && n != r) {
+      EXPECT_EQ(b.owned_epoch(n), 1u) << n;
+    }
   }
   b.Stop();
 }

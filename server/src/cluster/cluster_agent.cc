@@ -221,7 +221,11 @@ void ClusterAgent::RetireFollower(Slot& slot) {
                       done});
 }
 
-void ClusterAgent::Stop() {
+void ClusterAgent::Stop() { Shutdown(/*revoke_lease=*/true); }
+
+void ClusterAgent::Abandon() { Shutdown(/*revoke_lease=*/false); }
+
+void ClusterAgent::Shutdown(bool revoke_lease) {
   if (stopping_.exchange(true)) return;
   for (const auto& slot : slots_) {
     slot->fence->Revoke();
@@ -231,43 +235,23 @@ void ClusterAgent::Stop() {
   asio::post(etcd_->io(), [this] {
     if (timer_) timer_->cancel();
   });
-  // Our keys go now rather than after the TTL: other members see this one leave at once. The
-  // epoch records stay: this member, restarted, takes its scenes back with epoch + 1.
-  auto revoke = [this]() -> asio::awaitable<Status> {
-    if (lease_ == 0) co_return Status::Ok();
-    auto call = etcd_->Revoke(lease_);
-    co_return co_await std::move(call);
-  };
-  const Status s = etcd_->Sync(revoke());
-  if (!s.ok())
-    spdlog::warn("cluster: lease not revoked at stop ({}); it expires by itself", s.ToString());
+  if (revoke_lease) {
+    // Our keys go now rather than after the TTL: other members see this one leave at once. The
+    // epoch records stay: this member, restarted, takes its scenes back with epoch + 1.
+    auto revoke = [this]() -> asio::awaitable<Status> {
+      if (lease_ == 0) co_return Status::Ok();
+      auto call = etcd_->Revoke(lease_);
+      co_return co_await std::move(call);
+    };
+    const Status s = etcd_->Sync(revoke());
+    if (!s.ok())
+      spdlog::warn("cluster: lease not revoked at stop ({}); it expires by itself", s.ToString());
+  }
   etcd_->Halt();     // joins the agent's thread; the io_context (and the loop's frame) stays
   timer_.reset();    // before its io_context: a timer's service must outlive it
   etcd_.reset();     // the loop's frame goes with its io_context
   for (const auto& slot : slots_) {
     slot->fence->Revoke();  // again: an acquisition may have completed while the lease went
-    RetireFollower(*slot);
-  }
-  std::lock_guard<std::mutex> lock(retired_mu_);
-  for (Retired& r : retired_) r.thread.join();
-  retired_.clear();
-}
-
-void ClusterAgent::Abandon() {
-  if (stopping_.exchange(true)) return;
-  for (const auto& slot : slots_) {
-    slot->fence->Revoke();
-    slot->owned_epoch = 0;
-  }
-  if (!etcd_) return;
-  asio::post(etcd_->io(), [this] {
-    if (timer_) timer_->cancel();
-  });
-  etcd_->Halt();
-  timer_.reset();
-  etcd_.reset();
-  for (const auto& slot : slots_) {
-    slot->fence->Revoke();
     RetireFollower(*slot);
   }
   std::lock_guard<std::mutex> lock(retired_mu_);

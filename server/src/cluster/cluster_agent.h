@@ -181,6 +181,9 @@ class ClusterAgent : public SceneRouter {
   // directory and the process starts again, keeping its lease (never returns unless that
   // fails).
   asio::awaitable<void> Promote(std::vector<std::pair<Slot*, uint64_t>> promote);
+  // Stop (revoke_lease) and Abandon: fences revoked, the loop and its thread stopped, followers
+  // retired; idempotent.
+  void Shutdown(bool revoke_lease);
   void RetireFollower(Slot& slot);
   // Lost the scene (lease gone, owner key no longer ours): fence at once and say why.
   void LoseOwnership(Slot& slot, const std::string& why);
