@@ -667,8 +667,9 @@ TEST_F(ClusterRoutingTest, OwnerNamesANewStandbyWhenItsStandbyLeaves) {
       },
       milliseconds(15000)))
       << "b did not catch up; see " << dir_.path() / "b.log";
-  ASSERT_TRUE(MemberOf("c").has_value());
-  EXPECT_TRUE(MemberOf("c")->follows.empty()) << "c follows while b is the standby";
+  const auto c_record = MemberOf("c");
+  ASSERT_TRUE(c_record.has_value());
+  EXPECT_TRUE(c_record->follows.empty()) << "c follows while b is the standby";
   b.process().Kill(SIGTERM);
   ASSERT_TRUE(WaitFor(
       [&] {

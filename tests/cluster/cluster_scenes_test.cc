@@ -200,7 +200,11 @@ TEST_F(ClusterScenesTest, AKilledMembersScenesFailOverAndTheOthersKeepTheirOwner
   }
 
   std::map<std::string, std::string> standby_before;
-  for (const std::string& scene : kScenes) standby_before[scene] = StandbyOf(scene)->member;
+  for (const std::string& scene : kScenes) {
+    const auto standby = StandbyOf(scene);
+    ASSERT_TRUE(standby.has_value()) << scene << " has no standby";
+    standby_before[scene] = standby->member;
+  }
   const std::string victim = before.at("default").member;
   members_[victim]->process().Kill(SIGKILL);
   ASSERT_TRUE(WaitFor(
