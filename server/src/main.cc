@@ -413,10 +413,14 @@ int main(int argc, char** argv) {
     // Every scene this process hosts, each in its own data directory and fenced on its own.
     std::vector<sculpt::server::cluster::HostedScene> offered;
     for (sculpt::server::Scene* sc : scene_ptrs) {
+      const ServerConfig scene_config = sculpt::server::ConfigForScene(config, sc->name());
       offered.push_back({.name = sc->name(),
                          .data_dir = sculpt::server::SceneDataDir(config, sc->name()),
                          .seq = [sc] { return sc->global_seq(); },
-                         .acks_async = [sc] { return sc->acks().fallen_back(); }});
+                         .acks_async = [sc] { return sc->acks().fallen_back(); },
+                         .books = {.skins = scene_config.scene.skins,
+                                   .objects = scene_config.scene.objects,
+                                   .undo_depth = scene_config.limits.undo_depth}});
     }
     cluster = std::make_unique<sculpt::server::cluster::ClusterAgent>(
         config.cluster, std::move(offered),

@@ -280,6 +280,7 @@ struct Client::Impl : std::enable_shared_from_this<Client::Impl> {
       case v1::ServerMessage::kSkinAck:
       case v1::ServerMessage::kPaintAck:  // paints (issue 7)
       case v1::ServerMessage::kModelAck:  // hyperpatch model intents (issue 7)
+      case v1::ServerMessage::kLogRecords:  // cluster mode: to a standby's follower only
         ++stats.replication_messages;
         if (replication_handler) replication_handler(std::move(m));
         return;

@@ -31,6 +31,22 @@ SharedFrame EncodeLeafDelta(LeafDeltaFrame delta) {
     e->set_client_seq(client_seq);
   }
   d->set_epoch(delta.epoch);
+  for (auto& [path, data] : delta.book_files) {
+    v1::BookFile* f = d->add_book_files();
+    f->set_path(std::move(path));
+    f->set_data(std::move(data));
+  }
+  return EncodeSharedFrame(m);
+}
+
+SharedFrame EncodeLogRecords(const LogRecordsFrame& frame) {
+  v1::ServerMessage m;
+  v1::LogRecords* r = m.mutable_log_records();
+  r->set_first_seq(frame.first_seq);
+  if (frame.records) {
+    for (const std::string& payload : *frame.records) r->add_records(payload);
+  }
+  r->set_epoch(frame.epoch);
   return EncodeSharedFrame(m);
 }
 

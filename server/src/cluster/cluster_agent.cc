@@ -719,6 +719,7 @@ asio::awaitable<std::optional<uint64_t>> ClusterAgent::TendStandby(Slot& slot) {
       fo.owner_epoch = st.owner->epoch;
       fo.stale_epoch_refusals = stale_epoch_refusals_;
       fo.snapshot_every_records = standby_->snapshot_every_edits;
+      fo.books = slot.hosted.books;
       slot.follower = std::make_unique<StandbyFollower>(std::move(fo));
     }
     if (slot.follower && slot.follower->ready()) slot.follow_seq = slot.follower->durable_seq();

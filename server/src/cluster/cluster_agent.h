@@ -38,6 +38,8 @@ struct HostedScene {
   std::string data_dir;
   std::function<uint64_t()> seq;
   std::function<bool()> acks_async;
+  /// The scene's skins and model objects as this member hosts it: a standby copy keeps them.
+  BookConfig books;
 };
 
 /// What a member needs to follow other owners' scenes and to take one over.

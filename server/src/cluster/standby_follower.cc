@@ -3,12 +3,17 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cctype>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <variant>
+#include <vector>
 
 #include "scene/commit.h"
+#include "scene/models.h"
+#include "scene/skins.h"
 #include "sculpt/client/client.h"
 #include "sculpt/codec/log_records.h"
 #include "sculpt/codec/replica_sculpture.h"
@@ -136,7 +141,31 @@ struct StandbyFollower::Impl {
   // Newest client_seq of each author's strokes, saved with each snapshot (the resend table), so
   // resends are still recognised once the log before it is dropped.
   std::map<std::pair<uint8_t, uint64_t>, uint64_t> resend;
+  // The scene's skins and models as the owner's log makes them, saved with each snapshot
+  // (opened at the first region load, from the book files it carries).
+  SkinBook skins;
+  ModelBook models;
+  bool books = false;
 };
+
+bool IsBookFilePath(const std::string& path) {
+  const size_t slash = path.find('/');
+  if (slash == std::string::npos) return false;
+  const std::string dir = path.substr(0, slash);
+  const std::string file = path.substr(slash + 1);
+  const size_t dot = file.rfind('.');
+  if (dot == std::string::npos || dot == 0 || file.size() > 200) return false;
+  const std::string name = file.substr(0, dot), ext = file.substr(dot);
+  if (name.front() == '.') return false;
+  for (char c : name) {
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_' && c != '-') {
+      return false;
+    }
+  }
+  if (dir == "skins") return ext == ".pb" || ext == ".history";
+  if (dir == "models") return ext == ".json" || ext == ".history";
+  return false;
+}
 
 StandbyFollower::StandbyFollower(FollowerOptions options)
     : options_(std::move(options)), impl_(std::make_shared<Impl>()) {
@@ -305,6 +334,11 @@ void StandbyFollower::Run() {
           store::SaveResendTable((im.gen / store::kResendTableFile).string(), table));
     }
     SCULPT_RETURN_IF_ERROR(im.snapshots->Write(seq, im.object, *im.sculpture));
+    // The books as of seq, before the log rolls (the records they hold may then go).
+    if (im.books && (!im.skins.Save(seq) || !im.models.Save(seq))) {
+      return Internal("the copy's skins or models at seq " + std::to_string(seq) +
+                      " were not saved in " + im.gen.string());
+    }
     im.snapshot_seq = seq;
     im.records_since_snapshot = 0;
     if (im.log) {
@@ -344,25 +378,96 @@ void StandbyFollower::Run() {
   // the copy, and the follow ends.
   auto check_epoch = [&](const v1::ServerMessage& m) -> Status {
     const bool delta = m.has_leaf_delta();
-    if (!delta && !m.has_edit()) return Status::Ok();
-    const uint64_t got = delta ? m.leaf_delta().epoch() : m.edit().epoch();
+    const bool records = m.has_log_records();
+    if (!delta && !records && !m.has_edit()) return Status::Ok();
+    const uint64_t got = delta     ? m.leaf_delta().epoch()
+                         : records ? m.log_records().epoch()
+                                   : m.edit().epoch();
     const uint64_t want = expected_epoch_.load();
     if (got == want) return Status::Ok();
     ++refusals_;
     if (o.stale_epoch_refusals) ++*o.stale_epoch_refusals;
-    const uint64_t seq = delta ? m.leaf_delta().global_seq() : m.edit().global_seq_first();
+    const uint64_t seq = delta     ? m.leaf_delta().global_seq()
+                         : records ? m.log_records().first_seq()
+                                   : m.edit().global_seq_first();
     const std::string why = "scene " + o.scene + ": refused " +
-                            (delta ? "a LeafDelta" : "an EditBroadcast") + " at seq " +
-                            std::to_string(seq) + " of epoch " + std::to_string(got) + " from " +
-                            o.owner_tcp + ": the owner etcd names holds epoch " +
+                            (delta     ? "a LeafDelta"
+                             : records ? "LogRecords"
+                                       : "an EditBroadcast") +
+                            " at seq " + std::to_string(seq) + " of epoch " + std::to_string(got) +
+                            " from " + o.owner_tcp + ": the owner etcd names holds epoch " +
                             std::to_string(want) + " (nothing of it applied or logged)";
     spdlog::warn("cluster: standby {}; ending the connection, the owner is read from etcd again",
                  why);
     return Status(Status::Code::kFailedPrecondition, why);
   };
 
+  // The owner's books as of a region load: its files written into the generation (only the
+  // names a book file has), then opened as recovery opens them; a load without files (no skins
+  // or models) opens them as configured.
+  auto load_books = [&](const v1::LeafDelta& d) -> Status {
+    for (const v1::BookFile& f : d.book_files()) {
+      if (!IsBookFilePath(f.path())) {
+        return InvalidArgument("LeafDelta.book_files path \"" + f.path().substr(0, 80) +
+                               "\" is not one of skins/<name>.pb, skins/<name>.history, "
+                               "models/<name>.json, models/<name>.history");
+      }
+      const fs::path path = im.gen / f.path();
+      fs::create_directories(path.parent_path(), ec);
+      SCULPT_RETURN_IF_ERROR(store::WriteFileDurably(path.string(), f.data()));
+    }
+    im.skins.set_undo_depth(o.books.undo_depth);
+    im.models.set_undo_depth(o.books.undo_depth);
+    SCULPT_RETURN_IF_ERROR(im.skins.Open(o.books.skins, im.gen.string(), nullptr));
+    SCULPT_RETURN_IF_ERROR(im.models.Open(o.books.objects, im.gen.string()));
+    im.books = true;
+    return Status::Ok();
+  };
+
+  // Records of edits no broadcast carries, logged as the owner logged them and replayed into
+  // the books; their object changes (paint, sweep, undo) follow as a LeafDelta of the same
+  // sequence, which snapshots the copy. No snapshot here: the object does not hold them yet.
+  auto log_records = [&](const v1::LogRecords& r) -> Status {
+    if (!im.log || r.records_size() == 0) return Status::Ok();  // before the load: in it
+    const uint64_t first = r.first_seq();
+    const uint64_t last = first + static_cast<uint64_t>(r.records_size()) - 1;
+    if (first <= im.seq) return Status::Ok();  // already in a region load
+    std::vector<std::string> payloads(r.records().begin(), r.records().end());
+    std::vector<LoggedEdit> edits;
+    for (size_t i = 0; i < payloads.size(); ++i) {
+      SCULPT_ASSIGN_OR_RETURN(LoggedEdit e, DecodeLogRecord(first + i, payloads[i]));
+      if (const uint64_t epoch = codec::RecordEpoch(e.record); epoch != r.epoch()) {
+        return InvalidArgument("LogRecords record at seq " + std::to_string(first + i) +
+                               " names epoch " + std::to_string(epoch) + ", the message epoch " +
+                               std::to_string(r.epoch()));
+      }
+      edits.push_back(std::move(e));
+    }
+    SCULPT_RETURN_IF_ERROR(payloads.size() == 1 ? im.log->Append(first, payloads.front())
+                                                : im.log->AppendGroup(first, payloads));
+    for (size_t i = 0; i < edits.size(); ++i) {
+      const LoggedEdit& e = edits[i];
+      const uint64_t seq = first + i;
+      if (e.completes) {
+        uint64_t& newest = im.resend[{static_cast<uint8_t>(e.stream), e.client_id}];
+        newest = std::max(newest, e.client_seq);
+      }
+      if (!im.books) continue;
+      if (auto* b = std::get_if<codec::BallEditRecord>(&e.record)) im.skins.Replay(seq, *b);
+      if (auto* mr = std::get_if<codec::ModelRecord>(&e.record)) im.models.Replay(seq, *mr);
+      if (auto* u = std::get_if<codec::UndoRecord>(&e.record)) {
+        if (u->target_book == codec::kUndoModelBook) im.models.ReplayUndo(seq, *u);
+        if (u->target_book == codec::kUndoSkinBook) im.skins.ReplayUndo(seq, *u);
+      }
+    }
+    im.seq = last;
+    im.records_since_snapshot += payloads.size();
+    return Status::Ok();
+  };
+
   auto apply = [&](v1::ServerMessage& m) -> Status {
     SCULPT_RETURN_IF_ERROR(check_epoch(m));
+    if (m.has_log_records()) return log_records(m.log_records());
     if (m.has_leaf_delta()) {
       const v1::LeafDelta& d = m.leaf_delta();
       if (d.object() != im.object) return Status::Ok();
@@ -381,6 +486,7 @@ void StandbyFollower::Run() {
       }
       levelset::RestoreReplayState(*im.sculpture,
                                    {d.volume(), d.reference_volume(), d.edits_since_reinit()});
+      if (d.replace_region()) SCULPT_RETURN_IF_ERROR(load_books(d));
       if (d.replace_region()) {
         // The owner's resend table at the load's sequence: without it, a client resending an
         // edit inside the load after a failover would have it applied twice.

@@ -13,7 +13,9 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <vector>
 
+#include "config/server_config.h"
 #include "sculpt/core/status.h"
 
 namespace sculpt::v1 {
@@ -59,6 +61,20 @@ struct PeerTlsOptions {
   std::string key_file;
 };
 
+/// What a copy needs of the scene's own configuration to keep its books (skins and models,
+/// with their undo histories) as the owner keeps them: the scene as this member hosts it.
+struct BookConfig {
+  std::vector<SkinConfig> skins;
+  std::vector<ObjectConfig> objects;  // the `model` objects have books
+  uint32_t undo_depth = 64;           // limits.undo_depth
+};
+
+/// True for the paths a region load's book files may name (LeafDelta.book_files): skins/<name>.pb,
+/// skins/<name>.history, models/<name>.json or models/<name>.history, the name of letters, digits,
+/// '.', '_' and '-', not starting with '.', the file name at most 200 characters. Anything else
+/// (another directory, "..", a slash in the name) is refused before a byte is written.
+bool IsBookFilePath(const std::string& path);
+
 struct FollowerOptions {
   std::string data_dir;
   std::string scene;
@@ -76,16 +92,22 @@ struct FollowerOptions {
   /// previous snapshot (as the owner does with snapshot_every_edits), so a failover replays a
   /// bounded tail; 0: only at region loads.
   uint64_t snapshot_every_records = 5000;
+  /// The scene's skins and model objects (unset: the copy keeps no books, and a failover starts
+  /// them from what the owner's region load sent).
+  BookConfig books;
 };
 
 /// One follow of one owner: connects as a viewer, joins the scene without its state, subscribes
 /// to the whole of its object in replay mode, and then, on its own thread, for each message:
 /// an EditBroadcast is logged (the stroke's pose records, as the owner logged them, in one group)
 /// and replayed with the kernel, its leaves hash checked (a mismatch is reported to the owner
-/// and the object loaded anew); a region load or a leaf delta (an edit without a replay form:
-/// paint, sweep, model, undo) is applied and the object snapshotted at its sequence, so the copy
-/// never depends on a record it could not write. The follow ends when the connection does;
-/// the copy stays for promotion.
+/// and the object loaded anew); LogRecords (every other edit: paint, sweep, undo, ball edit,
+/// model intent) are logged as the owner logged them and replayed into the copy's books (skins
+/// and models, which the region load's book files started); a region load or a leaf delta is
+/// applied and the object (and the books) snapshotted at its sequence. So the copy's log holds
+/// every record of the owner's since the copy's oldest snapshot, and a promoted copy recovers
+/// objects, skins, models and the books' undo histories as the owner's own directory would.
+/// The follow ends when the connection does; the copy stays for promotion.
 /// Fencing: a broadcast or delta whose epoch is not the expected one (options().owner_epoch, or
 /// the one Supersede gave) is neither applied nor logged: it is counted, logged with both
 /// epochs, and the follow ends (the connection dropped), so the member reads the owner from

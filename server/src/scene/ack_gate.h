@@ -53,10 +53,10 @@ class AckGate {
   void LocalDurable(uint64_t seq);
   /// The standby's copy is durable up to `seq` (values below an earlier one are ignored).
   void StandbyDurable(uint64_t seq);
-  /// Seqs first..last will never reach the standby's copy (an edit that changed no object: a
-  /// ball edit, a model intent, a refused apply). An answer waits for the standby only up to the
-  /// seq before them; without this it waited for the next edit the standby does get, or the
-  /// fall-back. Call before the Hold of an answer at `last`.
+  /// Seqs first..last will never reach the standby's copy (no standby was subscribed when the
+  /// edit was sent; a subscribed one gets every record, ReplicationHub::ShipRecords). An answer
+  /// waits for the standby only up to the seq before them; without this it waited for the next
+  /// edit the standby does get, or the fall-back. Call before the Hold of an answer at `last`.
   void Skip(uint64_t first, uint64_t last);
   /// Tests with an injected clock: checks the fallback deadline now (the timer thread does it by
   /// itself at the deadline on the real clock).

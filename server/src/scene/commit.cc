@@ -217,6 +217,11 @@ void Scene::RunCommit(const std::shared_ptr<EditOp>& op) {
     auto it = sculptures_.find(applied.object);
     if (it != sculptures_.end()) sculpture = &it->second;
   }
+  // Cluster mode: the records of an edit no EditBroadcast carries (every kind but an applied
+  // stroke) go to the standby as logged, before the leaves of the same edit, so its copy logs
+  // everything this log holds and recovery from it rebuilds skins, models and histories.
+  const bool broadcast = applied.status.ok() && sculpture && applied.replay;
+  const bool shipped = !broadcast && replication_.ShipRecords(first, records);
   if (applied.status.ok() && sculpture) {
     // Leaf versions always (cheap), so a replica subscribing later resyncs by version.
     replication_.RecordVersions(applied.object, applied.dirty_leaves, last);
@@ -234,9 +239,9 @@ void Scene::RunCommit(const std::shared_ptr<EditOp>& op) {
   out.global_seq_first = first;
   out.global_seq_last = last;
   out.records = static_cast<uint32_t>(records.size());
-  // Replicate sends a whole-object standby every edit it is called for; the others never reach
-  // its copy, so under sync their answers must not wait for it to hold them.
-  if (!(applied.status.ok() && sculpture)) acks_->Skip(first, last);
+  // Replicate or ShipRecords sends a whole-object standby every edit; without a standby
+  // subscribed nothing reaches a copy, so under sync the answer must not wait for one.
+  if (!(applied.status.ok() && sculpture) && !shipped) acks_->Skip(first, last);
   AnswerWhenDurable(last, [this, op, out] {
     Observe("answered", op->operation(), out.global_seq_last);
     op->Answer(Fenced(out));

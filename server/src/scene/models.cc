@@ -226,15 +226,16 @@ void ModelBook::Replay(uint64_t seq, const codec::ModelRecord& r) {
   entry.history.Commit(seq, HistoryAuthor(r.client_id), 0, r.edit.intent, std::move(before));
 }
 
-bool ModelBook::Save(uint64_t seq) {
+bool ModelBook::Save(uint64_t seq) const { return SaveTo(data_dir_, seq); }
+
+bool ModelBook::SaveTo(const std::string& dir, uint64_t seq) const {
   if (models_.empty()) return true;
   bool saved_all = true;
   std::error_code ec;
-  std::filesystem::create_directories(std::filesystem::path(data_dir_) / "models", ec);
+  std::filesystem::create_directories(std::filesystem::path(dir) / "models", ec);
   for (const auto& [name, entry] : models_) {
     // Written before the log rolls, so the segments a snapshot lets go are already covered.
-    if (const Status s =
-            SaveModelFile(ModelFilePath(data_dir_, name), seq, entry.version, entry.model);
+    if (const Status s = SaveModelFile(ModelFilePath(dir, name), seq, entry.version, entry.model);
         !s.ok()) {
       spdlog::error("model {} at seq {} not saved: {}", name, seq, s.ToString());
       saved_all = false;
@@ -244,8 +245,7 @@ bool ModelBook::Save(uint64_t seq) {
     std::string bytes(reinterpret_cast<const char*>(&seq), sizeof seq);
     bytes += entry.history.Serialize([](const State& st) { return hetero::ModelToJson(st.model); },
                                      IntentBytes);
-    if (const Status s = store::WriteFileDurably(ModelHistoryPath(data_dir_, name), bytes);
-        !s.ok()) {
+    if (const Status s = store::WriteFileDurably(ModelHistoryPath(dir, name), bytes); !s.ok()) {
       spdlog::error("undo history of model {} at seq {} not saved: {}", name, seq, s.ToString());
       saved_all = false;
     }

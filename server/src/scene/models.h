@@ -89,7 +89,9 @@ class ModelBook {
   void Replay(uint64_t seq, const codec::ModelRecord& record);
   /// Writes every model, as of log sequence `seq`, to data_dir/models/<object>.json
   /// (atomically). False (each failure logged) if a file was not saved; true without models.
-  bool Save(uint64_t seq);
+  bool Save(uint64_t seq) const;
+  /// The same files under `dir` instead of the data directory (a standby's copy of them).
+  bool SaveTo(const std::string& dir, uint64_t seq) const;
 
   /// Checks `edit` against its model and applies it to a copy in `plan`, changing nothing. Ok
   /// with the plan ready to apply; NotFound naming ModelIntent.object for an object without a

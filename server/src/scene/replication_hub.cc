@@ -67,14 +67,18 @@ void ReplicationHub::SendRegion(Sub& sub, const levelset::Sculpture& sculpture, 
   d.region = box;
   d.state = levelset::CaptureReplayState(sculpture);
   if (replace && sub.sink.standby && resend_table_) d.resend_table = *resend_table_;
+  if (replace && sub.sink.standby && book_files_) d.book_files = book_files_(seq);
+  const size_t book_files = d.book_files.size();
   d.epoch = epoch();
   codec::SharedFrame frame = codec::EncodeLeafDelta(std::move(d));
   stats_.resyncs++;
   stats_.leaf_delta_bytes += frame->size();
-  spdlog::info("replica {}: region of {} leaf cells ({} leaves) to seq {}, {} bytes{}{}",
-               sub.sink.session_id, cells.size(), st.leaves, seq, frame->size(),
-               replace ? " (replace)" : "",
-               replace && sub.sink.standby ? " with the resend table, to the standby" : "");
+  spdlog::info(
+      "replica {}: region of {} leaf cells ({} leaves) to seq {}, {} bytes{}{}",
+      sub.sink.session_id, cells.size(), st.leaves, seq, frame->size(), replace ? " (replace)" : "",
+      replace && sub.sink.standby ? " with the resend table and " + std::to_string(book_files) +
+                                        " book file(s), to the standby"
+                                  : std::string());
   sub.sink.send(std::move(frame));
 }
 
@@ -137,6 +141,18 @@ void ReplicationHub::RecordVersions(const std::string& object,
 
 // An EditBroadcast to replay replicas that hold the edit's footprint, the changed leaves (inside
 // what each holds) to every other replica of the object.
+bool ReplicationHub::ShipRecords(uint64_t first_seq, const std::vector<std::string>& records) {
+  codec::SharedFrame frame;
+  bool shipped = false;
+  for (auto& [session, sub] : subs_) {
+    if (!sub.sink.standby) continue;
+    if (!frame) frame = codec::EncodeLogRecords({first_seq, &records, epoch()});
+    sub.sink.send(frame);
+    shipped = true;
+  }
+  return shipped;
+}
+
 void ReplicationHub::Replicate(const std::string& object, const levelset::Sculpture& sculpture,
                                const std::vector<levelset::Int3>& dirty, uint64_t first_seq,
                                uint64_t last_seq, uint64_t client_id, uint64_t client_seq,

@@ -72,6 +72,11 @@ class ReplicationHub {
   /// LeafDelta.epoch), so a standby can refuse a stream of another epoch than etcd names. Null
   /// (a single process): epoch 0, absent from the bytes.
   void set_fence(const cluster::OwnershipFence* fence) { fence_ = fence; }
+  /// Cluster mode: the scene's book files (skins and models with their undo histories) as of
+  /// `seq`, (path relative to the data directory, bytes); a region load to the standby carries
+  /// them (LeafDelta.book_files), so its copy starts from the owner's books. Compute thread.
+  using BookFiles = std::function<std::vector<std::pair<std::string, std::string>>(uint64_t)>;
+  void set_book_files(BookFiles files) { book_files_ = std::move(files); }
 
   /// Registers `sink`'s replica of `object` (`sculpture`, null when the scene has no such
   /// object) at the scene's sequence `seq`, replacing the session's earlier subscription, and
@@ -105,6 +110,13 @@ class ReplicationHub {
                  const std::vector<levelset::Int3>& dirty, uint64_t first_seq, uint64_t last_seq,
                  uint64_t client_id, uint64_t client_seq, const EditReplay* replay);
 
+  /// Cluster mode: sends the scene's standby (a subscription whose sink is the standby's) the
+  /// records logged at first_seq.. exactly as logged (LogRecords), for an edit no EditBroadcast
+  /// carries to it; call before Replicate of the same edit, so the copy logs the record before
+  /// it applies the leaves. True when a standby subscription got them (it reports them durable
+  /// with ReplicaProgress).
+  bool ShipRecords(uint64_t first_seq, const std::vector<std::string>& records);
+
   /// A replica's hash mismatch: logged with both hashes and counted. Any thread.
   void ReportDivergence(uint64_t session_id, const codec::Divergence& report);
 
@@ -129,6 +141,7 @@ class ReplicationHub {
   uint64_t versions_floor_ = 0;
   const ResendEntries* resend_table_ = nullptr;
   const cluster::OwnershipFence* fence_ = nullptr;
+  BookFiles book_files_;
   ReplicationStats stats_;
 };
 

@@ -7,17 +7,19 @@
 #include <chrono>
 #include <exception>
 #include <filesystem>
+#include <fstream>
 #include <future>
+#include <iterator>
 #include <variant>
 
-#include "sculpt/codec/frame.h"
-#include "sculpt/core/check.h"
-#include "sculpt/core/thread_priority.h"
 #include "scene/answer_once.h"
 #include "scene/edit_history.h"
 #include "scene/models.h"
 #include "scene/paint.h"
 #include "scene/skins.h"
+#include "sculpt/codec/frame.h"
+#include "sculpt/core/check.h"
+#include "sculpt/core/thread_priority.h"
 #include "sculpt/hetero/model_io.h"
 #include "sculpt/levelset/materials.h"
 #include "sculpt/levelset/region.h"
@@ -239,6 +241,34 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   scene->applied_seq_ = rec.last_seq;
   scene->replication_.set_versions_floor(rec.last_seq);
   scene->replication_.set_resend_table(&scene->resend_.entries());
+  // A region load to the standby carries the books as of its sequence: saved (as a snapshot
+  // would) into a staging directory beside the data, read back, and removed. The owner's own
+  // files are not touched.
+  scene->replication_.set_book_files([raw_books = scene.get()](uint64_t seq) {
+    namespace fs = std::filesystem;
+    const fs::path staging = fs::path(raw_books->config_.data_dir) / ".standby-books";
+    std::error_code ec;
+    fs::remove_all(staging, ec);
+    std::vector<std::pair<std::string, std::string>> files;
+    if (!raw_books->skins_.SaveTo(staging.string(), seq) ||
+        !raw_books->models_.SaveTo(staging.string(), seq)) {
+      spdlog::error(
+          "the books at seq {} could not be staged for the standby: its copy starts "
+          "from the scene's configured skins and models",
+          seq);
+    } else {
+      for (const fs::directory_entry& e : fs::recursive_directory_iterator(staging, ec)) {
+        if (!e.is_regular_file()) continue;
+        const std::string rel = fs::relative(e.path(), staging).generic_string();
+        if (rel.size() > 4 && rel.compare(rel.size() - 4, 4, ".tmp") == 0) continue;
+        std::ifstream in(e.path(), std::ios::binary);
+        files.emplace_back(
+            rel, std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()));
+      }
+    }
+    fs::remove_all(staging, ec);
+    return files;
+  });
   // Snapshots carry the fraction grids; a data directory written under other materials would
   // give replicas and viewers a declaration the objects do not hold.
   for (auto& [name, sculpture] : scene->sculptures_) {

@@ -305,11 +305,13 @@ void SkinBook::Replay(uint64_t seq, const codec::BallEditRecord& r) {
   entry.history.Commit(seq, HistoryAuthor(r.client_id), 0, r.edit, std::move(before));
 }
 
-bool SkinBook::Save(uint64_t seq) {
+bool SkinBook::Save(uint64_t seq) const { return SaveTo(data_dir_, seq); }
+
+bool SkinBook::SaveTo(const std::string& dir, uint64_t seq) const {
   if (skins_.empty()) return true;
   bool saved_all = true;
   std::error_code ec;
-  std::filesystem::create_directories(std::filesystem::path(data_dir_) / "skins", ec);
+  std::filesystem::create_directories(std::filesystem::path(dir) / "skins", ec);
   for (const auto& [name, entry] : skins_) {
     codec::SavedSkin saved;
     saved.seq = seq;
@@ -318,7 +320,7 @@ bool SkinBook::Save(uint64_t seq) {
       saved.balls.push_back({o.c.x, o.c.y, o.r, o.theta});
     }
     // Written before the log rolls, so the segments a snapshot lets go are already covered.
-    if (const Status s = SaveSkinFile(SkinFilePath(data_dir_, name), saved); !s.ok()) {
+    if (const Status s = SaveSkinFile(SkinFilePath(dir, name), saved); !s.ok()) {
       spdlog::error("skin {} at seq {} not saved: {}", name, seq, s.ToString());
       saved_all = false;
       continue;
@@ -326,8 +328,7 @@ bool SkinBook::Save(uint64_t seq) {
     // Its undo history, for a restart from this file (Open checks the seq matches).
     std::string bytes(reinterpret_cast<const char*>(&seq), sizeof seq);
     bytes += entry.history.Serialize(ChainBytes, BallEditBytes);
-    if (const Status s = store::WriteFileDurably(SkinHistoryPath(data_dir_, name), bytes);
-        !s.ok()) {
+    if (const Status s = store::WriteFileDurably(SkinHistoryPath(dir, name), bytes); !s.ok()) {
       spdlog::error("undo history of skin {} at seq {} not saved: {}", name, seq, s.ToString());
       saved_all = false;
     }

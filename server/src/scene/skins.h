@@ -62,7 +62,9 @@ class SkinBook {
   void Replay(uint64_t seq, const codec::BallEditRecord& record);
   /// Writes every skin, as of log sequence `seq`, to data_dir/skins/<name>.pb (atomically). False
   /// (each failure logged) if a file was not saved; true when there are no skins.
-  bool Save(uint64_t seq);
+  bool Save(uint64_t seq) const;
+  /// The same files under `dir` instead of the data directory (a standby's copy of them).
+  bool SaveTo(const std::string& dir, uint64_t seq) const;
 
   /// Checks `edit` against its skin and applies it to a copy, changing nothing. NotFound naming
   /// SkinBallEdit.skin for an unknown skin; InvalidArgument naming SkinBallEdit.index (outside

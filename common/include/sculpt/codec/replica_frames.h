@@ -7,10 +7,11 @@
 #include <cstdint>
 #include <map>
 #include <memory>
-#include <utility>
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 #include "sculpt/codec/shared_frame.h"
 #include "sculpt/levelset/edit.h"
@@ -34,6 +35,17 @@ struct LeafDeltaFrame {
   /// To the scene's standby with a region load: (stream, client id) -> newest client_seq.
   std::map<std::pair<uint8_t, uint64_t>, uint64_t> resend_table;
   uint64_t epoch = 0;  // the sender's ownership epoch (cluster mode), else 0
+  /// To the scene's standby with a region load: the scene's skin and model files as of
+  /// global_seq, (path relative to the data directory, bytes).
+  std::vector<std::pair<std::string, std::string>> book_files;
+};
+
+/// LogRecords, to the scene's standby: log payloads of sequences first_seq.. as the owner logged
+/// them.
+struct LogRecordsFrame {
+  uint64_t first_seq = 0;
+  const std::vector<std::string>* records = nullptr;
+  uint64_t epoch = 0;
 };
 
 /// An EditBroadcast: an edit replay replicas apply with the same kernel. `stroke` is the
@@ -67,6 +79,7 @@ struct MeshChunkFrame {
 /// leaves the broadcast's stroke empty (the server only passes strokes it decoded).
 SharedFrame EncodeLeafDelta(LeafDeltaFrame delta);
 SharedFrame EncodeEditBroadcast(const EditBroadcastFrame& broadcast);
+SharedFrame EncodeLogRecords(const LogRecordsFrame& frame);
 SharedFrame EncodeMeshChunk(MeshChunkFrame chunk);
 
 }  // namespace sculpt::codec
