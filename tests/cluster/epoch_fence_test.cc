@@ -15,6 +15,7 @@
 #include <iterator>
 #include <memory>
 #include <string>
+#include <utility>
 #include <variant>
 #include <vector>
 
@@ -26,6 +27,7 @@
 #include "integration/in_process_server.h"
 #include "integration/raw_client.h"
 #include "scene/commit.h"
+#include "sculpt/skin/skin.h"
 #include "sculpt/v1/sculpt.pb.h"
 #include "store/edit_log.h"
 #include "store/recovery.h"
@@ -124,6 +126,22 @@ TEST(RecordEpochTest, StrokeAndTaggedRecordsCarryTheEpochAndZeroAddsNothing) {
   EXPECT_EQ(tagged_with[0], tagged[0]) << "still an undo";
 }
 
+// A region load names its book files by path; the standby writes only these (untrusted input
+// from another member: nothing outside the copy's skins/ and models/).
+TEST(BookFilePathTest, TakesSkinAndModelFilesOnly) {
+  for (const char* ok : {"skins/profile.pb", "skins/profile.history", "models/part.json",
+                         "models/part.history", "skins/a-b_c.1.pb"}) {
+    EXPECT_TRUE(IsBookFilePath(ok)) << ok;
+  }
+  for (const char* bad :
+       {"skins/../x.pb", "../skins/x.pb", "skins/.hidden.pb", "skins/x.json", "models/x.pb",
+        "snapshots/x.pb", "skins/x", "skins/.pb", "x.pb", "skins/a b.pb", "skins/a/b.pb", "",
+        "/skins/x.pb", "log/seg.history"}) {
+    EXPECT_FALSE(IsBookFilePath(bad)) << bad;
+  }
+  EXPECT_FALSE(IsBookFilePath("skins/" + std::string(200, 'a') + ".pb")) << "over 200 characters";
+}
+
 // This member ("a") owns the scene and names "b" its standby.
 class FixedRouter : public SceneRouter {
  public:
@@ -164,6 +182,10 @@ class EpochFenceTest : public ::testing::Test {
     fo.owner_tcp = "127.0.0.1:" + std::to_string(server_.port());
     fo.owner_epoch = epoch;
     fo.stale_epoch_refusals = refusals_;
+    // The scene as the owner hosts it: the copy keeps its skins and models.
+    fo.books = {.skins = server_.config().scene.skins,
+                .objects = server_.config().scene.objects,
+                .undo_depth = server_.config().limits.undo_depth};
     return std::make_unique<StandbyFollower>(std::move(fo));
   }
   // One acknowledged stroke of `poses` poses; returns the scene's sequence after it.
@@ -188,6 +210,35 @@ class EpochFenceTest : public ::testing::Test {
     EXPECT_TRUE(undone.has_value());
     EXPECT_TRUE(!undone || undone->undo_ack().accepted()) << undone->DebugString();
     return undone && undone->undo_ack().accepted();
+  }
+  // A ball edit of the sculptor's on skin "profile" (moves or adds ball `index`); returns its
+  // answer, or an empty one.
+  v1::SkinAck EditBall(uint64_t client_seq, v1::SkinBallOp op, uint32_t index, double x, double y) {
+    v1::ClientMessage m;
+    v1::SkinBallEdit* e = m.mutable_skin_ball_edit();
+    e->set_client_seq(client_seq);
+    e->set_skin("profile");
+    e->set_op(op);
+    e->set_index(index);
+    e->mutable_ball()->set_x(x);
+    e->mutable_ball()->set_y(y);
+    e->mutable_ball()->set_r(2.5);
+    EXPECT_TRUE(sculptor_->Send(m));
+    auto a = sculptor_->ReadUntil(v1::ServerMessage::kSkinAck);
+    EXPECT_TRUE(a.has_value()) << "no answer to ball edit " << client_seq;
+    EXPECT_TRUE(!a || a->skin_ack().accepted()) << a->DebugString();
+    return a ? a->skin_ack() : v1::SkinAck{};
+  }
+  // Undoes the sculptor's newest ball edit on skin "profile"; returns the undo's sequence.
+  uint64_t UndoBall(uint64_t client_seq) {
+    v1::ClientMessage m;
+    m.mutable_undo()->set_client_seq(client_seq);
+    m.mutable_undo()->set_object("profile");
+    EXPECT_TRUE(sculptor_->Send(m));
+    auto a = sculptor_->ReadUntil(v1::ServerMessage::kUndoAck);
+    EXPECT_TRUE(a.has_value()) << "no answer to the undo";
+    EXPECT_TRUE(!a || a->undo_ack().accepted()) << a->DebugString();
+    return a ? a->undo_ack().global_seq() : 0;
   }
   // A replay replica (a viewer), subscribed to the object; returns its region load.
   std::optional<v1::ServerMessage> Subscribe(RawClient& c) {
@@ -351,6 +402,97 @@ TEST_F(EpochFenceTest, EveryRecordKindIsLoggedWithTheEpochAndTheHistoryShowsIt) 
   const auto table = sculpt::testing::Sculpt("history " + server + " --limit 1");
   ASSERT_EQ(table.exit_code, 0) << table.output;
   EXPECT_NE(table.output.find("done, undoable, epoch 8\n"), std::string::npos) << table.output;
+}
+
+// Under sync the standby's copy holds every edit the owner acknowledges, whatever its kind:
+// ball edits and undos (no voxels change, so no broadcast carries them) reach it as the owner
+// logged them (LogRecords), and the skin as the owner held it when the copy was loaded comes
+// with the region load (its book files). A server started on the copy, as a promotion starts
+// one, has the owner's skin, the author's undo and redo depths and its resend table.
+TEST_F(EpochFenceTest, StandbyCopyHoldsBallEditsAndUndosAndRecoversTheSkinAndItsHistory) {
+  SkinConfig skin;
+  skin.name = "profile";
+  skin.chord_tolerance = 0.05;
+  skin.balls = {{-12, 0, 3, 0}, {-6, 1, 2.5, 0}, {0, 0, 3, 0}, {6, -1, 2.5, 0}, {12, 0, 3, 0}};
+  server_.config().scene.skins = {skin};
+  server_.config().cluster.replication = "sync";
+  // Before the copy exists the owner acknowledges alone after this; once the copy holds
+  // everything, the scene is synchronous again.
+  server_.config().cluster.sync_fallback_ms = 300;
+  StartOwner(7);
+  Sculpt(1);
+  EditBall(1, v1::SKIN_BALL_OP_MOVE, 1, -6, 2);  // before the copy: in its region load
+  auto follower = Follow(7);
+  ASSERT_TRUE(
+      WaitFor([&] { return follower->ready() || follower->finished(); }, milliseconds(10000)));
+  ASSERT_TRUE(follower->ready()) << follower->failure();
+  ASSERT_TRUE(WaitFor([&] { return !server_.scene().acks().fallen_back(); }, milliseconds(5000)))
+      << "the scene did not become synchronous again once the copy held everything";
+
+  EditBall(2, v1::SKIN_BALL_OP_MOVE, 3, 6, -2);
+  const uint64_t moved = server_.scene().global_seq();
+  EXPECT_FALSE(server_.scene().acks().fallen_back());
+  EXPECT_GE(follower->durable_seq(), moved) << "a ball edit acknowledged before the copy held it";
+  EditBall(3, v1::SKIN_BALL_OP_ADD, 5, 18, 0);
+  const uint64_t undone = UndoBall(1);  // takes back the add
+  ASSERT_GT(undone, moved);
+  EXPECT_GE(follower->durable_seq(), undone) << "an undo acknowledged before the copy held it";
+  const uint64_t last = Sculpt(2);
+  ASSERT_TRUE(WaitFor([&] { return follower->durable_seq() >= last; }, milliseconds(10000)));
+  EXPECT_EQ(follower->stale_epoch_refusals(), 0u);
+  auto owner_skin = server_.scene().SkinCopy("profile");
+  ASSERT_TRUE(owner_skin.ok()) << owner_skin.status();
+  const auto owner_depth = server_.scene().UndoDepth("profile", 77);
+  EXPECT_EQ(owner_depth, std::make_pair(size_t{2}, size_t{1}));
+  follower.reset();
+  sculptor_.reset();
+  server_.Stop();
+
+  // The copy logged the ball edits and the undo after its load, as the owner did, with the
+  // owner's epoch.
+  size_t ball_edits = 0, undos = 0;
+  for (const Logged& l : ReadLog(Copy())) {
+    EXPECT_EQ(l.epoch, 7u) << "seq " << l.seq;
+    ball_edits += !l.stroke && l.payload[0] == '\x03' ? 1 : 0;
+    undos += !l.stroke && l.payload[0] == '\x04' ? 1 : 0;
+  }
+  EXPECT_EQ(ball_edits, 2u);
+  EXPECT_EQ(undos, 1u);
+
+  sculpt::testing_support::InProcessServer promoted{"epoch_fence_promoted"};
+  promoted.config().data_dir = Copy().string();
+  promoted.config().scene.skins = {skin};
+  ASSERT_TRUE(promoted.Start());
+  auto copy_skin = promoted.scene().SkinCopy("profile");
+  ASSERT_TRUE(copy_skin.ok()) << copy_skin.status();
+  ASSERT_EQ(copy_skin->balls().size(), owner_skin->balls().size());
+  ASSERT_EQ(copy_skin->balls().size(), 5u);
+  for (size_t i = 0; i < copy_skin->balls().size(); ++i) {
+    const skin::OrientedBall& a = owner_skin->balls()[i];
+    const skin::OrientedBall& b = copy_skin->balls()[i];
+    EXPECT_EQ(a.c.x, b.c.x) << "ball " << i;
+    EXPECT_EQ(a.c.y, b.c.y) << "ball " << i;
+    EXPECT_EQ(a.r, b.r) << "ball " << i;
+    EXPECT_EQ(a.theta, b.theta) << "ball " << i;
+  }
+  EXPECT_EQ(copy_skin->balls()[1].c.y, 2.0) << "the edit from before the copy's load";
+  EXPECT_EQ(copy_skin->balls()[3].c.y, -2.0) << "the edit shipped after it";
+  EXPECT_EQ(promoted.scene().UndoDepth("profile", 77), owner_depth);
+  // A resend of a ball edit the owner acknowledged is recognised by the copy.
+  RawClient again(promoted.port());
+  ASSERT_TRUE(again.Enter("sculpt-dev-sculptor", v1::ROLE_SCULPTOR, 77));
+  v1::ClientMessage resend;
+  resend.mutable_skin_ball_edit()->set_client_seq(3);
+  resend.mutable_skin_ball_edit()->set_skin("profile");
+  resend.mutable_skin_ball_edit()->set_op(v1::SKIN_BALL_OP_ADD);
+  resend.mutable_skin_ball_edit()->set_index(5);
+  resend.mutable_skin_ball_edit()->mutable_ball()->set_x(18);
+  resend.mutable_skin_ball_edit()->mutable_ball()->set_r(2.5);
+  ASSERT_TRUE(again.Send(resend));
+  auto dup = again.ReadUntil(v1::ServerMessage::kSkinAck);
+  ASSERT_TRUE(dup.has_value());
+  EXPECT_TRUE(dup->skin_ack().duplicate()) << dup->DebugString();
+  EXPECT_EQ(promoted.scene().SkinCopy("profile")->balls().size(), 5u);
 }
 
 // A member whose fence holds a lower epoch than one its log already holds (a stale owner: the
