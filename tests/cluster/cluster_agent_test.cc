@@ -22,12 +22,12 @@ using sculpt::testing::WaitFor;
 using std::chrono::milliseconds;
 
 // One hosted scene, "vase", with no data directory of its own (these agents never promote).
-std::vector<HostedScene> Vase() { return {HostedScene{"vase", "", nullptr, nullptr}}; }
+std::vector<HostedScene> Vase() { return {HostedScene{"vase", "", nullptr, nullptr, {}}}; }
 
 // Scenes hosted in-process without a Scene behind them (sequence 0).
 std::vector<HostedScene> Hosted(const std::vector<std::string>& names) {
   std::vector<HostedScene> out;
-  for (const std::string& n : names) out.push_back({n, "", [] { return uint64_t{0}; }, nullptr});
+  for (const std::string& n : names) out.push_back({n, "", [] { return uint64_t{0}; }, nullptr, {}});
   return out;
 }
 
