@@ -65,7 +65,7 @@ TEST_F(ClusterAgentTest, StopsAcknowledgingWithinTheTtlWhenEtcdIsGoneAndRecovers
   EXPECT_EQ(agent_->RouteScene("other").kind, Route::Kind::kUnknown);
 
   const auto paused = std::chrono::steady_clock::now();
-  ASSERT_EQ(kill(etcd_->process().pid(), SIGSTOP), 0);
+  ASSERT_TRUE(etcd_->process().Pause()) << "not stopped within 5 s";
   ASSERT_TRUE(WaitFor([&] { return !agent_->fence("vase")->held(); }, milliseconds(4000)));
   const auto fenced_ms =
       std::chrono::duration_cast<milliseconds>(std::chrono::steady_clock::now() - paused).count();

@@ -593,7 +593,7 @@ TEST_F(ClusterRoutingTest, SyncOwnerHoldsAcksWhileItsStandbyIsStoppedThenFallsBa
   EXPECT_LT(running, kFallbackMs / 2)
       << "with its standby running, a stroke waited for the fallback";
 
-  ASSERT_EQ(::kill(b.process().pid(), SIGSTOP), 0);
+  ASSERT_TRUE(b.process().Pause()) << "not stopped within 5 s";
   const int64_t stopped = timed_ack_ms(-2);
   ASSERT_GE(stopped, 0) << "no ack even after the fall-back; see " << dir_.path() / "a.log";
   EXPECT_GE(stopped, kFallbackMs - 100) << "acknowledged although the standby could not have it";
@@ -746,7 +746,7 @@ TEST_F(ClusterRoutingTest, EtcdOutageStopsAcksWithinTheTtlLosesNothingAndRecover
   };
   while (ms_since(t0) < 1000) step();
   paused_ms = ms_since(t0);
-  ASSERT_EQ(kill(etcd_->process().pid(), SIGSTOP), 0);
+  ASSERT_TRUE(etcd_->process().Pause()) << "not stopped within 5 s";
   while (ms_since(t0) < paused_ms + kLeaseTtlMs + 1500) step();
   resumed_ms = ms_since(t0);
   ASSERT_EQ(kill(etcd_->process().pid(), SIGCONT), 0);
@@ -843,7 +843,7 @@ TEST_F(ClusterRoutingTest, PausedOwnerAcknowledgesNothingAfterItsLeaseIsGone) {
       << "b's copy did not catch up; see " << dir_.path() / "b.log";
   (void)client.DrainEvents();
 
-  ASSERT_EQ(kill(a.process().pid(), SIGSTOP), 0);
+  ASSERT_TRUE(a.process().Pause()) << "not stopped within 5 s";
   for (int i = kBefore; i < kBefore + kDuring; ++i) {
     ASSERT_TRUE(client.SendStroke(stroke_at(i)).ok());  // they wait in the paused owner's socket
   }

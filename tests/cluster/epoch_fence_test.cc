@@ -701,7 +701,7 @@ TEST_F(EpochFenceClusterTest, PausedOwnersStaleStrokesAreLoggedNowhereAndEpochsA
       << "b's copy did not catch up; see " << dir_.path() / "b.log";
   (void)client.DrainEvents();
 
-  ASSERT_EQ(kill(a.process().pid(), SIGSTOP), 0);
+  ASSERT_TRUE(a.process().Pause()) << "not stopped within 5 s";
   for (int i = kBefore; i < kBefore + kDuring; ++i) {
     ASSERT_TRUE(client.SendStroke(stroke_at(i)).ok());
   }

@@ -18,6 +18,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -125,8 +126,38 @@ class ChildProcess {
     waitpid(pid_, &status, 0);
     pid_ = -1;
   }
+  /// Sends SIGSTOP and returns once every thread of the process is stopped (false after 5 s).
+  /// kill() returns before the stop takes effect: the thread chosen to take the signal may be
+  /// waiting for a core while the others run on, so on a loaded machine a "paused" member
+  /// could still read, apply and acknowledge what a test sends right after the kill.
+  bool Pause() {
+    if (pid_ <= 0 || kill(pid_, SIGSTOP) != 0) return false;
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+    while (std::chrono::steady_clock::now() < until) {
+      if (AllThreadsStopped()) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    return false;
+  }
 
  private:
+  // Every /proc/<pid>/task/<tid>/stat in state T (stopped); the state follows the last ')'.
+  bool AllThreadsStopped() const {
+    std::error_code ec;
+    size_t threads = 0;
+    for (const auto& task : fs::directory_iterator(
+             fs::path("/proc") / std::to_string(pid_) / "task", ec)) {
+      std::ifstream in(task.path() / "stat");
+      const std::string stat((std::istreambuf_iterator<char>(in)),
+                             std::istreambuf_iterator<char>());
+      const size_t paren = stat.rfind(')');
+      if (paren == std::string::npos || paren + 2 >= stat.size()) return false;
+      if (stat[paren + 2] != 'T' && stat[paren + 2] != 't') return false;
+      ++threads;
+    }
+    return !ec && threads > 0;
+  }
+
   pid_t pid_ = -1;
 };
 
