@@ -705,16 +705,8 @@ TEST_F(EpochFenceClusterTest, PausedOwnersStaleStrokesAreLoggedNowhereAndEpochsA
   for (int i = kBefore; i < kBefore + kDuring; ++i) {
     ASSERT_TRUE(client.SendStroke(stroke_at(i)).ok());
   }
-  // Read once per check and kept: the key may be gone again a moment later (b restarts on its
-  // copy), and a second read would dereference an empty optional.
-  decltype(OwnerOf("")) owner;
-  ASSERT_TRUE(WaitFor(
-      [&] {
-        owner = OwnerOf("default");
-        return owner && owner->member == "b";
-      },
-      milliseconds(15000)))
-      << "b did not take the scene over; see " << dir_.path() / "b.log";
+  const auto owner = AwaitOwner("default", "b", milliseconds(15000));
+  ASSERT_TRUE(owner.has_value()) << "b did not take the scene over; see " << dir_.path() / "b.log";
   EXPECT_EQ(owner->epoch, 2u);
   ASSERT_EQ(kill(a.process().pid(), SIGCONT), 0);
   // a refuses the waiting strokes and closes; the client rejoins (redirected to b) and resends.

@@ -78,13 +78,8 @@ TEST_F(PeerTlsTest, TlsClusterFollowsSyncsAndFailsOver) {
   const std::string ca = Pki::Get().File("ca.pem");
   Member& a = Start("a", ca);
   ASSERT_NE(a.WaitPort(), 0) << "member a did not start; see " << dir_.path() / "a.log";
-  decltype(OwnerOf("")) first_owner;
-  ASSERT_TRUE(WaitFor(
-      [&] {
-        first_owner = OwnerOf("default");
-        return first_owner.has_value();
-      },
-      milliseconds(5000)));
+  const auto first_owner = AwaitOwner("default", "", milliseconds(5000));
+  ASSERT_TRUE(first_owner.has_value());
   ASSERT_EQ(first_owner->member, "a");
   Member& b = Start("b", ca);
   ASSERT_NE(b.WaitPort(), 0) << "member b did not start; see " << dir_.path() / "b.log";
@@ -118,16 +113,8 @@ TEST_F(PeerTlsTest, TlsClusterFollowsSyncsAndFailsOver) {
       << "a fell back to async: b's word did not count";
 
   a.process().Kill(SIGKILL);
-  // Read once per check and kept: the key may be gone again a moment later (b restarts on its
-  // copy), and a second read would dereference an empty optional.
-  decltype(OwnerOf("")) owner;
-  ASSERT_TRUE(WaitFor(
-      [&] {
-        owner = OwnerOf("default");
-        return owner && owner->member == "b";
-      },
-      milliseconds(25000)))
-      << "b did not take the scene over; see " << dir_.path() / "b.log";
+  const auto owner = AwaitOwner("default", "b", milliseconds(25000));
+  ASSERT_TRUE(owner.has_value()) << "b did not take the scene over; see " << dir_.path() / "b.log";
   EXPECT_EQ(owner->epoch, 2u);
   // b restarted on its copy (the same port file, rewritten); a TLS client finds every
   // acknowledged stroke there.

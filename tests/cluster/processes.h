@@ -344,6 +344,22 @@ class EtcdTest : public ::testing::Test {
   std::optional<server::cluster::MemberRecord> MemberOf(const std::string& name) {
     return Read(keys_.Member(name), server::cluster::DecodeMember);
   }
+  // The scene's owner record once one is there held by `member` (any member when empty), or
+  // nullopt after `limit`. Read once per check and kept: the key can be gone again a moment
+  // later (a promoted member restarts), so a second read may find nothing.
+  std::optional<server::cluster::OwnerRecord> AwaitOwner(const std::string& scene,
+                                                         const std::string& member,
+                                                         std::chrono::milliseconds limit) {
+    std::optional<server::cluster::OwnerRecord> owner;
+    const auto taken = [&] { return owner && (member.empty() || owner->member == member); };
+    WaitFor(
+        [&] {
+          owner = OwnerOf(scene);
+          return taken();
+        },
+        limit);
+    return taken() ? owner : std::nullopt;
+  }
 
   std::unique_ptr<EtcdProcess> etcd_;
   std::unique_ptr<server::cluster::EtcdClient> etcd_client_;
