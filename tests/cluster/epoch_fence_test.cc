@@ -200,17 +200,19 @@ class EpochFenceTest : public ::testing::Test {
     EXPECT_TRUE(ack.has_value()) << "no ack for stroke " << client_seq;
     return ack ? ack->ack().global_seq_first() + ack->ack().edits() - 1 : 0;
   }
-  // Undoes the sculptor's stroke `client_seq` (a tagged record in the log); true when accepted.
-  bool UndoStroke(uint64_t client_seq) {
-    v1::ClientMessage undo;
-    undo.mutable_undo()->set_client_seq(client_seq);
-    undo.mutable_undo()->set_object("clay");
-    EXPECT_TRUE(sculptor_->Send(undo));
-    auto undone = sculptor_->ReadUntil(v1::ServerMessage::kUndoAck);
-    EXPECT_TRUE(undone.has_value());
-    EXPECT_TRUE(!undone || undone->undo_ack().accepted()) << undone->DebugString();
-    return undone && undone->undo_ack().accepted();
+  // Undoes the sculptor's newest edit on `object` (an object's strokes, or a skin's ball edits:
+  // a tagged record in the log); returns the answer, or an empty one.
+  v1::UndoAck Undo(uint64_t client_seq, const std::string& object) {
+    v1::ClientMessage m;
+    m.mutable_undo()->set_client_seq(client_seq);
+    m.mutable_undo()->set_object(object);
+    EXPECT_TRUE(sculptor_->Send(m));
+    auto a = sculptor_->ReadUntil(v1::ServerMessage::kUndoAck);
+    EXPECT_TRUE(a.has_value()) << "no answer to the undo of " << object;
+    EXPECT_TRUE(!a || a->undo_ack().accepted()) << (a ? a->DebugString() : "");
+    return a ? a->undo_ack() : v1::UndoAck{};
   }
+  bool UndoStroke(uint64_t client_seq) { return Undo(client_seq, "clay").accepted(); }
   // A ball edit of the sculptor's on skin "profile" (moves or adds ball `index`); returns its
   // answer, or an empty one.
   v1::SkinAck EditBall(uint64_t client_seq, v1::SkinBallOp op, uint32_t index, double x, double y) {
@@ -226,19 +228,8 @@ class EpochFenceTest : public ::testing::Test {
     EXPECT_TRUE(sculptor_->Send(m));
     auto a = sculptor_->ReadUntil(v1::ServerMessage::kSkinAck);
     EXPECT_TRUE(a.has_value()) << "no answer to ball edit " << client_seq;
-    EXPECT_TRUE(!a || a->skin_ack().accepted()) << a->DebugString();
+    EXPECT_TRUE(!a || a->skin_ack().accepted()) << (a ? a->DebugString() : "");
     return a ? a->skin_ack() : v1::SkinAck{};
-  }
-  // Undoes the sculptor's newest ball edit on skin "profile"; returns the undo's sequence.
-  uint64_t UndoBall(uint64_t client_seq) {
-    v1::ClientMessage m;
-    m.mutable_undo()->set_client_seq(client_seq);
-    m.mutable_undo()->set_object("profile");
-    EXPECT_TRUE(sculptor_->Send(m));
-    auto a = sculptor_->ReadUntil(v1::ServerMessage::kUndoAck);
-    EXPECT_TRUE(a.has_value()) << "no answer to the undo";
-    EXPECT_TRUE(!a || a->undo_ack().accepted()) << a->DebugString();
-    return a ? a->undo_ack().global_seq() : 0;
   }
   // A replay replica (a viewer), subscribed to the object; returns its region load.
   std::optional<v1::ServerMessage> Subscribe(RawClient& c) {
@@ -434,7 +425,7 @@ TEST_F(EpochFenceTest, StandbyCopyHoldsBallEditsAndUndosAndRecoversTheSkinAndIts
   EXPECT_FALSE(server_.scene().acks().fallen_back());
   EXPECT_GE(follower->durable_seq(), moved) << "a ball edit acknowledged before the copy held it";
   EditBall(3, v1::SKIN_BALL_OP_ADD, 5, 18, 0);
-  const uint64_t undone = UndoBall(1);  // takes back the add
+  const uint64_t undone = Undo(1, "profile").global_seq();  // takes back the add
   ASSERT_GT(undone, moved);
   EXPECT_GE(follower->durable_seq(), undone) << "an undo acknowledged before the copy held it";
   const uint64_t last = Sculpt(2);

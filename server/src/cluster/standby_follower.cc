@@ -486,8 +486,8 @@ void StandbyFollower::Run() {
       }
       levelset::RestoreReplayState(*im.sculpture,
                                    {d.volume(), d.reference_volume(), d.edits_since_reinit()});
-      if (d.replace_region()) SCULPT_RETURN_IF_ERROR(load_books(d));
       if (d.replace_region()) {
+        SCULPT_RETURN_IF_ERROR(load_books(d));
         // The owner's resend table at the load's sequence: without it, a client resending an
         // edit inside the load after a failover would have it applied twice.
         if (d.resend_table_size() == 0 && d.global_seq() > 0) {
