@@ -300,11 +300,38 @@ Json RunSkinBench(bool quick, const std::string& out_dat) {
       doc["decode_mpoints_per_s_skc1"] = mp / best[3];
       doc["decode_goal_mpoints_per_s"] = 50;
     }
-    // One update after a move: the two sections only.
+    // One update after a move: its sections (the ball's two, and with sample_for_codec those
+    // after them up to the next codec restart).
     OrientedBall b = skin->balls()[500];
     b.c.y += 0.05;
     auto change = skin->SetBall(500, b);
-    if (change.ok()) doc["contour_update_bytes"] = skin::EncodeSkinUpdate(*skin, *change)->size();
+    if (change.ok()) {
+      doc["contour_update_bytes"] = skin::EncodeSkinUpdate(*skin, *change)->size();
+      doc["contour_update_sections"] = change->changed.size();
+    }
+    {
+      // The same over 200 moves at random places: mean bytes and sections of an update.
+      std::mt19937_64 rng(1000);
+      Skin moved = *skin;
+      size_t bytes = 0, sections = 0, moves = 0;
+      for (int m = 0; m < 200; ++m) {
+        const size_t i = rng() % moved.balls().size();
+        OrientedBall mb = moved.balls()[i];
+        mb.c = mb.c + Vec2{0.05, (m % 2 ? -0.1 : 0.1)} * mb.r;
+        auto c = moved.SetBall(i, mb);
+        if (!c.ok()) continue;
+        auto u = skin::EncodeSkinUpdate(moved, *c);
+        if (!u.ok()) continue;
+        bytes += u->size();
+        sections += c->changed.size();
+        ++moves;
+      }
+      if (moves > 0) {
+        doc["contour_update_bytes_mean"] = static_cast<double>(bytes) / static_cast<double>(moves);
+        doc["contour_update_sections_mean"] =
+            static_cast<double>(sections) / static_cast<double>(moves);
+      }
+    }
 
     // Encode / decode time for 2,000 points (the first polylines up to 2,000 points).
     std::vector<Polyline2> lines;

@@ -453,7 +453,7 @@ constexpr size_t kSkc3TryBoth = 4096;
 std::string Encode(Kind kind, double step, const std::string& header,
                    const std::vector<Entry>& entries, const std::vector<const Polyline2*>& lines,
                    const std::vector<QLine>& q, Format format = Format::kBest,
-                   bool prefer_skc4 = false) {
+                   bool prefer_skc4 = false, const std::vector<bool>* fresh = nullptr) {
   std::optional<std::string> body;
   const char* magic = kMagic2;
   Coding coding = kCurve;
@@ -461,7 +461,7 @@ std::string Encode(Kind kind, double step, const std::string& header,
     size_t points = 0;
     for (const Polyline2* l : lines) points += l->size();
     const bool skc4 = format == Format::kSkc4 || (format == Format::kBest && prefer_skc4);
-    body = internal::Skc3Body(kind, step, entries, lines, skc4);
+    body = internal::Skc3Body(kind, step, entries, lines, skc4, skc4 ? fresh : nullptr);
     if (body) {
       magic = skc4 ? kMagic4 : kMagic3;
       coding = skc4 ? kRuleTurtle : kTurtle;
@@ -837,16 +837,18 @@ StatusOr<std::string> SnapshotMessage(const Skin& skin, double step, Format form
   PutVarint(header, skin.sections().size());
   std::vector<const Polyline2*> ptrs;
   std::vector<Entry> entries;
+  std::vector<bool> fresh;
   for (size_t k = 0; k < skin.sections().size(); ++k) {
     const Section& sec = skin.section(k);
     entries.push_back({k, sec.id, sec.version});
     ptrs.push_back(&sec.plus);
     ptrs.push_back(&sec.minus);
+    fresh.insert(fresh.end(), 2, sec.codec_restart);
   }
   std::vector<QLine> q;
   SCULPT_RETURN_IF_ERROR(Quantise(ptrs, s, &q));
   return Encode(kSnapshot, s, header, entries, ptrs, q, format,
-                skin.options().sample_for_codec);
+                skin.options().sample_for_codec, &fresh);
 }
 
 }  // namespace
@@ -881,6 +883,7 @@ StatusOr<std::string> EncodeSkinUpdate(const Skin& skin, const SkinChange& chang
   PutVarint(header, change.changed.size());
   std::vector<const Polyline2*> ptrs;
   std::vector<Entry> entries;
+  std::vector<bool> fresh;
   for (size_t k : change.changed) {
     if (k >= skin.sections().size()) {
       return Outside("change.changed", std::to_string(k),
@@ -890,11 +893,12 @@ StatusOr<std::string> EncodeSkinUpdate(const Skin& skin, const SkinChange& chang
     entries.push_back({k, sec.id, sec.version});
     ptrs.push_back(&sec.plus);
     ptrs.push_back(&sec.minus);
+    fresh.insert(fresh.end(), 2, sec.codec_restart);
   }
   std::vector<QLine> q;
   SCULPT_RETURN_IF_ERROR(Quantise(ptrs, s, &q));
   return Encode(kUpdate, s, header, entries, ptrs, q, Format::kBest,
-                skin.options().sample_for_codec);
+                skin.options().sample_for_codec, &fresh);
 }
 
 Status ContourView::Apply(std::string_view bytes) {

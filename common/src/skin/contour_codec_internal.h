@@ -43,8 +43,11 @@ struct SectionEntry {
 /// SKC3's body for `kind` (0 polyline set, 1 snapshot, 2 update; contour_codec.h describes it),
 /// or nullopt where it cannot place every point within step/sqrt(2) (the caller falls back).
 /// `skc4`: SKC4's body (the same but for the chord predictor: the chord rule, contour_codec.h).
+/// `fresh` (may be null; else one flag per line): lines coded anew, never joined to their
+/// context line (a restart section's sides, sampled from Skc4Restart).
 std::optional<std::string> Skc3Body(int kind, double step, const std::vector<SectionEntry>& entries,
-                                    const std::vector<const Polyline2*>& lines, bool skc4 = false);
+                                    const std::vector<const Polyline2*>& lines, bool skc4 = false,
+                                    const std::vector<bool>* fresh = nullptr);
 /// Decodes Skc3Body's output (untrusted) into `entries` (sized by the caller) and `lines`.
 Status DecodeSkc3Body(std::string_view body, size_t message_size, int kind, double step,
                       uint64_t nlines, uint64_t section_count, std::vector<SectionEntry>* entries,
@@ -62,6 +65,13 @@ bool Skc4Advance(CodecCursor& c, Vec2 target, double step, int64_t* along);
 /// ended at `start` (joined when its first point is within the bound of start.p, as the encoder
 /// decides). An invalid cursor where the line cannot be coded.
 CodecCursor Skc4Trace(const CodecCursor& start, const Polyline2& line, double step);
+
+/// Where SKC4's decoder stands at the start of a line coded anew (not joined to its context
+/// line, contour_codec.h): at `first` on the absolute grid of `step`, with no turtle (the line
+/// sends its first direction). The skin's sampler starts a restart section's sides from it, so
+/// that they are a function of the section's own balls. has_point is false where `first` is
+/// beyond the codec's range.
+CodecCursor Skc4Restart(Vec2 first, double step);
 
 /// SKC4's chord rule (contour_codec.h): the next chord in lattice spacings after a chord of `h`
 /// half spacings that turned by `omega` angle units (|omega| <= 2^11), as the coder computes it,

@@ -460,7 +460,8 @@ bool GetVarint(std::string_view in, size_t* pos, uint64_t* v) {
 }  // namespace
 
 std::optional<std::string> Skc3Body(int kind, double step, const std::vector<SectionEntry>& entries,
-                                    const std::vector<const Polyline2*>& lines, bool skc4) {
+                                    const std::vector<const Polyline2*>& lines, bool skc4,
+                                    const std::vector<bool>* fresh) {
   const double bound2 = step * step / 2;
   const double* cos_table = CosTable();
   const int32_t* turn = TurnTable();
@@ -498,7 +499,7 @@ std::optional<std::string> Skc3Body(int kind, double step, const std::vector<Sec
     Turtle t;
     Vec2 p;
     ls.has_ctx = ctx && !ctx->empty();
-    if (ls.has_ctx) {
+    if (ls.has_ctx && !(fresh && (*fresh)[j])) {
       const Vec2 d = in[0] - ctx->back();
       ls.join = d.x * d.x + d.y * d.y <= bound2;
     }
@@ -862,6 +863,16 @@ bool Skc4Advance(CodecCursor& c, Vec2 target, double step, int64_t* along) {
   ToCursor(t, q, &c);
   if (along) *along = a;
   return true;
+}
+
+CodecCursor Skc4Restart(Vec2 first, double step) {
+  CodecCursor c;
+  int64_t x = 0, y = 0;
+  if (!StepIndex(first.x, step, &x) || !StepIndex(first.y, step, &y)) return c;
+  c.p = {static_cast<double>(x) * step, static_cast<double>(y) * step};
+  const Vec2 d = c.p - first;
+  c.has_point = d.x * d.x + d.y * d.y <= step * step / 2;
+  return c;
 }
 
 CodecCursor Skc4Trace(const CodecCursor& start, const Polyline2& line, double step) {

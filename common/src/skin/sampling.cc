@@ -117,7 +117,7 @@ void SampleSide(const std::function<Vec2(double)>& f, int pieces, double tol, Po
 
 void SampleSideForCodec(const std::function<Vec2(double)>& f, int pieces, double tol,
                         const CodecCursor& cursor, Polyline2& out) {
-  if (!cursor.valid || !cursor.has_point) {
+  if (!cursor.has_point) {
     SampleSide(f, pieces, tol, out);
     return;
   }
@@ -146,6 +146,48 @@ void SampleSideForCodec(const std::function<Vec2(double)>& f, int pieces, double
   out.push_back(prev);
   const Vec2 end = f(tb);
   double dt = tb / 64;  // the parameter span of the last chord, a first guess for the next
+  if (!c.valid) {
+    // A line coded anew (Skc4Restart): the decoder has a point but no turtle; the line sends its
+    // first direction and its first chord in full. That chord is the longest whose deviation is
+    // within the share of the tolerance the chord rule aims at (0.59), so that the turtle the
+    // decoder forms from it predicts the next chords as it does mid-line.
+    // The chord is searched for, not predicted, so it is checked at 64 points (the seven of
+    // chord_dev let a long first chord over a wiggle through).
+    const double aim = 0.59 * tol;
+    auto dense_ok = [&](double t, double bound) {
+      const Vec2 pt = f(t);
+      for (int i = 1; i < 64; ++i) {
+        if (SegmentDistance(f(t * i / 64), prev, pt) > bound) return false;
+      }
+      return true;
+    };
+    double lo = 0, hi = std::min(tb, dt);
+    while (hi < tb && dense_ok(hi, aim)) {
+      lo = hi;
+      hi = std::min(tb, 2 * hi);
+    }
+    if (hi >= tb && dense_ok(tb, aim)) {
+      lo = tb;
+    } else {
+      for (int i = 0; i < 40; ++i) {
+        const double mid = 0.5 * (lo + hi);
+        (dense_ok(mid, aim) ? lo : hi) = mid;
+      }
+    }
+    if (!(lo > 0)) lo = std::min(tb, dt);  // degenerate: halved below until the chord holds
+    while (lo < tb && !dense_ok(lo, limit)) lo *= 0.5;
+    const Vec2 p1 = lo >= tb ? end : f(lo);
+    out.push_back(p1);
+    if (lo >= tb) return;
+    c = Skc4Trace(cursor, Polyline2{prev, p1}, step);
+    if (!c.valid) {
+      SampleCurve(f, lo, tb, tol, true, out);
+      return;
+    }
+    dt = lo;
+    t_prev = lo;
+    prev = p1;
+  }
   const size_t cap = out.size() + (size_t{1} << 22);
   while (out.size() < cap) {
     Vec2 u;

@@ -3,6 +3,7 @@
 #include "sculpt/skin/skin.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -78,7 +79,8 @@ SkinPiece SplinePiece(const ASpline& s, double ta, double tb) {
 /// Builds, samples and validates the section between balls k and k+1.
 /// `cursor`: SKC4's decoder at the end of the previous section's sides (no point: none).
 Section BuildSectionImpl(const OrientedBall& b0, const OrientedBall& b1, size_t k,
-                         const SkinOptions& opt, const std::array<CodecCursor, 2>& cursor) {
+                         const SkinOptions& opt, const std::array<CodecCursor, 2>& cursor,
+                         bool restart) {
   Section sec;
   SectionReport& rep = sec.report;
   const HermiteMother mother = HermiteMother::FromBalls(b0, b1);
@@ -195,14 +197,16 @@ Section BuildSectionImpl(const OrientedBall& b0, const OrientedBall& b1, size_t 
       if (p.kind == SkinPiece::Kind::kOffset) return off.P(p.tau_a + (p.tau_b - p.tau_a) * w);
       return p.spline.AtPhi(kPi / 2 * (1 - w));
     };
+    const CodecCursor start =
+        restart ? internal::Skc4Restart(pieces.front().start, tol) : cursor[s];
     if (opt.sample_for_codec) {
-      internal::SampleSideForCodec(side_curve, np, tol, cursor[s], out);
+      internal::SampleSideForCodec(side_curve, np, tol, start, out);
     } else {
       internal::SampleSide(side_curve, np, tol, out);
     }
     out.front() = pieces.front().start;
     out.back() = pieces.back().end;
-    if (opt.sample_for_codec) sec.codec_end[s] = internal::Skc4Trace(cursor[s], out, tol);
+    if (opt.sample_for_codec) sec.codec_end[s] = internal::Skc4Trace(start, out, tol);
     for (const SkinPiece& p : pieces) {
       if (p.kind == SkinPiece::Kind::kOffset) {
         ++rep.side[s].offset_pieces;
@@ -340,7 +344,8 @@ Polyline2 SampleCap(const OrientedBall& ball, int from_side, double tol) {
 }
 
 Section BuildSection(const OrientedBall& b0, const OrientedBall& b1, const SkinOptions& options) {
-  Section s = BuildSectionImpl(b0, b1, 0, options, {});
+  Section s = BuildSectionImpl(b0, b1, 0, options, {}, options.sample_for_codec);
+  s.codec_restart = options.sample_for_codec;
   FinishValidation(s, b0, b1, 0, options.chord_tolerance);
   return s;
 }
@@ -371,16 +376,46 @@ StatusOr<Skin> Skin::Build(std::vector<OrientedBall> balls, const SkinOptions& o
   return skin;
 }
 
+bool Skin::CodecRestart(size_t k) const {
+  if (k == 0) return true;
+  // SplitMix64's finaliser over the ball's bits: the same on every machine.
+  const OrientedBall& b = balls_[k];
+  uint64_t h = 0;
+  for (double v : {b.c.x, b.c.y, b.r, b.theta}) {
+    h = (h ^ std::bit_cast<uint64_t>(v)) + 0x9e3779b97f4a7c15ull;
+    h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ull;
+    h = (h ^ (h >> 27)) * 0x94d049bb133111ebull;
+    h ^= h >> 31;
+  }
+  return h % kCodecRestartPeriod == 0;
+}
+
 Section Skin::MakeSection(size_t k) {
-  // The side's previous section, as the snapshot's decoder will have it.
+  // The side's previous section, as the snapshot's decoder will have it, unless the section
+  // restarts the codec.
   const std::array<CodecCursor, 2> none{};
+  const bool restart = options_.sample_for_codec && CodecRestart(k);
   Section s = BuildSectionImpl(balls_[k], balls_[k + 1], k, options_,
                                k > 0 && k - 1 < sections_.size() ? sections_[k - 1].codec_end
-                                                                  : none);
+                                                                  : none,
+                               restart);
+  s.codec_restart = restart;
   FinishValidation(s, balls_[k], balls_[k + 1], k, options_.chord_tolerance);
   s.id = next_id_++;
   s.version = 1;
   return s;
+}
+
+void Skin::FollowToRestart(SkinChange& change) {
+  if (!options_.sample_for_codec || change.changed.empty()) return;
+  for (size_t k = change.changed.back() + 1; k < sections_.size() && !CodecRestart(k); ++k) {
+    Section s = MakeSection(k);
+    s.id = sections_[k].id;
+    s.version = sections_[k].version + 1;
+    --next_id_;
+    sections_[k] = std::move(s);
+    change.changed.push_back(k);
+  }
 }
 
 StatusOr<SkinChange> Skin::SetBall(size_t i, const OrientedBall& ball) {
@@ -403,6 +438,7 @@ StatusOr<SkinChange> Skin::SetBall(size_t i, const OrientedBall& ball) {
     sections_[k] = std::move(s);
     change.changed.push_back(k);
   }
+  FollowToRestart(change);
   return change;
 }
 
@@ -431,6 +467,7 @@ StatusOr<SkinChange> Skin::InsertBall(size_t i, const OrientedBall& ball) {
     Section s = MakeSection(k);
     sections_.insert(sections_.begin() + static_cast<std::ptrdiff_t>(k), std::move(s));
   }
+  FollowToRestart(change);
   return change;
 }
 
@@ -462,6 +499,18 @@ StatusOr<SkinChange> Skin::RemoveBall(size_t i) {
   sections_.erase(at, at + static_cast<std::ptrdiff_t>(change.removed));
   sections_.insert(sections_.begin() + static_cast<std::ptrdiff_t>(change.splice_at),
                    fresh.begin(), fresh.end());
+  if (change.changed.empty()) {
+    // An end ball went: the new first section restarts (k = 0); no section follows a new last.
+    if (i == 0 && !sections_.empty() && options_.sample_for_codec) {
+      change.changed.push_back(0);
+      Section s = MakeSection(0);
+      s.id = sections_[0].id;
+      s.version = sections_[0].version + 1;
+      --next_id_;
+      sections_[0] = std::move(s);
+    }
+  }
+  FollowToRestart(change);
   return change;
 }
 

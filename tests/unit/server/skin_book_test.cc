@@ -146,7 +146,15 @@ TEST_F(SkinBookTest, BallEditIsCheckedOnACopyThenApplied) {
   ASSERT_TRUE(plan.ok()) << plan.status();
   EXPECT_EQ(plan->version, 1u);
   EXPECT_FALSE(plan->change.changed.empty());
-  EXPECT_LE(plan->change.changed.size(), 2u);  // at most the two sections beside the ball
+  // The two sections beside the ball, then any up to the next codec restart (Skin::
+  // CodecRestart), none of which is a restart.
+  const std::vector<size_t>& changed = plan->change.changed;
+  ASSERT_GE(changed.size(), 2u);
+  EXPECT_EQ(changed[0], 1u);
+  for (size_t j = 2; j < changed.size(); ++j) {
+    EXPECT_EQ(changed[j], changed[j - 1] + 1);
+    EXPECT_FALSE(book_.Copy(kSkin)->CodecRestart(changed[j]));
+  }
   // Nothing changed before Apply.
   EXPECT_EQ(book_.Copy(kSkin)->balls()[2].r, 3.0);
   EXPECT_EQ(book_.version(kSkin), 0u);

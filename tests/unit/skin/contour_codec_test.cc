@@ -107,7 +107,9 @@ TEST(ContourCodecTest, SurvivesFuzzedInput) {
 }
 
 TEST(ContourCodecTest, SnapshotAndUpdatesReproduceTheSkin) {
-  auto skin = Skin::Build(Wavy(12));
+  SkinOptions o;
+  o.sample_for_codec = false;  // two sections an update (the codec's sampler: Skc4Snapshot...)
+  auto skin = Skin::Build(Wavy(12), o);
   ASSERT_TRUE(skin.ok()) << skin.status();
   const double step = skin->chord_tolerance();
   ContourView view;
@@ -383,7 +385,9 @@ TEST(ContourCodecTest, CurveCodingBeatsSkc1OnASkin) {
     balls.push_back({{2.5 * i, 0.8 * std::sin(0.7 * i)}, 0.6 + 0.3 * std::cos(1.3 * i),
                      20 * kDeg * std::cos(0.7 * i)});
   }
-  auto skin = Skin::Build(balls);
+  SkinOptions o;
+  o.sample_for_codec = false;  // SKC3 against SKC2 (the codec's sampler: Skc4Follows...)
+  auto skin = Skin::Build(balls, o);
   ASSERT_TRUE(skin.ok());
   const auto bytes = EncodeSkinSnapshot(*skin);
   ASSERT_TRUE(bytes.ok());
@@ -396,6 +400,10 @@ TEST(ContourCodecTest, CurveCodingBeatsSkc1OnASkin) {
   const auto skc3 = internal::EncodeSkinSnapshotSkc3(*skin);
   const auto skc2 = internal::EncodeSkinSnapshotSkc2(*skin);
   EXPECT_EQ(bytes->size(), std::min(skc3->size(), skc2->size()));
+  // Sampled for the codec (the default), the same balls cost fewer bytes still.
+  auto sampled = Skin::Build(balls);
+  ASSERT_TRUE(sampled.ok());
+  EXPECT_LT(EncodeSkinSnapshot(*sampled)->size(), bytes->size());
 }
 
 // On a longer skin SKC3's hexagonal lattice and trend-continued spacing beat SKC2 (on a skin
@@ -473,17 +481,22 @@ TEST(ContourCodecTest, Skc4FollowsTheSamplerOnALongSkin) {
   ASSERT_TRUE(plain.ok());
   const auto plain_best = EncodeSkinSnapshot(*plain);
   EXPECT_LT(static_cast<double>(best->size()), 0.8 * static_cast<double>(plain_best->size()));
-  // Along integers: every side after the first starts from its previous section's cursor.
+  // Along integers: every side starts from its previous section's cursor, or anew at a restart
+  // (whose first chord is sent in full).
   const double step = skin->chord_tolerance();
-  size_t along = 0, zero = 0;
+  size_t along = 0, zero = 0, restarts = 0;
   for (int side = 0; side < 2; ++side) {
     CodecCursor c;
     for (const Section& s : skin->sections()) {
       const Polyline2& line = side == 0 ? s.plus : s.minus;
-      CodecCursor t = c;
+      if (s.codec_restart) {
+        c = internal::Skc4Restart(line.front(), step);
+        ++restarts;
+      }
+      CodecCursor t = internal::Skc4Trace(c, Polyline2(line.begin(), line.begin() + 2), step);
       c = internal::Skc4Trace(c, line, step);
-      if (!t.valid) continue;
-      for (size_t k = 1; k < line.size(); ++k) {
+      ASSERT_TRUE(t.valid);
+      for (size_t k = 2; k < line.size(); ++k) {
         int64_t a = 0;
         ASSERT_TRUE(internal::Skc4Advance(t, line[k], step, &a));
         ++along;
@@ -492,6 +505,10 @@ TEST(ContourCodecTest, Skc4FollowsTheSamplerOnALongSkin) {
     }
   }
   EXPECT_GT(static_cast<double>(zero), 0.7 * static_cast<double>(along));
+  // About one section in kCodecRestartPeriod restarts (two sides each), the first among them.
+  EXPECT_TRUE(skin->section(0).codec_restart);
+  EXPECT_GT(restarts, 2 * skin->sections().size() / (3 * kCodecRestartPeriod));
+  EXPECT_LT(restarts, 6 * skin->sections().size() / kCodecRestartPeriod);
 }
 
 }  // namespace

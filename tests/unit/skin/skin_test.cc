@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <random>
 
 namespace sculpt::skin {
 namespace {
@@ -114,11 +115,14 @@ TEST(SkinTest, ChainListsShareJointsOnceAndStartAtContacts) {
   EXPECT_GT(outline.size(), 10u);
 }
 
-// Digest §7 claim 24: moving one ball rebuilds its two sections; the others are byte-identical.
+// Digest §7 claim 24: moving one ball rebuilds its two sections; the others are byte-identical
+// (with the curvature sampler; the codec's sampler also rebuilds up to the next restart, below).
 TEST(SkinTest, SetBallRebuildsOnlyItsTwoSections) {
   std::vector<OrientedBall> balls;
   for (int i = 0; i < 8; ++i) balls.push_back({{2.0 * i, 0.3 * (i % 2)}, 0.7, 0});
-  auto skin = Skin::Build(balls, Opts(Method::kHybrid));
+  SkinOptions o = Opts(Method::kHybrid);
+  o.sample_for_codec = false;
+  auto skin = Skin::Build(balls, o);
   ASSERT_TRUE(skin.ok()) << skin.status();
   const Skin before = *skin;
   auto change = skin->SetBall(4, {{8.1, 0.5}, 0.8, 10 * kDeg});
@@ -148,7 +152,9 @@ TEST(SkinTest, SetBallRefusesInadmissibleMoveAndKeepsSkin) {
 }
 
 TEST(SkinTest, InsertAndRemoveSpliceSections) {
-  auto skin = Skin::Build({{{0, 0}, 1, 0}, {{4, 0}, 1, 0}, {{8, 0}, 1, 0}});
+  SkinOptions o;
+  o.sample_for_codec = false;  // the splice alone (the codec's sampler: SampledForTheCodec...)
+  auto skin = Skin::Build({{{0, 0}, 1, 0}, {{4, 0}, 1, 0}, {{8, 0}, 1, 0}}, o);
   ASSERT_TRUE(skin.ok());
   const uint64_t id0 = skin->section(0).id, id1 = skin->section(1).id;
   auto ins = skin->InsertBall(1, {{2, 0.2}, 0.8, 0});
@@ -173,6 +179,92 @@ TEST(SkinTest, InsertAndRemoveSpliceSections) {
   EXPECT_EQ(skin->sections().size(), 2u);
   ASSERT_TRUE(skin->RemoveBall(0).ok());
   EXPECT_FALSE(skin->RemoveBall(0).ok());  // two balls remain
+}
+
+// With the codec's sampler (the default) a section starts from the decoder state its
+// predecessor ends with, unless it is a codec restart. An edit rebuilds the sections after its
+// own up to the next restart, so the skin stays a function of its balls: after every move,
+// insert and remove of a random sequence it equals a skin built from the same balls point for
+// point, and every section it did not list is unchanged.
+TEST(SkinTest, SampledForTheCodecTheSkinIsAFunctionOfItsBalls) {
+  std::mt19937_64 rng(20261207);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::vector<OrientedBall> balls;
+  for (int i = 0; i < 40; ++i) {
+    balls.push_back({{2.0 * i, 0.6 * std::sin(0.7 * i)}, 0.8 + 0.2 * std::cos(1.3 * i),
+                     0.3 * std::cos(0.5 * i)});
+  }
+  SkinOptions o;
+  ASSERT_TRUE(o.sample_for_codec);  // the default
+  auto skin = Skin::Build(balls, o);
+  ASSERT_TRUE(skin.ok()) << skin.status();
+  const auto same = [](const CodecCursor& a, const CodecCursor& b) {
+    return a.theta == b.theta && a.omega == b.omega && a.lp == b.lp && a.l1 == b.l1 &&
+           a.actx == b.actx && a.mag_e == b.mag_e && a.valid == b.valid &&
+           a.has_point == b.has_point && a.p == b.p;
+  };
+  size_t edits = 0, listed = 0, max_listed = 0;
+  for (int e = 0; e < 120; ++e) {
+    const Skin before = *skin;
+    const size_t n = skin->balls().size();
+    const int kind = static_cast<int>(rng() % 4);
+    StatusOr<SkinChange> change = InvalidArgument("none");
+    if (kind <= 1 || n <= 6) {
+      const size_t i = rng() % n;
+      OrientedBall b = skin->balls()[i];
+      b.c = b.c + Vec2{0.1 * u(rng), 0.3 * u(rng)};
+      b.theta += 0.1 * u(rng);
+      change = skin->SetBall(i, b);
+    } else if (kind == 2 && n < 60) {
+      const size_t i = rng() % (n + 1);
+      const Vec2 at = i == 0 ? skin->balls()[0].c - Vec2{2, 0}
+                      : i == n ? skin->balls()[n - 1].c + Vec2{2, 0}
+                               : (skin->balls()[i - 1].c + skin->balls()[i].c) * 0.5;
+      change = skin->InsertBall(i, {at + Vec2{0, 0.2 * u(rng)}, 0.3, 0});
+    } else {
+      change = skin->RemoveBall(rng() % n);
+    }
+    if (!change.ok()) continue;  // an inadmissible pair: the skin is unchanged
+    ++edits;
+    listed += change->changed.size();
+    max_listed = std::max(max_listed, change->changed.size());
+    auto fresh = Skin::Build(skin->balls(), skin->options());
+    ASSERT_TRUE(fresh.ok()) << fresh.status();
+    ASSERT_EQ(skin->sections().size(), fresh->sections().size());
+    for (size_t k = 0; k < skin->sections().size(); ++k) {
+      const Section& a = skin->section(k);
+      const Section& b = fresh->section(k);
+      ASSERT_EQ(a.plus, b.plus) << "edit " << e << " section " << k;
+      ASSERT_EQ(a.minus, b.minus) << "edit " << e << " section " << k;
+      ASSERT_EQ(a.codec_restart, b.codec_restart) << "edit " << e << " section " << k;
+      ASSERT_EQ(a.codec_restart, skin->CodecRestart(k));
+      ASSERT_TRUE(same(a.codec_end[0], b.codec_end[0]) && same(a.codec_end[1], b.codec_end[1]))
+          << "edit " << e << " section " << k;
+    }
+    // Listed sections are consecutive; the one after the last listed restarts (or none follows).
+    for (size_t j = 1; j < change->changed.size(); ++j) {
+      ASSERT_EQ(change->changed[j], change->changed[j - 1] + 1) << "edit " << e;
+    }
+    if (!change->changed.empty() && change->changed.back() + 1 < skin->sections().size()) {
+      EXPECT_TRUE(skin->CodecRestart(change->changed.back() + 1)) << "edit " << e;
+    }
+    // Sections neither listed nor spliced in keep their points (and ids).
+    if (kind <= 1 || n <= 6) {
+      for (size_t k = 0; k < skin->sections().size(); ++k) {
+        if (std::find(change->changed.begin(), change->changed.end(), k) !=
+            change->changed.end()) {
+          continue;
+        }
+        EXPECT_EQ(skin->section(k).plus, before.section(k).plus) << "edit " << e << " " << k;
+        EXPECT_EQ(skin->section(k).version, before.section(k).version);
+      }
+    }
+  }
+  EXPECT_GT(edits, 80u);
+  // About kCodecRestartPeriod sections past an edit's own, not the rest of the chain.
+  EXPECT_LT(static_cast<double>(listed) / static_cast<double>(edits),
+            2.0 + 2.0 * kCodecRestartPeriod);
+  EXPECT_LT(max_listed, 30u);
 }
 
 TEST(SkinTest, BuildRefusesBadOptions) {

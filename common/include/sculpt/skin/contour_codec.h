@@ -10,7 +10,7 @@
 /// Four formats (all integers little-endian; "varint" = unsigned LEB128, "zz" = zigzag):
 ///
 /// SKC4 (what EncodeSkinSnapshot and EncodeSkinUpdate write for a skin built with
-///   SkinOptions::sample_for_codec, off by default; SKC3 otherwise): SKC3 below with magic "SKC4" and
+///   SkinOptions::sample_for_codec, the default; SKC3 otherwise): SKC3 below with magic "SKC4" and
 ///   coding byte 4, bit for bit, but for the predicted chord: after each point, with h = 2 len +
 ///   (e & 1) and omega the turtle's new turn, lp = floor(h / 2) for h <= 0; else with lo = h -
 ///   floor(h / 4), hi = h + floor(h / 4) + 2, g = hi if omega = 0, else c = sqrt(20000 min(h,
@@ -19,9 +19,13 @@
 ///   step on the curvature the last chord and turn show. The skin's sampler (SkinOptions::
 ///   sample_for_codec) places each side's samples at that predicted chord, found on the true
 ///   curve, from the decoder state the previous section's side ends with, shortening only where
-///   the chord would leave the tolerance; so most along integers of a snapshot are 0 (86 % on the
-///   benchmark's skin; the others are those escapes and each side's last point). Polyline sets
-///   stay SKC3; a message under 4096 points also tries SKC3 and SKC2 and keeps the smallest.
+///   the chord would leave the tolerance; so most along integers of a snapshot are 0 (the others
+///   are those escapes, each side's last point and a restart's first chord). A codec restart
+///   section (Skin::CodecRestart, about one in four) is sampled from a state of its own, and its
+///   sides are coded anew: join flag 0 although they start where the previous section's end, so
+///   the first point on the absolute grid and the first direction sent (no format change: any
+///   SKC3 line may be coded so). Polyline sets stay SKC3; a message under 4096 points also tries
+///   SKC3 and SKC2 and keeps the smallest.
 ///
 /// SKC3 (what EncodeContours writes, and the skin encoders without sample_for_codec): the header of SKC2 below with magic "SKC3" and coding byte 3,
 ///   then the body: varint length and bytes of the side information, varint length and bytes of

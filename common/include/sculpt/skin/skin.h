@@ -36,13 +36,14 @@ struct SkinOptions {
   double delta = 0;
   /// Sample each side where the contour codec's SKC4 decoder will predict its points (each chord
   /// still within the chord tolerance), from the previous section's decoder state, so that a
-  /// snapshot at step = chord tolerance codes almost no along offsets (36 % fewer bytes on the
-  /// benchmark's skin, docs/benchmarks.md). Off by default: the points then depend on the edit
-  /// history (a section sampled before its predecessor was edited keeps its points, while a
-  /// fresh Build samples it from the new state), so a skin rebuilt from its balls (server
-  /// recovery, SkinServerTest.BallEditsSurviveRestartsAndResendsApplyOnce) differs from the live
-  /// one. Off: chords from the true curve's curvature alone, a function of the balls.
-  bool sample_for_codec = false;
+  /// snapshot at step = chord tolerance codes almost no along offsets (docs/benchmarks.md,
+  /// "Contour bytes"). Restart sections (Skin::CodecRestart: the first, and those whose first
+  /// ball hashes to 0 modulo kCodecRestartPeriod) start from a state of their own instead, so
+  /// the points stay a function of the balls: an edit also rebuilds the sections after the ones
+  /// it touches, up to the next restart (about kCodecRestartPeriod of them), and a skin rebuilt
+  /// from its balls equals the edited one point for point. Off: chords from the true curve's
+  /// curvature alone, each section on its own.
+  bool sample_for_codec = true;
 };
 
 /// One piece of one side of a section: an offset of the mother on [tau_a, tau_b] or an A-spline.
@@ -104,7 +105,17 @@ struct Section {
   Polyline2 plus, minus;  // from P_k^± to P_{k+1}^±, both ends included
   SectionReport report;
   std::array<CodecCursor, 2> codec_end;  // [0] = +, [1] = -: SKC4's decoder after this section
+  /// Sampled for the codec from a state of its own (Skin::CodecRestart): the encoder codes its
+  /// sides anew, not joined to the previous section's.
+  bool codec_restart = false;
 };
+
+/// About one section in this many is a codec restart (SkinOptions::sample_for_codec): the
+/// sections an edit rebuilds and sends past its own two, on average, against the bytes a restart
+/// costs (its sides' first point, direction and chord sent in full). Measured on the benchmark's
+/// 1,000-ball skin (docs/benchmarks.md, "Contour bytes"): 4 gives a snapshot 5 % larger than
+/// no restarts and updates of 4.7 sections; 8, 3 % and 8.2; 16, 1.6 % and 14.3.
+inline constexpr uint64_t kCodecRestartPeriod = 4;
 
 /// Totals over the sections.
 struct SkinSummary {
@@ -129,8 +140,9 @@ class Skin {
   static StatusOr<Skin> Build(std::vector<OrientedBall> balls, const SkinOptions& options = {});
 
   /// Replaces ball i and rebuilds sections i-1 and i (those that exist): at most two, whatever
-  /// the chain length (digest Conclusions). On error (bad index, bad ball, a pair made
-  /// inadmissible) the skin is unchanged.
+  /// the chain length (digest Conclusions); with sample_for_codec also the sections after them
+  /// up to the next codec restart. On error (bad index, bad ball, a pair made inadmissible) the
+  /// skin is unchanged.
   StatusOr<SkinChange> SetBall(size_t i, const OrientedBall& ball);
   /// Inserts a ball before index i (i == ball count appends): the section it splits is replaced
   /// by two new ones (one at either end of the chain).
@@ -142,6 +154,10 @@ class Skin {
   const SkinOptions& options() const { return options_; }
   double chord_tolerance() const { return options_.chord_tolerance; }
   const std::vector<Section>& sections() const { return sections_; }
+  /// Whether section k (from ball k) is sampled for the codec from a state of its own: k = 0,
+  /// or ball k's bits hash to 0 modulo kCodecRestartPeriod. A function of ball k alone, so an
+  /// edit moves restarts only at the balls it changes.
+  bool CodecRestart(size_t k) const;
   const Section& section(size_t k) const { return sections_[k]; }
 
   /// The closed contour of section k (digest Def 2.3): + side, the front cap on ball k+1 from
@@ -159,6 +175,9 @@ class Skin {
  private:
   Skin() = default;
   Section MakeSection(size_t k);
+  /// With sample_for_codec: rebuilds the sections after `change`'s last one up to the next
+  /// codec restart (each is sampled from its predecessor's decoder state) and lists them.
+  void FollowToRestart(SkinChange& change);
 
   std::vector<OrientedBall> balls_;
   SkinOptions options_;
