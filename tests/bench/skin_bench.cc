@@ -202,10 +202,21 @@ Json RunSkinBench(bool quick, const std::string& out_dat) {
     doc["contour_skc1_bits_per_point"] = 8.0 * static_cast<double>(skc1->size()) / all.size();
     doc["contour_skc1_ratio_vs_float32"] = static_cast<double>(float32) / skc1->size();
     doc["contour_goal_ratio_vs_float32"] = 12;
-    // The same chain sampled for the codec (SkinOptions::sample_for_codec, off by default: its
-    // points depend on the edit history): SKC4's snapshot, its points, its decode speed, and its
-    // bytes over the default skin's point count (the comparison at equal points).
+    // The same chain sampled for the codec (SkinOptions::sample_for_codec, the default since the
+    // codec restarts made it a function of the balls): SKC4's snapshot, its points, its decode
+    // speed; and the chain sampled by curvature alone (the default before), whose points and
+    // message the codec-sampled snapshot is compared with (the comparison at equal points).
     {
+      skin::SkinOptions plain;
+      plain.sample_for_codec = false;
+      auto ps = Skin::Build(Chain(1000, 20261122 + 1000), plain);
+      if (!ps.ok()) return Json{{"error", ps.status().ToString()}};
+      size_t plain_points = 0;
+      for (const auto& sec : ps->sections()) plain_points += sec.plus.size() + sec.minus.size();
+      const auto pb = skin::EncodeSkinSnapshot(*ps);
+      if (!pb.ok()) return Json{{"error", pb.status().ToString()}};
+      doc["contour_curvature_sampler_points"] = plain_points;
+      doc["contour_curvature_sampler_bytes"] = pb->size();
       skin::SkinOptions follow;
       follow.sample_for_codec = true;
       auto fs = Skin::Build(Chain(1000, 20261122 + 1000), follow);
@@ -237,10 +248,10 @@ Json RunSkinBench(bool quick, const std::string& out_dat) {
       doc["contour_codec_sampled_ratio_vs_draco"] = static_cast<double>(fdraco.bytes) / fbytes;
       doc["contour_codec_sampled_skc3_bytes"] = fskc3.ok() ? fskc3->size() : 0;
       doc["contour_codec_sampled_max_error_over_tol"] = ferr / tol;
-      doc["contour_codec_sampled_bits_per_default_point"] =
-          8 * fbytes / static_cast<double>(all.size());
-      doc["contour_codec_sampled_ratio_vs_float32_at_default_points"] =
-          static_cast<double>(float32) / fbytes;
+      doc["contour_codec_sampled_bits_per_curvature_point"] =
+          8 * fbytes / static_cast<double>(plain_points);
+      doc["contour_codec_sampled_ratio_vs_float32_at_curvature_points"] =
+          static_cast<double>(plain_points * 2 * sizeof(float)) / fbytes;
       double best_f = INFINITY, best_d = INFINITY;
       for (int r = 0; r < (quick ? 5 : 40); ++r) {
         for (int f = 0; f < 2; ++f) {

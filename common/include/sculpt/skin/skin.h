@@ -1,7 +1,7 @@
 /// @brief Skin: the G1 skin of an ordered chain of oriented balls (seed 004), built section by
 /// section with the naive, offset or hybrid construction, validated per section, sampled to
-/// polylines with a chord tolerance, and edited incrementally (one ball rebuilds at most two
-/// sections).
+/// polylines with a chord tolerance, and edited incrementally (one ball rebuilds its two
+/// sections, and with the codec's sampler those up to the next codec restart).
 #ifndef SCULPT_SKIN_SKIN_H_
 #define SCULPT_SKIN_SKIN_H_
 
