@@ -406,15 +406,19 @@ Section Skin::MakeSection(size_t k) {
   return s;
 }
 
+void Skin::Rebuild(size_t k, SkinChange& change) {
+  Section s = MakeSection(k);
+  s.id = sections_[k].id;
+  s.version = sections_[k].version + 1;
+  --next_id_;
+  sections_[k] = std::move(s);
+  change.changed.push_back(k);
+}
+
 void Skin::FollowToRestart(SkinChange& change) {
   if (!options_.sample_for_codec || change.changed.empty()) return;
   for (size_t k = change.changed.back() + 1; k < sections_.size() && !CodecRestart(k); ++k) {
-    Section s = MakeSection(k);
-    s.id = sections_[k].id;
-    s.version = sections_[k].version + 1;
-    --next_id_;
-    sections_[k] = std::move(s);
-    change.changed.push_back(k);
+    Rebuild(k, change);
   }
 }
 
@@ -431,12 +435,7 @@ StatusOr<SkinChange> Skin::SetBall(size_t i, const OrientedBall& ball) {
   SkinChange change;
   for (size_t k : {i - 1, i}) {
     if (k >= n - 1) continue;  // i - 1 wraps for i == 0; i is past the end for the last ball
-    Section s = MakeSection(k);
-    s.id = sections_[k].id;
-    s.version = sections_[k].version + 1;
-    --next_id_;
-    sections_[k] = std::move(s);
-    change.changed.push_back(k);
+    Rebuild(k, change);
   }
   FollowToRestart(change);
   return change;
@@ -499,17 +498,8 @@ StatusOr<SkinChange> Skin::RemoveBall(size_t i) {
   sections_.erase(at, at + static_cast<std::ptrdiff_t>(change.removed));
   sections_.insert(sections_.begin() + static_cast<std::ptrdiff_t>(change.splice_at),
                    fresh.begin(), fresh.end());
-  if (change.changed.empty()) {
-    // An end ball went: the new first section restarts (k = 0); no section follows a new last.
-    if (i == 0 && !sections_.empty() && options_.sample_for_codec) {
-      change.changed.push_back(0);
-      Section s = MakeSection(0);
-      s.id = sections_[0].id;
-      s.version = sections_[0].version + 1;
-      --next_id_;
-      sections_[0] = std::move(s);
-    }
-  }
+  // The first ball went: the new first section restarts (k = 0). No section follows a new last.
+  if (i == 0 && options_.sample_for_codec) Rebuild(0, change);
   FollowToRestart(change);
   return change;
 }

@@ -175,6 +175,8 @@ class Skin {
  private:
   Skin() = default;
   Section MakeSection(size_t k);
+  /// Rebuilds section k in place (same id, next version) and lists it in `change`.
+  void Rebuild(size_t k, SkinChange& change);
   /// With sample_for_codec: rebuilds the sections after `change`'s last one up to the next
   /// codec restart (each is sampled from its predecessor's decoder state) and lists them.
   void FollowToRestart(SkinChange& change);
