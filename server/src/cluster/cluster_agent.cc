@@ -851,11 +851,37 @@ asio::awaitable<void> ClusterAgent::Promote(std::vector<std::pair<Slot*, uint64_
                  "takes it over",
                  slot->hosted.name, dead_epoch, config_.member);
     // Its log made durable and closed before the files move (the connection is gone already).
-    slot->follower.reset();
-    if (const Status s = PromoteStandbyCopy(standby_->data_dir, slot->hosted.name,
-                                            slot->hosted.data_dir, dead_epoch);
-        !s.ok()) {
-      LogEtcdTrouble("promotion of scene " + slot->hosted.name, s);
+    // Both block (a sync, renames, fsyncs: 2 s on a loaded machine), so they run on a thread of
+    // their own that owns what it touches, and the keep-alive loop goes on meanwhile: on this
+    // thread they once outlasted the lease, and the member's other scenes went with it.
+    struct Work {
+      std::unique_ptr<StandbyFollower> follower;
+      std::string standby_dir, scene, data_dir;
+      uint64_t epoch = 0;
+      Status status;
+      std::atomic<bool> done{false};
+    };
+    auto work = std::make_shared<Work>();
+    work->follower = std::move(slot->follower);
+    work->standby_dir = standby_->data_dir;
+    work->scene = slot->hosted.name;
+    work->data_dir = slot->hosted.data_dir;
+    work->epoch = dead_epoch;
+    std::thread([work] {
+      work->follower.reset();
+      work->status =
+          PromoteStandbyCopy(work->standby_dir, work->scene, work->data_dir, work->epoch);
+      work->done.store(true);
+    }).detach();
+    boost::system::error_code ec;
+    asio::steady_timer wait(etcd_->io());
+    while (!work->done.load()) {
+      wait.expires_after(std::chrono::milliseconds(10));
+      co_await wait.async_wait(asio::redirect_error(asio::use_awaitable, ec));
+    }
+    if (stopping_) co_return;
+    if (!work->status.ok()) {
+      LogEtcdTrouble("promotion of scene " + slot->hosted.name, work->status);
       continue;
     }
     ++promoted;
