@@ -228,7 +228,19 @@ Status ClusterAgent::Start(const std::string& tcp, const std::string& http) {
     resume_lease_ = ParseResumeToken(token, &why);
     if (resume_lease_ == 0) spdlog::warn("cluster: {}={} ignored: {}", kResumeLeaseEnv, token, why);
   }
-  const Status registered = etcd_->Sync(Register());
+  // A loaded etcd (an fsync behind other writers) may answer one call later than the timeout:
+  // an unanswered registration is tried again for up to 10 s before the start fails (under ASan
+  // on 2 loaded cores a member exited on one timed-out put).
+  const int64_t resume = resume_lease_;
+  Status registered = etcd_->Sync(Register());
+  const auto give_up = Clock::now() + std::chrono::seconds(10);
+  while (!registered.ok() && registered.code() == Status::Code::kUnavailable &&
+         Clock::now() < give_up) {
+    LogEtcdTrouble("registering (trying again)", registered);
+    std::this_thread::sleep_for(tick_);
+    resume_lease_ = resume;
+    registered = etcd_->Sync(Register());
+  }
   if (!registered.ok()) {
     std::string list;
     for (const std::string& e : config_.etcd) list += (list.empty() ? "" : ", ") + e;
