@@ -381,6 +381,12 @@ int main(int argc, char** argv) {
     return 0;
   }
 
+  // After a promotion's restart the lease it keeps lives only its TTL: kept alive while the
+  // scenes open (which may take longer), until the agent starts.
+  std::unique_ptr<sculpt::server::cluster::ResumedLeaseKeeper> lease_keeper;
+  if (config.cluster.enabled()) {
+    lease_keeper = sculpt::server::cluster::ResumedLeaseKeeper::StartIfResuming(config.cluster);
+  }
   // Every hosted scene in its own data directory; the first, scene.name, is the default one.
   std::vector<std::unique_ptr<sculpt::server::Scene>> scenes;
   std::vector<sculpt::server::Scene*> scene_ptrs;
@@ -507,6 +513,7 @@ int main(int argc, char** argv) {
         http_address.clear();
       }
     }
+    lease_keeper.reset();  // its last keep-alive answered: Start has the whole TTL
     if (const sculpt::Status s = cluster->Start(tcp, http_address); !s.ok()) {
       spdlog::error("{}", s.ToString());
       return 1;

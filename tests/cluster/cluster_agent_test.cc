@@ -407,5 +407,38 @@ TEST_F(ClusterAgentTest, ResumeIsRefusedForAnotherProcessAndForAGoneLease) {
               milliseconds(4000)));
 }
 
+// A promotion's restart opens its scenes before the agent starts, which may take longer than the
+// TTL: the keeper holds the resumed lease meanwhile, and the restarted agent then owns its scenes
+// again at the same epochs. Without it (no token of this process) nothing is kept.
+TEST_F(ClusterAgentTest, ALeaseIsKeptAliveWhileTheRestartedProcessOpensItsScenes) {
+  const std::vector<std::string> names = {"p", "q"};
+  agent_ = std::make_unique<ClusterAgent>(Config("a"), Hosted(names), [] { return 0u; });
+  ASSERT_TRUE(agent_->Start("127.0.0.1:1", "").ok());
+  ASSERT_TRUE(
+      WaitFor([&] { return agent_->owned_epoch("p") == 1 && agent_->owned_epoch("q") == 1; },
+              milliseconds(4000)));
+  const std::string token = agent_->ResumeToken();
+  ASSERT_EQ(setenv(kResumeLeaseEnv, (token.substr(0, token.find(':')) + ":" +
+                                     std::to_string(getpid() + 1)).c_str(), 1), 0);
+  EXPECT_EQ(ResumedLeaseKeeper::StartIfResuming(Config("a")), nullptr) << "another process's";
+  ASSERT_EQ(setenv(kResumeLeaseEnv, token.c_str(), 1), 0);
+  agent_->Abandon();
+  auto keeper = ResumedLeaseKeeper::StartIfResuming(Config("a"));
+  ASSERT_NE(keeper, nullptr);
+  // Three TTLs of "opening scenes" (the default TTL is 2 s).
+  std::this_thread::sleep_for(milliseconds(6000));
+  EXPECT_GE(keeper->kept(), 4u);
+  keeper.reset();
+  EXPECT_NE(getenv(kResumeLeaseEnv), nullptr) << "left for the agent's Start";
+  agent_ = std::make_unique<ClusterAgent>(Config("a"), Hosted(names), [] { return 0u; });
+  ASSERT_TRUE(agent_->Start("127.0.0.1:1", "").ok());
+  EXPECT_EQ(agent_->ResumeToken(), token) << "the lease was not kept";
+  ASSERT_TRUE(
+      WaitFor([&] { return agent_->owned_epoch("p") == 1 && agent_->owned_epoch("q") == 1; },
+              milliseconds(4000)))
+      << "the scenes did not come back at epoch 1 under the kept lease";
+  EXPECT_EQ(ResumedLeaseKeeper::StartIfResuming(Config("a")), nullptr) << "Start removed it";
+}
+
 }  // namespace
 }  // namespace sculpt::server::cluster

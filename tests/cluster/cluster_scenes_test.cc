@@ -65,7 +65,8 @@ class ClusterScenesTest : public sculpt::testing::EtcdTest {
   // yet", and the owner itself refuses while it takes its fence in ("being acquired").
   StatusOr<sculpt::client::JoinedScene> Join(sculpt::client::Client& client, uint16_t port,
                                              const std::string& scene) {
-    const auto deadline = std::chrono::steady_clock::now() + milliseconds(6000);
+    const auto deadline =
+        std::chrono::steady_clock::now() + sculpt::testing::Scaled(milliseconds(6000));
     while (true) {
       SCULPT_RETURN_IF_ERROR(client.Connect("127.0.0.1", port));
       auto welcome = client.Hello("sculpt-dev-sculptor", v1::ROLE_SCULPTOR, "scenes-test", 0);
@@ -131,7 +132,7 @@ TEST_F(ClusterScenesTest, ThreeMembersSpreadSixScenesAndRedirectJoinsToTheirOwne
   // Each scene joined through a member that does not own it: redirected once to its owner,
   // which acknowledges a stroke in that scene.
   sculpt::client::ClientOptions options;
-  options.timeout = milliseconds(5000);
+  options.timeout = sculpt::testing::Scaled(milliseconds(5000));
   for (size_t i = 0; i < kScenes.size(); ++i) {
     const std::string& scene = kScenes[i];
     const std::string& owner = owners.at(scene).member;
@@ -176,7 +177,11 @@ TEST_F(ClusterScenesTest, ThreeMembersSpreadSixScenesAndRedirectJoinsToTheirOwne
 // that promote a copy restart (execv) and resume their lease, so the scenes they owned keep
 // their owner and epoch; every scene is served again through any live member.
 TEST_F(ClusterScenesTest, AKilledMembersScenesFailOverAndTheOthersKeepTheirOwners) {
-  for (const std::string& m : kMembers) Start(m, "replication = \"sync\"\nsync_fallback_ms = 0\n");
+  // The promoting members must be back in etcd within the TTL after their restart.
+  const int ttl_ms = sculpt::testing::RestartLeaseTtlMs();
+  for (const std::string& m : kMembers) {
+    Start(m, "replication = \"sync\"\nsync_fallback_ms = 0\n", ttl_ms);
+  }
   std::map<std::string, uint16_t> port;
   for (const std::string& m : kMembers) {
     port[m] = members_[m]->WaitPort();
@@ -186,7 +191,7 @@ TEST_F(ClusterScenesTest, AKilledMembersScenesFailOverAndTheOthersKeepTheirOwner
       << "not every scene has an owner and a following standby; see " << dir_.path();
   const std::map<std::string, OwnerRecord> before = Owners();
   sculpt::client::ClientOptions options;
-  options.timeout = milliseconds(5000);
+  options.timeout = sculpt::testing::Scaled(milliseconds(5000));
   for (size_t i = 0; i < kScenes.size(); ++i) {
     sculpt::client::Client client(options);
     auto joined = Join(client, port[before.at(kScenes[i]).member], kScenes[i]);
@@ -216,11 +221,11 @@ TEST_F(ClusterScenesTest, AKilledMembersScenesFailOverAndTheOthersKeepTheirOwner
         }
         return true;
       },
-      milliseconds(20000)))
+      milliseconds(20000 + ttl_ms)))
       << "the killed member's scenes were not all taken over; see " << dir_.path();
   // Past one more lease TTL: a member whose restart had lost its lease would have lost its owner
   // keys by now, and its scenes would show another epoch or owner.
-  std::this_thread::sleep_for(milliseconds(3000));
+  std::this_thread::sleep_for(milliseconds(ttl_ms + 1000));
   const std::map<std::string, OwnerRecord> after = Owners();
   ASSERT_EQ(after.size(), kScenes.size()) << "a scene lost its owner after the failover";
   for (const std::string& scene : kScenes) {

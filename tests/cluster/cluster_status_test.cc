@@ -81,7 +81,8 @@ TEST_F(ClusterStatusTest, ListsBothMembersAndTheOwnerAndEpochOfTheScene) {
   ASSERT_TRUE(WaitFor([&] { return HasKey(kKeys.Owner("default")); }, milliseconds(10000)))
       << "a did not take the scene; see " << dir_.path() / "a.log";
   Start("b");
-  ASSERT_TRUE(WaitFor([&] { return Member("b").has_value(); }, milliseconds(10000)))
+  ASSERT_TRUE(WaitFor([&] { return Member("b").has_value(); },
+                      sculpt::testing::Scaled(milliseconds(10000))))
       << "b did not register; see " << dir_.path() / "b.log";
   // a's record lists the scene once its next refresh (every TTL/4) has run.
   ASSERT_TRUE(

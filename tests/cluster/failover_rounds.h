@@ -38,7 +38,10 @@ using Clock = std::chrono::steady_clock;
 
 const Keys kKeys{"t/"};
 constexpr int kSculptors = 4;
-constexpr int kRateHz = 60;
+// Under the sanitizers an owner on 2 loaded cores applied fewer strokes than 60 Hz sculptors sent
+// (ClusterMoveTest ended with 300-1,260 of them unacknowledged, none lost): a third of the rate
+// there; what the sanitizer run checks is the failover paths' memory safety.
+constexpr int kRateHz = sculpt::testing::kSanitized ? 20 : 60;
 
 // One simulated sculptor: a 2-pose stroke every 1/60 s while joined; a closed connection is
 // reconnected through the members it was given (Reconnect), with a back-off.
@@ -80,7 +83,8 @@ class Sculptor {
  private:
   static sculpt::client::ClientOptions Options(std::vector<std::string> members) {
     sculpt::client::ClientOptions o;
-    o.timeout = milliseconds(3000);
+    // A sanitized owner under load took more than 3 s to answer a join (the scene's state).
+    o.timeout = milliseconds(sculpt::testing::kSanitized ? 10000 : 3000);
     o.cluster_members = std::move(members);
     return o;
   }
@@ -319,7 +323,8 @@ class FailoverSoakTest : public sculpt::testing::EtcdTest {
       // Whatever is pending is resent once connected: wait for every answer.
       for (int attempt = 0; attempt < 20 && s->client().unacked() > 0; ++attempt) {
         if (!s->client().joined()) (void)s->client().Reconnect();
-        (void)s->client().WaitAllAcked(milliseconds(1000));
+        // A sanitized owner under load drained a backlog of 100 strokes more slowly.
+        (void)s->client().WaitAllAcked(sculpt::testing::Scaled(milliseconds(1000)));
       }
       EXPECT_EQ(s->client().unacked(), 0u);
       EXPECT_EQ(s->client().stats().refused, 0u) << s->refusals();

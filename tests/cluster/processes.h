@@ -40,6 +40,26 @@ inline constexpr const char* kEtcdBinary = "/usr/bin/etcd";
 
 inline bool HaveEtcd() { return access(kEtcdBinary, X_OK) == 0; }
 
+/// Built with AddressSanitizer (build-asan: ASan and UBSan together).
+#if defined(__SANITIZE_ADDRESS__)
+inline constexpr bool kSanitized = true;
+#else
+inline constexpr bool kSanitized = false;
+#endif
+
+/// A test's wait for sanitized members: 3x under the sanitizers, where a sculptd opening six
+/// scenes took more than 10 s to listen and a join's scene state more than 5 s on 2 loaded cores.
+inline std::chrono::milliseconds Scaled(std::chrono::milliseconds ms) {
+  return kSanitized ? 3 * ms : ms;
+}
+
+/// The lease TTL for members of a test whose promoted member must reach etcd again within the TTL
+/// after its restart (execv) to keep its lease and its other scenes' epochs: the default 2 s, but
+/// 8 s under the sanitizers, where a sculptd's start-up alone, before it opens any scene (the
+/// lease is kept alive from there on, ResumedLeaseKeeper), took 0.8 s on an idle machine and up
+/// to 3.8 s on 2 cores at load 20 (docs/sanitizers.md, 2026-12-07).
+inline int RestartLeaseTtlMs() { return kSanitized ? 8000 : 2000; }
+
 /// A port the kernel just handed out and released (a small race with other processes, accepted
 /// in tests: etcd needs its ports named on its command line).
 inline uint16_t FreePort() {
@@ -262,7 +282,8 @@ class Member {
     argv.insert(argv.end(), args.begin(), args.end());
     process_ = std::make_unique<ChildProcess>(argv, base / (name + ".log"));
   }
-  // The TCP port once the member is registered in etcd and listening (0 after 10 s).
+  // The TCP port once the member is registered in etcd and listening (0 after 10 s, 30 s
+  // under the sanitizers).
   uint16_t WaitPort() {
     WaitFor(
         [&] {
@@ -271,7 +292,7 @@ class Member {
           if (in >> p && p > 0) port_ = static_cast<uint16_t>(p);
           return port_ != 0;
         },
-        std::chrono::milliseconds(10000));
+        Scaled(std::chrono::milliseconds(10000)));
     return port_;
   }
   uint16_t port() const { return port_; }

@@ -56,7 +56,88 @@ void LogEtcdTrouble(const std::string& what, const Status& s) {
   std::_Exit(75);
 }
 
+// "<lease id>:<pid>" of kResumeLeaseEnv: the lease when the PID is this process's, else 0
+// (`why` says what was wrong with a token that names another process or does not parse).
+int64_t ParseResumeToken(const std::string& token, std::string* why) {
+  const size_t colon = token.find(':');
+  int64_t lease = 0;
+  long pid = 0;
+  try {
+    lease = std::stoll(token.substr(0, colon));
+    pid = colon == std::string::npos ? 0 : std::stol(token.substr(colon + 1));
+  } catch (...) {
+    lease = 0;
+  }
+  if (lease != 0 && pid == static_cast<long>(::getpid())) return lease;
+  *why = "not a lease of this process (pid " + std::to_string(::getpid()) + ")";
+  return 0;
+}
+
 }  // namespace
+
+int64_t ResumableLease() {
+  const char* env = std::getenv(kResumeLeaseEnv);
+  if (env == nullptr) return 0;
+  std::string why;
+  return ParseResumeToken(env, &why);
+}
+
+std::unique_ptr<ResumedLeaseKeeper> ResumedLeaseKeeper::StartIfResuming(
+    const ClusterConfig& config, std::chrono::milliseconds limit) {
+  const int64_t lease = ResumableLease();
+  if (lease == 0) return nullptr;
+  const auto every = std::chrono::milliseconds(std::max(50, config.lease_ttl_ms / 4));
+  auto client = EtcdClient::Create({config.etcd, std::max(std::chrono::milliseconds(100), every),
+                                    config.etcd_ca_file, config.etcd_cert_file,
+                                    config.etcd_key_file});
+  if (!client.ok()) return nullptr;
+  return std::unique_ptr<ResumedLeaseKeeper>(
+      new ResumedLeaseKeeper(std::move(client).value(), lease, every, limit));
+}
+
+ResumedLeaseKeeper::ResumedLeaseKeeper(std::unique_ptr<EtcdClient> etcd, int64_t lease,
+                                       std::chrono::milliseconds every,
+                                       std::chrono::milliseconds limit)
+    : etcd_(std::move(etcd)), lease_(lease) {
+  thread_ = std::thread([this, every, limit] { Run(every, limit); });
+}
+
+ResumedLeaseKeeper::~ResumedLeaseKeeper() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  thread_.join();
+  spdlog::info("cluster: lease {} kept alive {} time(s) while the scenes opened after the restart",
+               lease_, kept_.load());
+}
+
+void ResumedLeaseKeeper::Run(std::chrono::milliseconds every, std::chrono::milliseconds limit) {
+  const auto until = Clock::now() + limit;
+  std::unique_lock<std::mutex> lock(mu_);
+  while (!stop_) {
+    lock.unlock();
+    auto ttl = etcd_->Sync(etcd_->KeepAlive(lease_));
+    lock.lock();
+    if (ttl.ok()) {
+      ++kept_;
+    } else if (ttl.status().code() == Status::Code::kNotFound) {
+      LogEtcdTrouble("the lease kept across the restart is gone while the scenes open",
+                     ttl.status());
+      return;
+    } else {
+      LogEtcdTrouble("keeping the lease alive while the scenes open", ttl.status());
+    }
+    if (Clock::now() + every >= until) {
+      spdlog::warn("cluster: the scenes took more than {} ms to open after the restart: lease {} "
+                   "is no longer kept alive until the agent starts",
+                   limit.count(), lease_);
+      return;
+    }
+    cv_.wait_for(lock, every, [&] { return stop_; });
+  }
+}
 
 ClusterAgent::Slot::Slot(HostedScene h)
     : hosted(std::move(h)), fence(std::make_shared<OwnershipFence>(hosted.name)) {
@@ -143,23 +224,23 @@ Status ClusterAgent::Start(const std::string& tcp, const std::string& http) {
   if (const char* env = std::getenv(kResumeLeaseEnv); env != nullptr) {
     const std::string token = env;
     ::unsetenv(kResumeLeaseEnv);
-    const size_t colon = token.find(':');
-    int64_t lease = 0;
-    long pid = 0;
-    try {
-      lease = std::stoll(token.substr(0, colon));
-      pid = colon == std::string::npos ? 0 : std::stol(token.substr(colon + 1));
-    } catch (...) {
-      lease = 0;
-    }
-    if (lease != 0 && pid == static_cast<long>(::getpid())) {
-      resume_lease_ = lease;
-    } else {
-      spdlog::warn("cluster: {}={} ignored: not a lease of this process (pid {})",
-                   kResumeLeaseEnv, token, ::getpid());
-    }
+    std::string why;
+    resume_lease_ = ParseResumeToken(token, &why);
+    if (resume_lease_ == 0) spdlog::warn("cluster: {}={} ignored: {}", kResumeLeaseEnv, token, why);
   }
-  const Status registered = etcd_->Sync(Register());
+  // A loaded etcd (an fsync behind other writers) may answer one call later than the timeout:
+  // an unanswered registration is tried again for up to 10 s before the start fails (under ASan
+  // on 2 loaded cores a member exited on one timed-out put).
+  const int64_t resume = resume_lease_;
+  Status registered = etcd_->Sync(Register());
+  const auto give_up = Clock::now() + std::chrono::seconds(10);
+  while (!registered.ok() && registered.code() == Status::Code::kUnavailable &&
+         Clock::now() < give_up) {
+    LogEtcdTrouble("registering (trying again)", registered);
+    std::this_thread::sleep_for(tick_);
+    resume_lease_ = resume;
+    registered = etcd_->Sync(Register());
+  }
   if (!registered.ok()) {
     std::string list;
     for (const std::string& e : config_.etcd) list += (list.empty() ? "" : ", ") + e;
@@ -183,6 +264,8 @@ Status ClusterAgent::Start(const std::string& tcp, const std::string& http) {
   if (const Status read = etcd_->Sync(Refresh()); !read.ok())
     LogEtcdTrouble("reading the cluster", read);
   timer_ = std::make_unique<asio::steady_timer>(etcd_->io());
+  keep_alive_timer_ = std::make_unique<asio::steady_timer>(etcd_->io());
+  asio::co_spawn(etcd_->io(), KeepAliveLoop(), asio::detached);
   asio::co_spawn(etcd_->io(), Loop(), asio::detached);
   return Status::Ok();
 }
@@ -234,6 +317,7 @@ void ClusterAgent::Shutdown(bool revoke_lease) {
   if (!etcd_) return;
   asio::post(etcd_->io(), [this] {
     if (timer_) timer_->cancel();
+    if (keep_alive_timer_) keep_alive_timer_->cancel();
   });
   if (revoke_lease) {
     // Our keys go now rather than after the TTL: other members see this one leave at once. The
@@ -249,6 +333,7 @@ void ClusterAgent::Shutdown(bool revoke_lease) {
   }
   etcd_->Halt();     // joins the agent's thread; the io_context (and the loop's frame) stays
   timer_.reset();    // before its io_context: a timer's service must outlive it
+  keep_alive_timer_.reset();
   etcd_.reset();     // the loop's frame goes with its io_context
   for (const auto& slot : slots_) {
     slot->fence->Revoke();  // again: an acquisition may have completed while the lease went
@@ -336,9 +421,23 @@ asio::awaitable<void> ClusterAgent::Loop() {
   }
 }
 
+asio::awaitable<void> ClusterAgent::KeepAliveLoop() {
+  // Every tick from when the last keep-alive was sent, whatever the rest of the loop is doing:
+  // a tick's etcd calls grow with the scenes hosted and followed (acquisitions, standby names,
+  // a followed owner key read every fast tick), and on a slow member they took longer than the
+  // lease once the keep-alive waited behind them (docs/sanitizers.md, 2026-12-07).
+  boost::system::error_code ec;
+  auto next = Clock::now() + tick_;
+  while (!stopping_) {
+    keep_alive_timer_->expires_at(next);
+    co_await keep_alive_timer_->async_wait(asio::redirect_error(asio::use_awaitable, ec));
+    if (stopping_) co_return;
+    next = Clock::now() + tick_;
+    co_await KeepLeaseAlive();
+  }
+}
+
 asio::awaitable<void> ClusterAgent::Tick() {
-  co_await KeepLeaseAlive();
-  if (stopping_) co_return;
   const Status refreshed = co_await Refresh();
   if (!refreshed.ok()) {
     ++etcd_failures_;
@@ -386,10 +485,21 @@ asio::awaitable<void> ClusterAgent::Tick() {
 
 asio::awaitable<void> ClusterAgent::KeepLeaseAlive() {
   const auto sent = Clock::now();
-  auto ttl_call = etcd_->KeepAlive(lease_);
+  const int64_t lease = lease_;
+  auto ttl_call = etcd_->KeepAlive(lease);
   auto ttl = co_await std::move(ttl_call);
+  if (lease != lease_) co_return;  // registered anew meanwhile: this answer is of the old lease
   if (ttl.ok()) {
     const auto t = std::min(*ttl, std::chrono::milliseconds(config_.lease_ttl_ms));
+    const auto now = Clock::now();
+    if (lease_valid_until_ != Clock::time_point{} && now > lease_valid_until_) {
+      // The fences had run out: the scenes acknowledged nothing for this long.
+      spdlog::warn("cluster: lease keep-alive answered {} ms after the fences ran out (sent {} ms "
+                   "before): a slow member or etcd",
+                   std::chrono::duration_cast<std::chrono::milliseconds>(now - lease_valid_until_)
+                       .count(),
+                   std::chrono::duration_cast<std::chrono::milliseconds>(now - sent).count());
+    }
     lease_valid_until_ = sent + t - Margin(t);
     for (const auto& slot : slots_) {
       if (slot->owned) slot->fence->Extend(lease_valid_until_);
@@ -753,11 +863,37 @@ asio::awaitable<void> ClusterAgent::Promote(std::vector<std::pair<Slot*, uint64_
                  "takes it over",
                  slot->hosted.name, dead_epoch, config_.member);
     // Its log made durable and closed before the files move (the connection is gone already).
-    slot->follower.reset();
-    if (const Status s = PromoteStandbyCopy(standby_->data_dir, slot->hosted.name,
-                                            slot->hosted.data_dir, dead_epoch);
-        !s.ok()) {
-      LogEtcdTrouble("promotion of scene " + slot->hosted.name, s);
+    // Both block (a sync, renames, fsyncs: 2 s on a loaded machine), so they run on a thread of
+    // their own that owns what it touches, and the keep-alive loop goes on meanwhile: on this
+    // thread they once outlasted the lease, and the member's other scenes went with it.
+    struct Work {
+      std::unique_ptr<StandbyFollower> follower;
+      std::string standby_dir, scene, data_dir;
+      uint64_t epoch = 0;
+      Status status;
+      std::atomic<bool> done{false};
+    };
+    auto work = std::make_shared<Work>();
+    work->follower = std::move(slot->follower);
+    work->standby_dir = standby_->data_dir;
+    work->scene = slot->hosted.name;
+    work->data_dir = slot->hosted.data_dir;
+    work->epoch = dead_epoch;
+    std::thread([work] {
+      work->follower.reset();
+      work->status =
+          PromoteStandbyCopy(work->standby_dir, work->scene, work->data_dir, work->epoch);
+      work->done.store(true);
+    }).detach();
+    boost::system::error_code ec;
+    asio::steady_timer wait(etcd_->io());
+    while (!work->done.load()) {
+      wait.expires_after(std::chrono::milliseconds(10));
+      co_await wait.async_wait(asio::redirect_error(asio::use_awaitable, ec));
+    }
+    if (stopping_) co_return;
+    if (!work->status.ok()) {
+      LogEtcdTrouble("promotion of scene " + slot->hosted.name, work->status);
       continue;
     }
     ++promoted;

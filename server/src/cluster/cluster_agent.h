@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <functional>
 #include <map>
 #include <memory>
@@ -60,10 +61,49 @@ struct StandbyOptions {
 /// process resumes that lease, and the scenes it owned under it, when the lease still lives.
 inline constexpr char kResumeLeaseEnv[] = "SCULPT_CLUSTER_RESUME_LEASE";
 
+/// The lease named by kResumeLeaseEnv when this very process set it (same PID: the image before
+/// an execv), else 0. Leaves the variable in place (ClusterAgent::Start reads and removes it).
+int64_t ResumableLease();
+
+/// Keeps a promotion's lease alive while the restarted process opens its scenes, before its
+/// ClusterAgent starts (docs/cluster.md, "Lease resume"): opening and recovering every hosted
+/// scene can take longer than the lease TTL (several scenes, long logs, a slow machine), and the
+/// lease lost then takes the owner keys of the member's other scenes with it. Nothing is
+/// acknowledged under the lease meanwhile (no fence is granted before Start). Keeps it alive
+/// every `lease_ttl_ms / 4` for at most `limit`, then lets it run out (a recovery that long
+/// should not hold the member's scenes from their standbys). Stopped by its destructor, which
+/// main runs just before ClusterAgent::Start.
+class ResumedLeaseKeeper {
+ public:
+  /// Null when there is no lease of this process to resume (a plain start), or when the etcd
+  /// client cannot be made (Start then says why).
+  static std::unique_ptr<ResumedLeaseKeeper> StartIfResuming(
+      const ClusterConfig& config, std::chrono::milliseconds limit = std::chrono::seconds(60));
+  ~ResumedLeaseKeeper();
+  ResumedLeaseKeeper(const ResumedLeaseKeeper&) = delete;
+  ResumedLeaseKeeper& operator=(const ResumedLeaseKeeper&) = delete;
+  /// Keep-alives etcd answered so far (tests).
+  uint64_t kept() const { return kept_.load(); }
+
+ private:
+  ResumedLeaseKeeper(std::unique_ptr<EtcdClient> etcd, int64_t lease,
+                     std::chrono::milliseconds every, std::chrono::milliseconds limit);
+  void Run(std::chrono::milliseconds every, std::chrono::milliseconds limit);
+
+  std::unique_ptr<EtcdClient> etcd_;
+  const int64_t lease_;
+  std::atomic<uint64_t> kept_{0};
+  std::mutex mu_;
+  std::condition_variable cv_;
+  bool stop_ = false;  // guarded by mu_
+  std::thread thread_;
+};
+
 /// One sculptd's part in a cluster (docs/cluster.md), for every scene it hosts, under one member
-/// lease. Every `lease_ttl_ms / 4` it: keeps its lease alive (the fences' deadline follows each
-/// answered keep-alive), refreshes `members/<name>` with its load (`offers` every hosted scene,
-/// `owns` those it owns), reads every member and scene key, and acquires each hosted scene that
+/// lease. Every `lease_ttl_ms / 4` it keeps its lease alive, on its own schedule so that no other
+/// etcd call delays it (the fences' deadline follows each answered keep-alive); and every
+/// `lease_ttl_ms / 4` after its last pass it: refreshes `members/<name>` with its load (`offers`
+/// every hosted scene, `owns` those it owns), reads every member and scene key, and acquires each hosted scene that
 /// has no owner and that this member may take (a never-owned scene placed here by PlaceScenes,
 /// or a scene whose last owner was this member) with `scenes/<scene>/owner` at epoch + 1 in one
 /// txn. All etcd traffic runs on the EtcdClient's own thread; sessions only read the routing
@@ -159,6 +199,8 @@ class ClusterAgent : public SceneRouter {
   };
 
   asio::awaitable<void> Loop();
+  // The lease's keep-alive every tick, on its own: never behind the loop's other etcd calls.
+  asio::awaitable<void> KeepAliveLoop();
   asio::awaitable<void> Tick();
   asio::awaitable<Status> Register();
   asio::awaitable<void> KeepLeaseAlive();
@@ -213,6 +255,7 @@ class ClusterAgent : public SceneRouter {
   // members started together see each other's records before they place new scenes.
   OwnershipFence::Clock::time_point place_from_{};
   std::unique_ptr<asio::steady_timer> timer_;
+  std::unique_ptr<asio::steady_timer> keep_alive_timer_;
   std::atomic<bool> stopping_{false};
   bool started_ = false;  // the owning thread's
   std::optional<StandbyOptions> standby_;  // set before Start
