@@ -52,6 +52,18 @@ class ClusterAgentTest : public ::testing::Test {
     return c;
   }
 
+  /// Replaces agent_ by member a hosting p and q, and starts it.
+  Status StartHostingPAndQ() {
+    agent_ = std::make_unique<ClusterAgent>(Config("a"), Hosted({"p", "q"}), [] { return 0u; });
+    return agent_->Start("127.0.0.1:1", "");
+  }
+  /// Whether agent_ comes to own p and q at `epoch` within `within`.
+  bool OwnsPAndQ(uint64_t epoch, milliseconds within) {
+    return WaitFor(
+        [&] { return agent_->owned_epoch("p") == epoch && agent_->owned_epoch("q") == epoch; },
+        within);
+  }
+
   std::unique_ptr<EtcdProcess> etcd_;
   std::unique_ptr<ClusterAgent> agent_;
 };
@@ -367,28 +379,21 @@ TEST_F(ClusterAgentTest, ARestartedAgentResumesItsLeaseAndItsScenesAtTheSameEpoc
 // the lease may still run) — the member then registers a new lease and takes its scenes back
 // with the next epoch only once the old lease has expired — and when the lease is gone.
 TEST_F(ClusterAgentTest, ResumeIsRefusedForAnotherProcessAndForAGoneLease) {
-  const std::vector<std::string> names = {"p", "q"};
-  agent_ = std::make_unique<ClusterAgent>(Config("a"), Hosted(names), [] { return 0u; });
-  ASSERT_TRUE(agent_->Start("127.0.0.1:1", "").ok());
-  ASSERT_TRUE(
-      WaitFor([&] { return agent_->owned_epoch("p") == 1 && agent_->owned_epoch("q") == 1; },
-              milliseconds(4000)));
+  ASSERT_TRUE(StartHostingPAndQ().ok());
+  ASSERT_TRUE(OwnsPAndQ(1, milliseconds(4000)));
   std::string token = agent_->ResumeToken();
   const std::string lease = token.substr(0, token.find(':'));
   ASSERT_EQ(setenv(kResumeLeaseEnv, (lease + ":" + std::to_string(getpid() + 1)).c_str(), 1), 0);
   agent_->Abandon();
   const auto abandoned = std::chrono::steady_clock::now();
-  agent_ = std::make_unique<ClusterAgent>(Config("a"), Hosted(names), [] { return 0u; });
-  ASSERT_TRUE(agent_->Start("127.0.0.1:1", "").ok());
+  ASSERT_TRUE(StartHostingPAndQ().ok());
   EXPECT_EQ(getenv(kResumeLeaseEnv), nullptr);
   EXPECT_NE(agent_->ResumeToken().substr(0, lease.size() + 1), lease + ":") << "a new lease";
   // The old owner keys live on under the old lease: not owned here until it expires.
   std::this_thread::sleep_for(milliseconds(800));
   EXPECT_EQ(agent_->owned_epoch("p"), 0u);
   EXPECT_EQ(agent_->RouteScene("p").kind, Route::Kind::kUnavailable);
-  ASSERT_TRUE(
-      WaitFor([&] { return agent_->owned_epoch("p") == 2 && agent_->owned_epoch("q") == 2; },
-              milliseconds(6000)))
+  ASSERT_TRUE(OwnsPAndQ(2, milliseconds(6000)))
       << "the member did not take its scenes back with epoch 2 after the old lease expired";
   EXPECT_GE(std::chrono::steady_clock::now() - abandoned, milliseconds(1000));
 
@@ -399,24 +404,17 @@ TEST_F(ClusterAgentTest, ResumeIsRefusedForAnotherProcessAndForAGoneLease) {
   ASSERT_EQ(setenv(kResumeLeaseEnv, token.c_str(), 1), 0);
   agent_->Abandon();
   ASSERT_TRUE((*c)->Sync((*c)->Revoke(std::stoll(token.substr(0, token.find(':'))))).ok());
-  agent_ = std::make_unique<ClusterAgent>(Config("a"), Hosted(names), [] { return 0u; });
-  ASSERT_TRUE(agent_->Start("127.0.0.1:1", "").ok());
+  ASSERT_TRUE(StartHostingPAndQ().ok());
   EXPECT_NE(agent_->ResumeToken(), token);
-  ASSERT_TRUE(
-      WaitFor([&] { return agent_->owned_epoch("p") == 3 && agent_->owned_epoch("q") == 3; },
-              milliseconds(4000)));
+  ASSERT_TRUE(OwnsPAndQ(3, milliseconds(4000)));
 }
 
 // A promotion's restart opens its scenes before the agent starts, which may take longer than the
 // TTL: the keeper holds the resumed lease meanwhile, and the restarted agent then owns its scenes
 // again at the same epochs. Without it (no token of this process) nothing is kept.
 TEST_F(ClusterAgentTest, ALeaseIsKeptAliveWhileTheRestartedProcessOpensItsScenes) {
-  const std::vector<std::string> names = {"p", "q"};
-  agent_ = std::make_unique<ClusterAgent>(Config("a"), Hosted(names), [] { return 0u; });
-  ASSERT_TRUE(agent_->Start("127.0.0.1:1", "").ok());
-  ASSERT_TRUE(
-      WaitFor([&] { return agent_->owned_epoch("p") == 1 && agent_->owned_epoch("q") == 1; },
-              milliseconds(4000)));
+  ASSERT_TRUE(StartHostingPAndQ().ok());
+  ASSERT_TRUE(OwnsPAndQ(1, milliseconds(4000)));
   const std::string token = agent_->ResumeToken();
   ASSERT_EQ(setenv(kResumeLeaseEnv, (token.substr(0, token.find(':')) + ":" +
                                      std::to_string(getpid() + 1)).c_str(), 1), 0);
@@ -430,12 +428,9 @@ TEST_F(ClusterAgentTest, ALeaseIsKeptAliveWhileTheRestartedProcessOpensItsScenes
   EXPECT_GE(keeper->kept(), 4u);
   keeper.reset();
   EXPECT_NE(getenv(kResumeLeaseEnv), nullptr) << "left for the agent's Start";
-  agent_ = std::make_unique<ClusterAgent>(Config("a"), Hosted(names), [] { return 0u; });
-  ASSERT_TRUE(agent_->Start("127.0.0.1:1", "").ok());
+  ASSERT_TRUE(StartHostingPAndQ().ok());
   EXPECT_EQ(agent_->ResumeToken(), token) << "the lease was not kept";
-  ASSERT_TRUE(
-      WaitFor([&] { return agent_->owned_epoch("p") == 1 && agent_->owned_epoch("q") == 1; },
-              milliseconds(4000)))
+  ASSERT_TRUE(OwnsPAndQ(1, milliseconds(4000)))
       << "the scenes did not come back at epoch 1 under the kept lease";
   EXPECT_EQ(ResumedLeaseKeeper::StartIfResuming(Config("a")), nullptr) << "Start removed it";
 }
