@@ -108,7 +108,9 @@ TEST_P(SkinPropertyTest, TangencyG1ContactsAndContainment) {
     }
   }
   // The hybrid is the method that usually succeeds (digest §3.5 step 7).
-  if (GetParam() == Method::kHybrid) EXPECT_GT(total, sections * 3 / 4) << total << "/" << sections;
+  if (GetParam() == Method::kHybrid) {
+    EXPECT_GT(total, sections * 3 / 4) << total << "/" << sections;
+  }
   RecordProperty("total_sections", total);
 }
 
