@@ -1,4 +1,5 @@
-/// @brief `sculpt cluster status`: the subcommand's options, the etcd read and the report.
+/// @brief `sculpt cluster status`, `move` and `rebalance`: the subcommands' options, the etcd
+/// reads and the reports.
 #include "cluster_cmd.h"
 
 #include <spdlog/spdlog.h>
@@ -13,6 +14,7 @@
 #include <thread>
 
 #include "cluster/etcd_client.h"
+#include "cluster/placement.h"
 #include "cluster/records.h"
 
 namespace sculpt::client {
@@ -248,7 +250,8 @@ StatusOr<std::unique_ptr<cluster::EtcdClient>> MakeEtcdClient(const std::vector<
 
 }  // namespace
 
-ClusterCommands AddClusterCommand(CLI::App& app, ClusterStatusOptions& o, ClusterMoveOptions& mo) {
+ClusterCommands AddClusterCommand(CLI::App& app, ClusterStatusOptions& o, ClusterMoveOptions& mo,
+                                  ClusterRebalanceOptions& ro) {
   CLI::App* cluster_cmd = app.add_subcommand(
       "cluster", "Inspect a sculptd cluster (members and scenes in etcd) or move a scene");
   cluster_cmd->require_subcommand(1);
@@ -301,7 +304,35 @@ ClusterCommands AddClusterCommand(CLI::App& app, ClusterStatusOptions& o, Cluste
       ->check(CLI::Range(int64_t{100}, int64_t{3600000}))
       ->capture_default_str();
   AddEtcdTlsFlags(move, mo.etcd_tls);
-  return {status, move};
+
+  CLI::App* rebalance = cluster_cmd->add_subcommand(
+      "rebalance",
+      "Even out the scenes the live members own: plan the moves, print them, and make them one "
+      "after another as `cluster move` does");
+  rebalance->footer(
+      "Placement spreads scenes only when they are first placed, so a member that joins later "
+      "owns nothing until scenes are moved to it. The plan moves a scene from the member owning "
+      "most to a member owning at least two fewer that offers it and may follow (cluster.standby), "
+      "preferring the scene whose standby that member already is, until no such pair is left. "
+      "Each move is a standby promotion: the taking member restarts on its copy, and clients "
+      "reconnect and resend as after a failover. Exit status: 0 when the plan is printed "
+      "(--dry-run) or every move is done (also when none is needed), 1 when etcd did not answer, "
+      "a move is already under way or a move failed (the moves before it stand), 2 for a bad "
+      "option.");
+  rebalance
+      ->add_option("--etcd", ro.etcd,
+                   "etcd endpoint http://HOST:PORT or https://HOST:PORT (repeatable, or "
+                   "comma-separated)")
+      ->required()
+      ->delimiter(',');
+  rebalance->add_option("--prefix", ro.prefix, "The cluster's key prefix (cluster.prefix)")
+      ->capture_default_str();
+  rebalance->add_flag("--dry-run", ro.dry_run, "Print the plan and move nothing");
+  rebalance->add_option("--timeout-ms", ro.timeout_ms, "Milliseconds to wait for each move")
+      ->check(CLI::Range(int64_t{100}, int64_t{3600000}))
+      ->capture_default_str();
+  AddEtcdTlsFlags(rebalance, ro.etcd_tls);
+  return {status, move, rebalance};
 }
 
 int RunClusterStatus(const ClusterStatusOptions& o) {
@@ -509,6 +540,94 @@ int RunClusterMove(const ClusterMoveOptions& o) {
                          "; remove " + key + " by hand)",
       from.member);
   return 1;
+}
+
+int RunClusterRebalance(const ClusterRebalanceOptions& o) {
+  auto client = MakeEtcdClient(
+      o.etcd, std::chrono::milliseconds(std::clamp<int64_t>(o.timeout_ms, 100, 2000)), o.etcd_tls);
+  if (!client.ok()) {
+    spdlog::error("cluster rebalance: {}", client.status().ToString());
+    return 2;
+  }
+  cluster::EtcdClient& etcd = **client;
+  auto kvs = etcd.Sync(etcd.GetPrefix(o.prefix));
+  if (!kvs.ok()) {
+    spdlog::error(
+        "cluster rebalance: cannot read {} from etcd at {}: {} (is etcd running? try `etcdctl "
+        "--endpoints {} endpoint health`)",
+        o.prefix, Join(o.etcd), kvs.status().ToString(), Join(o.etcd));
+    return 1;
+  }
+  const ClusterView view = Sort(*kvs, cluster::Keys{o.prefix});
+  std::map<std::string, std::string> owners, standbys;
+  std::vector<std::string> unowned;
+  for (const auto& [name, s] : view.scenes) {
+    if (s.move && s.owner && s.move->epoch == s.owner->epoch) {
+      spdlog::error(
+          "cluster rebalance: a move of scene {} to member {} is under way (key {}): wait for it, "
+          "or remove that key, and run the rebalance again",
+          name, s.move->member, cluster::Keys{o.prefix}.Move(name));
+      return 1;
+    }
+    if (s.owner) {
+      owners[name] = s.owner->member;
+    } else {
+      unowned.push_back(name);
+    }
+    if (s.standby) standbys[name] = StandbyMember(*s.standby);
+  }
+  std::map<std::string, size_t> owned;
+  for (const cluster::MemberRecord& m : view.members) owned[m.name] = 0;
+  for (const auto& [scene, member] : owners) {
+    if (owned.count(member) != 0) ++owned[member];
+  }
+  std::string counts;
+  for (const auto& [member, n] : owned) {
+    counts += (counts.empty() ? "" : ", ") + member + " " + std::to_string(n);
+  }
+  std::printf("cluster %s: %zu live member%s (scenes owned: %s)\n", o.prefix.c_str(),
+              view.members.size(), view.members.size() == 1 ? "" : "s",
+              counts.empty() ? "-" : counts.c_str());
+  if (!unowned.empty()) {
+    std::printf("not moved: scene%s without a live owner now: %s\n",
+                unowned.size() == 1 ? "" : "s", Join(unowned).c_str());
+  }
+  const std::vector<cluster::SceneMove> plan =
+      cluster::PlanRebalance(view.members, owners, standbys);
+  if (plan.empty()) {
+    std::printf("balanced: no member owns two scenes more than a member that could take one\n");
+    return 0;
+  }
+  std::printf("plan: %zu move%s\n", plan.size(), plan.size() == 1 ? "" : "s");
+  for (const cluster::SceneMove& m : plan) {
+    const auto st = standbys.find(m.scene);
+    std::printf("  %s: %s -> %s%s\n", m.scene.c_str(), m.from.c_str(), m.to.c_str(),
+                st != standbys.end() && st->second == m.to ? " (its standby)" : "");
+  }
+  std::fflush(stdout);
+  if (o.dry_run) return 0;
+
+  const auto start = Clock::now();
+  for (size_t i = 0; i < plan.size(); ++i) {
+    std::printf("move %zu of %zu:\n", i + 1, plan.size());
+    std::fflush(stdout);
+    ClusterMoveOptions mo;
+    mo.etcd = o.etcd;
+    mo.etcd_tls = o.etcd_tls;
+    mo.prefix = o.prefix;
+    mo.scene = plan[i].scene;
+    mo.member = plan[i].to;
+    mo.timeout_ms = o.timeout_ms;
+    if (const int code = RunClusterMove(mo); code != 0) {
+      spdlog::error("cluster rebalance: move {} of {} (scene {} to member {}) failed; {} done, "
+                    "{} not made",
+                    i + 1, plan.size(), plan[i].scene, plan[i].to, i, plan.size() - i - 1);
+      return 1;
+    }
+  }
+  std::printf("rebalanced: %zu move%s in %.2f s\n", plan.size(), plan.size() == 1 ? "" : "s",
+              std::chrono::duration<double>(Clock::now() - start).count());
+  return 0;
 }
 
 }  // namespace sculpt::client

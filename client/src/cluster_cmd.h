@@ -1,5 +1,6 @@
 /// @brief `sculpt cluster status`: a cluster's members (addresses, load, owned scenes) and scenes
-/// (owner, epoch, standby), read from etcd (issue 17).
+/// (owner, epoch, standby), read from etcd; `cluster move` and `cluster rebalance`, which move
+/// scenes between members (issue 17).
 #ifndef SCULPT_CLIENT_CLUSTER_CMD_H_
 #define SCULPT_CLIENT_CLUSTER_CMD_H_
 
@@ -38,15 +39,24 @@ struct ClusterMoveOptions {
   int64_t timeout_ms = 30000;  // for the whole move
 };
 
+struct ClusterRebalanceOptions {
+  std::vector<std::string> etcd;
+  EtcdTlsFlags etcd_tls;
+  std::string prefix = "sculpt/";
+  bool dry_run = false;
+  int64_t timeout_ms = 30000;  // for each move
+};
+
 struct ClusterCommands {
   CLI::App* status = nullptr;
   CLI::App* move = nullptr;
+  CLI::App* rebalance = nullptr;
 };
 
-/// Adds the `cluster` subcommand with its `status` and `move` subcommands, storing into the
-/// options (which must outlive parsing).
+/// Adds the `cluster` subcommand with its `status`, `move` and `rebalance` subcommands, storing
+/// into the options (which must outlive parsing).
 ClusterCommands AddClusterCommand(CLI::App& app, ClusterStatusOptions& status,
-                                  ClusterMoveOptions& move);
+                                  ClusterMoveOptions& move, ClusterRebalanceOptions& rebalance);
 
 /// Reads every key under the prefix in one etcd range (one revision: a consistent picture) and
 /// prints members and scenes (a table, or JSON with --json). Returns the exit code: 0 when
@@ -63,6 +73,14 @@ int RunClusterStatus(const ClusterStatusOptions& options);
 /// URL; 1 when etcd does not answer, the owner removed the request, or the timeout passed (the
 /// request is then removed, and the old owner keeps or takes back the scene).
 int RunClusterMove(const ClusterMoveOptions& options);
+
+/// `sculpt cluster rebalance` (docs/cluster.md "Rebalancing"): reads the cluster once, plans the
+/// moves that even out the scenes each live member owns (server::cluster::PlanRebalance) and
+/// prints them; without --dry-run it then makes them one after another, each as `cluster move`
+/// does, and stops at the first that fails. Returns 0 when the plan is printed (--dry-run) or
+/// every move is done (also when none was needed); 1 when etcd does not answer, a move of a
+/// scene is already under way, or a move fails (the moves before it stand); 2 for a malformed URL.
+int RunClusterRebalance(const ClusterRebalanceOptions& options);
 
 }  // namespace sculpt::client
 

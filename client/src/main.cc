@@ -1,5 +1,5 @@
 /// @brief `sculpt`: the command-line client. Subcommands: demo, info, export, play, thesis, skin,
-/// undo, redo, history, cluster status, cluster move.
+/// undo, redo, history, cluster status, cluster move, cluster rebalance.
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -280,8 +280,9 @@ int main(int argc, char** argv) {
 #ifdef SCULPT_CLI_CLUSTER
   sculpt::client::ClusterStatusOptions cluster_opts;
   sculpt::client::ClusterMoveOptions cluster_move_opts;
-  const sculpt::client::ClusterCommands cluster_cmds =
-      sculpt::client::AddClusterCommand(app, cluster_opts, cluster_move_opts);
+  sculpt::client::ClusterRebalanceOptions cluster_rebalance_opts;
+  const sculpt::client::ClusterCommands cluster_cmds = sculpt::client::AddClusterCommand(
+      app, cluster_opts, cluster_move_opts, cluster_rebalance_opts);
 #endif
 
   try {
@@ -314,6 +315,9 @@ int main(int argc, char** argv) {
 #ifdef SCULPT_CLI_CLUSTER
   if (*cluster_cmds.status) return sculpt::client::RunClusterStatus(cluster_opts);
   if (*cluster_cmds.move) return sculpt::client::RunClusterMove(cluster_move_opts);
+  if (*cluster_cmds.rebalance) {
+    return sculpt::client::RunClusterRebalance(cluster_rebalance_opts);
+  }
 #endif
   if (*skin_cmd) return sculpt::client::RunSkin(skin_opts);
   if (*undo_cmd) return sculpt::client::RunUndo(undo_opts);

@@ -22,6 +22,8 @@ namespace sculpt::server::cluster {
 namespace {
 
 using sculpt::testing::Member;
+using sculpt::testing::RunResult;
+using sculpt::testing::Sculpt;
 using sculpt::testing::TempDir;
 using sculpt::testing::WaitFor;
 using std::chrono::milliseconds;
@@ -254,6 +256,72 @@ TEST_F(ClusterScenesTest, AKilledMembersScenesFailOverAndTheOthersKeepTheirOwner
     ASSERT_TRUE(joined.ok()) << scene << " via " << via << ": " << joined.status();
     EXPECT_EQ(joined->info.global_seq(), 2u) << scene << ": the acknowledged stroke is not there";
   }
+}
+
+// A member that joins after the six scenes were placed owns none of them (placement spreads
+// scenes only when they are first placed). `sculpt cluster rebalance --dry-run` prints the three
+// moves that even them out and moves nothing; `sculpt cluster rebalance` makes them, each a
+// standby promotion (epoch 2 on the new owner), and each scene keeps the stroke acknowledged
+// before its move; a second rebalance finds nothing to do.
+TEST_F(ClusterScenesTest, RebalanceGivesAMemberThatJoinedLateHalfOfTheScenes) {
+  // The taking member restarts on each copy it promotes and must be back within the TTL.
+  const int ttl_ms = sculpt::testing::RestartLeaseTtlMs();
+  Start("a", "", ttl_ms);
+  std::map<std::string, uint16_t> port;
+  port["a"] = members_["a"]->WaitPort();
+  ASSERT_NE(port["a"], 0) << "a did not start; see " << dir_.path();
+  ASSERT_TRUE(WaitFor([&] { return Owners().size() == kScenes.size(); }, milliseconds(20000)))
+      << Owners().size() << " of " << kScenes.size() << " scenes have an owner; see "
+      << dir_.path();
+  sculpt::client::ClientOptions options;
+  options.timeout = sculpt::testing::Scaled(milliseconds(5000));
+  for (size_t i = 0; i < kScenes.size(); ++i) {
+    sculpt::client::Client client(options);
+    auto joined = Join(client, port["a"], kScenes[i]);
+    ASSERT_TRUE(joined.ok()) << kScenes[i] << ": " << joined.status();
+    sculpt::client::StrokeRequest stroke;
+    stroke.poses = {{{-4.0 + static_cast<double>(i), 0, 22.5}, 0},
+                    {{-4.0 + static_cast<double>(i), 0.5, 22.5}, 10}};
+    ASSERT_TRUE(client.SendStroke(stroke).ok()) << kScenes[i];
+    ASSERT_TRUE(client.WaitAllAcked(sculpt::testing::Scaled(milliseconds(5000)))) << kScenes[i];
+  }
+  Start("b", "", ttl_ms);
+  port["b"] = members_["b"]->WaitPort();
+  ASSERT_NE(port["b"], 0) << "b did not start; see " << dir_.path();
+  ASSERT_TRUE(WaitFor([&] { return MemberOf("b").has_value(); }, milliseconds(10000)));
+  for (const auto& [scene, o] : Owners()) ASSERT_EQ(o.member, "a") << scene;
+
+  const std::string args =
+      "cluster rebalance --etcd " + etcd_->endpoint() + " --prefix t/ --timeout-ms " +
+      std::to_string(sculpt::testing::Scaled(milliseconds(30000)).count());
+  const RunResult dry = Sculpt(args + " --dry-run");
+  EXPECT_EQ(dry.exit_code, 0) << dry.output;
+  EXPECT_NE(dry.output.find("scenes owned: a 6, b 0"), std::string::npos) << dry.output;
+  EXPECT_NE(dry.output.find("plan: 3 moves"), std::string::npos) << dry.output;
+  for (const auto& [scene, o] : Owners()) EXPECT_EQ(o.member, "a") << scene << " moved by a dry run";
+
+  const RunResult moved = Sculpt(args);
+  ASSERT_EQ(moved.exit_code, 0) << moved.output << "\nsee " << dir_.path();
+  EXPECT_NE(moved.output.find("rebalanced: 3 moves"), std::string::npos) << moved.output;
+  std::map<std::string, int> owned;
+  ASSERT_TRUE(WaitFor([&] { return Owners().size() == kScenes.size(); }, milliseconds(20000)));
+  for (const auto& [scene, o] : Owners()) {
+    ++owned[o.member];
+    EXPECT_EQ(o.epoch, o.member == "b" ? 2u : 1u) << scene;
+  }
+  EXPECT_EQ(owned["a"], 3);
+  EXPECT_EQ(owned["b"], 3);
+  // Every scene still holds its one stroke (two poses), on whichever member owns it now.
+  const std::map<std::string, OwnerRecord> now = Owners();
+  for (const std::string& scene : kScenes) {
+    sculpt::client::Client viewer(options);
+    auto joined = Join(viewer, port[now.at(scene).member], scene);
+    ASSERT_TRUE(joined.ok()) << scene << ": " << joined.status();
+    EXPECT_EQ(joined->info.global_seq(), 2u) << scene;
+  }
+  const RunResult again = Sculpt(args);
+  EXPECT_EQ(again.exit_code, 0) << again.output;
+  EXPECT_NE(again.output.find("balanced: no member"), std::string::npos) << again.output;
 }
 
 }  // namespace

@@ -239,5 +239,44 @@ TEST(PlacementTest, StandbysSpreadOverTheCandidates) {
   EXPECT_EQ(picks.at("s3"), "c");
 }
 
+// `sculpt cluster rebalance`: a member that joined after the six scenes were placed on a owns
+// nothing; the plan moves three of them, each to b, preferring the scenes whose standby b is.
+TEST(RebalanceTest, ALateMemberTakesHalfOfTheScenesWarmCopiesFirst) {
+  const std::vector<MemberRecord> view = {M("a", kSix, 0, kSix), M("b", {}, 0, kSix)};
+  std::map<std::string, std::string> owners, standbys;
+  for (const std::string& s : kSix) owners[s] = "a";
+  standbys = {{"s4", "b"}, {"s6", "b"}};
+  const std::vector<SceneMove> plan = PlanRebalance(view, owners, standbys);
+  EXPECT_EQ(plan, (std::vector<SceneMove>{{"s4", "a", "b"}, {"s6", "a", "b"}, {"s1", "a", "b"}}));
+  // The same plan whatever order the records come in.
+  EXPECT_EQ(PlanRebalance({view[1], view[0]}, owners, standbys), plan);
+}
+
+// Donors from the most loaded, takers from the least; a difference of one is balanced; members
+// that may not follow or do not offer a scene never take it; dead owners' scenes stay.
+TEST(RebalanceTest, MovesOnlyWhereADifferenceOfTwoOrMoreCanBeEvenedOut) {
+  std::map<std::string, std::string> owners = {{"s1", "a"}, {"s2", "a"}, {"s3", "a"},
+                                               {"s4", "a"}, {"s5", "b"}, {"s6", "c"}};
+  // a 4, b 1, c 1: two moves, to b then c (b first by name, then c has fewest).
+  auto plan = PlanRebalance({M("a", {}, 0, kSix), M("b", {}, 0, kSix), M("c", {}, 0, kSix)},
+                            owners, {});
+  EXPECT_EQ(plan, (std::vector<SceneMove>{{"s1", "a", "b"}, {"s2", "a", "c"}}));
+  // Already balanced within one.
+  EXPECT_TRUE(PlanRebalance({M("a", {}, 0, kSix), M("b", {}, 0, kSix)},
+                            {{"s1", "a"}, {"s2", "a"}, {"s3", "b"}}, {})
+                  .empty());
+  // b may not follow: nobody can take a's scenes.
+  MemberRecord no_standby = M("b", {}, 0, kSix);
+  no_standby.standby = false;
+  EXPECT_TRUE(PlanRebalance({M("a", {}, 0, kSix), no_standby}, {{"s1", "a"}, {"s2", "a"}}, {})
+                  .empty());
+  // b offers s2 only: that is the scene it takes.
+  EXPECT_EQ(PlanRebalance({M("a", {}, 0, kSix), M("b", {}, 0, {"s2"})},
+                          {{"s1", "a"}, {"s2", "a"}, {"s3", "a"}}, {}),
+            (std::vector<SceneMove>{{"s2", "a", "b"}}));
+  // Scenes of an owner that is not live count for nobody and do not move.
+  EXPECT_TRUE(PlanRebalance({M("b", {}, 0, kSix)}, {{"s1", "gone"}, {"s2", "gone"}}, {}).empty());
+}
+
 }  // namespace
 }  // namespace sculpt::server::cluster

@@ -2,6 +2,8 @@
 #include "cluster/placement.h"
 
 #include <algorithm>
+#include <cstdint>
+#include <optional>
 #include <set>
 #include <tuple>
 
@@ -58,6 +60,51 @@ std::map<std::string, std::string> PickStandbys(const std::vector<MemberRecord>&
                                                 const std::vector<std::string>& scenes) {
   return Spread(candidates, scenes,
                 [](const MemberRecord& m) { return m.owns.size() + m.following.size(); });
+}
+
+std::vector<SceneMove> PlanRebalance(const std::vector<MemberRecord>& members,
+                                     const std::map<std::string, std::string>& owners,
+                                     const std::map<std::string, std::string>& standbys) {
+  std::map<std::string, const MemberRecord*> live;
+  for (const MemberRecord& m : members) live.emplace(m.name, &m);
+  std::map<std::string, std::string> owner;  // scene -> live owner, updated as moves are planned
+  std::map<std::string, size_t> count;
+  for (const auto& [name, m] : live) count[name] = 0;
+  for (const auto& [scene, member] : owners) {
+    if (live.count(member) == 0) continue;
+    owner[scene] = member;
+    ++count[member];
+  }
+  auto standby_of = [&](const std::string& scene) {
+    const auto it = standbys.find(scene);
+    return it == standbys.end() ? std::string() : it->second;
+  };
+
+  std::vector<SceneMove> plan;
+  while (true) {
+    // The best move: largest donor, then smallest taker, then a warm copy, then names.
+    std::optional<std::tuple<size_t, std::string, size_t, std::string, bool, std::string>> best;
+    for (const auto& [scene, from] : owner) {
+      for (const auto& [to, m] : live) {
+        if (to == from || !m->standby || !Offers(*m, scene) || count[from] < count[to] + 2) {
+          continue;
+        }
+        // Ordered so that the smallest tuple is the preferred move.
+        auto key = std::make_tuple(SIZE_MAX - count[from], from, count[to], to,
+                                   standby_of(scene) != to, scene);
+        if (!best || key < *best) best = std::move(key);
+      }
+    }
+    if (!best) break;
+    const std::string& from = std::get<1>(*best);
+    const std::string& to = std::get<3>(*best);
+    const std::string& scene = std::get<5>(*best);
+    plan.push_back({scene, from, to});
+    owner[scene] = to;
+    --count[from];
+    ++count[to];
+  }
+  return plan;
 }
 
 }  // namespace sculpt::server::cluster

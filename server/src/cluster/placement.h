@@ -34,6 +34,27 @@ std::map<std::string, std::string> PlaceScenes(const std::vector<MemberRecord>& 
 std::map<std::string, std::string> PickStandbys(const std::vector<MemberRecord>& candidates,
                                                 const std::vector<std::string>& scenes);
 
+/// One step of a rebalance: `scene` goes from its owner `from` to member `to`.
+struct SceneMove {
+  std::string scene;
+  std::string from;
+  std::string to;
+  bool operator==(const SceneMove&) const = default;
+};
+
+/// The moves that even out how many scenes the live `members` own (`sculpt cluster rebalance`).
+/// `owners` maps each scene with a live owner to that member, `standbys` each scene to the member
+/// its standby key names. While some member owns at least two scenes more than a member that
+/// could take one of them (another live member offering the scene with `standby` set), one scene
+/// moves: from the member owning most (then the smallest name), to the taker owning fewest (then
+/// the smallest name), preferring the scene whose standby that taker already is (its copy is
+/// warm), then the scene's name. Each move lowers the sum of squared counts, so the plan ends;
+/// it depends only on its inputs, never on their order. Scenes whose owner is not in `members`
+/// stay where they are and count for nobody.
+std::vector<SceneMove> PlanRebalance(const std::vector<MemberRecord>& members,
+                                     const std::map<std::string, std::string>& owners,
+                                     const std::map<std::string, std::string>& standbys);
+
 }  // namespace sculpt::server::cluster
 
 #endif  // SCULPT_SERVER_CLUSTER_PLACEMENT_H_
