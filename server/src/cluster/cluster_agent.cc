@@ -865,13 +865,14 @@ asio::awaitable<void> ClusterAgent::Promote(std::vector<std::pair<Slot*, uint64_
     // Its log made durable and closed before the files move (the connection is gone already).
     // Both block (a sync, renames, fsyncs: 2 s on a loaded machine), so they run on a thread of
     // their own that owns what it touches, and the keep-alive loop goes on meanwhile: on this
-    // thread they once outlasted the lease, and the member's other scenes went with it.
+    // thread they once outlasted the lease, and the member's other scenes went with it. The
+    // thread is kept with the retired followers' threads, so a stop during the promotion waits
+    // for the files to be moved rather than exiting in the middle of it.
     struct Work {
       std::unique_ptr<StandbyFollower> follower;
       std::string standby_dir, scene, data_dir;
       uint64_t epoch = 0;
       Status status;
-      std::atomic<bool> done{false};
     };
     auto work = std::make_shared<Work>();
     work->follower = std::move(slot->follower);
@@ -879,15 +880,20 @@ asio::awaitable<void> ClusterAgent::Promote(std::vector<std::pair<Slot*, uint64_
     work->scene = slot->hosted.name;
     work->data_dir = slot->hosted.data_dir;
     work->epoch = dead_epoch;
-    std::thread([work] {
-      work->follower.reset();
-      work->status =
-          PromoteStandbyCopy(work->standby_dir, work->scene, work->data_dir, work->epoch);
-      work->done.store(true);
-    }).detach();
+    auto done = std::make_shared<std::atomic<bool>>(false);
+    {
+      std::lock_guard<std::mutex> lock(retired_mu_);
+      retired_.push_back({std::thread([work, done] {
+                            work->follower.reset();
+                            work->status = PromoteStandbyCopy(work->standby_dir, work->scene,
+                                                              work->data_dir, work->epoch);
+                            done->store(true);
+                          }),
+                          done});
+    }
     boost::system::error_code ec;
     asio::steady_timer wait(etcd_->io());
-    while (!work->done.load()) {
+    while (!done->load()) {
       wait.expires_after(std::chrono::milliseconds(10));
       co_await wait.async_wait(asio::redirect_error(asio::use_awaitable, ec));
     }

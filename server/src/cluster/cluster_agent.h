@@ -264,7 +264,9 @@ class ClusterAgent : public SceneRouter {
     std::shared_ptr<std::atomic<bool>> done;
   };
   std::mutex retired_mu_;
-  std::vector<Retired> retired_;  // followers being stopped (a stop may wait on a connect)
+  // Threads stopping followers (a stop may wait on a connect) or moving a promoted copy's files;
+  // joined when done by RetireFollower, and all of them by Shutdown.
+  std::vector<Retired> retired_;
 
   mutable std::mutex mu_;
   std::map<std::string, SceneState> scenes_;  // guarded by mu_
