@@ -221,25 +221,24 @@ Status ClusterAgent::Start(const std::string& tcp, const std::string& http) {
   // A promotion's restart (Promote, execv) left its lease here. Honoured only by the same process
   // (execv keeps the PID): then the image that held the lease no longer runs, so no other image
   // can acknowledge anything under it. Read once; a child of this process never inherits it.
+  int64_t resume = 0;
   if (const char* env = std::getenv(kResumeLeaseEnv); env != nullptr) {
     const std::string token = env;
     ::unsetenv(kResumeLeaseEnv);
     std::string why;
-    resume_lease_ = ParseResumeToken(token, &why);
-    if (resume_lease_ == 0) spdlog::warn("cluster: {}={} ignored: {}", kResumeLeaseEnv, token, why);
+    resume = ParseResumeToken(token, &why);
+    if (resume == 0) spdlog::warn("cluster: {}={} ignored: {}", kResumeLeaseEnv, token, why);
   }
   // A loaded etcd (an fsync behind other writers) may answer one call later than the timeout:
   // an unanswered registration is tried again for up to 10 s before the start fails (under ASan
-  // on 2 loaded cores a member exited on one timed-out put).
-  const int64_t resume = resume_lease_;
-  Status registered = etcd_->Sync(Register());
+  // on 2 loaded cores a member exited on one timed-out put). Each try may resume the lease.
+  Status registered = etcd_->Sync(Register(resume));
   const auto give_up = Clock::now() + std::chrono::seconds(10);
   while (!registered.ok() && registered.code() == Status::Code::kUnavailable &&
          Clock::now() < give_up) {
     LogEtcdTrouble("registering (trying again)", registered);
     std::this_thread::sleep_for(tick_);
-    resume_lease_ = resume;
-    registered = etcd_->Sync(Register());
+    registered = etcd_->Sync(Register(resume));
   }
   if (!registered.ok()) {
     std::string list;
@@ -344,12 +343,11 @@ void ClusterAgent::Shutdown(bool revoke_lease) {
   retired_.clear();
 }
 
-asio::awaitable<Status> ClusterAgent::Register() {
-  if (resume_lease_ != 0) {
+asio::awaitable<Status> ClusterAgent::Register(int64_t resume) {
+  if (resume != 0) {
     // The lease of the image before the execv: kept only if etcd still keeps it alive (then
     // every key under it, owner keys included, is still there: nobody else can have taken a
     // scene it owned).
-    const int64_t resume = std::exchange(resume_lease_, 0);
     const auto sent = Clock::now();
     auto ttl_call = etcd_->KeepAlive(resume);
     auto ttl = co_await std::move(ttl_call);
@@ -519,7 +517,7 @@ asio::awaitable<void> ClusterAgent::KeepLeaseAlive() {
   }
   if (stopping_) co_return;
   LogEtcdTrouble("lease expired; registering again", ttl.status());
-  const Status again = co_await Register();
+  const Status again = co_await Register(/*resume=*/0);
   if (!again.ok()) LogEtcdTrouble("registering again", again);
 }
 

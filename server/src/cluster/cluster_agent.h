@@ -202,7 +202,9 @@ class ClusterAgent : public SceneRouter {
   // The lease's keep-alive every tick, on its own: never behind the loop's other etcd calls.
   asio::awaitable<void> KeepAliveLoop();
   asio::awaitable<void> Tick();
-  asio::awaitable<Status> Register();
+  // Grants a lease (or resumes `resume`, the lease of the image before a promotion's execv, if
+  // etcd still keeps it alive) and writes this member's record under it.
+  asio::awaitable<Status> Register(int64_t resume);
   asio::awaitable<void> KeepLeaseAlive();
   asio::awaitable<Status> Refresh();
   // Acquires `slot`'s scene when it has no owner and this member may take it; `picks` is the
@@ -248,8 +250,7 @@ class ClusterAgent : public SceneRouter {
   std::string tcp_;
   std::string http_;
   std::atomic<int64_t> lease_{0};
-  int64_t resume_lease_ = 0;  // from kResumeLeaseEnv, tried once by the first Register
-  bool resumed_ = false;      // the first Register kept the lease of the image before the execv
+  bool resumed_ = false;  // the first Register kept the lease of the image before the execv
   OwnershipFence::Clock::time_point lease_valid_until_{};
   // Never-owned scenes are placed only from here on (one tick after the first registration), so
   // members started together see each other's records before they place new scenes.
