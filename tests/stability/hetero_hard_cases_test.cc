@@ -285,7 +285,9 @@ TEST(HeteroHardCasesTest, RandomEditsNeverLeaveAnInvalidModel) {
     if (!out.ok() || !out->applied) {
       ++refused;
       EXPECT_EQ(ModelToJson(m), before) << "edit " << e;
-      if (out.ok()) EXPECT_NE(out->rejection.reason, Reason::kOk);
+      if (out.ok()) {
+        EXPECT_NE(out->rejection.reason, Reason::kOk);
+      }
     } else {
       ++accepted;
     }

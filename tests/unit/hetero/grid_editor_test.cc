@@ -95,7 +95,9 @@ TEST_F(GridEditorTest, ExpansionIsDeterministic) {
   for (size_t i = 0; i < a->size(); ++i) {
     EXPECT_EQ((*a)[i].coef, (*b)[i].coef);
     EXPECT_EQ((*a)[i].delta, (*b)[i].delta);
-    if (i) EXPECT_LT((*a)[i - 1].coef, (*a)[i].coef);
+    if (i > 0) {
+      EXPECT_LT((*a)[i - 1].coef, (*a)[i].coef);
+    }
   }
 }
 

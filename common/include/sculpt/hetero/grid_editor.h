@@ -27,7 +27,7 @@ struct EditIntent {
   int cell = -1;
   /// Continuity flags to set at the corner before the move (geometry C1 is then enforced by
   /// (7.6) from the lower side, material C1 by the copy rule).
-  std::optional<CornerFlags> set_flags;
+  std::optional<CornerFlags> set_flags = std::nullopt;
 };
 
 /// One coefficient's displacement in an expanded edit.
