@@ -151,6 +151,12 @@ struct Block {
       }
     }
   }
+  // Clamps the listed voxels to the band: enough when the rest of the block is within it and only
+  // they moved since (a list kernel writes its list's voxels alone).
+  void ClampToBand(const VoxelList& moved) {
+    float* p = phi.data().data();
+    for (uint32_t idx : moved) p[idx] = std::clamp(p[idx], -bg, bg);
+  }
   // Change of the inside-voxel count since extraction: only voxels that changed contribute, so
   // the tracked volume stays exact without summing the block. They are added in index order.
   double InsideChange() const { return InsideChange(Changed()); }
