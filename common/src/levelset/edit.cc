@@ -324,7 +324,9 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
     if (s.reinit_iterations > 0 && r.triggered) {
       res.reinit_passes = r.passes;
       impl.edits_since_reinit = 0;
-      b.ClampToBand();
+      // The operators' clamp and the compensation left the whole block within the band, and the
+      // reinitialisation moved the region's voxels alone.
+      b.ClampToBand(region);
     }
   }
   lap(res.stage_ms.reinit);

@@ -151,9 +151,44 @@ struct Block {
       }
     }
   }
+  // Clamps the listed voxels to the band: enough when the rest of the block is within it and only
+  // they moved since (a list kernel writes its list's voxels alone).
+  void ClampToBand(const VoxelList& moved) {
+    float* p = phi.data().data();
+    for (uint32_t idx : moved) p[idx] = std::clamp(p[idx], -bg, bg);
+  }
   // Change of the inside-voxel count since extraction: only voxels that changed contribute, so
   // the tracked volume stays exact without summing the block. They are added in index order.
-  double InsideChange() const { return InsideChange(Changed()); }
+  // One pass over the block's rows: a changed row is summed between its first and last changed
+  // voxels (found as Changed() finds them), which holds every voxel the box would visit in it.
+  double InsideChange() const {
+    double sum = 0;
+    const Int3 d = phi.dims();
+    const float* now = phi.data().data();
+    const float* was = before.data().data();
+    const size_t row_bytes = static_cast<size_t>(d.x) * sizeof(float);
+    for (int k = 0; k < d.z; ++k) {
+      for (int j = 0; j < d.y; ++j) {
+        const size_t row = phi.Index(0, j, k);
+        if (std::memcmp(now + row, was + row, row_bytes) == 0) continue;
+        auto same = [&](int i) {
+          uint32_t a, w;
+          std::memcpy(&a, now + row + i, sizeof a);
+          std::memcpy(&w, was + row + i, sizeof w);
+          return a == w;
+        };
+        int i0 = 0, i1 = d.x - 1;
+        while (same(i0)) ++i0;
+        while (same(i1)) --i1;
+        for (size_t idx = row + i0; idx <= row + i1; ++idx) {
+          if (now[idx] != was[idx]) {
+            sum += VolumeFraction(now[idx], dx) - VolumeFraction(was[idx], dx);
+          }
+        }
+      }
+    }
+    return sum;
+  }
   double InsideChange(const NearBox& c) const {
     double sum = 0;
     const float* now = phi.data().data();

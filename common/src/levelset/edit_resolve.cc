@@ -269,27 +269,32 @@ size_t RepairBand(Block& b, const BoxMask& near, const std::vector<uint8_t>& tou
   for (int k = near.lo[2]; k < near.hi[2]; ++k) {
     for (int j = near.lo[1]; j < near.hi[1]; ++j) {
       const uint8_t* marks = &near.m[near.Local(near.lo[0], j, k)] - near.lo[0];
-      if (std::find(marks + near.lo[0], marks + near.hi[0], uint8_t{1}) == marks + near.hi[0]) {
-        continue;
-      }
+      const uint8_t* first = std::find(marks + near.lo[0], marks + near.hi[0], uint8_t{1});
+      if (first == marks + near.hi[0]) continue;
+      // Only the marked voxels read their slope and crossing: the row's span from its first to
+      // its last mark is computed (each voxel's value does not depend on the span).
+      int last = near.hi[0] - 1;
+      while (!marks[last]) --last;
+      const int s0 = static_cast<int>(first - marks) - near.lo[0];
+      const int s1 = last + 1 - near.lo[0];
       const size_t row = b.phi.Index(near.lo[0], j, k);
       const float* c = p + row;
-      std::fill(slope.begin(), slope.end(), 0.f);
-      std::fill(flips.begin(), flips.end(), uint8_t{0});
+      std::fill(slope.begin() + s0, slope.begin() + s1, 0.f);
+      std::fill(flips.begin() + s0, flips.begin() + s1, uint8_t{0});
       for (int o = 0; o < 26; ++o) {
         const float* q = c + offsets[o];
         const float inv = inv_lengths[o];
-        for (int i = 0; i < width; ++i) slope[i] = std::max(slope[i], std::abs(q[i] - c[i]) * inv);
+        for (int i = s0; i < s1; ++i) slope[i] = std::max(slope[i], std::abs(q[i] - c[i]) * inv);
       }
       for (int a = 0; a < 3; ++a) {
         const float* lo_side = c - stride[a];
         const float* hi_side = c + stride[a];
-        for (int i = 0; i < width; ++i) {
+        for (int i = s0; i < s1; ++i) {
           const uint8_t in = c[i] < 0.f;
           flips[i] |= static_cast<uint8_t>(((lo_side[i] < 0.f) != in) | ((hi_side[i] < 0.f) != in));
         }
       }
-      for (int i = near.lo[0]; i < near.hi[0]; ++i) {
+      for (int i = near.lo[0] + s0; i < near.lo[0] + s1; ++i) {
         if (!marks[i]) continue;
         const size_t idx = row + static_cast<size_t>(i - near.lo[0]);
         if (touched[idx]) {

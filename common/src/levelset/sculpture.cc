@@ -158,6 +158,12 @@ DenseField ExtractDense(const FloatGrid& grid, const IndexBox& box) {
               continue;
             }
             const int yz = ((y & 7) << 3) | (z & 7);
+            if (x1 - x0 == 7) {  // a whole row of the leaf: eight loads at fixed strides
+              const float* column = values + yz;
+              float* out = row + (x0 - box.min.x);
+              for (int x = 0; x < 8; ++x) out[x] = column[x << 6];
+              continue;
+            }
             for (int x = x0; x <= x1; ++x) row[x - box.min.x] = values[((x & 7) << 6) | yz];
           }
         }
@@ -189,9 +195,22 @@ WriteBackResult WriteBack(FloatGrid& grid, const DenseField& before, const Dense
       to[a] = std::min(to[a], hi[a]);
     }
   }
-  std::vector<Int3> leaves;
+  // The leaves holding a changed voxel are marked in a grid of the box's leaves and listed from
+  // it in (z, y, x) order: the sorted, unique list, without sorting one entry per run of voxels.
+  int leaf_lo[3] = {0, 0, 0}, leaf_n[3] = {0, 0, 0};
+  const int orig[3] = {o.x, o.y, o.z};
+  for (int a = 0; a < 3; ++a) {
+    if (from[a] >= to[a]) continue;
+    leaf_lo[a] = (orig[a] + from[a]) >> 3;
+    leaf_n[a] = ((orig[a] + to[a] - 1) >> 3) - leaf_lo[a] + 1;
+  }
+  std::vector<uint8_t> marked(static_cast<size_t>(leaf_n[0]) * leaf_n[1] * leaf_n[2], 0);
   for (int k = from[2]; k < to[2]; ++k) {
     for (int j = from[1]; j < to[1]; ++j) {
+      uint8_t* leaf_row =
+          marked.data() + (static_cast<size_t>(((o.z + k) >> 3) - leaf_lo[2]) * leaf_n[1] +
+                           (((o.y + j) >> 3) - leaf_lo[1])) *
+                              leaf_n[0];
       for (int i = from[0]; i < to[0]; ++i) {
         const size_t idx = after.Index(i, j, k);
         float v = after.data()[idx];
@@ -205,16 +224,21 @@ WriteBackResult WriteBack(FloatGrid& grid, const DenseField& before, const Dense
           acc.setValueOn(c, v);
         }
         ++r.changed_voxels;
-        const Int3 leaf{c.x() & ~7, c.y() & ~7, c.z() & ~7};
-        if (leaves.empty() || !(leaves.back() == leaf)) leaves.push_back(leaf);
+        leaf_row[((o.x + i) >> 3) - leaf_lo[0]] = 1;
       }
     }
   }
-  auto less = [](const Int3& a, const Int3& b) {
-    return std::tie(a.z, a.y, a.x) < std::tie(b.z, b.y, b.x);
-  };
-  std::sort(leaves.begin(), leaves.end(), less);
-  leaves.erase(std::unique(leaves.begin(), leaves.end()), leaves.end());
+  std::vector<Int3> leaves;
+  size_t n = 0;
+  for (int z = 0; z < leaf_n[2]; ++z) {
+    for (int y = 0; y < leaf_n[1]; ++y) {
+      for (int x = 0; x < leaf_n[0]; ++x, ++n) {
+        if (marked[n]) {
+          leaves.push_back({(leaf_lo[0] + x) * 8, (leaf_lo[1] + y) * 8, (leaf_lo[2] + z) * 8});
+        }
+      }
+    }
+  }
   // Collapse leaves that became uniform and inactive, so the tree is canonical.
   for (const Int3& l : leaves) {
     const Coord origin(l.x, l.y, l.z);
