@@ -235,6 +235,11 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
     fs::remove_all(staging, ec);
     return files;
   });
+  // And the object's stroke undo history as of its sequence, as a snapshot round keeps it, so
+  // the copy's snapshots carry the history this scene's would.
+  scene->replication_.set_object_history([raw_scene](const std::string& object, uint64_t seq) {
+    return HistoryFileBytes(raw_scene->HistoryOf(object), seq);
+  });
   // Snapshots carry the fraction grids; a data directory written under other materials would
   // give replicas and viewers a declaration the objects do not hold.
   for (auto& [name, sculpture] : scene->sculptures_) {
