@@ -438,9 +438,6 @@ void StandbyFollower::Run() {
     return Status::Ok();
   };
 
-  // Records of edits no broadcast carries, logged as the owner logged them and replayed into
-  // the books; their object changes (paint, sweep, undo) follow as a LeafDelta of the same
-  // sequence, which snapshots the copy. No snapshot here: the object does not hold them yet.
   // The owner's stroke undo history as of a region load. Without it (an older owner) or when
   // it does not parse, the copy's history starts empty and says why, as a restart from a
   // snapshot without its history file does.
@@ -470,6 +467,9 @@ void StandbyFollower::Run() {
     im.history = std::move(parsed).value();
   };
 
+  // Records of edits no broadcast carries, logged as the owner logged them and replayed into
+  // the books and the object's undo history; their object changes (paint, sweep, undo) follow as a LeafDelta of the same
+  // sequence, which snapshots the copy. No snapshot here: the object does not hold them yet.
   auto log_records = [&](const v1::LogRecords& r) -> Status {
     if (!im.log || r.records_size() == 0) return Status::Ok();  // before the load: in it
     const uint64_t first = r.first_seq();
