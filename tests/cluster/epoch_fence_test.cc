@@ -10,10 +10,12 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <memory>
+#include <set>
 #include <string>
 #include <utility>
 #include <variant>
@@ -27,6 +29,7 @@
 #include "integration/in_process_server.h"
 #include "integration/raw_client.h"
 #include "scene/commit.h"
+#include "sculpt/levelset/region.h"
 #include "sculpt/skin/skin.h"
 #include "sculpt/v1/sculpt.pb.h"
 #include "store/edit_log.h"
@@ -173,7 +176,9 @@ class EpochFenceTest : public ::testing::Test {
     server_.scene().set_ownership_fence(fence_);
   }
   // A standby "b" following the owner, told by "etcd" that the owner holds `epoch`.
-  std::unique_ptr<StandbyFollower> Follow(uint64_t epoch) {
+  // The copy snapshots every `snapshot_every_records` records it logs.
+  std::unique_ptr<StandbyFollower> Follow(uint64_t epoch,
+                                          uint64_t snapshot_every_records = 5000) {
     FollowerOptions fo;
     fo.data_dir = standby_data_.string();
     fo.scene = "default";
@@ -182,6 +187,7 @@ class EpochFenceTest : public ::testing::Test {
     fo.owner_tcp = "127.0.0.1:" + std::to_string(server_.port());
     fo.owner_epoch = epoch;
     fo.stale_epoch_refusals = refusals_;
+    fo.snapshot_every_records = snapshot_every_records;
     // The scene as the owner hosts it: the copy keeps its skins and models.
     fo.books = {.skins = server_.config().scene.skins,
                 .objects = server_.config().scene.objects,
@@ -484,6 +490,81 @@ TEST_F(EpochFenceTest, StandbyCopyHoldsBallEditsAndUndosAndRecoversTheSkinAndIts
   ASSERT_TRUE(dup.has_value());
   EXPECT_TRUE(dup->skin_ack().duplicate()) << dup->DebugString();
   EXPECT_EQ(promoted.scene().SkinCopy("profile")->balls().size(), 5u);
+}
+
+// The copy's snapshots carry the stroke undo history the owner's would at their sequence: the
+// owner's history as of the region load (LeafDelta.object_history), then every stroke the copy
+// replays and every undo the owner ships it recorded as the owner's Apply records them. A
+// server started on the copy after it snapshotted past every stroke (as a promotion starts
+// one) gives the author the owner's undo depth, and each undo the state the owner's gives.
+TEST_F(EpochFenceTest, StandbyCopySnapshotsCarryTheStrokeUndoHistory) {
+  server_.config().cluster.replication = "sync";
+  server_.config().cluster.sync_fallback_ms = 300;
+  StartOwner(7);
+  Sculpt(1);  // before the copy: in its region load and the history sent with it
+  auto follower = Follow(7, /*snapshot_every_records=*/3);  // a snapshot after every stroke
+  ASSERT_TRUE(
+      WaitFor([&] { return follower->ready() || follower->finished(); }, milliseconds(10000)));
+  ASSERT_TRUE(follower->ready()) << follower->failure();
+  ASSERT_TRUE(WaitFor([&] { return !server_.scene().acks().fallen_back(); }, milliseconds(5000)));
+  Sculpt(2);
+  Sculpt(3);
+  ASSERT_TRUE(UndoStroke(4));  // takes back stroke 3: shipped to the copy as the owner logged it
+  Sculpt(5);
+  const uint64_t last = Sculpt(6);
+  ASSERT_TRUE(WaitFor([&] { return follower->durable_seq() >= last; }, milliseconds(10000)));
+  EXPECT_FALSE(server_.scene().acks().fallen_back());
+  follower.reset();
+  const std::vector<uint64_t> snaps = SnapshotSeqs(Copy());
+  ASSERT_FALSE(snaps.empty());
+  ASSERT_EQ(*std::max_element(snaps.begin(), snaps.end()), last)
+      << "the copy did not snapshot after the last stroke: the test would replay its log";
+
+  // What the owner gives: the author's depths, then the state after each of its undos (the
+  // strokes 6, 5, 2 and 1, the oldest from before the copy's load), then nothing to undo.
+  const auto owner_depth = server_.scene().UndoDepth("clay", 77);
+  ASSERT_EQ(owner_depth, std::make_pair(size_t{4}, size_t{0}));
+  // Compared voxel by voxel over the whole sphere (radius 24) and its halo: the copy is built
+  // from leaf records, so its tree's shape (Sculpture::StateHash) may differ with equal values.
+  const double dx = server_.config().scene.voxel_size;
+  const int reach = static_cast<int>(std::ceil(32 / dx));
+  const levelset::VoxelBox clay{{-reach, -reach, -reach}, {reach, reach, reach}};
+  const uint64_t owner_before = server_.scene().RegionHash("clay", clay);
+  std::vector<uint64_t> owner_undone;
+  for (uint64_t client_seq = 7; client_seq <= 10; ++client_seq) {
+    ASSERT_TRUE(UndoStroke(client_seq));
+    owner_undone.push_back(server_.scene().RegionHash("clay", clay));
+  }
+  EXPECT_EQ(std::set<uint64_t>(owner_undone.begin(), owner_undone.end()).size(), 4u)
+      << "each undo changes the object";
+  sculptor_.reset();
+  server_.Stop();
+
+  sculpt::testing_support::InProcessServer promoted{"epoch_fence_promoted_undo"};
+  promoted.config().data_dir = Copy().string();
+  ASSERT_TRUE(promoted.Start());
+  EXPECT_EQ(promoted.scene().RegionHash("clay", clay), owner_before);
+  EXPECT_EQ(promoted.scene().UndoDepth("clay", 77), owner_depth)
+      << "the copy's snapshot holds another stroke undo history than the owner's";
+  RawClient author(promoted.port());
+  ASSERT_TRUE(author.Enter("sculpt-dev-sculptor", v1::ROLE_SCULPTOR, 77));
+  for (uint64_t i = 0; i < owner_undone.size(); ++i) {
+    v1::ClientMessage m;
+    m.mutable_undo()->set_client_seq(7 + i);
+    m.mutable_undo()->set_object("clay");
+    ASSERT_TRUE(author.Send(m));
+    auto a = author.ReadUntil(v1::ServerMessage::kUndoAck);
+    ASSERT_TRUE(a.has_value());
+    ASSERT_TRUE(a->undo_ack().accepted()) << "undo " << i + 1 << ": " << a->DebugString();
+    EXPECT_EQ(promoted.scene().RegionHash("clay", clay), owner_undone[i]) << "after undo " << i + 1;
+  }
+  v1::ClientMessage more;
+  more.mutable_undo()->set_client_seq(11);
+  more.mutable_undo()->set_object("clay");
+  ASSERT_TRUE(author.Send(more));
+  auto none = author.ReadUntil(v1::ServerMessage::kUndoAck);
+  ASSERT_TRUE(none.has_value());
+  EXPECT_FALSE(none->undo_ack().accepted()) << "an undo beyond the owner's history";
 }
 
 // A member whose fence holds a lower epoch than one its log already holds (a stale owner: the

@@ -36,6 +36,7 @@ SharedFrame EncodeLeafDelta(LeafDeltaFrame delta) {
     f->set_path(std::move(path));
     f->set_data(std::move(data));
   }
+  d->set_object_history(std::move(delta.object_history));
   return EncodeSharedFrame(m);
 }
 

@@ -12,6 +12,9 @@
 #include <vector>
 
 #include "scene/commit.h"
+#include "scene/edit_history.h"
+#include "scene/history_file.h"
+#include "scene/history_replay.h"
 #include "scene/models.h"
 #include "scene/skins.h"
 #include "sculpt/client/client.h"
@@ -146,6 +149,11 @@ struct StandbyFollower::Impl {
   SkinBook skins;
   ModelBook models;
   bool books = false;
+  // The object's stroke undo history as the owner's is at `seq`: the owner's as of the region
+  // load (LeafDelta.object_history), then every stroke, paint, sweep and object undo recorded
+  // into it as the owner's Apply records them; saved beside each snapshot of the copy.
+  std::optional<EditHistory> history;
+  std::optional<HistoryReplay> replay;
 };
 
 bool IsBookFilePath(const std::string& path) {
@@ -334,6 +342,12 @@ void StandbyFollower::Run() {
           store::SaveResendTable((im.gen / store::kResendTableFile).string(), table));
     }
     SCULPT_RETURN_IF_ERROR(im.snapshots->Write(seq, im.object, *im.sculpture));
+    // The history after its snapshot, as the owner's rounds write it: recovery of the copy
+    // loads it with the snapshot and undoes what the owner could undo at seq.
+    if (im.history) {
+      SCULPT_RETURN_IF_ERROR(WriteHistoryFile(im.gen.string(), im.object, seq,
+                                              HistoryFileBytes(*im.history, seq)));
+    }
     // The books as of seq, before the log rolls (the records they hold may then go).
     if (im.books && (!im.skins.Save(seq) || !im.models.Save(seq))) {
       return Internal("the copy's skins or models at seq " + std::to_string(seq) +
@@ -424,8 +438,37 @@ void StandbyFollower::Run() {
     return Status::Ok();
   };
 
+  // The owner's stroke undo history as of a region load. Without it (an older owner) or when
+  // it does not parse, the copy's history starts empty and says why, as a restart from a
+  // snapshot without its history file does.
+  auto load_history = [&](const v1::LeafDelta& d) {
+    EditHistoryOptions ho;
+    ho.depth_per_author = static_cast<int>(o.books.undo_depth);
+    im.history.emplace(ho);
+    im.replay.emplace(im.settings);
+    if (d.global_seq() == 0) return;  // the scene as configured: nothing before it to undo
+    const std::string at = std::to_string(d.global_seq());
+    if (d.object_history().empty()) {
+      spdlog::warn("cluster: standby: the region load at seq {} came without the owner's undo "
+                   "history: after a failover, strokes before it cannot be undone",
+                   d.global_seq());
+      im.history->Clear("the standby's copy was loaded at seq " + at +
+                        " without the owner's undo history");
+      return;
+    }
+    auto parsed = ParseHistoryFile(d.object_history(), d.global_seq(), ho);
+    if (!parsed.ok()) {
+      spdlog::warn("cluster: standby: the owner's undo history at seq {} is not usable: {}",
+                   d.global_seq(), parsed.status().ToString());
+      im.history->Clear("the owner's undo history sent with the region load at seq " + at +
+                        " was not usable");
+      return;
+    }
+    im.history = std::move(parsed).value();
+  };
+
   // Records of edits no broadcast carries, logged as the owner logged them and replayed into
-  // the books; their object changes (paint, sweep, undo) follow as a LeafDelta of the same
+  // the books and the object's undo history; their object changes (paint, sweep, undo) follow as a LeafDelta of the same
   // sequence, which snapshots the copy. No snapshot here: the object does not hold them yet.
   auto log_records = [&](const v1::LogRecords& r) -> Status {
     if (!im.log || r.records_size() == 0) return Status::Ok();  // before the load: in it
@@ -451,6 +494,11 @@ void StandbyFollower::Run() {
       if (e.completes) {
         uint64_t& newest = im.resend[{static_cast<uint8_t>(e.stream), e.client_id}];
         newest = std::max(newest, e.client_seq);
+      }
+      // Through the object's history as the owner applied it (and as recovery replays it):
+      // the paint, sweep or undo whose leaves follow, or a stroke the kernel refused again.
+      if (im.history && (e.object.empty() || e.object == im.object)) {
+        SCULPT_RETURN_IF_ERROR(im.replay->Apply(*im.sculpture, *im.history, seq, e.record));
       }
       if (!im.books) continue;
       if (auto* b = std::get_if<codec::BallEditRecord>(&e.record)) im.skins.Replay(seq, *b);
@@ -488,6 +536,7 @@ void StandbyFollower::Run() {
                                    {d.volume(), d.reference_volume(), d.edits_since_reinit()});
       if (d.replace_region()) {
         SCULPT_RETURN_IF_ERROR(load_books(d));
+        load_history(d);
         // The owner's resend table at the load's sequence: without it, a client resending an
         // edit inside the load after a failover would have it applied twice.
         if (d.resend_table_size() == 0 && d.global_seq() > 0) {
@@ -516,6 +565,8 @@ void StandbyFollower::Run() {
     if (!im.log) return Status::Ok();  // before the region load: it is in the load
     std::vector<levelset::EditRequest> reqs;
     std::vector<std::string> payloads;
+    const uint64_t author = b.records_size() > 0 ? b.records(0).client_id() : b.client_id();
+    uint64_t commit_ms = 0;  // logged with the last pose: the history view's time
     if (b.records_size() > 0) {
       for (const v1::EditRecord& r : b.records()) {
         codec::StrokePoseRecord p;
@@ -526,6 +577,7 @@ void StandbyFollower::Run() {
         p.pose_index = r.pose_index();
         p.pose_count = r.pose_count();
         p.commit_ms = r.commit_ms();
+        commit_ms = std::max(commit_ms, p.commit_ms);
         p.edit = codec::EditFromRecord(r);
         p.user = r.user();
         reqs.push_back(p.edit);
@@ -558,7 +610,7 @@ void StandbyFollower::Run() {
         p.pose_index = i;
         p.pose_count = n;
         // The owner's commit time is not in the broadcast: the time this copy logged it.
-        if (i + 1 == n) p.commit_ms = now_ms;
+        if (i + 1 == n) p.commit_ms = commit_ms = now_ms;
         p.edit = decoded->edits[i];
         reqs.push_back(codec::AsLogged(p.edit));
         std::string payload = codec::EncodeLogRecord(p);
@@ -572,15 +624,24 @@ void StandbyFollower::Run() {
     if (first <= im.seq) return Status::Ok();  // already in a region load
     SCULPT_RETURN_IF_ERROR(im.log->AppendGroup(first, payloads));
     {
-      uint64_t& newest =
-          im.resend[{static_cast<uint8_t>(ResendStream::kStrokes),
-                     b.records_size() > 0 ? b.records(0).client_id() : b.client_id()}];
+      uint64_t& newest = im.resend[{static_cast<uint8_t>(ResendStream::kStrokes), author}];
       newest = std::max(newest,
                         b.records_size() > 0 ? b.records(0).client_seq() : b.stroke().client_seq());
     }
     im.records_since_snapshot += payloads.size();
     const levelset::ReplayState state{b.volume(), b.reference_volume(), b.edits_since_reinit()};
+    // Recorded in the copy's undo history as the owner's Apply records it: the pre-image of
+    // what it writes, under its author, at its last sequence.
+    PreparedEdit prepared;
+    if (im.history) {
+      levelset::RestoreReplayState(*im.sculpture, state);
+      prepared = im.history->Prepare(*im.sculpture, reqs, im.settings);
+      prepared.wall_ms = commit_ms;
+    }
     auto res = levelset::ReplayEdits(*im.sculpture, reqs, im.settings, state);
+    if (res.ok() && im.history) {
+      im.history->Commit(std::move(prepared), last, HistoryAuthor(author), *res, *im.sculpture);
+    }
     im.seq = last;
     uint64_t actual = 0;
     if (res.ok()) actual = levelset::LeavesHash(*im.sculpture, res->dirty_leaves);

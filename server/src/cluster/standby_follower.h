@@ -104,9 +104,12 @@ struct FollowerOptions {
 /// and the object loaded anew); LogRecords (every other edit: paint, sweep, undo, ball edit,
 /// model intent) are logged as the owner logged them and replayed into the copy's books (skins
 /// and models, which the region load's book files started); a region load or a leaf delta is
-/// applied and the object (and the books) snapshotted at its sequence. So the copy's log holds
-/// every record of the owner's since the copy's oldest snapshot, and a promoted copy recovers
-/// objects, skins, models and the books' undo histories as the owner's own directory would.
+/// applied and the object (and the books) snapshotted at its sequence. Every stroke, paint,
+/// sweep and object undo is recorded in the object's stroke undo history as the owner records
+/// it (started from the owner's, LeafDelta.object_history), which each snapshot keeps beside it.
+/// So the copy's log holds every record of the owner's since the copy's oldest snapshot, and a
+/// promoted copy recovers objects, skins, models and all their undo histories as the owner's
+/// own directory would.
 /// The follow ends when the connection does; the copy stays for promotion.
 /// Fencing: a broadcast or delta whose epoch is not the expected one (options().owner_epoch, or
 /// the one Supersede gave) is neither applied nor logged: it is counted, logged with both

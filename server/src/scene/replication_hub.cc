@@ -68,6 +68,9 @@ void ReplicationHub::SendRegion(Sub& sub, const levelset::Sculpture& sculpture, 
   d.state = levelset::CaptureReplayState(sculpture);
   if (replace && sub.sink.standby && resend_table_) d.resend_table = *resend_table_;
   if (replace && sub.sink.standby && book_files_) d.book_files = book_files_(seq);
+  if (replace && sub.sink.standby && object_history_) {
+    d.object_history = object_history_(sub.object, seq);
+  }
   const size_t book_files = d.book_files.size();
   d.epoch = epoch();
   codec::SharedFrame frame = codec::EncodeLeafDelta(std::move(d));
@@ -77,7 +80,7 @@ void ReplicationHub::SendRegion(Sub& sub, const levelset::Sculpture& sculpture, 
       "replica {}: region of {} leaf cells ({} leaves) to seq {}, {} bytes{}{}",
       sub.sink.session_id, cells.size(), st.leaves, seq, frame->size(), replace ? " (replace)" : "",
       replace && sub.sink.standby ? " with the resend table and " + std::to_string(book_files) +
-                                        " book file(s), to the standby"
+                                        " book file(s) and the undo history, to the standby"
                                   : std::string());
   sub.sink.send(std::move(frame));
 }

@@ -77,6 +77,11 @@ class ReplicationHub {
   /// them (LeafDelta.book_files), so its copy starts from the owner's books. Compute thread.
   using BookFiles = std::function<std::vector<std::pair<std::string, std::string>>(uint64_t)>;
   void set_book_files(BookFiles files) { book_files_ = std::move(files); }
+  /// The history file of an object's stroke undo history as of a sequence (history_file.h):
+  /// sent with a region load to the scene's standby (LeafDelta.object_history), so its copy's
+  /// snapshots carry the history the owner's would. Compute thread.
+  using ObjectHistory = std::function<std::string(const std::string& object, uint64_t seq)>;
+  void set_object_history(ObjectHistory history) { object_history_ = std::move(history); }
 
   /// Registers `sink`'s replica of `object` (`sculpture`, null when the scene has no such
   /// object) at the scene's sequence `seq`, replacing the session's earlier subscription, and
@@ -142,6 +147,7 @@ class ReplicationHub {
   const ResendEntries* resend_table_ = nullptr;
   const cluster::OwnershipFence* fence_ = nullptr;
   BookFiles book_files_;
+  ObjectHistory object_history_;
   ReplicationStats stats_;
 };
 

@@ -14,6 +14,8 @@
 
 #include "scene/answer_once.h"
 #include "scene/edit_history.h"
+#include "scene/history_file.h"
+#include "scene/history_replay.h"
 #include "scene/models.h"
 #include "scene/paint.h"
 #include "scene/skins.h"
@@ -171,50 +173,14 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
     }
     return e.object;
   };
-  const levelset::EditSettings settings = scene->settings_;
-  // The live server applies a stroke's poses as one batch once all are logged; replay gathers
-  // them the same way. A stroke cut short by a crash was neither applied nor acknowledged live,
-  // so its records at the tail are not applied here either. Strokes, undos and sweeps go through
-  // the object's undo history as live, so an undo replays to the same state.
-  std::vector<levelset::EditRequest> batch;
+  // Strokes (a stroke's poses as one batch once all are logged), paints, sweeps and object
+  // undos go through the object's undo history as live, so an undo replays to the same state.
+  HistoryReplay replay(scene->settings_);
   Scene* raw_scene = scene.get();
-  auto apply = [&settings, &batch, raw_scene](levelset::Sculpture& s,
-                                              const store::LogRecord& rec) -> Status {
+  auto apply = [&replay, raw_scene](levelset::Sculpture& s, const store::LogRecord& rec) -> Status {
     SCULPT_ASSIGN_OR_RETURN(LoggedEdit e, DecodeLogRecord(rec.seq, rec.payload));
-    const auto* r = std::get_if<codec::StrokePoseRecord>(&e.record);
-    if (!r) batch.clear();
     EditHistory& history = raw_scene->HistoryOf(e.object.empty() ? s.name() : e.object);
-    if (auto* w = std::get_if<codec::SweepRecord>(&e.record)) {
-      return ReplaySweep(s, history, rec.seq, *w);  // through the history, as live
-    }
-    if (auto* p = std::get_if<codec::PaintRecord>(&e.record)) {
-      // Through the history as live, so a later undo of it (or past it) replays the same.
-      auto res = history.ApplyPaint(s, rec.seq, HistoryAuthor(p->client_id), p->paint);
-      if (!res.ok()) {
-        spdlog::warn("paint at seq {} refused on replay: {}", rec.seq, res.status().ToString());
-      }
-      return Status::Ok();
-    }
-    if (auto* u = std::get_if<codec::UndoRecord>(&e.record)) {
-      // An undo of a model intent or a ball edit is replayed with its book, below.
-      if (u->target_book != codec::kUndoObjectBook) return Status::Ok();
-      const std::string author = HistoryAuthor(u->client_id);
-      auto out = u->redo ? history.Redo(s, author) : history.Undo(s, author, rec.seq);
-      if (!out.ok()) {
-        spdlog::warn("{} at seq {} refused on replay: {}", u->redo ? "redo" : "undo", rec.seq,
-                     out.status().ToString());
-      }
-      return Status::Ok();
-    }
-    if (!r) return Status::Ok();  // a model's or a skin's (replayed after recovery, below)
-    if (r->pose_index == 0 || r->pose_count <= 1) batch.clear();
-    batch.push_back(r->edit);
-    if (r->completes()) {
-      // An edit the live server refused after logging it is refused identically here.
-      (void)history.Apply(s, rec.seq, HistoryAuthor(r->client_id), batch, settings, r->commit_ms);
-      batch.clear();
-    }
-    return Status::Ok();
+    return replay.Apply(s, history, rec.seq, e.record);
   };
   // Each object's undo history as kept with the snapshot it is loaded from, before the tail
   // is replayed through it.
@@ -268,6 +234,11 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
     }
     fs::remove_all(staging, ec);
     return files;
+  });
+  // And the object's stroke undo history as of its sequence, as a snapshot round keeps it, so
+  // the copy's snapshots carry the history this scene's would.
+  scene->replication_.set_object_history([raw_scene](const std::string& object, uint64_t seq) {
+    return HistoryFileBytes(raw_scene->HistoryOf(object), seq);
   });
   // Snapshots carry the fraction grids; a data directory written under other materials would
   // give replicas and viewers a declaration the objects do not hold.
@@ -666,7 +637,7 @@ void Scene::MaybeSnapshot(bool force) {
   for (auto& [name, sculpture] : sculptures_) {
     // The clone and the undo history's bytes are the only work on the compute thread; the
     // writes happen in the background, the history's after its snapshot's.
-    auto history = std::make_shared<const std::string>(HistoryFileBytes(name, seq));
+    auto history = std::make_shared<const std::string>(HistoryFileBytes(HistoryOf(name), seq));
     snapshots_->WriteAsync(seq, name, sculpture.Clone(),
                            [this, seq, name = name, round, history](Status s) {
       if (s.ok()) s = WriteHistoryFile(config_.data_dir, name, seq, *history);

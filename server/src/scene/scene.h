@@ -334,13 +334,10 @@ class Scene {
   EditHistory& HistoryOf(const std::string& object);
   // Forgets every object's history.
   void ClearHistories(const std::string& why);
-  // An object's history as kept beside its snapshot of round `seq`: serialised on the compute
-  // thread, written by the snapshot writer after that snapshot (WriteHistoryFile, one file per
-  // round: data_dir/history/<object>.<seq>.bin), so a restart from any kept snapshot undoes what
-  // was undoable before it, and the compute thread never waits for the disk.
-  std::string HistoryFileBytes(const std::string& object, uint64_t seq);
-  static Status WriteHistoryFile(const std::string& data_dir, const std::string& object,
-                                 uint64_t seq, const std::string& bytes);
+  // An object's history is kept beside its snapshot of round `seq` (history_file.h): serialised
+  // on the compute thread, written by the snapshot writer after that snapshot, so a restart from
+  // any kept snapshot undoes what was undoable before it, and the compute thread never waits
+  // for the disk.
   // Recovery: the history kept with the snapshot the object was loaded from (an older or
   // missing one: an empty history, and a warning).
   void LoadHistory(const std::string& object, uint64_t snapshot_seq);

@@ -12,35 +12,13 @@
 
 #include "scene/answer_once.h"
 #include "scene/edit_history.h"
+#include "scene/history_file.h"
 #include "scene/scene.h"
 #include "sculpt/codec/log_records.h"
 #include "store/durable_file.h"
 #include "store/resend_table.h"
 
 namespace sculpt::server {
-namespace {
-
-// A history file beside the snapshots: magic, the snapshot seq it belongs to, the payload size,
-// CRC32C of the payload, then EditHistory::Serialize's bytes.
-constexpr char kHistoryMagic[8] = {'S', 'C', 'L', 'P', 'H', 'I', 'S', 'T'};
-constexpr size_t kHistoryHeader = 8 + 8 + 8 + 4;
-
-// One file per object and snapshot round (data_dir/history/<object>.<seq>.bin), so a start-up
-// that falls back to an older snapshot finds the history kept with that one.
-std::filesystem::path HistoryDir(const std::string& data_dir) {
-  return std::filesystem::path(data_dir) / "history";
-}
-std::string HistoryPath(const std::string& data_dir, const std::string& object, uint64_t seq) {
-  return (HistoryDir(data_dir) / (object + "." + std::to_string(seq) + ".bin")).string();
-}
-// Before history files were kept per round: one per object, overwritten at every round.
-std::string LegacyHistoryPath(const std::string& data_dir, const std::string& object) {
-  return (HistoryDir(data_dir) / (object + ".bin")).string();
-}
-// History files kept per object, as many as the snapshot store keeps snapshots.
-constexpr size_t kHistoryFilesKept = 3;
-
-}  // namespace
 
 EditHistory& Scene::HistoryOf(const std::string& object) {
   std::unique_ptr<EditHistory>& h = histories_[object];
@@ -199,85 +177,27 @@ void Scene::Undo(uint64_t client_id, codec::UndoCommand command,
   Commit(std::make_shared<UndoOp>(client_id, std::move(command), AnswerOnce(std::move(done))));
 }
 
-std::string Scene::HistoryFileBytes(const std::string& object, uint64_t seq) {
-  const std::string payload = HistoryOf(object).Serialize();
-  std::string bytes(kHistoryMagic, sizeof(kHistoryMagic));
-  const uint64_t size = payload.size();
-  const uint32_t crc = store::Crc32c(payload);
-  bytes.append(reinterpret_cast<const char*>(&seq), 8);
-  bytes.append(reinterpret_cast<const char*>(&size), 8);
-  bytes.append(reinterpret_cast<const char*>(&crc), 4);
-  bytes += payload;
-  return bytes;
-}
-
-Status Scene::WriteHistoryFile(const std::string& data_dir, const std::string& object, uint64_t seq,
-                        const std::string& bytes) {
-  std::error_code ec;
-  std::filesystem::create_directories(HistoryDir(data_dir), ec);
-  if (const Status s = store::WriteFileDurably(HistoryPath(data_dir, object, seq), bytes);
-      !s.ok()) {
-    spdlog::error("undo history of {} at seq {} not saved: {}", object, seq, s.ToString());
-    return s;
-  }
-  // Only the rounds whose snapshots are still kept can be started from.
-  std::vector<std::pair<uint64_t, std::filesystem::path>> files;
-  const std::string prefix = object + ".";
-  for (const auto& e : std::filesystem::directory_iterator(HistoryDir(data_dir), ec)) {
-    const std::string name = e.path().filename().string();
-    if (name.size() <= prefix.size() + 4 || name.rfind(prefix, 0) != 0 ||
-        name.substr(name.size() - 4) != ".bin") {
-      continue;
-    }
-    const std::string digits = name.substr(prefix.size(), name.size() - prefix.size() - 4);
-    if (digits.empty() || digits.find_first_not_of("0123456789") != std::string::npos) continue;
-    files.emplace_back(std::stoull(digits), e.path());
-  }
-  std::sort(files.begin(), files.end());
-  for (size_t i = 0; i + kHistoryFilesKept < files.size(); ++i) {
-    std::filesystem::remove(files[i].second, ec);
-  }
-  std::filesystem::remove(LegacyHistoryPath(data_dir, object), ec);
-  return Status::Ok();
-}
-
 void Scene::LoadHistory(const std::string& object, uint64_t snapshot_seq) {
   EditHistory& h = HistoryOf(object);
   if (snapshot_seq == 0) return;  // built from the scene: nothing before it to undo
-  std::string path = HistoryPath(config_.data_dir, object, snapshot_seq);
-  if (!std::filesystem::exists(path)) path = LegacyHistoryPath(config_.data_dir, object);
+  std::string path = HistoryFilePath(config_.data_dir, object, snapshot_seq);
+  if (!std::filesystem::exists(path)) path = LegacyHistoryFilePath(config_.data_dir, object);
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     h.Clear("no undo history was kept with the snapshot at seq " + std::to_string(snapshot_seq));
     return;
   }
   const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  auto refuse = [&](const std::string& why) {
-    spdlog::warn("undo history {}: {}; strokes before seq {} can no longer be undone", path, why,
-                 snapshot_seq);
-    h.Clear("the undo history kept with the snapshot at seq " + std::to_string(snapshot_seq) +
-            " was not usable");
-  };
-  if (bytes.size() < kHistoryHeader || std::memcmp(bytes.data(), kHistoryMagic, 8) != 0) {
-    return refuse("not a history file");
-  }
-  uint64_t seq = 0, size = 0;
-  uint32_t crc = 0;
-  std::memcpy(&seq, bytes.data() + 8, 8);
-  std::memcpy(&size, bytes.data() + 16, 8);
-  std::memcpy(&crc, bytes.data() + 24, 4);
-  if (seq != snapshot_seq) {
-    return refuse("kept at seq " + std::to_string(seq) + ", the snapshot loaded is at seq " +
-                  std::to_string(snapshot_seq));
-  }
-  const std::string_view payload(bytes.data() + kHistoryHeader, bytes.size() - kHistoryHeader);
-  if (size != payload.size() || store::Crc32c(payload) != crc) {
-    return refuse("size or checksum mismatch");
-  }
   EditHistoryOptions o;
   o.depth_per_author = static_cast<int>(config_.limits.undo_depth);
-  auto parsed = EditHistory::Parse(payload, o);
-  if (!parsed.ok()) return refuse(parsed.status().ToString());
+  auto parsed = ParseHistoryFile(bytes, snapshot_seq, o);
+  if (!parsed.ok()) {
+    spdlog::warn("undo history {}: {}; strokes before seq {} can no longer be undone", path,
+                 parsed.status().ToString(), snapshot_seq);
+    h.Clear("the undo history kept with the snapshot at seq " + std::to_string(snapshot_seq) +
+            " was not usable");
+    return;
+  }
   h = std::move(parsed).value();
 }
 

@@ -38,6 +38,9 @@ struct LeafDeltaFrame {
   /// To the scene's standby with a region load: the scene's skin and model files as of
   /// global_seq, (path relative to the data directory, bytes).
   std::vector<std::pair<std::string, std::string>> book_files;
+  /// To the scene's standby with a region load: the object's stroke undo history as of
+  /// global_seq (the history file the owner keeps beside a snapshot), empty when not sent.
+  std::string object_history;
 };
 
 /// LogRecords, to the scene's standby: log payloads of sequences first_seq.. as the owner logged
