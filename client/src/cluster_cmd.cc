@@ -144,6 +144,13 @@ std::string FullStateOf(const ClusterView& v, const std::string& name, const Sce
   const cluster::MemberRecord* owner = s.owner ? MemberNamed(v, s.owner->member) : nullptr;
   const cluster::SceneProgress* owned = owner ? owner->Owning(name) : nullptr;
   if (owned && owned->acks_async) state += ", acks async (the standby is not confirming)";
+  const cluster::MemberRecord* standby =
+      s.standby ? MemberNamed(v, StandbyMember(*s.standby)) : nullptr;
+  const cluster::SceneProgress* copy = standby ? standby->Following(name) : nullptr;
+  if (copy && copy->divergences > 0) {
+    state += ", the standby's copy diverged " + std::to_string(copy->divergences) + " time" +
+             (copy->divergences == 1 ? "" : "s") + " (loaded anew; see both members' logs)";
+  }
   return state;
 }
 
@@ -180,6 +187,7 @@ json Progress(const std::vector<cluster::SceneProgress>& list, bool owner) {
   for (const cluster::SceneProgress& p : list) {
     json j = {{"scene", p.scene}, {"seq", p.seq}};
     if (owner) j["acks_async"] = p.acks_async;
+    if (!owner) j["divergences"] = p.divergences;
     out.push_back(std::move(j));
   }
   return out;

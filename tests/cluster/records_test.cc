@@ -134,7 +134,7 @@ namespace {
 TEST(ClusterRecordsTest, SeveralScenesFollowedAndOwnedRoundTrip) {
   MemberRecord m{"a", "h:1", "", {"p", "q", "r", "s"}, {"p", "q"}, 2};
   m.owning = {{"p", 40, false}, {"q", 7, true}};
-  m.following = {{"r", 12, false}, {"s", 3, false}};
+  m.following = {{"r", 12, false}, {"s", 3, false, 2}};
   m.scene_seq = 40;
   m.follows = "r";
   m.follow_seq = 12;
@@ -148,6 +148,12 @@ TEST(ClusterRecordsTest, SeveralScenesFollowedAndOwnedRoundTrip) {
   EXPECT_FALSE(back->Owning("p")->acks_async);
   ASSERT_NE(back->Following("s"), nullptr);
   EXPECT_EQ(back->Following("s")->seq, 3u);
+  EXPECT_EQ(back->Following("s")->divergences, 2u);  // the copy was loaded anew twice
+  EXPECT_EQ(back->Following("r")->divergences, 0u);  // not written when 0
+  const std::string encoded = EncodeMember(m);
+  const size_t first = encoded.find("\"divergences\"");
+  ASSERT_NE(first, std::string::npos) << encoded;
+  EXPECT_EQ(encoded.find("\"divergences\"", first + 1), std::string::npos) << encoded;
   EXPECT_EQ(back->Following("p"), nullptr);
   EXPECT_EQ(back->Owning("r"), nullptr);
   EXPECT_EQ(back->follows, "r");
@@ -174,7 +180,9 @@ TEST(ClusterRecordsTest, RejectsMalformedSceneLists) {
        {base + R"("following":{"scene":"p","seq":1}})", base + R"("following":["p"]})",
         base + R"("following":[{"seq":1}]})", base + R"("owning":[{"scene":"p","seq":-1}]})",
         base + R"("owning":[{"scene":"p","seq":1,"acks_async":"no"}]})",
-        base + R"("owning":[{"scene":"","seq":1}]})"}) {
+        base + R"("owning":[{"scene":"","seq":1}]})",
+        base + R"("following":[{"scene":"p","seq":1,"divergences":-2}]})",
+        base + R"("following":[{"scene":"p","seq":1,"divergences":"two"}]})"}) {
     EXPECT_EQ(DecodeMember(bad).status().code(), Status::Code::kInvalidArgument) << bad;
   }
 }

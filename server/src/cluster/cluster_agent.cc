@@ -191,7 +191,8 @@ MemberRecord ClusterAgent::SelfRecord() const {
     }
     if (slot->follower && slot->follower->ready()) {
       // Read now, not at the last tick: an owner moving its scene here waits on this figure.
-      m.following.push_back({slot->hosted.name, slot->follower->durable_seq(), false});
+      m.following.push_back({slot->hosted.name, slot->follower->durable_seq(), false,
+                             slot->follower->divergences()});
     }
   }
   if (!m.owning.empty()) {
@@ -826,6 +827,7 @@ asio::awaitable<std::optional<uint64_t>> ClusterAgent::TendStandby(Slot& slot) {
       fo.tls = standby_->tls;
       fo.owner_epoch = st.owner->epoch;
       fo.stale_epoch_refusals = stale_epoch_refusals_;
+      fo.divergences = standby_divergences_;
       fo.snapshot_every_records = standby_->snapshot_every_edits;
       fo.books = slot.hosted.books;
       slot.follower = std::make_unique<StandbyFollower>(std::move(fo));

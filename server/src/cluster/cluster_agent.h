@@ -277,6 +277,9 @@ class ClusterAgent : public SceneRouter {
   // Frames its followers refused for their epoch (shared with each StandbyFollower).
   std::shared_ptr<std::atomic<uint64_t>> stale_epoch_refusals_ =
       std::make_shared<std::atomic<uint64_t>>(0);
+  // Times its followers' copies diverged and were loaded anew (shared with each StandbyFollower).
+  std::shared_ptr<std::atomic<uint64_t>> standby_divergences_ =
+      std::make_shared<std::atomic<uint64_t>>(0);
 };
 
 }  // namespace sculpt::server::cluster

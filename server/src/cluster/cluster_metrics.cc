@@ -91,6 +91,10 @@ void ClusterAgent::WriteMetrics(MetricsWriter& w) const {
             "As a standby: edit broadcasts and leaf deltas refused because their epoch was not "
             "that of the owner etcd names (each ends the follow)",
             static_cast<double>(stale_epoch_refusals_->load()), {{"member", config_.member}});
+  w.Counter("sculpt_cluster_standby_divergences_total",
+            "As a standby: replayed edits whose leaves hash differed from the owner's (each "
+            "reported to the owner, and the copy's object loaded anew)",
+            static_cast<double>(standby_divergences_->load()), {{"member", config_.member}});
 }
 
 }  // namespace sculpt::server::cluster

@@ -59,7 +59,8 @@ Status List(const Json& j, const std::string& field, std::vector<std::string>* o
   return Status::Ok();
 }
 
-// `following` / `owning`: an array of {"scene", "seq"[, "acks_async"]}.
+// `following` / `owning`: an array of {"scene", "seq"[, "acks_async" (owning),
+// "divergences" (following)]}.
 Status ProgressList(const Json& j, const std::string& field, bool owner,
                     std::vector<SceneProgress>* out) {
   const auto it = j.find(field);
@@ -76,6 +77,9 @@ Status ProgressList(const Json& j, const std::string& field, bool owner,
     if (const auto a = x.find("acks_async"); owner && a != x.end()) {
       if (!a->is_boolean()) return Outside("acks_async", a->dump().substr(0, 64), "true or false");
       p.acks_async = a->get<bool>();
+    }
+    if (!owner && x.contains("divergences")) {
+      SCULPT_RETURN_IF_ERROR(Count(x, "divergences", &p.divergences));
     }
     out->push_back(std::move(p));
   }
@@ -102,7 +106,9 @@ const SceneProgress* MemberRecord::Owning(const std::string& scene) const {
 std::string EncodeMember(const MemberRecord& m) {
   Json following = Json::array();
   for (const SceneProgress& p : m.following) {
-    following.push_back({{"scene", p.scene}, {"seq", p.seq}});
+    Json f = {{"scene", p.scene}, {"seq", p.seq}};
+    if (p.divergences > 0) f["divergences"] = p.divergences;
+    following.push_back(std::move(f));
   }
   Json owning = Json::array();
   for (const SceneProgress& p : m.owning) {

@@ -17,6 +17,9 @@ struct SceneProgress {
   std::string scene;
   uint64_t seq = 0;
   bool acks_async = false;  // owner only
+  /// Standby only: times this member's copy of the scene diverged from the owner (a replayed
+  /// edit's leaves hash differed) and was loaded anew, in its current follow.
+  uint64_t divergences = 0;
 };
 
 /// `members/<name>`, under the member's lease: refreshed while it lives, gone with its lease.

@@ -650,6 +650,8 @@ void StandbyFollower::Run() {
       // which snapshots this copy past the bad edit.
       spdlog::warn("cluster: standby of scene {} diverged at seq {} ({}): loading it anew", o.scene,
                    last, res.ok() ? "leaves hash" : res.status().ToString());
+      ++divergences_;
+      if (o.divergences) ++*o.divergences;
       v1::ClientMessage dm;
       v1::DivergenceReport* d = dm.mutable_divergence();
       d->set_object(im.object);

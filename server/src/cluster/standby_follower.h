@@ -88,6 +88,10 @@ struct FollowerOptions {
   /// Counts the frames refused for another epoch (the member's
   /// sculpt_cluster_stale_epoch_refusals_total); may be null.
   std::shared_ptr<std::atomic<uint64_t>> stale_epoch_refusals;
+  /// Counts the copy's divergences (a replayed edit whose leaves hash differed from the owner's:
+  /// reported to the owner and the object loaded anew; the member's
+  /// sculpt_cluster_standby_divergences_total); may be null.
+  std::shared_ptr<std::atomic<uint64_t>> divergences;
   /// The copy snapshots its object after this many logged records and drops the log before the
   /// previous snapshot (as the owner does with snapshot_every_edits), so a failover replays a
   /// bounded tail; 0: only at region loads.
@@ -144,6 +148,8 @@ class StandbyFollower {
   uint64_t expected_epoch() const { return expected_epoch_.load(); }
   /// Frames this follow refused for their epoch.
   uint64_t stale_epoch_refusals() const { return refusals_.load(); }
+  /// Times this follow's copy diverged from the owner and was loaded anew.
+  uint64_t divergences() const { return divergences_.load(); }
 
  private:
   struct Impl;
@@ -157,6 +163,7 @@ class StandbyFollower {
   std::atomic<uint64_t> expected_epoch_{0};
   std::atomic<bool> superseded_{false};
   std::atomic<uint64_t> refusals_{0};
+  std::atomic<uint64_t> divergences_{0};
   mutable std::mutex mu_;
   std::condition_variable cv_;
   std::deque<std::unique_ptr<v1::ServerMessage>> queue_;  // guarded by mu_
