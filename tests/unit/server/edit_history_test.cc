@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "levelset/sculpture_impl.h"
+#include "levelset/sculpture_grid.h"
 #include "scene/paint.h"
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/materials.h"
@@ -314,7 +314,7 @@ TEST(EditHistoryTest, FarEditsWithoutCompensationAreNotReplayed) {
 // Internal nodes of 128^3 voxels (the leaves' parents) in the tree.
 size_t Node1Count(const Sculpture& s) {
   std::vector<const openvdb::FloatTree::RootNodeType::ChildNodeType::ChildNodeType*> nodes;
-  s.impl().grid->tree().getNodes(nodes);
+  levelset::internal::GridOf(s).tree().getNodes(nodes);
   return nodes.size();
 }
 
