@@ -137,14 +137,13 @@ Scene::Scene(const ServerConfig& config)
                        for (const auto& [name, sculpture] : sculptures_) names.push_back(name);
                        return names;
                      }}),
-      config_(config) {
-  settings_ = EditSettingsFor(config.scene);
-}
+      config_(config) {}
 
 StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   SCULPT_RETURN_IF_ERROR(ValidateConfig(config));
   std::unique_ptr<Scene> scene(new Scene(config));
-  SCULPT_RETURN_IF_ERROR(levelset::ValidateEditSettings(scene->settings_));
+  SCULPT_ASSIGN_OR_RETURN(scene->settings_,
+                          levelset::ValidEditSettings::Validate(EditSettingsFor(config.scene)));
 
   store::RecoveryOptions ro;
   for (const ObjectConfig& o : config.scene.objects) ro.objects.push_back(o.name);
@@ -171,7 +170,7 @@ StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
     }
     return e.object;
   };
-  const levelset::EditSettings settings = scene->settings_;
+  const levelset::ValidEditSettings settings = scene->settings_;
   // The live server applies a stroke's poses as one batch once all are logged; replay gathers
   // them the same way. A stroke cut short by a crash was neither applied nor acknowledged live,
   // so its records at the tail are not applied here either. Strokes, undos and sweeps go through

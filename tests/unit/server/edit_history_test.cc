@@ -27,6 +27,13 @@ using levelset::EditRequest;
 using levelset::EditSettings;
 using levelset::Sculpture;
 
+// The tests' settings pass; one that does not fails the test, which then edits with the defaults.
+levelset::ValidEditSettings Valid(const EditSettings& settings) {
+  auto valid = levelset::ValidEditSettings::Validate(settings);
+  EXPECT_TRUE(valid.ok()) << valid.status();
+  return valid.ok() ? *valid : levelset::ValidEditSettings{};
+}
+
 Sculpture Sphere(Vec3 center = {0, 0, 0}, double r = 20) {
   levelset::SculptureOptions o;
   o.voxel_size = 1.0;
@@ -61,7 +68,7 @@ struct Logged {
 class UndoScene {
  public:
   explicit UndoScene(Sculpture initial, EditSettings settings = {}, EditHistoryOptions opt = {})
-      : initial_(initial.Clone()), live_(std::move(initial)), settings_(settings), history_(opt) {}
+      : initial_(initial.Clone()), live_(std::move(initial)), settings_(Valid(settings)), history_(opt) {}
 
   levelset::EditResult Edit(const std::string& author, std::vector<EditRequest> reqs) {
     auto r = history_.Apply(live_, ++seq_, author, reqs, settings_);
@@ -131,7 +138,7 @@ class UndoScene {
  private:
   Sculpture initial_;
   Sculpture live_;
-  EditSettings settings_;
+  levelset::ValidEditSettings settings_;
   EditHistory history_;
   std::vector<Logged> log_;
   std::vector<bool> undone_;
