@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "bench_common.h"
-#include "levelset/sculpture_impl.h"
+#include "levelset/sculpture_grid.h"
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/sculpture.h"
 
@@ -335,7 +335,7 @@ Json RunAccuracyBench(const AccuracyBenchOptions& o) {
   std::vector<openvdb::Vec3s> ref_pts;
   {
     std::vector<openvdb::Vec4I> quads;
-    openvdb::tools::volumeToMesh(*rs.impl().grid, ref_pts, quads, 0.0);
+    openvdb::tools::volumeToMesh(levelset::internal::GridOf(rs), ref_pts, quads, 0.0);
   }
   const std::vector<openvdb::Vec3s> ref_edited = EditedRegion(ref_pts, o);
   const double ref_volume = rs.ComputeVolume();

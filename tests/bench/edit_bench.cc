@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "bench_common.h"
-#include "levelset/sculpture_impl.h"
+#include "levelset/sculpture_grid.h"
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/sculpture.h"
 
@@ -209,7 +209,7 @@ Json RunRadius(double R, const EditBenchOptions& o, Json* naive_out) {
            static_cast<unsigned long long>(s.ActiveVoxelCount()), s.MemoryBytes() / 1e6);
 
   if (naive_out != nullptr) {
-    *naive_out = RunNaive(*s.impl().grid, R, o.naive_edits, o.seed ^ 0x9e3779b97f4a7c15ULL, o);
+    *naive_out = RunNaive(levelset::internal::GridOf(s), R, o.naive_edits, o.seed ^ 0x9e3779b97f4a7c15ULL, o);
   }
 
   EditSettings settings{};

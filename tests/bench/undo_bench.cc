@@ -133,7 +133,7 @@ Json RunUndoBench(bool quick, double radius, int trials, uint64_t seed) {
   auto made = levelset::Sculpture::MakeSphere(so, {0, 0, 0}, radius);
   if (!made.ok()) return Json{{"error", made.status().ToString()}};
   levelset::Sculpture sculpture = std::move(made).value();
-  const levelset::EditSettings settings;
+  const levelset::ValidEditSettings settings;  // the defaults
   server::EditHistory history;
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> jitter(-1, 1);

@@ -6,7 +6,7 @@
 #include <random>
 
 #include "sculpt/levelset/edit.h"
-#include "levelset/sculpture_impl.h"
+#include "levelset/sculpture_grid.h"
 
 namespace sculpt::levelset {
 namespace {
@@ -19,7 +19,7 @@ SculptureOptions Opts(double dx) {
 }
 
 bool AllFinite(const Sculpture& s) {
-  for (auto it = s.impl().grid->tree().cbeginValueAll(); it; ++it) {
+  for (auto it = levelset::internal::GridOf(s).tree().cbeginValueAll(); it; ++it) {
     if (!std::isfinite(*it)) return false;
   }
   return true;
@@ -27,8 +27,8 @@ bool AllFinite(const Sculpture& s) {
 
 // Largest |phi_a - phi_b| over voxels near either surface, in voxels.
 double MaxSurfaceDifferenceVoxels(const Sculpture& a, const Sculpture& b) {
-  const auto& ga = *a.impl().grid;
-  const auto& gb = *b.impl().grid;
+  const auto& ga = levelset::internal::GridOf(a);
+  const auto& gb = levelset::internal::GridOf(b);
   auto acc = gb.getConstAccessor();
   double worst = 0;
   for (auto it = ga.tree().cbeginValueOn(); it; ++it) {

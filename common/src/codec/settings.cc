@@ -42,7 +42,7 @@ v1::EditSettingsMsg SettingsToProto(const levelset::EditSettings& s) {
   return m;
 }
 
-StatusOr<levelset::EditSettings> SettingsFromProto(const v1::EditSettingsMsg& m) {
+StatusOr<levelset::ValidEditSettings> SettingsFromProto(const v1::EditSettingsMsg& m) {
   using namespace levelset;
   SCULPT_RETURN_IF_ERROR(EnumIn("spatial", m.spatial(), 0, 2));
   SCULPT_RETURN_IF_ERROR(EnumIn("temporal", m.temporal(), 1, 3));
@@ -76,8 +76,7 @@ StatusOr<levelset::EditSettings> SettingsFromProto(const v1::EditSettingsMsg& m)
   s.max_speed_voxels = m.max_speed_voxels();
   s.max_amount_voxels = m.max_amount_voxels();
   s.repair_band_every_edit = m.repair_band_every_edit();
-  SCULPT_RETURN_IF_ERROR(ValidateEditSettings(s));
-  return s;
+  return levelset::ValidEditSettings::Validate(s);
 }
 
 }  // namespace sculpt::codec

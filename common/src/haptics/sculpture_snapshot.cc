@@ -9,7 +9,7 @@
 #include <limits>
 #include <optional>
 
-#include "levelset/sculpture_impl.h"
+#include "levelset/sculpture_grid.h"
 
 namespace sculpt::haptics {
 namespace {
@@ -165,7 +165,7 @@ SculptureSnapshot::SculptureSnapshot(levelset::Sculpture&& sculpture)
 
 SculptureSnapshot::SculptureSnapshot(std::shared_ptr<const levelset::Sculpture> sculpture)
     : sculpture_(std::move(sculpture)),
-      grid_(sculpture_->impl().grid.get()),
+      grid_(&levelset::internal::GridOf(*sculpture_)),
       voxel_size_(sculpture_->voxel_size()),
       id_(g_next_id.fetch_add(1, std::memory_order_relaxed)) {
   const auto& map = *static_cast<const openvdb::FloatGrid*>(grid_)->transform().baseMap();

@@ -90,6 +90,11 @@ Status ValidateEditSettings(const EditSettings& s) {
   return Status::Ok();
 }
 
+StatusOr<ValidEditSettings> ValidEditSettings::Validate(const EditSettings& settings) {
+  SCULPT_RETURN_IF_ERROR(ValidateEditSettings(settings));
+  return ValidEditSettings(settings);
+}
+
 namespace {
 
 // The request's own fields; `check_extent` adds the test against the object's extent, which a
@@ -138,8 +143,14 @@ Status ValidateRequestFields(const Sculpture& sc, const EditRequest& r, const Ed
 }  // namespace
 
 StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
-                               const EditSettings& s) {
+                               const ValidEditSettings& s) {
   return ApplyEdits(sculpture, std::vector<EditRequest>{req}, s);
+}
+
+StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& req,
+                               const EditSettings& s) {
+  SCULPT_ASSIGN_OR_RETURN(const ValidEditSettings valid, ValidEditSettings::Validate(s));
+  return ApplyEdit(sculpture, req, valid);
 }
 
 namespace {
@@ -148,13 +159,25 @@ StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<Edit
 }  // namespace
 
 StatusOr<EditResult> ApplyEdits(Sculpture& sculpture, const std::vector<EditRequest>& reqs,
-                                const EditSettings& s) {
+                                const ValidEditSettings& s) {
   return ApplyEditsImpl(sculpture, reqs, s, nullptr);
+}
+
+StatusOr<EditResult> ApplyEdits(Sculpture& sculpture, const std::vector<EditRequest>& reqs,
+                                const EditSettings& s) {
+  SCULPT_ASSIGN_OR_RETURN(const ValidEditSettings valid, ValidEditSettings::Validate(s));
+  return ApplyEdits(sculpture, reqs, valid);
+}
+
+StatusOr<EditResult> ReplayEdits(Sculpture& sculpture, const std::vector<EditRequest>& reqs,
+                                 const ValidEditSettings& s, const ReplayState& state) {
+  return ApplyEditsImpl(sculpture, reqs, s, &state);
 }
 
 StatusOr<EditResult> ReplayEdits(Sculpture& sculpture, const std::vector<EditRequest>& reqs,
                                  const EditSettings& s, const ReplayState& state) {
-  return ApplyEditsImpl(sculpture, reqs, s, &state);
+  SCULPT_ASSIGN_OR_RETURN(const ValidEditSettings valid, ValidEditSettings::Validate(s));
+  return ReplayEdits(sculpture, reqs, valid, state);
 }
 
 ReplayState CaptureReplayState(const Sculpture& sculpture) {
@@ -183,9 +206,9 @@ EditFootprint FootprintOf(const Sculpture& sculpture, const std::vector<EditRequ
 }
 
 namespace {
+// `s` passed ValidateEditSettings (the callers hold it as a ValidEditSettings).
 StatusOr<EditResult> ApplyEditsImpl(Sculpture& sculpture, const std::vector<EditRequest>& reqs,
                                     const EditSettings& s, const ReplayState* replay) {
-  SCULPT_RETURN_IF_ERROR(ValidateEditSettings(s));
   if (reqs.empty() || reqs.size() > kMaxEditsPerBatch) {
     return Outside("edits", std::to_string(reqs.size()),
                    std::string("[1, ") + std::to_string(kMaxEditsPerBatch) + "]");

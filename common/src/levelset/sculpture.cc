@@ -26,6 +26,7 @@
 #include "sculpt/levelset/kernels.h"
 #include "sculpt/core/check.h"
 #include "sculpt/levelset/region.h"
+#include "sculpture_grid.h"
 #include "sculpture_impl.h"
 
 namespace sculpt::levelset {
@@ -122,6 +123,8 @@ void EnsureOpenVdbInitialized() {
   static std::once_flag once;
   std::call_once(once, [] { openvdb::initialize(); });
 }
+
+const openvdb::FloatGrid& GridOf(const Sculpture& sculpture) { return *sculpture.impl().grid; }
 
 IndexBox WorldToIndexBox(const Vec3& lo, const Vec3& hi, double dx, int pad) {
   IndexBox b;

@@ -10,7 +10,7 @@
 #include <string>
 #include <utility>
 
-#include "levelset/sculpture_impl.h"
+#include "levelset/sculpture_grid.h"
 #include "sculpt/core/check.h"
 
 namespace sculpt::mesh {
@@ -92,7 +92,7 @@ StatusOr<ChunkMesh> MeshChunk(const levelset::Sculpture& sculpture, const ChunkK
   SCULPT_RETURN_IF_ERROR(ValidateChunkKey(key));
   const auto t0 = std::chrono::steady_clock::now();
   const int n = options.chunk_voxels;
-  const FloatGrid& grid = *sculpture.impl().grid;
+  const FloatGrid& grid = levelset::internal::GridOf(sculpture);
   const Coord c0(key.x * n, key.y * n, key.z * n);
   const Coord c1 = c0.offsetBy(n - 1);
   const CoordBBox box(c0.offsetBy(-kMargin), c1.offsetBy(kMargin));
@@ -177,7 +177,7 @@ std::vector<ChunkKey> AllChunks(const levelset::Sculpture& sculpture,
   std::vector<ChunkKey> keys;
   if (!ValidateChunkMeshOptions(options).ok()) return keys;
   const int n = options.chunk_voxels;
-  const FloatGrid& grid = *sculpture.impl().grid;
+  const FloatGrid& grid = levelset::internal::GridOf(sculpture);
   FloatGrid::ConstAccessor acc = grid.getConstAccessor();
   constexpr int kDim = static_cast<int>(FloatLeaf::DIM);
   for (auto leaf = grid.tree().cbeginLeaf(); leaf; ++leaf) {
@@ -262,7 +262,7 @@ TriangleMesh MeshWhole(const levelset::Sculpture& sculpture) {
   std::vector<openvdb::Vec3s> points;
   std::vector<openvdb::Vec3I> tris;
   std::vector<openvdb::Vec4I> quads;
-  openvdb::tools::volumeToMesh(*sculpture.impl().grid, points, tris, quads, 0.0, 0.0);
+  openvdb::tools::volumeToMesh(levelset::internal::GridOf(sculpture), points, tris, quads, 0.0, 0.0);
   return Collect(points, tris, quads, [](const openvdb::Index32*, int) { return true; });
 }
 

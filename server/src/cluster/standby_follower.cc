@@ -131,7 +131,7 @@ void ClearPromotedMarker(const std::string& scene_dir) {
 struct StandbyFollower::Impl {
   std::unique_ptr<client::Client> client;
   std::string object;
-  levelset::EditSettings settings;
+  levelset::ValidEditSettings settings;  // validated once, from the owner's SceneInfo
   double voxel_size = 1.0;
   std::optional<levelset::Sculpture> sculpture;
   fs::path gen;  // this follow's generation

@@ -293,8 +293,8 @@ void EditHistory::Commit(PreparedEdit prepared, uint64_t seq, const std::string&
 
 StatusOr<levelset::EditResult> EditHistory::Apply(
     levelset::Sculpture& sculpture, uint64_t seq, const std::string& author,
-    const std::vector<levelset::EditRequest>& requests, const levelset::EditSettings& settings,
-    uint64_t wall_ms) {
+    const std::vector<levelset::EditRequest>& requests,
+    const levelset::ValidEditSettings& settings, uint64_t wall_ms) {
   PreparedEdit p = Prepare(sculpture, requests, settings);
   p.wall_ms = wall_ms;
   StatusOr<levelset::EditResult> res = levelset::ApplyEdits(sculpture, requests, settings);

@@ -123,7 +123,7 @@ class EditHistory {
   StatusOr<levelset::EditResult> Apply(levelset::Sculpture& sculpture, uint64_t seq,
                                        const std::string& author,
                                        const std::vector<levelset::EditRequest>& requests,
-                                       const levelset::EditSettings& settings,
+                                       const levelset::ValidEditSettings& settings,
                                        uint64_t wall_ms = 0);
   /// The same for a sweep (levelset::ApplySweep), which reads and writes its block voxel by
   /// voxel and moves volume and reference volume together: Commit takes it like a batch.

@@ -27,7 +27,7 @@ class EditHistory;
 /// Thread safety: none; one per replayed stream, on the thread that owns the sculpture.
 class HistoryReplay {
  public:
-  explicit HistoryReplay(const levelset::EditSettings& settings) : settings_(settings) {}
+  explicit HistoryReplay(const levelset::ValidEditSettings& settings) : settings_(settings) {}
 
   /// Applies the record logged at `seq` to `sculpture` through `history`. A stroke's poses
   /// before its last are gathered; a stroke cut short (a pose 0 or another kind before its
@@ -38,7 +38,7 @@ class HistoryReplay {
                const codec::EditLogRecord& record);
 
  private:
-  levelset::EditSettings settings_;
+  levelset::ValidEditSettings settings_;
   std::vector<levelset::EditRequest> batch_;
 };
 

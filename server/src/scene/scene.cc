@@ -139,14 +139,13 @@ Scene::Scene(const ServerConfig& config)
                        for (const auto& [name, sculpture] : sculptures_) names.push_back(name);
                        return names;
                      }}),
-      config_(config) {
-  settings_ = EditSettingsFor(config.scene);
-}
+      config_(config) {}
 
 StatusOr<std::unique_ptr<Scene>> Scene::Open(const ServerConfig& config) {
   SCULPT_RETURN_IF_ERROR(ValidateConfig(config));
   std::unique_ptr<Scene> scene(new Scene(config));
-  SCULPT_RETURN_IF_ERROR(levelset::ValidateEditSettings(scene->settings_));
+  SCULPT_ASSIGN_OR_RETURN(scene->settings_,
+                          levelset::ValidEditSettings::Validate(EditSettingsFor(config.scene)));
 
   store::RecoveryOptions ro;
   for (const ObjectConfig& o : config.scene.objects) ro.objects.push_back(o.name);

@@ -364,7 +364,7 @@ class Scene {
   MeshFeed mesh_feed_;
 
   ServerConfig config_;
-  levelset::EditSettings settings_;
+  levelset::ValidEditSettings settings_;  // from config_.scene, validated once by Open
   std::map<std::string, levelset::Sculpture> sculptures_;  // compute thread only
   std::unique_ptr<store::EditLog> log_;
   std::unique_ptr<store::SnapshotStore> snapshots_;

@@ -16,16 +16,16 @@ TEST(EditSettingsCodecTest, SceneChoicesRoundTrip) {
   s.repair_band_every_edit = true;
   auto back = SettingsFromProto(SettingsToProto(s));
   ASSERT_TRUE(back.ok()) << back.status();
-  EXPECT_EQ(back->compensation, levelset::CompensationRegion::kNone);
-  EXPECT_EQ(back->islands, levelset::IslandPolicy::kRemoveSmall);
-  EXPECT_EQ(back->min_island_volume, 12.5);
-  EXPECT_EQ(back->max_amount_voxels, 16);
-  EXPECT_TRUE(back->repair_band_every_edit);
+  EXPECT_EQ(back->get().compensation, levelset::CompensationRegion::kNone);
+  EXPECT_EQ(back->get().islands, levelset::IslandPolicy::kRemoveSmall);
+  EXPECT_EQ(back->get().min_island_volume, 12.5);
+  EXPECT_EQ(back->get().max_amount_voxels, 16);
+  EXPECT_TRUE(back->get().repair_band_every_edit);
   // A server that never sets it (or predates it) means the default.
   s.repair_band_every_edit = false;
   auto off = SettingsFromProto(SettingsToProto(s));
   ASSERT_TRUE(off.ok()) << off.status();
-  EXPECT_FALSE(off->repair_band_every_edit);
+  EXPECT_FALSE(off->get().repair_band_every_edit);
 }
 
 }  // namespace

@@ -235,6 +235,29 @@ TEST(EditTest, RejectsBadSettings) {
   EXPECT_FALSE(ApplyEdit(s, Press({12, 0, 0}, 2), set).ok());
 }
 
+TEST(EditTest, ValidEditSettingsRejectsBadSettings) {
+  EditSettings set;
+  set.cfl = 2.0;
+  auto v = ValidEditSettings::Validate(set);
+  ASSERT_FALSE(v.ok());
+  EXPECT_NE(v.status().message().find("cfl=2 outside"), std::string::npos) << v.status();
+  // The default-constructed one holds the defaults, which pass.
+  EXPECT_TRUE(ValidEditSettings::Validate(EditSettings{}).ok());
+  EXPECT_EQ(ValidEditSettings().get().cfl, EditSettings{}.cfl);
+}
+
+TEST(EditTest, ValidatedAndUnvalidatedSettingsEditAlike) {
+  Sculpture a = Ball();
+  Sculpture b = Ball();
+  EditSettings set;
+  set.cfl = 0.3;
+  auto valid = ValidEditSettings::Validate(set);
+  ASSERT_TRUE(valid.ok()) << valid.status();
+  ASSERT_TRUE(ApplyEdit(a, Press({12, 0, 0}, 2), set).ok());
+  ASSERT_TRUE(ApplyEdit(b, Press({12, 0, 0}, 2), *valid).ok());
+  EXPECT_EQ(a.StateHash(), b.StateHash());
+}
+
 TEST(EditTest, GlobalCompensationRestoresVolume) {
   Sculpture s = Ball(8.0, 0.5);
   const double v0 = s.volume();

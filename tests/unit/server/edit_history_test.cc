@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "levelset/sculpture_impl.h"
+#include "levelset/sculpture_grid.h"
 #include "scene/paint.h"
 #include "sculpt/levelset/edit.h"
 #include "sculpt/levelset/materials.h"
@@ -26,6 +26,13 @@ using levelset::EditKind;
 using levelset::EditRequest;
 using levelset::EditSettings;
 using levelset::Sculpture;
+
+// The tests' settings pass; one that does not fails the test, which then edits with the defaults.
+levelset::ValidEditSettings Valid(const EditSettings& settings) {
+  auto valid = levelset::ValidEditSettings::Validate(settings);
+  EXPECT_TRUE(valid.ok()) << valid.status();
+  return valid.ok() ? *valid : levelset::ValidEditSettings{};
+}
 
 Sculpture Sphere(Vec3 center = {0, 0, 0}, double r = 20) {
   levelset::SculptureOptions o;
@@ -61,7 +68,7 @@ struct Logged {
 class UndoScene {
  public:
   explicit UndoScene(Sculpture initial, EditSettings settings = {}, EditHistoryOptions opt = {})
-      : initial_(initial.Clone()), live_(std::move(initial)), settings_(settings), history_(opt) {}
+      : initial_(initial.Clone()), live_(std::move(initial)), settings_(Valid(settings)), history_(opt) {}
 
   levelset::EditResult Edit(const std::string& author, std::vector<EditRequest> reqs) {
     auto r = history_.Apply(live_, ++seq_, author, reqs, settings_);
@@ -131,7 +138,7 @@ class UndoScene {
  private:
   Sculpture initial_;
   Sculpture live_;
-  EditSettings settings_;
+  levelset::ValidEditSettings settings_;
   EditHistory history_;
   std::vector<Logged> log_;
   std::vector<bool> undone_;
@@ -314,7 +321,7 @@ TEST(EditHistoryTest, FarEditsWithoutCompensationAreNotReplayed) {
 // Internal nodes of 128^3 voxels (the leaves' parents) in the tree.
 size_t Node1Count(const Sculpture& s) {
   std::vector<const openvdb::FloatTree::RootNodeType::ChildNodeType::ChildNodeType*> nodes;
-  s.impl().grid->tree().getNodes(nodes);
+  levelset::internal::GridOf(s).tree().getNodes(nodes);
   return nodes.size();
 }
 

@@ -109,7 +109,7 @@ class Replica {
 
   Client& client_;
   ReplicaOptions options_;
-  levelset::EditSettings settings_;
+  levelset::ValidEditSettings settings_;  // the server's, validated by the settings codec
   double voxel_size_ = 1.0;
   mutable std::mutex mu_;  // guards sculpture_, held_, stats_, queue_, busy_
   std::condition_variable cv_;

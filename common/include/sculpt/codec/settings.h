@@ -12,8 +12,9 @@ namespace sculpt::codec {
 v1::EditSettingsMsg SettingsToProto(const levelset::EditSettings& s);
 
 /// Untrusted input: InvalidArgument naming the field, its value and the allowed range for an
-/// enum out of range, and whatever levelset::ValidateEditSettings refuses.
-StatusOr<levelset::EditSettings> SettingsFromProto(const v1::EditSettingsMsg& m);
+/// enum out of range, and whatever levelset::ValidateEditSettings refuses. Validated here, once:
+/// a replica replays every edit with the result without checking it again.
+StatusOr<levelset::ValidEditSettings> SettingsFromProto(const v1::EditSettingsMsg& m);
 
 }  // namespace sculpt::codec
 

@@ -100,6 +100,26 @@ struct EditSettings {
 /// Returns InvalidArgument naming the field, the value and the range.
 Status ValidateEditSettings(const EditSettings& settings);
 
+/// EditSettings that ValidateEditSettings accepted. Made once where settings enter (the scene's
+/// configuration, the settings codec) and passed inward, so the kernel's entry points taking one
+/// do not check the settings again per edit. Only Validate makes one from arbitrary settings; a
+/// default-constructed one holds EditSettings{}, which is valid. Reads as a const EditSettings&.
+/// Immutable: safe to share between threads.
+class ValidEditSettings {
+ public:
+  ValidEditSettings() = default;
+  /// InvalidArgument naming the field, the value and the range (ValidateEditSettings).
+  static StatusOr<ValidEditSettings> Validate(const EditSettings& settings);
+
+  const EditSettings& get() const { return settings_; }
+  const EditSettings* operator->() const { return &settings_; }
+  operator const EditSettings&() const { return settings_; }  // NOLINT: implicit by design
+
+ private:
+  explicit ValidEditSettings(const EditSettings& settings) : settings_(settings) {}
+  EditSettings settings_;
+};
+
 /// One edit request (what a stroke sample asks for).
 struct EditRequest {
   EditKind kind = EditKind::kPress;
@@ -166,6 +186,9 @@ struct EditResult {
 /// unchanged. Reads and writes only the leaves of the tool's influence box, the compensation
 /// shell and a stencil halo (except CompensationRegion::kGlobal). Deterministic.
 StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& request,
+                               const ValidEditSettings& settings);
+/// The same for settings not validated yet: ValidEditSettings::Validate's error first.
+StatusOr<EditResult> ApplyEdit(Sculpture& sculpture, const EditRequest& request,
                                const EditSettings& settings);
 
 /// Largest batch ApplyEdits takes.
@@ -178,6 +201,9 @@ inline constexpr size_t kMaxEditsPerBatch = 256;
 /// differs from per-request application only in when compensation and reinit run.
 /// InvalidArgument for an empty or oversized batch, mixed kinds, or any bad request (the
 /// sculpture is then unchanged).
+StatusOr<EditResult> ApplyEdits(Sculpture& sculpture, const std::vector<EditRequest>& requests,
+                                const ValidEditSettings& settings);
+/// The same for settings not validated yet: ValidEditSettings::Validate's error first.
 StatusOr<EditResult> ApplyEdits(Sculpture& sculpture, const std::vector<EditRequest>& requests,
                                 const EditSettings& settings);
 
@@ -196,6 +222,9 @@ void RestoreReplayState(Sculpture& sculpture, const ReplayState& state);
 /// replica holding at least the batch's footprint: sets `state`, skips the check against the
 /// object's extent (the replica may hold part of it), then runs the same kernel. On equal input
 /// voxels the result is bit-identical to the server's.
+StatusOr<EditResult> ReplayEdits(Sculpture& sculpture, const std::vector<EditRequest>& requests,
+                                 const ValidEditSettings& settings, const ReplayState& state);
+/// The same for settings not validated yet: ValidEditSettings::Validate's error first.
 StatusOr<EditResult> ReplayEdits(Sculpture& sculpture, const std::vector<EditRequest>& requests,
                                  const EditSettings& settings, const ReplayState& state);
 
