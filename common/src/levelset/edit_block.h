@@ -113,6 +113,14 @@ struct Block {
   // voxel in ten of its block. Rows are compared whole, so finding it costs a fraction of a pass.
   NearBox Changed() const {
     NearBox c;
+    ForEachChangedRow([&](size_t, int i0, int i1, int j, int k) { c.AddRow(i0, i1, j, k); });
+    return c;
+  }
+  // Calls f(row, i0, i1, j, k) for each row (j, k) of the block whose bits differ from `before`,
+  // in index order: `row` is its first index, [i0, i1] its first to last changed voxel. Rows
+  // are compared whole first, so unchanged rows cost one memcmp.
+  template <typename F>
+  void ForEachChangedRow(F&& f) const {
     const Int3 d = phi.dims();
     const float* now = phi.data().data();
     const float* was = before.data().data();
@@ -130,10 +138,9 @@ struct Block {
         int i0 = 0, i1 = d.x - 1;
         while (same(i0)) ++i0;
         while (same(i1)) --i1;
-        c.AddRow(i0, i1, j, k);
+        f(row, i0, i1, j, k);
       }
     }
-    return c;
   }
   // Clamps to the band. Voxels outside Changed() hold their extracted values, which need no
   // clamp when all of them were within the band (before_in_band).
@@ -163,30 +170,15 @@ struct Block {
   // voxels (found as Changed() finds them), which holds every voxel the box would visit in it.
   double InsideChange() const {
     double sum = 0;
-    const Int3 d = phi.dims();
     const float* now = phi.data().data();
     const float* was = before.data().data();
-    const size_t row_bytes = static_cast<size_t>(d.x) * sizeof(float);
-    for (int k = 0; k < d.z; ++k) {
-      for (int j = 0; j < d.y; ++j) {
-        const size_t row = phi.Index(0, j, k);
-        if (std::memcmp(now + row, was + row, row_bytes) == 0) continue;
-        auto same = [&](int i) {
-          uint32_t a, w;
-          std::memcpy(&a, now + row + i, sizeof a);
-          std::memcpy(&w, was + row + i, sizeof w);
-          return a == w;
-        };
-        int i0 = 0, i1 = d.x - 1;
-        while (same(i0)) ++i0;
-        while (same(i1)) --i1;
-        for (size_t idx = row + i0; idx <= row + i1; ++idx) {
-          if (now[idx] != was[idx]) {
-            sum += VolumeFraction(now[idx], dx) - VolumeFraction(was[idx], dx);
-          }
+    ForEachChangedRow([&](size_t row, int i0, int i1, int, int) {
+      for (size_t idx = row + i0; idx <= row + i1; ++idx) {
+        if (now[idx] != was[idx]) {
+          sum += VolumeFraction(now[idx], dx) - VolumeFraction(was[idx], dx);
         }
       }
-    }
+    });
     return sum;
   }
   double InsideChange(const NearBox& c) const {
