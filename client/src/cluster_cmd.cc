@@ -256,6 +256,15 @@ StatusOr<std::unique_ptr<cluster::EtcdClient>> MakeEtcdClient(const std::vector<
   return cluster::EtcdClient::Create({etcd, timeout, tls.ca_file, tls.cert_file, tls.key_file});
 }
 
+// The error of a command that could not read the cluster's keys, with the check to try.
+void LogUnreadable(const char* command, const std::string& prefix,
+                   const std::vector<std::string>& etcd, const Status& status) {
+  spdlog::error(
+      "cluster {}: cannot read {} from etcd at {}: {} (is etcd running? try `etcdctl "
+      "--endpoints {} endpoint health`)",
+      command, prefix, Join(etcd), status.ToString(), Join(etcd));
+}
+
 }  // namespace
 
 ClusterCommands AddClusterCommand(CLI::App& app, ClusterStatusOptions& o, ClusterMoveOptions& mo,
@@ -353,10 +362,7 @@ int RunClusterStatus(const ClusterStatusOptions& o) {
   const cluster::Keys keys{o.prefix};
   auto kvs = (*client)->Sync((*client)->GetPrefix(o.prefix));
   if (!kvs.ok()) {
-    spdlog::error(
-        "cluster status: cannot read {} from etcd at {}: {} (is etcd running? try `etcdctl "
-        "--endpoints {} endpoint health`)",
-        o.prefix, Join(o.etcd), kvs.status().ToString(), Join(o.etcd));
+    LogUnreadable("status", o.prefix, o.etcd, kvs.status());
     return 1;
   }
   const ClusterView view = Sort(*kvs, keys);
@@ -476,10 +482,7 @@ int RunClusterMove(const ClusterMoveOptions& o) {
   };
   auto first = read();
   if (!first.ok()) {
-    spdlog::error(
-        "cluster move: cannot read {} from etcd at {}: {} (is etcd running? try `etcdctl "
-        "--endpoints {} endpoint health`)",
-        o.prefix, Join(o.etcd), first.status().ToString(), Join(o.etcd));
+    LogUnreadable("move", o.prefix, o.etcd, first.status());
     return 1;
   }
   if (const std::string why = Refusal(*first, o); !why.empty()) {
@@ -560,10 +563,7 @@ int RunClusterRebalance(const ClusterRebalanceOptions& o) {
   cluster::EtcdClient& etcd = **client;
   auto kvs = etcd.Sync(etcd.GetPrefix(o.prefix));
   if (!kvs.ok()) {
-    spdlog::error(
-        "cluster rebalance: cannot read {} from etcd at {}: {} (is etcd running? try `etcdctl "
-        "--endpoints {} endpoint health`)",
-        o.prefix, Join(o.etcd), kvs.status().ToString(), Join(o.etcd));
+    LogUnreadable("rebalance", o.prefix, o.etcd, kvs.status());
     return 1;
   }
   const ClusterView view = Sort(*kvs, cluster::Keys{o.prefix});
